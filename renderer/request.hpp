@@ -1,0 +1,154 @@
+// The typed render request: what a client asked for, with every default applied.
+//
+// This is the boundary between the HTTP server (which builds it from JSON, see
+// server/request_parser.hpp) and the renderer (which draws it). It holds no GL
+// and no JSON. Units and ranges below are the ones ../shared/API.md fixes; the
+// parser enforces them, so the renderer may rely on them.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace umbra {
+
+/// One primitive of a scene, in world units.
+struct SceneObject {
+  enum class Type { Plane, Box, Sphere };
+  Type type = Type::Box;
+  /// Centre of the primitive.
+  glm::dvec3 center{0.0};
+  /// Plane: (sx, 0, sz), a horizontal rectangle facing +Y. Box: (sx, sy, sz),
+  /// full edge lengths. Sphere: unused. Every used component > 0.
+  glm::dvec3 size{1.0};
+  /// Sphere radius, > 0. Unused otherwise.
+  double radius = 0.5;
+  /// Box rotation about its own vertical axis, degrees, counter-clockwise seen
+  /// from +Y (right-handed). Boxes only.
+  double rotation_y_deg = 0.0;
+  /// Linear RGB albedo, each in [0, 1].
+  glm::dvec3 color{0.8};
+};
+
+struct Scene {
+  /// The built-in scene's name, or empty for a custom scene.
+  std::string name;
+  std::vector<SceneObject> objects;
+};
+
+/// The viewer. Position != target; up is non-zero (it may be parallel to the
+/// view direction: the renderer then picks a stable substitute).
+struct Camera {
+  glm::dvec3 position{0.0, 3.0, 6.0};
+  glm::dvec3 target{0.0};
+  glm::dvec3 up{0.0, 1.0, 0.0};
+  /// Vertical field of view, degrees, in (0, 180).
+  double fov_y_deg = 45.0;
+  /// Clip distances, world units, 0 < near < far.
+  double near_plane = 0.1;
+  double far_plane = 100.0;
+};
+
+enum class LightProjection {
+  /// A directional light: parallel rays travelling position -> target.
+  Orthographic,
+  /// A point light at `position`, its shadow frustum looking at `target`.
+  Perspective,
+};
+
+struct Light {
+  /// For an orthographic light only the direction position -> target matters.
+  /// position != target. Before rendering, `position` is orbited by `time`.
+  glm::dvec3 position{-2.0, 4.0, -1.0};
+  glm::dvec3 target{0.0};
+  /// Linear RGB, each in [0, 1].
+  glm::dvec3 color{1.0};
+  /// Fraction of the light that arrives as unshadowed ambient, [0, 1].
+  double ambient = 0.3;
+  LightProjection projection = LightProjection::Orthographic;
+  /// Full vertical (= horizontal) field of view of a perspective light's
+  /// shadow frustum, degrees, in (0, 180). Used with fit "fixed" only.
+  double fov_y_deg = 90.0;
+  /// 0: an ideal light, hard shadows. > 0: an area light — orthographic: the
+  /// angular diameter in degrees, (0, 90]; perspective: the radius, world units.
+  double size = 0.0;
+  /// Orbit speed of the light about +Y through `target`, degrees per second.
+  double orbit_deg_per_s = 20.0;
+};
+
+enum class ShadowFilter {
+  /// One nearest-texel depth comparison: aliased, exact-or-nothing.
+  Hard,
+  /// Percentage-closer filtering over (2r+1)^2 bilinear comparisons.
+  Pcf,
+  /// Percentage-closer soft shadows: penumbra width from light.size and the
+  /// average blocker distance.
+  Pcss,
+};
+
+enum class CullMode { Front, Back, None };
+
+enum class FrustumFit {
+  /// Light frustum, near and far fitted to the scene (see light_math.hpp).
+  Scene,
+  /// ortho_half_size / light.fov_y_deg / near / far exactly as given (the seeds).
+  Fixed,
+};
+
+/// Depth bias. `automatic` (the API's "auto") derives it from the shadow-map
+/// texel's world size at each fragment (normal offset plus receiver-plane
+/// slope), so it holds at every scene scale and map size.
+/// Otherwise the seeds' formula with the client's numbers:
+///   depth bias = max(slope * (1 - N.L), constant)   [light depth-buffer units, 0..1]
+///   receiver moved along its normal by normal_offset  [shadow-map texels]
+struct DepthBias {
+  bool automatic = true;
+  double constant = 0.005;     ///< >= 0, <= 1
+  double slope = 0.05;         ///< >= 0, <= 1
+  double normal_offset = 0.0;  ///< >= 0, <= 64 texels
+};
+
+/// Shadow settings; every field documented with unit, range and default.
+struct ShadowSettings {
+  /// false: no shadow pass at all, every surface facing the light is lit.
+  bool enabled = true;
+  /// Shadow map width = height, texels, 64..8192. Default 2048.
+  int map_size = 2048;
+  ShadowFilter filter = ShadowFilter::Pcf;
+  /// PCF kernel half-width r: (2r+1)^2 taps, 0..8. Default 1.
+  int pcf_radius = 1;
+  DepthBias bias{};
+  /// Faces culled in the shadow pass, applied to closed meshes (boxes,
+  /// spheres). Open meshes (planes) are always drawn two-sided there, since
+  /// culling either side of a one-sided plane would drop it as a caster.
+  CullMode cull = CullMode::Front;
+  FrustumFit fit = FrustumFit::Scene;
+  /// Fixed fit only: orthographic half-extent (world units, > 0) and the
+  /// light's near/far planes (world units from the light, 0 < near < far for a
+  /// perspective light; near < far for an orthographic one).
+  double ortho_half_size = 10.0;
+  double near_plane = 1.0;
+  double far_plane = 7.5;
+};
+
+enum class Output { Color, Depth, Shadow, Exact, Error };
+
+struct RenderRequest {
+  /// Output image size, pixels, 16..4096 each. Default 960 x 540.
+  int width = 960;
+  int height = 540;
+  Scene scene;
+  Camera camera;
+  Light light;
+  /// Animation time, seconds. The light position is rotated about +Y through
+  /// light.target by time * light.orbit_deg_per_s degrees.
+  double time = 0.0;
+  ShadowSettings shadow;
+  Output output = Output::Color;
+};
+
+const char* to_string(Output output);
+const char* to_string(LightProjection projection);
+
+}  // namespace umbra

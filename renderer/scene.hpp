@@ -1,0 +1,79 @@
+// Scenes: the built-in ones, bounds, and the triangle meshes the GL passes draw.
+// Pure CPU code, no GL: unit tested directly.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "request.hpp"
+
+namespace umbra {
+
+/// Axis-aligned box in world units. Empty when min > max.
+struct Aabb {
+  glm::dvec3 min{1e300};
+  glm::dvec3 max{-1e300};
+
+  bool empty() const { return min.x > max.x; }
+  void extend(const glm::dvec3& p);
+  void extend(const Aabb& other);
+  glm::dvec3 center() const { return 0.5 * (min + max); }
+  glm::dvec3 extent() const { return max - min; }
+  /// The 8 corners (for an empty box, unspecified).
+  std::vector<glm::dvec3> corners() const;
+};
+
+/// Tight world-space bounds of one object (a rotated box's rotated corners).
+Aabb object_bounds(const SceneObject& object);
+Aabb scene_bounds(const Scene& scene);
+
+/// A built-in scene: its objects and its own default camera and light.
+struct BuiltinScene {
+  std::string name;
+  std::string description;
+  std::vector<SceneObject> objects;
+  glm::dvec3 camera_position;
+  glm::dvec3 camera_target;
+  glm::dvec3 light_position;
+};
+
+const std::vector<BuiltinScene>& builtin_scenes();
+const BuiltinScene* find_builtin_scene(const std::string& name);
+
+/// Default camera position/target and light position for a custom scene,
+/// derived from its bounds so that every object is in view and the light
+/// comes from the same direction as in the built-in scenes.
+struct SceneViewDefaults {
+  glm::dvec3 camera_position;
+  glm::dvec3 camera_target;
+  glm::dvec3 light_position;
+  glm::dvec3 light_target;
+};
+SceneViewDefaults default_view_for(const Scene& scene);
+
+/// Interleaved vertex as uploaded to GL.
+struct Vertex {
+  float position[3];  ///< relative to Mesh::origin
+  float normal[3];
+  float color[3];
+};
+
+/// The whole scene as one vertex/index buffer. Closed meshes (boxes, spheres)
+/// come first, then open ones (planes), so each pass can cull them apart.
+/// Positions are stored relative to `origin` (the bounds' centre, in double)
+/// so a scene far from the world origin keeps float precision.
+struct Mesh {
+  glm::dvec3 origin{0.0};
+  std::vector<Vertex> vertices;
+  std::vector<std::uint32_t> indices;
+  std::uint32_t closed_index_count = 0;  ///< indices [0, closed) are closed meshes
+  std::uint32_t open_index_count = 0;    ///< then [closed, closed + open) open ones
+};
+
+Mesh tessellate(const Scene& scene);
+
+}  // namespace umbra

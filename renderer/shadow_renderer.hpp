@@ -1,0 +1,80 @@
+// The GL renderer: a shadow pass into a depth texture, then a main pass that
+// lights the scene from the camera with that texture, then read-back.
+#pragma once
+
+#include <string>
+
+#include "gl/objects.hpp"
+#include "image.hpp"
+#include "light_math.hpp"
+#include "request.hpp"
+#include "scene.hpp"
+
+namespace umbra {
+
+/// Call order: construct with a current GL 4.5 context, then render() any
+/// number of times, destroy before the context. Not thread-safe: it lives on
+/// the GL thread (see render_service.hpp).
+class ShadowRenderer {
+ public:
+  /// Compiles the shaders; throws std::runtime_error with the GLSL log.
+  ShadowRenderer();
+
+  /// Renders `request` and reads the chosen output back. `request` must be
+  /// valid (as the request parser guarantees).
+  RenderResult render(const RenderRequest& request);
+
+  std::string gl_renderer() const;
+  std::string gl_version() const;
+
+ private:
+  // The scene's triangles, uploaded once per distinct scene.
+  struct SceneGeometry {
+    gl::VertexArray vertex_array;
+    gl::Buffer vertices;
+    gl::Buffer indices;
+    Mesh mesh;           // CPU copy: origin and index ranges (vertices cleared)
+    std::string key;     // content of the scene it was built from
+  };
+  // Depth-only framebuffer seen from the light.
+  struct ShadowPass {
+    gl::Program program;
+    GLint light_view_projection = -1;
+    gl::Texture depth_map;  // DEPTH_COMPONENT32F, map_size^2
+    gl::Framebuffer framebuffer;
+    int size = 0;
+  };
+  // The camera's view, into an offscreen colour + depth framebuffer.
+  struct DisplayPass {
+    gl::Program program;
+    gl::Renderbuffer color;  // RGBA8
+    gl::Renderbuffer depth;  // DEPTH_COMPONENT32F
+    gl::Framebuffer framebuffer;
+    int width = 0, height = 0;
+  };
+  // The depth map turned into a grey image for the "depth" output.
+  struct DepthPreviewPass {
+    gl::Program program;
+    gl::Texture grey;        // R8, map_size^2
+    gl::Framebuffer framebuffer;
+    int size = 0;
+  };
+
+  void upload_scene(const Scene& scene);
+  void resize_shadow_map(int size);
+  void resize_display(int width, int height);
+  void resize_depth_preview(int size);
+  void draw_scene(CullMode closed_mesh_cull);
+  void run_shadow_pass(const RenderRequest& request, const LightFrustum& light);
+  void run_display_pass(const RenderRequest& request, const LightFrustum& light);
+  void run_depth_preview(const LightFrustum& light);
+  Image read_pixels(GLuint framebuffer, int width, int height, int channels);
+
+  SceneGeometry scene_;
+  ShadowPass shadow_;
+  DisplayPass display_;
+  DepthPreviewPass preview_;
+  gl::VertexArray empty_vertex_array_;  // for the full-screen triangle
+};
+
+}  // namespace umbra

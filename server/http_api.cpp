@@ -1,0 +1,224 @@
+#include "http_api.hpp"
+
+#include <cstdio>
+#include <sstream>
+#include <utility>
+
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+
+#include "png.hpp"
+#include "request_parser.hpp"
+#include "scene.hpp"
+#include "web_assets.hpp"
+
+namespace umbra {
+
+namespace {
+
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+void send_error(httplib::Response& res, int status, const std::string& message, const std::string& field) {
+  res.status = status;
+  res.set_content(json{{"error", message}, {"field", field}}.dump(), "application/json");
+}
+
+json vec3_json(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
+
+// Same form as a custom scene's object in a request body.
+json object_json(const SceneObject& o) {
+  switch (o.type) {
+    case SceneObject::Type::Plane:
+      return {{"type", "plane"}, {"center", vec3_json(o.center)}, {"size", {o.size.x, o.size.z}}, {"color", vec3_json(o.color)}};
+    case SceneObject::Type::Box:
+      return {{"type", "box"}, {"center", vec3_json(o.center)}, {"size", vec3_json(o.size)},
+              {"rotation_y_deg", o.rotation_y_deg}, {"color", vec3_json(o.color)}};
+    case SceneObject::Type::Sphere:
+      return {{"type", "sphere"}, {"center", vec3_json(o.center)}, {"radius", o.radius}, {"color", vec3_json(o.color)}};
+  }
+  return {};
+}
+
+std::string content_type_for(const std::string& path) {
+  const auto ends_with = [&](const char* suffix) {
+    const std::string s(suffix);
+    return path.size() >= s.size() && path.compare(path.size() - s.size(), s.size(), s) == 0;
+  };
+  if (ends_with(".html")) return "text/html; charset=utf-8";
+  if (ends_with(".js")) return "text/javascript; charset=utf-8";
+  if (ends_with(".css")) return "text/css; charset=utf-8";
+  if (ends_with(".svg")) return "image/svg+xml";
+  if (ends_with(".png")) return "image/png";
+  return "application/octet-stream";
+}
+
+std::string server_timing(const FrameTimings& t, double encode_ms, double queue_ms) {
+  char buffer[256];
+  std::snprintf(buffer, sizeof buffer, "shadow;dur=%.3f, main;dur=%.3f, readback;dur=%.3f, encode;dur=%.3f, queue;dur=%.3f",
+                t.shadow_ms, t.main_ms, t.readback_ms, encode_ms, queue_ms);
+  return buffer;
+}
+
+// The time the current request started, per worker thread: cpp-httplib
+// serves one connection per thread, one request at a time.
+thread_local Clock::time_point request_started{};
+
+}  // namespace
+
+HttpApi::HttpApi(RenderService& renderer, ServerOptions options)
+    : renderer_(renderer), options_(std::move(options)), http_(std::make_unique<httplib::Server>()),
+      started_(Clock::now()) {
+  install_routes();
+}
+
+HttpApi::~HttpApi() = default;
+
+bool HttpApi::bind() {
+  if (options_.port == 0) {
+    port_ = http_->bind_to_any_port(options_.host);
+    return port_ > 0;
+  }
+  port_ = options_.port;
+  return http_->bind_to_port(options_.host, options_.port);
+}
+
+void HttpApi::serve() { http_->listen_after_bind(); }
+
+void HttpApi::stop() { http_->stop(); }
+
+void HttpApi::install_routes() {
+  httplib::Server& http = *http_;
+  http.set_payload_max_length(kMaxBodyBytes);
+
+  http.set_pre_routing_handler([](const httplib::Request&, httplib::Response&) {
+    request_started = Clock::now();
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  // Errors raised inside cpp-httplib itself (413, 400 on a bad request line,
+  // unmatched routes) get the same JSON form as ours; ours already have a body.
+  http.set_error_handler(httplib::Server::HandlerWithResponse([](const httplib::Request&, httplib::Response& res) {
+    if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+    switch (res.status) {
+      case 404: send_error(res, 404, "no such path", ""); break;
+      case 413: send_error(res, 413, "request body larger than 1 MiB", ""); break;
+      case 414: send_error(res, 414, "request URI too long", ""); break;
+      case 431: send_error(res, 431, "request headers too large", ""); break;
+      default: send_error(res, res.status, "malformed HTTP request", ""); break;
+    }
+    return httplib::Server::HandlerResponse::Handled;
+  }));
+  http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr error) {
+    std::string what = "internal error";
+    try {
+      if (error) std::rethrow_exception(error);
+    } catch (const std::exception& e) {
+      what = std::string("internal error: ") + e.what();
+    } catch (...) {
+    }
+    send_error(res, 500, what, "");
+  });
+  if (options_.log_requests) {
+    http.set_logger([](const httplib::Request& req, const httplib::Response& res) {
+      const bool timed = request_started != Clock::time_point{};
+      const double ms = timed ? std::chrono::duration<double, std::milli>(Clock::now() - request_started).count() : 0.0;
+      std::fprintf(stderr, "%s %s %d %.1f ms\n", req.method.c_str(), req.path.c_str(), res.status, ms);
+      request_started = Clock::time_point{};
+    });
+  }
+
+  http.Get("/api/health", [this](const httplib::Request&, httplib::Response& res) {
+    const RendererInfo& info = renderer_.info();
+    const double uptime = std::chrono::duration<double>(Clock::now() - started_).count();
+    res.set_content(json{{"status", "ok"},
+                         {"gl_renderer", info.gl_renderer},
+                         {"gl_version", info.gl_version},
+                         {"egl_source", info.egl_source},
+                         {"uptime_s", uptime},
+                         {"frames_rendered", renderer_.frames_rendered()},
+                         {"queue_depth", renderer_.queue_depth()}}
+                        .dump(),
+                    "application/json");
+  });
+
+  http.Get("/api/scenes", [](const httplib::Request&, httplib::Response& res) {
+    json scenes = json::array();
+    for (const auto& s : builtin_scenes()) {
+      json objects = json::array();
+      for (const auto& o : s.objects) objects.push_back(object_json(o));
+      scenes.push_back({{"name", s.name},
+                        {"description", s.description},
+                        {"objects", objects},
+                        {"camera", {{"position", vec3_json(s.camera_position)}, {"target", vec3_json(s.camera_target)}}},
+                        {"light", {{"position", vec3_json(s.light_position)}, {"target", vec3_json({0, 0, 0})}}}});
+    }
+    res.set_content(json{{"scenes", scenes}}.dump(), "application/json");
+  });
+
+  const auto render = [this](const httplib::Request& req, httplib::Response& res, bool depth_route) {
+    ParsedRequest parsed = parse_render_request(req.body);
+    if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
+    RenderRequest request = std::move(*parsed.request);
+    if (depth_route) {
+      if (request.output != Output::Color && request.output != Output::Depth)
+        return send_error(res, 400, "/api/depth always returns the depth map; omit output or use \"depth\"", "output");
+      request.output = Output::Depth;
+    }
+    const auto queued = Clock::now();
+    RenderResult result = renderer_.submit(std::move(request)).get();
+    const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - queued).count();
+    const FrameTimings& t = result.timings;
+    const double queue_ms = std::max(0.0, total_ms - t.shadow_ms - t.main_ms - t.readback_ms);
+    const auto encode_start = Clock::now();
+    std::string png = encode_png(result.image);
+    const double encode_ms = std::chrono::duration<double, std::milli>(Clock::now() - encode_start).count();
+    res.set_header("Server-Timing", server_timing(t, encode_ms, queue_ms));
+    res.set_header("Cache-Control", "no-store");
+    if (!parsed.unused_fields.empty()) {
+      std::string list;
+      for (const auto& f : parsed.unused_fields) list += (list.empty() ? "" : ", ") + f;
+      res.set_header("Umbra-Unused-Fields", list);
+    }
+    res.set_content(std::move(png), "image/png");
+  };
+  http.Post("/api/render", [render](const httplib::Request& req, httplib::Response& res) { render(req, res, false); });
+  http.Post("/api/depth", [render](const httplib::Request& req, httplib::Response& res) { render(req, res, true); });
+
+  // Static files: the embedded panel, or a folder given with --web.
+  if (options_.web_dir.empty()) {
+    for (std::string_view name : web_asset_names()) {
+      const std::string file(name);
+      const std::string route = file == "index.html" ? "/" : "/" + file;
+      const auto serve_file = [file](const httplib::Request&, httplib::Response& res) {
+        const std::string_view bytes = web_asset(file);
+        res.set_content(std::string(bytes), content_type_for(file).c_str());
+      };
+      http.Get(route, serve_file);
+      if (file == "index.html") http.Get("/index.html", serve_file);
+    }
+  } else {
+    http.set_mount_point("/", options_.web_dir);
+  }
+
+  // A known path with the wrong method is 405, not 404.
+  struct Route {
+    const char* path;
+    const char* allow;
+  };
+  static const Route routes[] = {{"/api/health", "GET"}, {"/api/scenes", "GET"}, {"/api/render", "POST"},
+                                 {"/api/depth", "POST"}};
+  for (const Route& route : routes) {
+    const std::string allow = route.allow;
+    const auto not_allowed = [allow](const httplib::Request& req, httplib::Response& res) {
+      res.set_header("Allow", allow);
+      send_error(res, 405, "method " + req.method + " not allowed here; use " + allow, "");
+    };
+    if (allow != "GET") http.Get(route.path, not_allowed);
+    if (allow != "POST") http.Post(route.path, not_allowed);
+    http.Put(route.path, not_allowed);
+    http.Delete(route.path, not_allowed);
+    http.Patch(route.path, not_allowed);
+  }
+}
+
+}  // namespace umbra

@@ -1,0 +1,50 @@
+// The HTTP face of Umbra (../shared/API.md): routes, errors, static files.
+// Turns JSON into a typed request, hands it to the RenderService, turns the
+// pixels into PNG. Knows nothing of GL.
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <string>
+
+#include "render_service.hpp"
+
+namespace httplib {
+class Server;
+}
+
+namespace umbra {
+
+struct ServerOptions {
+  std::string host = "127.0.0.1";  ///< loopback unless told otherwise
+  int port = 8080;                 ///< 0: any free port (see HttpApi::port)
+  std::string web_dir;             ///< empty: the web panel embedded at build time
+  bool log_requests = true;        ///< one line per request on stderr
+};
+
+class HttpApi {
+ public:
+  static constexpr std::size_t kMaxBodyBytes = 1 << 20;  ///< 413 above this
+
+  HttpApi(RenderService& renderer, ServerOptions options);
+  ~HttpApi();
+
+  /// Binds the socket; false (with errno set) if the address is unusable.
+  bool bind();
+  /// The bound port (after bind()).
+  int port() const { return port_; }
+  /// Serves until stop(); call after bind().
+  void serve();
+  void stop();
+
+ private:
+  void install_routes();
+
+  RenderService& renderer_;
+  ServerOptions options_;
+  std::unique_ptr<httplib::Server> http_;
+  int port_ = 0;
+  std::chrono::steady_clock::time_point started_;
+};
+
+}  // namespace umbra

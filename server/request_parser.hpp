@@ -1,0 +1,50 @@
+// JSON body -> typed, validated RenderRequest. Pure: no GL, no HTTP.
+//
+// The one place where the API's defaults are applied and every bad input of
+// ../shared/API.md is rejected: malformed JSON, wrong types, unknown fields,
+// out-of-range or non-finite numbers, degenerate inputs, unknown scenes.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "request.hpp"
+
+namespace umbra {
+
+/// Why a body was rejected. `field` is the JSON path of the offending value
+/// ("light.color[1]", "scene.objects[3].size"), or "" for the body as a whole.
+struct RequestError {
+  std::string message;
+  std::string field;
+};
+
+struct ParsedRequest {
+  std::optional<RenderRequest> request;  ///< set on success
+  RequestError error;                     ///< set on failure
+  /// Fields the client sent that cannot affect this output (e.g. shadow.near
+  /// with fit "scene"): accepted, since API.md's own defaults include them,
+  /// but reported back so that nothing is silently ignored.
+  std::vector<std::string> unused_fields;
+
+  bool ok() const { return request.has_value(); }
+};
+
+/// Limits beyond API.md's, chosen so every accepted request renders in
+/// bounded time and in float precision. Documented in the README.
+struct RequestLimits {
+  static constexpr std::size_t kMaxObjects = 1000;
+  static constexpr int kMaxNesting = 32;            ///< JSON nesting depth
+  static constexpr double kMaxCoordinate = 1e6;     ///< |x|, |y|, |z| of any position
+  static constexpr double kMinExtent = 1e-6;        ///< smallest size / radius
+  static constexpr double kMaxExtent = 1e6;         ///< largest size / radius
+  static constexpr double kMaxTime = 1e9;           ///< |time|, seconds
+  static constexpr double kMaxOrbitSpeed = 1e6;     ///< |orbit_deg_per_s|
+  static constexpr double kMaxLightAngularSize = 90.0;
+};
+
+ParsedRequest parse_render_request(std::string_view body);
+
+}  // namespace umbra
