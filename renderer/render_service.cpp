@@ -1,6 +1,7 @@
 #include "render_service.hpp"
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <mutex>
@@ -8,6 +9,7 @@
 #include <thread>
 
 #include "gl/egl_context.hpp"
+#include "ray_cast.hpp"
 #include "shadow_renderer.hpp"
 
 namespace umbra {
@@ -82,6 +84,7 @@ RenderService::~RenderService() {
 }
 
 std::future<RenderResult> RenderService::submit(RenderRequest request) {
+  if (request.output == Output::Exact || request.output == Output::Error) return submit_reference(std::move(request));
   Impl::Job job{std::move(request), {}};
   std::future<RenderResult> result = job.promise.get_future();
   {
@@ -91,6 +94,32 @@ std::future<RenderResult> RenderService::submit(RenderRequest request) {
   }
   impl_->wake.notify_one();
   return result;
+}
+
+// The exact reference needs no GL: it is ray cast on its own thread so the GL
+// thread keeps rendering. "error" also needs the GL "shadow" output.
+std::future<RenderResult> RenderService::submit_reference(RenderRequest request) {
+  std::future<RenderResult> rendered;
+  if (request.output == Output::Error) {
+    RenderRequest shadow = request;
+    shadow.output = Output::Shadow;
+    rendered = submit(std::move(shadow));
+  }
+  return std::async(std::launch::async, [request = std::move(request), rendered = std::move(rendered)]() mutable {
+    const auto start = std::chrono::steady_clock::now();
+    const Image exact = exact_image(cast_exact_pixels(request), request.width, request.height);
+    const double cast_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    RenderResult result;
+    if (request.output == Output::Error) {
+      result = rendered.get();
+      result.image = error_image(result.image, exact);
+      result.timings.main_ms += cast_ms;
+    } else {
+      result.image = exact;
+      result.timings.main_ms = cast_ms;
+    }
+    return result;
+  });
 }
 
 const RendererInfo& RenderService::info() const { return impl_->info; }

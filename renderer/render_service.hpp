@@ -32,6 +32,8 @@ class RenderService {
 
   /// Queues a render. The future holds the result, or the exception the
   /// renderer threw. `request` must be valid (see server/request_parser.hpp).
+  /// "exact" is ray cast on the CPU off the GL thread (its time is reported
+  /// as `main`); "error" renders "shadow" on the GL thread, then compares.
   std::future<RenderResult> submit(RenderRequest request);
 
   const RendererInfo& info() const;
@@ -40,6 +42,8 @@ class RenderService {
   std::size_t queue_depth() const;
 
  private:
+  std::future<RenderResult> submit_reference(RenderRequest request);
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

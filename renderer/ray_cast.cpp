@@ -1,0 +1,245 @@
+#include "ray_cast.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+#include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
+#include <glm/trigonometric.hpp>
+
+#include "light_math.hpp"
+
+namespace umbra {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+glm::dvec3 rotate_y(const glm::dvec3& v, double degrees) {
+  const double a = glm::radians(degrees);
+  const double c = std::cos(a), s = std::sin(a);
+  return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
+}
+
+// Nearest hit distance of one primitive in (t_min, t_max), with its outward
+// normal; kInf when missed.
+double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double t_min, double t_max,
+                 glm::dvec3& normal) {
+  switch (o.type) {
+    case SceneObject::Type::Plane: {
+      if (dir.y == 0.0) return kInf;
+      const double t = (o.center.y - origin.y) / dir.y;
+      if (!(t > t_min && t < t_max)) return kInf;
+      const glm::dvec3 p = origin + t * dir;
+      if (std::abs(p.x - o.center.x) > 0.5 * o.size.x || std::abs(p.z - o.center.z) > 0.5 * o.size.z) return kInf;
+      normal = {0.0, 1.0, 0.0};
+      return t;
+    }
+    case SceneObject::Type::Box: {
+      // In the box's own frame it is axis-aligned: the slab test.
+      const glm::dvec3 o_local = rotate_y(origin - o.center, -o.rotation_y_deg);
+      const glm::dvec3 d_local = rotate_y(dir, -o.rotation_y_deg);
+      const glm::dvec3 half = 0.5 * o.size;
+      double t0 = -kInf, t1 = kInf;
+      int axis0 = 0, axis1 = 0;
+      for (int k = 0; k < 3; ++k) {
+        if (d_local[k] == 0.0) {
+          if (std::abs(o_local[k]) > half[k]) return kInf;
+          continue;
+        }
+        double a = (-half[k] - o_local[k]) / d_local[k];
+        double b = (half[k] - o_local[k]) / d_local[k];
+        if (a > b) std::swap(a, b);
+        if (a > t0) t0 = a, axis0 = k;
+        if (b < t1) t1 = b, axis1 = k;
+        if (t0 > t1) return kInf;
+      }
+      double t = t0;
+      int axis = axis0;
+      if (!(t > t_min)) t = t1, axis = axis1;  // the origin is inside: the exit
+      if (!(t > t_min && t < t_max)) return kInf;
+      glm::dvec3 n_local(0.0);
+      n_local[axis] = (o_local[axis] + t * d_local[axis]) > 0.0 ? 1.0 : -1.0;
+      normal = rotate_y(n_local, o.rotation_y_deg);
+      return t;
+    }
+    case SceneObject::Type::Sphere: {
+      const glm::dvec3 oc = origin - o.center;
+      const double b = glm::dot(oc, dir);
+      const double c = glm::dot(oc, oc) - o.radius * o.radius;
+      const double disc = b * b - c;
+      if (disc < 0.0) return kInf;
+      const double root = std::sqrt(disc);
+      // The numerically stable pair of roots.
+      const double q = b > 0.0 ? -b - root : -b + root;
+      double ta = q, tb = q != 0.0 ? c / q : -b;
+      if (ta > tb) std::swap(ta, tb);
+      const double t = ta > t_min ? ta : tb;
+      if (!(t > t_min && t < t_max)) return kInf;
+      normal = glm::normalize(origin + t * dir - o.center);
+      return t;
+    }
+  }
+  return kInf;
+}
+
+bool occluded(const Scene& scene, const glm::dvec3& origin, const glm::dvec3& dir, double t_max) {
+  glm::dvec3 unused;
+  for (const auto& o : scene.objects)
+    if (intersect(o, origin, dir, 0.0, t_max, unused) < kInf) return true;
+  return false;
+}
+
+// 64 points on the unit disc, one per cell of an 8 x 8 grid mapped
+// concentrically (Shirley-Chiu), so they cover the disc evenly.
+const std::vector<glm::dvec2>& disc_samples() {
+  static const std::vector<glm::dvec2> samples = [] {
+    constexpr double kPi = 3.14159265358979323846;
+    std::vector<glm::dvec2> s;
+    for (int i = 0; i < 8; ++i) {
+      for (int j = 0; j < 8; ++j) {
+        const double a = 2.0 * (i + 0.5) / 8.0 - 1.0, b = 2.0 * (j + 0.5) / 8.0 - 1.0;
+        double r, phi;
+        if (std::abs(a) > std::abs(b)) {
+          r = a;
+          phi = (kPi / 4.0) * (b / a);
+        } else {
+          r = b;
+          phi = (kPi / 2.0) - (kPi / 4.0) * (a / b);
+        }
+        s.emplace_back(r * std::cos(phi), r * std::sin(phi));
+      }
+    }
+    return s;
+  }();
+  return samples;
+}
+
+// Two unit vectors perpendicular to `axis` and to each other.
+void basis(const glm::dvec3& axis, glm::dvec3& u, glm::dvec3& v) {
+  const glm::dvec3 helper = std::abs(axis.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+  u = glm::normalize(glm::cross(helper, axis));
+  v = glm::cross(axis, u);
+}
+
+}  // namespace
+
+std::optional<RayHit> cast_ray(const Scene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
+                               double t_min, double t_max) {
+  RayHit best;
+  best.t = t_max;
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    glm::dvec3 normal;
+    const double t = intersect(scene.objects[i], origin, direction, t_min, best.t, normal);
+    if (t < best.t) {
+      best.t = t;
+      best.normal = normal;
+      best.object = int(i);
+    }
+  }
+  if (best.object < 0) return std::nullopt;
+  best.point = origin + best.t * direction;
+  if (glm::dot(best.normal, direction) > 0.0) best.normal = -best.normal;
+  return best;
+}
+
+double exact_visibility(const RenderRequest& request, const glm::dvec3& light_position, const glm::dvec3& point,
+                        const glm::dvec3& normal) {
+  const Light& light = request.light;
+  const bool perspective = light.projection == LightProjection::Perspective;
+  const glm::dvec3 to_light_center =
+      perspective ? glm::normalize(light_position - point) : glm::normalize(light_position - light.target);
+  if (glm::dot(normal, to_light_center) <= 0.0) return 0.0;
+  // Leave the surface by a hair so it does not hit itself; relative to the
+  // point's magnitude, so it holds at every scale.
+  const double lift = 1e-9 * (1.0 + glm::length(point));
+  const glm::dvec3 origin = point + normal * lift;
+  if (light.size <= 0.0) {
+    if (!perspective) return occluded(request.scene, origin, to_light_center, kInf) ? 0.0 : 1.0;
+    const double distance = glm::length(light_position - origin);
+    return occluded(request.scene, origin, (light_position - origin) / distance, distance) ? 0.0 : 1.0;
+  }
+  glm::dvec3 u, v;
+  basis(to_light_center, u, v);
+  int seen = 0;
+  const auto& samples = disc_samples();
+  for (const glm::dvec2& s : samples) {
+    glm::dvec3 dir;
+    double t_max = kInf;
+    if (perspective) {
+      // A spherical light of radius `size` seen from the point is a disc
+      // facing it.
+      const glm::dvec3 target = light_position + light.size * (s.x * u + s.y * v);
+      t_max = glm::length(target - origin);
+      dir = (target - origin) / t_max;
+    } else {
+      // The sun's disc: directions within half the angular diameter.
+      const double spread = std::tan(glm::radians(0.5 * light.size));
+      dir = glm::normalize(to_light_center + spread * (s.x * u + s.y * v));
+    }
+    if (glm::dot(normal, dir) > 0.0 && !occluded(request.scene, origin, dir, t_max)) ++seen;
+  }
+  return double(seen) / double(samples.size());
+}
+
+std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
+  const int width = request.width, height = request.height;
+  std::vector<ExactPixel> pixels(std::size_t(width) * height);
+  const CameraMatrices camera = camera_matrices(request.camera, width, height);
+  const glm::dmat4 inverse = glm::inverse(camera.projection * camera.view);
+  const glm::dvec3 light_position = orbit_light_position(request.light, request.time);
+
+  const auto rows = [&](int first, int step) {
+    for (int y = first; y < height; y += step) {
+      for (int x = 0; x < width; ++x) {
+        // Pixel centre, row 0 at the top.
+        const double nx = (x + 0.5) / width * 2.0 - 1.0;
+        const double ny = 1.0 - (y + 0.5) / height * 2.0;
+        const glm::dvec4 near_h = inverse * glm::dvec4(nx, ny, -1.0, 1.0);
+        const glm::dvec4 far_h = inverse * glm::dvec4(nx, ny, 1.0, 1.0);
+        const glm::dvec3 near_p = glm::dvec3(near_h) / near_h.w;
+        const glm::dvec3 far_p = glm::dvec3(far_h) / far_h.w;
+        const glm::dvec3 dir = glm::normalize(far_p - near_p);
+        // The camera sees between its near and far planes, as GL clips.
+        const double t_far = glm::length(far_p - near_p);
+        ExactPixel& px = pixels[std::size_t(y) * width + x];
+        const auto hit = cast_ray(request.scene, near_p, dir, 0.0, t_far);
+        if (!hit) continue;
+        px.geometry = true;
+        px.object = hit->object;
+        const glm::dvec3 to_light = request.light.projection == LightProjection::Perspective
+                                        ? glm::normalize(light_position - hit->point)
+                                        : glm::normalize(light_position - request.light.target);
+        px.n_dot_l = glm::dot(hit->normal, to_light);
+        px.visibility = exact_visibility(request, light_position, hit->point, hit->normal);
+      }
+    }
+  };
+  const int threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  std::vector<std::thread> pool;
+  for (int i = 1; i < threads; ++i) pool.emplace_back(rows, i, threads);
+  rows(0, threads);
+  for (auto& t : pool) t.join();
+  return pixels;
+}
+
+Image exact_image(const std::vector<ExactPixel>& pixels, int width, int height) {
+  Image image{width, height, 1, std::vector<std::uint8_t>(std::size_t(width) * height)};
+  for (std::size_t i = 0; i < pixels.size(); ++i)
+    image.pixels[i] = std::uint8_t(std::lround(255.0 * (pixels[i].geometry ? pixels[i].visibility : 1.0)));
+  return image;
+}
+
+Image error_image(const Image& rendered, const Image& exact) {
+  Image image{exact.width, exact.height, 3, std::vector<std::uint8_t>(std::size_t(exact.width) * exact.height * 3, 0)};
+  for (std::size_t i = 0; i < exact.pixels.size(); ++i) {
+    const int difference = int(rendered.pixels[i]) - int(exact.pixels[i]);
+    if (difference < 0) image.pixels[3 * i + 0] = std::uint8_t(-difference);  // red: rendered too dark
+    if (difference > 0) image.pixels[3 * i + 2] = std::uint8_t(difference);   // blue: rendered too bright
+  }
+  return image;
+}
+
+}  // namespace umbra

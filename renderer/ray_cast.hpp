@@ -1,0 +1,54 @@
+// The exact reference: the API's "shadow" quantity computed by casting rays
+// against the analytic primitives (plane, rotated box, sphere) on the CPU.
+// No GL and no shadow map, so it is what the GL output is judged against.
+#pragma once
+
+#include <optional>
+
+#include <glm/vec3.hpp>
+
+#include "image.hpp"
+#include "request.hpp"
+
+namespace umbra {
+
+/// Where a ray first meets the scene.
+struct RayHit {
+  double t = 0.0;          ///< distance along the (unit) ray direction
+  glm::dvec3 point{0.0};
+  glm::dvec3 normal{0.0};  ///< unit, facing the ray's origin
+  int object = -1;         ///< index into scene.objects
+};
+
+/// First hit of the ray origin + t * direction (unit) with t in (t_min, t_max).
+std::optional<RayHit> cast_ray(const Scene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
+                               double t_min, double t_max);
+
+/// The fraction of the light's direct light that reaches `point` (normal
+/// `normal`, facing the viewer): 0 when the surface faces away from the
+/// light; for light.size > 0 the fraction of a fixed stratified set of 64
+/// points on the light's disc that the point sees. `light_position` is the
+/// light position after orbit.
+double exact_visibility(const RenderRequest& request, const glm::dvec3& light_position, const glm::dvec3& point,
+                        const glm::dvec3& normal);
+
+/// One camera ray per pixel centre, as the rasterizer samples them.
+struct ExactPixel {
+  bool geometry = false;  ///< the ray hit something (between camera near and far)
+  int object = -1;
+  double n_dot_l = 0.0;   ///< cosine between the surface normal and the light
+  double visibility = 1.0;
+};
+
+/// Every pixel of the request's camera view (width x height, row 0 at the
+/// top), using all hardware threads.
+std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request);
+
+/// The "exact" output: round(255 * v) per pixel, 255 where no geometry.
+Image exact_image(const std::vector<ExactPixel>& pixels, int width, int height);
+
+/// The "error" output: RGB, red = how much darker the render is than the
+/// exact value (false shadow), blue = how much brighter (false light).
+Image error_image(const Image& rendered_shadow, const Image& exact);
+
+}  // namespace umbra
