@@ -68,34 +68,48 @@ void fit_orthographic(LightFrustum& f, const Scene& scene, int map_size) {
   f.texel_size = std::max(x1 - x0, y1 - y0) / map_size;
 }
 
+// Euclidean distance from p to the box (0 inside).
+double distance_to(const Aabb& box, const glm::dvec3& p) {
+  const glm::dvec3 outside = glm::max(glm::max(box.min - p, p - box.max), glm::dvec3(0.0));
+  return glm::length(outside);
+}
+
 void fit_perspective(LightFrustum& f, const Scene& scene, int map_size) {
   const LightSpaceExtent e = view_space_extent(f.view, scene);
   // Depth along the axis is linear in position, so its extremes over a box
   // are at corners; so is the largest |x|/depth over the part in front.
   const double farthest = std::max(-e.min.z, 1e-30);
   const double far_plane = farthest * 1.01;
-  // 32-bit float depth keeps enough precision for far/near up to ~10^5; a
-  // light inside the bounds would otherwise ask for near -> 0.
-  const double min_near = far_plane * 1e-5;
-  const double nearest = -e.max.z;
-  const double near_plane = std::max(nearest * 0.99, min_near);
 
   const double max_tan = std::tan(glm::radians(kMaxFittedLightFovDeg * 0.5));
   double tan_half = 0.0;
+  double nearest_distance = std::numeric_limits<double>::max();
   for (const auto& object : scene.objects) {
-    for (const auto& corner : object_bounds(object).corners()) {
+    const Aabb bounds = object_bounds(object);
+    nearest_distance = std::min(nearest_distance, distance_to(bounds, f.position));
+    for (const auto& corner : bounds.corners()) {
       const glm::dvec3 p = glm::dvec3(f.view * glm::dvec4(corner, 1.0));
       const double depth = -p.z;
-      if (depth <= near_plane) {
+      if (depth <= 1e-9 * far_plane) {
         // Part of the object lies beside or behind the light: no cone of
         // less than 180 degrees holds it. Take the widest allowed.
         tan_half = max_tan;
-        break;
+        continue;
       }
       tan_half = std::max(tan_half, std::max(std::abs(p.x), std::abs(p.y)) / depth);
     }
   }
   tan_half = std::clamp(tan_half * (1.0 + 2.0 / map_size), 1e-6, max_tan);
+
+  // Near: as far out as nothing inside the cone is cut. A point at distance r
+  // inside a cone of half-angle a lies at least r cos(a) along the axis, and
+  // no point lies nearer than the nearest corner depth either. (Taking the
+  // corner depth alone collapses near towards 0 as soon as a floor reaches
+  // behind the light, and with it the depth precision.)
+  const double cos_half = 1.0 / std::sqrt(1.0 + tan_half * tan_half);
+  const double nearest = std::max(-e.max.z, nearest_distance * cos_half);
+  // 32-bit float depth keeps enough precision for far/near up to ~10^5.
+  const double near_plane = std::max(nearest * 0.99, far_plane * 1e-5);
   f.near_plane = near_plane;
   f.far_plane = far_plane;
   f.projection = glm::perspective(2.0 * std::atan(tan_half), 1.0, near_plane, far_plane);

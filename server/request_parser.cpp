@@ -98,6 +98,7 @@ class LocatingBuilder : public nlohmann::json_sax<json> {
     }
     json& slot = parent[frames_.back().key];
     slot = std::move(v);
+    frames_.back().key.clear();  // an error before the next key is the object's
     return &slot;
   }
 

@@ -1,0 +1,93 @@
+// The exact reference against cases solved by hand.
+#include <gtest/gtest.h>
+
+#include "ray_cast.hpp"
+#include "scene.hpp"
+
+namespace umbra {
+namespace {
+
+RenderRequest cube_on_plane() {
+  RenderRequest r;
+  r.scene.objects = find_builtin_scene("cube-on-plane")->objects;
+  r.light.position = {0, 10, 0};  // straight overhead
+  return r;
+}
+
+TEST(RayCast, HitsTheNearestSurfaceWithANormalFacingTheRay) {
+  const RenderRequest r = cube_on_plane();
+  const auto hit = cast_ray(r.scene, {0, 5, 0}, {0, -1, 0}, 0.0, 1e9);
+  ASSERT_TRUE(hit);
+  EXPECT_EQ(hit->object, 1);  // the cube's top, not the floor
+  EXPECT_NEAR(hit->point.y, 0.5, 1e-12);
+  EXPECT_NEAR(hit->normal.y, 1.0, 1e-12);
+  const auto below = cast_ray(r.scene, {3, -5, 0}, {0, 1, 0}, 0.0, 1e9);
+  ASSERT_TRUE(below);
+  EXPECT_NEAR(below->normal.y, -1.0, 1e-12);  // the floor seen from below
+}
+
+TEST(RayCast, RotatedBoxIsHitWhereItReallyIs) {
+  Scene scene;
+  SceneObject box;
+  box.size = {2, 1, 0.2};
+  box.rotation_y_deg = 90;  // now long along z
+  scene.objects = {box};
+  EXPECT_TRUE(cast_ray(scene, {0, 5, 0.9}, {0, -1, 0}, 0, 1e9));
+  EXPECT_FALSE(cast_ray(scene, {0.9, 5, 0}, {0, -1, 0}, 0, 1e9));
+}
+
+TEST(RayCast, SphereHitFromOutsideAndInside) {
+  Scene scene;
+  SceneObject s;
+  s.type = SceneObject::Type::Sphere;
+  s.center = {0, 0, 0};
+  s.radius = 2;
+  scene.objects = {s};
+  const auto outside = cast_ray(scene, {0, 0, 10}, {0, 0, -1}, 0, 1e9);
+  ASSERT_TRUE(outside);
+  EXPECT_NEAR(outside->t, 8.0, 1e-12);
+  const auto inside = cast_ray(scene, {0, 0, 0}, {0, 0, -1}, 0, 1e9);
+  ASSERT_TRUE(inside);
+  EXPECT_NEAR(inside->t, 2.0, 1e-12);
+}
+
+TEST(ExactVisibility, UnderTheCubeIsDarkAndFarAwayIsLit) {
+  const RenderRequest r = cube_on_plane();
+  const glm::dvec3 up{0, 1, 0};
+  // Directional light straight down: the floor right next to the cube is lit.
+  EXPECT_EQ(exact_visibility(r, r.light.position, {0.4, -0.5, 0.4}, up), 0.0);
+  EXPECT_EQ(exact_visibility(r, r.light.position, {0.6, -0.5, 0.0}, up), 1.0);
+  // Facing away from the light: 0.
+  EXPECT_EQ(exact_visibility(r, r.light.position, {0.6, -0.5, 0.0}, -up), 0.0);
+}
+
+TEST(ExactVisibility, PointLightShadowSpreads) {
+  RenderRequest r = cube_on_plane();
+  r.light.projection = LightProjection::Perspective;
+  r.light.position = {0, 1.5, 0};  // 1 above the cube's top
+  // The cube's top edge at x = 0.5 projects from y=1.5 down to y=-0.5 at x = 1.0.
+  EXPECT_EQ(exact_visibility(r, r.light.position, {0.9, -0.5, 0.0}, {0, 1, 0}), 0.0);
+  EXPECT_EQ(exact_visibility(r, r.light.position, {1.1, -0.5, 0.0}, {0, 1, 0}), 1.0);
+}
+
+TEST(ExactVisibility, AreaLightGivesAPenumbra) {
+  RenderRequest r = cube_on_plane();
+  r.light.size = 20.0;  // degrees: a wide sun
+  // Right at the edge of the hard shadow, part of the disc is hidden.
+  const double v = exact_visibility(r, r.light.position, {0.52, -0.5, 0.0}, {0, 1, 0});
+  EXPECT_GT(v, 0.0);
+  EXPECT_LT(v, 1.0);
+}
+
+TEST(ExactImages, ErrorIsRedForFalseShadowAndBlueForFalseLight) {
+  Image rendered{2, 1, 1, {0, 255}};
+  Image exact{2, 1, 1, {255, 0}};
+  const Image e = error_image(rendered, exact);
+  EXPECT_EQ(e.pixels[0], 255);  // pixel 0 red
+  EXPECT_EQ(e.pixels[2], 0);
+  EXPECT_EQ(e.pixels[3], 0);
+  EXPECT_EQ(e.pixels[5], 255);  // pixel 1 blue
+}
+
+}  // namespace
+}  // namespace umbra

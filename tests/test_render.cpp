@@ -1,0 +1,191 @@
+// The real renderer (EGL + OpenGL; llvmpipe on machines without a GPU).
+// Pixels are chosen with the exact ray-cast reference, so the tests say
+// "this pixel really is in the cube's shadow", not "pixel (412, 300)".
+#include <gtest/gtest.h>
+
+#include <memory>
+
+#include "ray_cast.hpp"
+#include "render_service.hpp"
+#include "request_parser.hpp"
+
+namespace umbra {
+namespace {
+
+RenderService& service() {
+  static std::unique_ptr<RenderService> instance = std::make_unique<RenderService>();
+  return *instance;
+}
+
+RenderRequest request(const std::string& body) {
+  ParsedRequest p = parse_render_request(body);
+  EXPECT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  return *p.request;
+}
+
+RenderResult render(const RenderRequest& r) { return service().submit(r).get(); }
+
+// Pixels of object `object` (the floor is 0 in cube-on-plane) whose exact
+// visibility is `v` and whose 8 neighbours agree, away from shadow edges.
+std::vector<int> interior_pixels(const RenderRequest& r, const std::vector<ExactPixel>& exact, int object, double v) {
+  std::vector<int> out;
+  for (int y = 2; y < r.height - 2; ++y) {
+    for (int x = 2; x < r.width - 2; ++x) {
+      bool all = true;
+      for (int dy = -2; dy <= 2 && all; ++dy)
+        for (int dx = -2; dx <= 2 && all; ++dx) {
+          const ExactPixel& p = exact[std::size_t(y + dy) * r.width + x + dx];
+          all = p.geometry && p.object == object && p.visibility == v && p.n_dot_l > 0.05;
+        }
+      if (all) out.push_back(y * r.width + x);
+    }
+  }
+  return out;
+}
+
+TEST(Renderer, ReportsItsGlContext) {
+  EXPECT_FALSE(service().info().gl_renderer.empty());
+  EXPECT_NE(service().info().gl_version.find("4."), std::string::npos);
+}
+
+class ShadowOutput : public testing::TestWithParam<const char*> {};
+
+TEST_P(ShadowOutput, DarkInTheCubesShadowAndLitFarFromIt) {
+  const RenderRequest r = request(std::string(R"({"width": 240, "height": 136, "output": "shadow", "light": {"projection": ")") +
+                                  GetParam() + R"("}})");
+  const RenderResult result = render(r);
+  ASSERT_EQ(result.image.width, 240);
+  ASSERT_EQ(result.image.height, 136);
+  ASSERT_EQ(result.image.channels, 1);
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  const std::vector<int> shadowed = interior_pixels(r, exact, 0, 0.0);
+  const std::vector<int> lit = interior_pixels(r, exact, 0, 1.0);
+  ASSERT_GT(shadowed.size(), 20u) << "the view should show some of the cube's shadow";
+  ASSERT_GT(lit.size(), 1000u);
+  for (int i : shadowed) EXPECT_LT(result.image.pixels[i], 40) << "pixel " << i % r.width << "," << i / r.width;
+  for (int i : lit) EXPECT_EQ(result.image.pixels[i], 255) << "pixel " << i % r.width << "," << i / r.width;
+}
+
+INSTANTIATE_TEST_SUITE_P(Projections, ShadowOutput, testing::Values("orthographic", "perspective"));
+
+TEST(Renderer, BackgroundIsWhiteInTheShadowOutput) {
+  const RenderRequest r = request(R"({"width": 64, "height": 64, "output": "shadow", "camera": {"position": [0, 0.5, 5], "target": [0, 10, -20]}})");
+  const RenderResult result = render(r);
+  EXPECT_EQ(result.image.pixels[0], 255);  // top left: sky
+}
+
+TEST(Renderer, NoShadowsMeansNoDarkPixelOnTheFloor) {
+  const RenderRequest r = request(R"({"width": 240, "height": 136, "output": "shadow", "shadow": {"enabled": false}})");
+  const RenderResult result = render(r);
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  int floor_pixels = 0;
+  for (std::size_t i = 0; i < exact.size(); ++i) {
+    if (exact[i].geometry && exact[i].object == 0 && exact[i].n_dot_l > 0.0) {
+      ++floor_pixels;
+      EXPECT_EQ(result.image.pixels[i], 255);
+    }
+  }
+  EXPECT_GT(floor_pixels, 1000);
+  EXPECT_EQ(result.timings.shadow_ms, 0.0) << "no shadow pass when shadows are off";
+}
+
+TEST(Renderer, DepthOutputIsMapSizeSquare) {
+  for (int size : {64, 300, 1024}) {
+    const RenderRequest r = request(R"({"output": "depth", "shadow": {"map_size": )" + std::to_string(size) + "}}");
+    const RenderResult result = render(r);
+    EXPECT_EQ(result.image.width, size);
+    EXPECT_EQ(result.image.height, size);
+    EXPECT_EQ(result.image.channels, 1);
+  }
+}
+
+TEST(Renderer, DepthMapHoldsFrontFacesOrBackFacesAsCulled) {
+  // Light straight overhead, orthographic. Culling back faces keeps the
+  // cube's top, nearer (darker) than the floor; culling front faces (the
+  // default, against peter panning) keeps its bottom, level with the floor.
+  const std::string body = R"({"output": "depth", "shadow": {"map_size": 128, "cull": "CULL"}, "light": {"position": [0, 10, 0]}})";
+  const auto with_cull = [&](const char* cull) {
+    std::string b = body;
+    b.replace(b.find("CULL"), 4, cull);
+    return render(request(b)).image;
+  };
+  const Image back = with_cull("back");
+  EXPECT_LT(back.pixels[64 * 128 + 64] + 50, back.pixels[2 * 128 + 2]);
+  const Image front = with_cull("front");
+  EXPECT_NEAR(front.pixels[64 * 128 + 64], front.pixels[2 * 128 + 2], 1);
+}
+
+TEST(Renderer, RedLightTintsTheLitFloorRed) {
+  const RenderRequest r = request(R"({"width": 240, "height": 136, "light": {"color": [1, 0, 0]}})");
+  const RenderResult result = render(r);
+  ASSERT_EQ(result.image.channels, 3);
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  const std::vector<int> lit = interior_pixels(r, exact, 0, 1.0);
+  ASSERT_FALSE(lit.empty());
+  for (int i : lit) {
+    const std::uint8_t* p = &result.image.pixels[std::size_t(i) * 3];
+    EXPECT_GT(p[0], 60);
+    EXPECT_EQ(p[1], 0);
+    EXPECT_EQ(p[2], 0);
+  }
+}
+
+TEST(Renderer, WhiteLightLitFloorIsBrighterThanShadowedFloor) {
+  const RenderRequest r = request(R"({"width": 240, "height": 136})");
+  const Image image = render(r).image;
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  const std::vector<int> lit = interior_pixels(r, exact, 0, 1.0);
+  const std::vector<int> shadowed = interior_pixels(r, exact, 0, 0.0);
+  ASSERT_FALSE(lit.empty());
+  ASSERT_FALSE(shadowed.empty());
+  // Ambient 0.3 is never shadowed: shadowed floor is dimmer but not black.
+  const std::uint8_t* a = &image.pixels[std::size_t(lit[0]) * 3];
+  const std::uint8_t* b = &image.pixels[std::size_t(shadowed[0]) * 3];
+  EXPECT_GT(a[0], b[0] * 2);
+  EXPECT_GT(b[0], 20);
+}
+
+TEST(Renderer, OverheadLightAndVerticalCameraRender) {
+  const RenderRequest r = request(R"({"width": 96, "height": 96, "output": "shadow", "light": {"position": [0, 6, 0]},
+                                      "camera": {"position": [0, 8, 0], "target": [0, 0, 0]}})");
+  const Image image = render(r).image;
+  // Looking straight down at the cube lit straight from above: its top (the
+  // centre pixel) is lit and the floor ring right around it too.
+  EXPECT_EQ(image.pixels[48 * 96 + 48], 255);
+  int dark = 0;
+  for (std::uint8_t v : image.pixels) dark += v < 128;
+  EXPECT_EQ(dark, 0) << "an overhead light casts the cube's shadow only beneath it";
+}
+
+TEST(Renderer, ExactAndErrorOutputs) {
+  RenderRequest r = request(R"({"width": 120, "height": 68, "output": "exact"})");
+  const Image exact = render(r).image;
+  EXPECT_EQ(exact.channels, 1);
+  EXPECT_EQ(exact.width, 120);
+  r.output = Output::Error;
+  const Image error = render(r).image;
+  EXPECT_EQ(error.channels, 3);
+  EXPECT_EQ(error.width, 120);
+  // The default render agrees with the exact reference almost everywhere.
+  int wrong = 0;
+  for (std::size_t i = 0; i < error.pixels.size(); i += 3) wrong += error.pixels[i] > 127 || error.pixels[i + 2] > 127;
+  EXPECT_LT(wrong, 120 * 68 / 50);
+}
+
+TEST(Renderer, FixedFitLikeTheSeedsLightsWhatIsOutsideTheBox) {
+  // The seeds' fixed +-10 box and far 7.5: the floor beyond it must be lit,
+  // not black (clamp-to-border and the far-plane fix).
+  const RenderRequest r = request(R"({"width": 240, "height": 136, "output": "shadow",
+      "camera": {"position": [0, 6, 20], "target": [0, 0, 0]},
+      "shadow": {"fit": "fixed", "bias": {"constant": 0.005, "slope": 0.05}}})");
+  const Image image = render(r).image;
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  const std::vector<int> lit = interior_pixels(r, exact, 0, 1.0);
+  ASSERT_GT(lit.size(), 1000u);
+  int dark = 0;
+  for (int i : lit) dark += image.pixels[i] < 128;
+  EXPECT_LT(dark, int(lit.size()) / 100);
+}
+
+}  // namespace
+}  // namespace umbra

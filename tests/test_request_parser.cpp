@@ -1,0 +1,221 @@
+// The request parser: defaults, and every class of bad input API.md lists.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "request_parser.hpp"
+#include "scene.hpp"
+
+namespace umbra {
+namespace {
+
+RenderRequest parse_ok(const std::string& body) {
+  ParsedRequest p = parse_render_request(body);
+  EXPECT_TRUE(p.ok()) << body << " -> " << p.error.field << ": " << p.error.message;
+  return p.ok() ? *p.request : RenderRequest{};
+}
+
+TEST(RequestParser, EmptyObjectGivesTheApiDefaults) {
+  const RenderRequest q = parse_ok("{}");
+  EXPECT_EQ(q.width, 960);
+  EXPECT_EQ(q.height, 540);
+  EXPECT_EQ(q.scene.name, "cube-on-plane");
+  EXPECT_EQ(q.scene.objects.size(), find_builtin_scene("cube-on-plane")->objects.size());
+  EXPECT_EQ(q.camera.position, find_builtin_scene("cube-on-plane")->camera_position);
+  EXPECT_EQ(q.camera.up, glm::dvec3(0, 1, 0));
+  EXPECT_DOUBLE_EQ(q.camera.fov_y_deg, 45.0);
+  EXPECT_DOUBLE_EQ(q.camera.near_plane, 0.1);
+  EXPECT_DOUBLE_EQ(q.camera.far_plane, 100.0);
+  EXPECT_EQ(q.light.position, find_builtin_scene("cube-on-plane")->light_position);
+  EXPECT_EQ(q.light.target, glm::dvec3(0.0));
+  EXPECT_EQ(q.light.color, glm::dvec3(1.0));
+  EXPECT_DOUBLE_EQ(q.light.ambient, 0.3);
+  EXPECT_EQ(q.light.projection, LightProjection::Orthographic);
+  EXPECT_DOUBLE_EQ(q.light.fov_y_deg, 90.0);
+  EXPECT_DOUBLE_EQ(q.light.size, 0.0);
+  EXPECT_DOUBLE_EQ(q.light.orbit_deg_per_s, 20.0);
+  EXPECT_DOUBLE_EQ(q.time, 0.0);
+  EXPECT_TRUE(q.shadow.enabled);
+  EXPECT_EQ(q.shadow.map_size, 2048);
+  EXPECT_EQ(q.shadow.filter, ShadowFilter::Pcf);
+  EXPECT_EQ(q.shadow.pcf_radius, 1);
+  EXPECT_TRUE(q.shadow.bias.automatic);
+  EXPECT_EQ(q.shadow.cull, CullMode::Front);
+  EXPECT_EQ(q.shadow.fit, FrustumFit::Scene);
+  EXPECT_DOUBLE_EQ(q.shadow.ortho_half_size, 10.0);
+  EXPECT_DOUBLE_EQ(q.shadow.near_plane, 1.0);
+  EXPECT_DOUBLE_EQ(q.shadow.far_plane, 7.5);
+  EXPECT_EQ(q.output, Output::Color);
+}
+
+TEST(RequestParser, EmptyBodyIsTheSameAsEmptyObject) {
+  EXPECT_EQ(parse_ok("").width, 960);
+  EXPECT_EQ(parse_ok("  \n").output, Output::Color);
+}
+
+TEST(RequestParser, TheDocumentedDefaultBodyIsAcceptedAndUnusedFieldsAreReported) {
+  const std::string body = R"({"width":960,"height":540,"scene":"cube-on-plane",
+    "camera":{"up":[0,1,0],"fov_y_deg":45,"near":0.1,"far":100},
+    "light":{"target":[0,0,0],"color":[1,1,1],"ambient":0.3,"projection":"orthographic","fov_y_deg":90,"size":0,"orbit_deg_per_s":20},
+    "time":0.0,
+    "shadow":{"enabled":true,"map_size":2048,"filter":"pcf","pcf_radius":1,"bias":"auto","cull":"front","fit":"scene",
+              "ortho_half_size":10,"near":1.0,"far":7.5},
+    "output":"color"})";
+  ParsedRequest p = parse_render_request(body);
+  ASSERT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  const std::vector<std::string> expected = {"light.fov_y_deg", "shadow.far", "shadow.near", "shadow.ortho_half_size"};
+  EXPECT_EQ(p.unused_fields, expected);
+}
+
+TEST(RequestParser, ReadsEveryField) {
+  const RenderRequest q = parse_ok(R"({
+    "width": 320, "height": 200, "scene": "three-cubes",
+    "camera": {"position": [1,2,3], "target": [0,1,0], "up": [0,0,1], "fov_y_deg": 60, "near": 0.5, "far": 50},
+    "light": {"position": [3,5,1], "target": [0,0,1], "color": "#ff8000", "ambient": 0.1,
+              "projection": "perspective", "fov_y_deg": 70, "orbit_deg_per_s": -10},
+    "time": 2.5,
+    "shadow": {"enabled": true, "map_size": 1024, "filter": "hard", "bias": {"constant": 0.001, "slope": 0.01, "normal_offset": 1.5},
+               "cull": "back", "fit": "fixed", "near": 0.5, "far": 20},
+    "output": "shadow"})");
+  EXPECT_EQ(q.width, 320);
+  EXPECT_EQ(q.scene.name, "three-cubes");
+  EXPECT_EQ(q.camera.up, glm::dvec3(0, 0, 1));
+  EXPECT_DOUBLE_EQ(q.light.color.r, 1.0);
+  EXPECT_DOUBLE_EQ(q.light.color.g, 128.0 / 255.0);
+  EXPECT_DOUBLE_EQ(q.light.color.b, 0.0);
+  EXPECT_EQ(q.light.projection, LightProjection::Perspective);
+  EXPECT_DOUBLE_EQ(q.light.orbit_deg_per_s, -10.0);
+  EXPECT_DOUBLE_EQ(q.time, 2.5);
+  EXPECT_EQ(q.shadow.filter, ShadowFilter::Hard);
+  EXPECT_FALSE(q.shadow.bias.automatic);
+  EXPECT_DOUBLE_EQ(q.shadow.bias.normal_offset, 1.5);
+  EXPECT_EQ(q.shadow.cull, CullMode::Back);
+  EXPECT_EQ(q.shadow.fit, FrustumFit::Fixed);
+  EXPECT_EQ(q.output, Output::Shadow);
+}
+
+TEST(RequestParser, CustomSceneWithEveryObjectType) {
+  const RenderRequest q = parse_ok(R"({"scene": {"objects": [
+      {"type": "plane", "center": [0,0,0], "size": [20, 10], "color": [0.5,0.5,0.5]},
+      {"type": "box", "center": [0,1,0], "size": [1,2,3], "rotation_y_deg": 30, "color": "#102030"},
+      {"type": "sphere", "center": [2,1,0], "radius": 0.75}]}})");
+  ASSERT_EQ(q.scene.objects.size(), 3u);
+  EXPECT_EQ(q.scene.objects[0].type, SceneObject::Type::Plane);
+  EXPECT_DOUBLE_EQ(q.scene.objects[0].size.z, 10.0);
+  EXPECT_DOUBLE_EQ(q.scene.objects[1].rotation_y_deg, 30.0);
+  EXPECT_DOUBLE_EQ(q.scene.objects[2].radius, 0.75);
+  EXPECT_TRUE(q.scene.name.empty());
+  // The default camera looks at the custom scene's centre.
+  EXPECT_NE(q.camera.position, q.camera.target);
+}
+
+TEST(RequestParser, AreaLightWithoutFilterUsesPcss) {
+  EXPECT_EQ(parse_ok(R"({"light": {"size": 2}})").shadow.filter, ShadowFilter::Pcss);
+}
+
+TEST(RequestParser, ThousandObjectsAreAccepted) {
+  std::string body = R"({"scene":{"objects":[)";
+  for (int i = 0; i < 1000; ++i) body += std::string(i ? "," : "") + R"({"type":"sphere","radius":0.1})";
+  body += "]}}";
+  EXPECT_EQ(parse_ok(body).scene.objects.size(), 1000u);
+}
+
+struct BadInput {
+  const char* body;
+  const char* field;
+};
+
+class RequestParserRejects : public testing::TestWithParam<BadInput> {};
+
+TEST_P(RequestParserRejects, NamingTheField) {
+  const BadInput& bad = GetParam();
+  ParsedRequest p = parse_render_request(bad.body);
+  ASSERT_FALSE(p.ok()) << bad.body;
+  EXPECT_EQ(p.error.field, bad.field) << bad.body << " -> " << p.error.message;
+  EXPECT_FALSE(p.error.message.empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    BadBodies, RequestParserRejects,
+    testing::Values(
+        // Malformed JSON: the field where it broke.
+        BadInput{"{", ""}, BadInput{"[1,2", "[2]"}, BadInput{R"({"width": })", "width"},
+        BadInput{R"({"width": 960,})", ""}, BadInput{"nonsense", ""}, BadInput{R"({"width": 960} trailing)", ""},
+        // Non-finite numbers written as numbers are not JSON at all.
+        BadInput{R"({"width": NaN})", "width"}, BadInput{R"({"light": {"ambient": Infinity}})", "light.ambient"},
+        BadInput{R"({"camera": {"fov_y_deg": -Infinity}})", "camera.fov_y_deg"},
+        BadInput{R"({"time": 1e400})", "time"}, BadInput{R"({"light": {"color": [1, 1e999, 1]}})", "light.color[1]"},
+        BadInput{"{\"scene\": \"\xff\"}", "scene"},
+        BadInput{R"({"width": 960, "width": 961})", "width"},
+        // Not an object.
+        BadInput{"[]", ""}, BadInput{"42", ""}, BadInput{"null", ""},
+        // Wrong types, strings where numbers belong.
+        BadInput{R"({"width": "960"})", "width"}, BadInput{R"({"width": true})", "width"},
+        BadInput{R"({"width": null})", "width"}, BadInput{R"({"time": "NaN"})", "time"},
+        BadInput{R"({"light": {"ambient": "0.3"}})", "light.ambient"},
+        BadInput{R"({"light": {"position": [1, "2", 3]}})", "light.position[1]"},
+        BadInput{R"({"light": {"position": [1, 2]}})", "light.position"},
+        BadInput{R"({"light": "bright"})", "light"}, BadInput{R"({"shadow": {"enabled": 1}})", "shadow.enabled"},
+        BadInput{R"({"scene": 7})", "scene"},
+        // Unknown fields, at every level.
+        BadInput{R"({"colour": "red"})", "colour"}, BadInput{R"({"light": {"colour": [1,1,1]}})", "light.colour"},
+        BadInput{R"({"shadow": {"bias": {"constant": 0.1, "scale": 2}}})", "shadow.bias.scale"},
+        BadInput{R"({"scene": {"objects": [{"type": "box", "radius": 1}]}})", "scene.objects[0].radius"},
+        BadInput{R"({"scene": {"objects": [], "lights": []}})", "scene.lights"},
+        // Out of range.
+        BadInput{R"({"width": 15})", "width"}, BadInput{R"({"height": 4097})", "height"},
+        BadInput{R"({"width": 100.5})", "width"}, BadInput{R"({"camera": {"fov_y_deg": 180}})", "camera.fov_y_deg"},
+        BadInput{R"({"camera": {"fov_y_deg": 0}})", "camera.fov_y_deg"},
+        BadInput{R"({"light": {"fov_y_deg": 450}})", "light.fov_y_deg"},
+        BadInput{R"({"camera": {"near": 0}})", "camera.near"}, BadInput{R"({"camera": {"near": 5, "far": 2}})", "camera.far"},
+        BadInput{R"({"light": {"color": [1, 1.5, 1]}})", "light.color[1]"},
+        BadInput{R"({"light": {"color": [-0.1, 1, 1]}})", "light.color[0]"},
+        BadInput{R"({"light": {"color": "#12345"}})", "light.color"}, BadInput{R"({"light": {"color": "#gg0000"}})", "light.color"},
+        BadInput{R"({"light": {"ambient": 1.5}})", "light.ambient"}, BadInput{R"({"light": {"size": -1}})", "light.size"},
+        BadInput{R"({"shadow": {"map_size": 63}})", "shadow.map_size"}, BadInput{R"({"shadow": {"map_size": 8193}})", "shadow.map_size"},
+        BadInput{R"({"shadow": {"pcf_radius": 9}})", "shadow.pcf_radius"}, BadInput{R"({"shadow": {"pcf_radius": -1}})", "shadow.pcf_radius"},
+        BadInput{R"({"shadow": {"ortho_half_size": 0}})", "shadow.ortho_half_size"},
+        BadInput{R"({"shadow": {"fit": "fixed", "near": 5, "far": 5}})", "shadow.far"},
+        BadInput{R"({"shadow": {"fit": "fixed", "near": 0}, "light": {"projection": "perspective"}})", "shadow.near"},
+        BadInput{R"({"scene": {"objects": [{"type": "box", "size": [1, 0, 1]}]}})", "scene.objects[0].size[1]"},
+        BadInput{R"({"scene": {"objects": [{"type": "sphere", "radius": -2}]}})", "scene.objects[0].radius"},
+        BadInput{R"({"scene": {"objects": [{"type": "plane", "size": [1, 2, 3]}]}})", "scene.objects[0].size"},
+        BadInput{R"({"camera": {"position": [1e7, 0, 0]}})", "camera.position[0]"},
+        // Bad choices.
+        BadInput{R"({"output": "colour"})", "output"}, BadInput{R"({"light": {"projection": "ortho"}})", "light.projection"},
+        BadInput{R"({"shadow": {"filter": "vsm"}})", "shadow.filter"}, BadInput{R"({"shadow": {"cull": "both"}})", "shadow.cull"},
+        BadInput{R"({"shadow": {"fit": "camera"}})", "shadow.fit"}, BadInput{R"({"shadow": {"bias": "none"}})", "shadow.bias"},
+        BadInput{R"({"scene": {"objects": [{"type": "cone"}]}})", "scene.objects[0].type"},
+        BadInput{R"({"scene": {"objects": [{"center": [0,0,0]}]}})", "scene.objects[0].type"},
+        BadInput{R"({"scene": {}})", "scene.objects"},
+        // Unknown scene names.
+        BadInput{R"({"scene": "two-cubes"})", "scene"},
+        // Degenerate geometry.
+        BadInput{R"({"camera": {"position": [1, 2, 3], "target": [1, 2, 3]}})", "camera.position"},
+        BadInput{R"({"light": {"position": [0, 0, 0], "target": [0, 0, 0]}})", "light.position"},
+        BadInput{R"({"camera": {"up": [0, 0, 0]}})", "camera.up"},
+        // Contradictions.
+        BadInput{R"({"light": {"size": 1}, "shadow": {"filter": "pcf"}})", "shadow.filter"}));
+
+TEST(RequestParser, RejectsMoreThanAThousandObjects) {
+  std::string body = R"({"scene":{"objects":[)";
+  for (int i = 0; i < 1001; ++i) body += std::string(i ? "," : "") + R"({"type":"sphere"})";
+  body += "]}}";
+  ParsedRequest p = parse_render_request(body);
+  ASSERT_FALSE(p.ok());
+  EXPECT_EQ(p.error.field, "scene.objects");
+}
+
+TEST(RequestParser, RejectsDeepNestingWithoutRecursing) {
+  const std::string body = std::string(10000, '[') + std::string(10000, ']');
+  ParsedRequest p = parse_render_request(body);
+  ASSERT_FALSE(p.ok());
+  EXPECT_NE(p.error.message.find("nested"), std::string::npos);
+  const std::string in_field = R"({"light": )" + std::string(10000, '[') + std::string(10000, ']') + "}";
+  ParsedRequest q = parse_render_request(in_field);
+  ASSERT_FALSE(q.ok());
+  EXPECT_EQ(q.error.field.rfind("light", 0), 0u) << q.error.field;
+}
+
+}  // namespace
+}  // namespace umbra
