@@ -12,10 +12,7 @@
 namespace umbra {
 
 glm::dvec3 orbit_light_position(const Light& light, double time) {
-  const double angle = glm::radians(std::fmod(time * light.orbit_deg_per_s, 360.0));
-  const glm::dvec3 offset = light.position - light.target;
-  const double c = std::cos(angle), s = std::sin(angle);
-  return light.target + glm::dvec3(c * offset.x + s * offset.z, offset.y, -s * offset.x + c * offset.z);
+  return light.target + rotate_y(light.position - light.target, std::fmod(time * light.orbit_deg_per_s, 360.0));
 }
 
 glm::dmat4 stable_look_at(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up) {

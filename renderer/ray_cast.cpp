@@ -10,18 +10,13 @@
 #include <glm/trigonometric.hpp>
 
 #include "light_math.hpp"
+#include "scene.hpp"
 
 namespace umbra {
 
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-glm::dvec3 rotate_y(const glm::dvec3& v, double degrees) {
-  const double a = glm::radians(degrees);
-  const double c = std::cos(a), s = std::sin(a);
-  return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
-}
 
 // Nearest hit distance of one primitive in (t_min, t_max), with its outward
 // normal; kInf when missed.

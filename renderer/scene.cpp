@@ -8,6 +8,12 @@
 
 namespace umbra {
 
+glm::dvec3 rotate_y(const glm::dvec3& v, double degrees) {
+  const double a = glm::radians(degrees);
+  const double c = std::cos(a), s = std::sin(a);
+  return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
+}
+
 void Aabb::extend(const glm::dvec3& p) {
   min = glm::min(min, p);
   max = glm::max(max, p);
@@ -28,13 +34,6 @@ std::vector<glm::dvec3> Aabb::corners() const {
 }
 
 namespace {
-
-// Rotation about +Y, counter-clockwise seen from above (right-handed).
-glm::dvec3 rotate_y(const glm::dvec3& v, double degrees) {
-  const double a = glm::radians(degrees);
-  const double c = std::cos(a), s = std::sin(a);
-  return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
-}
 
 SceneObject plane(glm::dvec3 center, double sx, double sz, glm::dvec3 color) {
   SceneObject o;

@@ -27,6 +27,10 @@ struct Aabb {
   std::vector<glm::dvec3> corners() const;
 };
 
+/// Rotates v about +Y by `degrees`, counter-clockwise seen from above
+/// (right-handed): the rotation a box's rotation_y_deg means.
+glm::dvec3 rotate_y(const glm::dvec3& v, double degrees);
+
 /// Tight world-space bounds of one object (a rotated box's rotated corners).
 Aabb object_bounds(const SceneObject& object);
 Aabb scene_bounds(const Scene& scene);

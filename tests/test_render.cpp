@@ -5,6 +5,8 @@
 
 #include <memory>
 
+#include "gl/egl_context.hpp"
+#include "gl/program.hpp"
 #include "ray_cast.hpp"
 #include "render_service.hpp"
 #include "request_parser.hpp"
@@ -41,6 +43,20 @@ std::vector<int> interior_pixels(const RenderRequest& r, const std::vector<Exact
     }
   }
   return out;
+}
+
+TEST(GlProgram, CompileErrorCarriesTheGlslLog) {
+  gl::EglContext context;  // this thread's own context
+  const char* vertex = "#version 450 core\nvoid main() { gl_Position = vec4(0.0); }\n";
+  const char* broken = "#version 450 core\nout vec4 c;\nvoid main() { c = undeclared_thing; }\n";
+  try {
+    gl::build_program_from_sources("ok.vert", vertex, "broken.frag", broken);
+    FAIL() << "a broken shader compiled";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("broken.frag"), std::string::npos) << what;
+    EXPECT_NE(what.find("undeclared_thing"), std::string::npos) << what;
+  }
 }
 
 TEST(Renderer, ReportsItsGlContext) {
