@@ -26,9 +26,4 @@ struct FrameTimings {
   double readback_ms = 0.0;
 };
 
-struct RenderResult {
-  Image image;
-  FrameTimings timings;
-};
-
 }  // namespace umbra

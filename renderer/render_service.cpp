@@ -10,6 +10,7 @@
 
 #include "gl/egl_context.hpp"
 #include "ray_cast.hpp"
+#include "shadow_error.hpp"
 #include "shadow_renderer.hpp"
 
 namespace umbra {
@@ -107,11 +108,13 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request)
   }
   return std::async(std::launch::async, [request = std::move(request), rendered = std::move(rendered)]() mutable {
     const auto start = std::chrono::steady_clock::now();
-    const Image exact = exact_image(cast_exact_pixels(request), request.width, request.height);
+    const std::vector<ExactPixel> pixels = cast_exact_pixels(request);
+    const Image exact = exact_image(pixels, request.width, request.height);
     const double cast_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     RenderResult result;
     if (request.output == Output::Error) {
       result = rendered.get();
+      result.error = measure_shadow_error(result.image, pixels);
       result.image = error_image(result.image, exact);
       result.timings.main_ms += cast_ms;
     } else {

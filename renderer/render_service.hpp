@@ -8,7 +8,7 @@
 #include <memory>
 #include <string>
 
-#include "image.hpp"
+#include "render_result.hpp"
 #include "request.hpp"
 
 namespace umbra {

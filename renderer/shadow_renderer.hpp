@@ -5,7 +5,7 @@
 #include <string>
 
 #include "gl/objects.hpp"
-#include "image.hpp"
+#include "render_result.hpp"
 #include "light_math.hpp"
 #include "request.hpp"
 #include "scene.hpp"

@@ -179,6 +179,13 @@ void HttpApi::install_routes() {
       for (const auto& f : parsed.unused_fields) list += (list.empty() ? "" : ", ") + f;
       res.set_header("Umbra-Unused-Fields", list);
     }
+    if (result.error) {
+      const ShadowError& e = *result.error;
+      char buffer[200];
+      std::snprintf(buffer, sizeof buffer, "mae=%.5f, wrong=%.4f%%, false_shadow=%.4f%%, false_light=%.4f%%, pixels=%zu",
+                    e.mae, 100.0 * e.wrong, 100.0 * e.false_shadow, 100.0 * e.false_light, e.pixels);
+      res.set_header("Umbra-Shadow-Error", buffer);
+    }
     res.set_content(std::move(png), "image/png");
   };
   http.Post("/api/render", [render](const httplib::Request& req, httplib::Response& res) { render(req, res, false); });

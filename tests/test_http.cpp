@@ -126,6 +126,11 @@ TEST(Http, EveryOutputDecodesToTheRightSize) {
     EXPECT_EQ(d.height, c.height) << c.output;
     EXPECT_EQ(d.channels, c.channels) << c.output;
     EXPECT_FALSE(res->get_header_value("Server-Timing").empty());
+    const std::string measures = res->get_header_value("Umbra-Shadow-Error");
+    if (std::string(c.output) == "error")
+      EXPECT_NE(measures.find("false_light="), std::string::npos) << measures;
+    else
+      EXPECT_TRUE(measures.empty()) << c.output;
   }
 }
 

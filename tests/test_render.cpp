@@ -10,6 +10,7 @@
 #include "ray_cast.hpp"
 #include "render_service.hpp"
 #include "request_parser.hpp"
+#include "shadow_error.hpp"
 
 namespace umbra {
 namespace {
@@ -187,6 +188,26 @@ TEST(Renderer, ExactAndErrorOutputs) {
   for (std::size_t i = 0; i < error.pixels.size(); i += 3) wrong += error.pixels[i] > 127 || error.pixels[i + 2] > 127;
   EXPECT_LT(wrong, 120 * 68 / 50);
 }
+
+// Default settings against the exact reference (issue 3's thresholds: no
+// acne, no lost shadows). More hard cases come with bench/scenes/.
+class DefaultsMatchTheExactReference : public testing::TestWithParam<std::tuple<const char*, const char*>> {};
+
+TEST_P(DefaultsMatchTheExactReference, WithinTheErrorBudget) {
+  const auto [scene, projection] = GetParam();
+  const RenderRequest r = request(std::string(R"({"width": 320, "height": 180, "output": "shadow", "scene": ")") + scene +
+                                  R"(", "light": {"projection": ")" + projection + R"("}})");
+  const ShadowError e = measure_shadow_error(render(r).image, cast_exact_pixels(r));
+  EXPECT_GT(e.pixels, 320u * 180u / 2u);
+  EXPECT_LE(e.false_shadow, 0.002) << "acne or over-shadowing";
+  EXPECT_LE(e.false_light, 0.01) << "lost, cut-off or detached shadows";
+  EXPECT_LE(e.wrong, 0.01);
+  EXPECT_LE(e.mae, 0.01);
+}
+
+INSTANTIATE_TEST_SUITE_P(BuiltinScenes, DefaultsMatchTheExactReference,
+                         testing::Combine(testing::Values("cube-on-plane", "three-cubes"),
+                                          testing::Values("orthographic", "perspective")));
 
 TEST(Renderer, FixedFitLikeTheSeedsLightsWhatIsOutsideTheBox) {
   // The seeds' fixed +-10 box and far 7.5: the floor beyond it must be lit,
