@@ -85,11 +85,20 @@ bool HttpApi::bind() {
 
 void HttpApi::serve() { http_->listen_after_bind(); }
 
+bool HttpApi::serving() const { return http_->is_running(); }
+
 void HttpApi::stop() { http_->stop(); }
 
 void HttpApi::install_routes() {
   httplib::Server& http = *http_;
   http.set_payload_max_length(kMaxBodyBytes);
+  // cpp-httplib's default also sets SO_REUSEPORT, which lets a second server
+  // start on a port that is already serving and silently take half of its
+  // connections. SO_REUSEADDR alone still allows a quick restart.
+  http.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
 
   http.set_pre_routing_handler([](const httplib::Request&, httplib::Response&) {
     request_started = Clock::now();

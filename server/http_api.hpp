@@ -35,6 +35,10 @@ class HttpApi {
   int port() const { return port_; }
   /// Serves until stop(); call after bind().
   void serve();
+  /// True once serve() is accepting connections (and until it returns).
+  bool serving() const;
+  /// Stops serve(). A stop() before serve() has started is lost, so a
+  /// caller that runs serve() on another thread waits for serving() first.
   void stop();
 
  private:

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <thread>
 
@@ -28,6 +29,7 @@ class ServerEnvironment : public testing::Environment {
     api = std::make_unique<HttpApi>(*renderer, options);
     ASSERT_TRUE(api->bind());
     thread = std::thread([] { api->serve(); });
+    while (!api->serving()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   void TearDown() override {
     api->stop();
@@ -194,6 +196,14 @@ TEST(Http, ServesTheWebPanel) {
     EXPECT_EQ(res->status, 200) << path;
     EXPECT_FALSE(res->body.empty()) << path;
   }
+}
+
+TEST(Http, ASecondServerCannotTakeTheSamePort) {
+  ServerOptions options;
+  options.port = ServerEnvironment::api->port();
+  options.log_requests = false;
+  HttpApi second(*ServerEnvironment::renderer, options);
+  EXPECT_FALSE(second.bind());
 }
 
 TEST(Http, EightParallelClientsFiveRequestsEach) {
