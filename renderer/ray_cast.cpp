@@ -119,6 +119,13 @@ void basis(const glm::dvec3& axis, glm::dvec3& u, glm::dvec3& v) {
   v = glm::cross(axis, u);
 }
 
+// Unit direction from `point` towards the light's centre: towards its
+// position for a point light, against its direction of travel otherwise.
+glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_position, const glm::dvec3& point) {
+  return light.projection == LightProjection::Perspective ? glm::normalize(light_position - point)
+                                                          : glm::normalize(light_position - light.target);
+}
+
 }  // namespace
 
 std::optional<RayHit> cast_ray(const Scene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
@@ -144,8 +151,7 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
                         const glm::dvec3& normal) {
   const Light& light = request.light;
   const bool perspective = light.projection == LightProjection::Perspective;
-  const glm::dvec3 to_light_center =
-      perspective ? glm::normalize(light_position - point) : glm::normalize(light_position - light.target);
+  const glm::dvec3 to_light_center = direction_to_light(light, light_position, point);
   if (glm::dot(normal, to_light_center) <= 0.0) return 0.0;
   // Leave the surface by a hair so it does not hit itself; relative to the
   // point's magnitude, so it holds at every scale.
@@ -158,6 +164,8 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
   }
   glm::dvec3 u, v;
   basis(to_light_center, u, v);
+  // Orthographic: the sun's disc, directions within half the angular diameter.
+  const double spread = perspective ? 0.0 : std::tan(glm::radians(0.5 * light.size));
   int seen = 0;
   const auto& samples = disc_samples();
   for (const glm::dvec2& s : samples) {
@@ -170,8 +178,6 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
       t_max = glm::length(target - origin);
       dir = (target - origin) / t_max;
     } else {
-      // The sun's disc: directions within half the angular diameter.
-      const double spread = std::tan(glm::radians(0.5 * light.size));
       dir = glm::normalize(to_light_center + spread * (s.x * u + s.y * v));
     }
     if (glm::dot(normal, dir) > 0.0 && !occluded(request.scene, origin, dir, t_max)) ++seen;
@@ -204,10 +210,7 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
         if (!hit) continue;
         px.geometry = true;
         px.object = hit->object;
-        const glm::dvec3 to_light = request.light.projection == LightProjection::Perspective
-                                        ? glm::normalize(light_position - hit->point)
-                                        : glm::normalize(light_position - request.light.target);
-        px.n_dot_l = glm::dot(hit->normal, to_light);
+        px.n_dot_l = glm::dot(hit->normal, direction_to_light(request.light, light_position, hit->point));
         px.visibility = exact_visibility(request, light_position, hit->point, hit->normal);
       }
     }
