@@ -1,12 +1,14 @@
 #include "light_math.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
 #include <glm/ext/matrix_clip_space.hpp>
 #include <glm/ext/matrix_transform.hpp>
 #include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
 #include <glm/trigonometric.hpp>
 
 namespace umbra {
@@ -29,134 +31,396 @@ glm::dmat4 stable_look_at(const glm::dvec3& eye, const glm::dvec3& target, const
   return glm::lookAt(eye, target, chosen_up);
 }
 
-namespace {
-
-struct LightSpaceExtent {
-  glm::dvec3 min{std::numeric_limits<double>::max()};
-  glm::dvec3 max{std::numeric_limits<double>::lowest()};
-};
-
-// Extent of every object's bounding-box corners in the light's view space.
-LightSpaceExtent view_space_extent(const glm::dmat4& view, const Scene& scene) {
-  LightSpaceExtent e;
-  for (const auto& object : scene.objects) {
-    for (const auto& corner : object_bounds(object).corners()) {
-      const glm::dvec3 p = glm::dvec3(view * glm::dvec4(corner, 1.0));
-      e.min = glm::min(e.min, p);
-      e.max = glm::max(e.max, p);
-    }
-  }
-  return e;
-}
-
-void fit_orthographic(LightFrustum& f, const Scene& scene, int map_size) {
-  const LightSpaceExtent e = view_space_extent(f.view, scene);
-  // One texel of margin keeps the outermost geometry inside the map; the
-  // depth margin keeps the nearest and farthest surfaces off the clip planes.
-  const double width = std::max(e.max.x - e.min.x, e.max.y - e.min.y);
-  const double scale = std::max({width, e.max.z - e.min.z, 1e-30});
-  const double margin = scale / map_size;
-  const double x0 = e.min.x - margin, x1 = e.max.x + margin;
-  const double y0 = e.min.y - margin, y1 = e.max.y + margin;
-  // View space looks down -Z: the nearest point has the largest z.
-  f.near_plane = -e.max.z - margin;
-  f.far_plane = -e.min.z + margin;
-  f.projection = glm::ortho(x0, x1, y0, y1, f.near_plane, f.far_plane);
-  f.texel_size = std::max(x1 - x0, y1 - y0) / map_size;
-}
-
-// Euclidean distance from p to the box (0 inside).
-double distance_to(const Aabb& box, const glm::dvec3& p) {
-  const glm::dvec3 outside = glm::max(glm::max(box.min - p, p - box.max), glm::dvec3(0.0));
-  return glm::length(outside);
-}
-
-void fit_perspective(LightFrustum& f, const Scene& scene, int map_size) {
-  const LightSpaceExtent e = view_space_extent(f.view, scene);
-  // Depth along the axis is linear in position, so its extremes over a box
-  // are at corners; so is the largest |x|/depth over the part in front.
-  const double farthest = std::max(-e.min.z, 1e-30);
-  const double far_plane = farthest * 1.01;
-
-  const double max_tan = std::tan(glm::radians(kMaxFittedLightFovDeg * 0.5));
-  double tan_half = 0.0;
-  double nearest_distance = std::numeric_limits<double>::max();
-  for (const auto& object : scene.objects) {
-    const Aabb bounds = object_bounds(object);
-    nearest_distance = std::min(nearest_distance, distance_to(bounds, f.position));
-    for (const auto& corner : bounds.corners()) {
-      const glm::dvec3 p = glm::dvec3(f.view * glm::dvec4(corner, 1.0));
-      const double depth = -p.z;
-      if (depth <= 1e-9 * far_plane) {
-        // Part of the object lies beside or behind the light: no cone of
-        // less than 180 degrees holds it. Take the widest allowed.
-        tan_half = max_tan;
-        continue;
-      }
-      tan_half = std::max(tan_half, std::max(std::abs(p.x), std::abs(p.y)) / depth);
-    }
-  }
-  tan_half = std::clamp(tan_half * (1.0 + 2.0 / map_size), 1e-6, max_tan);
-
-  // Near: as far out as nothing inside the cone is cut. A point at distance r
-  // inside a cone of half-angle a lies at least r cos(a) along the axis, and
-  // no point lies nearer than the nearest corner depth either. (Taking the
-  // corner depth alone collapses near towards 0 as soon as a floor reaches
-  // behind the light, and with it the depth precision.)
-  const double cos_half = 1.0 / std::sqrt(1.0 + tan_half * tan_half);
-  const double nearest = std::max(-e.max.z, nearest_distance * cos_half);
-  // 32-bit float depth keeps enough precision for far/near up to ~10^5.
-  const double near_plane = std::max(nearest * 0.99, far_plane * 1e-5);
-  f.near_plane = near_plane;
-  f.far_plane = far_plane;
-  f.projection = glm::perspective(2.0 * std::atan(tan_half), 1.0, near_plane, far_plane);
-  f.texel_size = 2.0 * tan_half / map_size;
-}
-
-}  // namespace
-
-LightFrustum light_frustum(const RenderRequest& request) {
-  const Light& light = request.light;
-  const ShadowSettings& shadow = request.shadow;
-  LightFrustum f;
-  f.perspective = light.projection == LightProjection::Perspective;
-  f.position = orbit_light_position(light, request.time);
-  f.direction = glm::normalize(light.target - f.position);
-  f.view = stable_look_at(f.position, light.target, glm::dvec3(0.0, 1.0, 0.0));
-
-  if (shadow.fit == FrustumFit::Fixed) {
-    f.near_plane = shadow.near_plane;
-    f.far_plane = shadow.far_plane;
-    if (f.perspective) {
-      f.projection = glm::perspective(glm::radians(light.fov_y_deg), 1.0, f.near_plane, f.far_plane);
-      f.texel_size = 2.0 * std::tan(glm::radians(light.fov_y_deg) * 0.5) / shadow.map_size;
-    } else {
-      const double h = shadow.ortho_half_size;
-      f.projection = glm::ortho(-h, h, -h, h, f.near_plane, f.far_plane);
-      f.texel_size = 2.0 * h / shadow.map_size;
-    }
-    return f;
-  }
-  if (request.scene.objects.empty()) {
-    // Nothing casts or receives: any valid frustum will do.
-    f.projection = f.perspective ? glm::perspective(glm::radians(90.0), 1.0, 0.1, 1.0)
-                                 : glm::ortho(-1.0, 1.0, -1.0, 1.0, -1.0, 1.0);
-    f.texel_size = 2.0 / shadow.map_size;
-    return f;
-  }
-  if (f.perspective)
-    fit_perspective(f, request.scene, shadow.map_size);
-  else
-    fit_orthographic(f, request.scene, shadow.map_size);
-  return f;
-}
-
 CameraMatrices camera_matrices(const Camera& camera, int width, int height) {
   CameraMatrices m;
   m.view = stable_look_at(camera.position, camera.target, camera.up);
   m.projection = glm::perspective(glm::radians(camera.fov_y_deg), double(width) / double(height),
                                   camera.near_plane, camera.far_plane);
   return m;
+}
+
+int filter_reach_texels(const ShadowSettings& shadow) {
+  switch (shadow.filter) {
+    case ShadowFilter::Hard: return 1;
+    case ShadowFilter::Pcf: return shadow.pcf_radius + 1;
+    case ShadowFilter::Pcss: return 33;  // scene.frag's blocker search reaches 32 texels
+  }
+  return 1;
+}
+
+// ---------------------------------------------------------------------------
+// Convex geometry: a frustum against a box.
+
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+// The six planes (a, b, c, d), inside where a x + b y + c z + d >= 0, of the
+// clip volume of a view-projection matrix (Gribb & Hartmann), normalised so
+// the value is a distance.
+std::array<glm::dvec4, 6> clip_planes(const glm::dmat4& m) {
+  const glm::dvec4 row0(m[0][0], m[1][0], m[2][0], m[3][0]);
+  const glm::dvec4 row1(m[0][1], m[1][1], m[2][1], m[3][1]);
+  const glm::dvec4 row2(m[0][2], m[1][2], m[2][2], m[3][2]);
+  const glm::dvec4 row3(m[0][3], m[1][3], m[2][3], m[3][3]);
+  std::array<glm::dvec4, 6> planes = {row3 + row0, row3 - row0, row3 + row1, row3 - row1, row3 + row2, row3 - row2};
+  for (auto& p : planes) p /= glm::length(glm::dvec3(p));
+  return planes;
+}
+
+std::array<glm::dvec3, 8> clip_corners(const glm::dmat4& m) {
+  const glm::dmat4 inverse = glm::inverse(m);
+  std::array<glm::dvec3, 8> corners;
+  for (int i = 0; i < 8; ++i) {
+    const glm::dvec4 p = inverse * glm::dvec4(i & 1 ? 1.0 : -1.0, i & 2 ? 1.0 : -1.0, i & 4 ? 1.0 : -1.0, 1.0);
+    corners[i] = glm::dvec3(p) / p.w;
+  }
+  return corners;
+}
+
+// The 12 edges of a box-like set of 8 corners indexed by bits (x, y, z).
+constexpr std::array<std::array<int, 2>, 12> kEdges = {{{0, 1}, {2, 3}, {4, 5}, {6, 7},
+                                                        {0, 2}, {1, 3}, {4, 6}, {5, 7},
+                                                        {0, 4}, {1, 5}, {2, 6}, {3, 7}}};
+
+}  // namespace
+
+std::vector<glm::dvec3> frustum_box_intersection(const glm::dmat4& view_projection, const Aabb& box) {
+  std::vector<glm::dvec3> out;
+  if (box.empty()) return out;
+  const auto planes = clip_planes(view_projection);
+  const auto frustum = clip_corners(view_projection);
+  std::array<glm::dvec3, 8> box_corners;
+  for (int i = 0; i < 8; ++i)
+    box_corners[i] = {i & 1 ? box.max.x : box.min.x, i & 2 ? box.max.y : box.min.y, i & 4 ? box.max.z : box.min.z};
+
+  // Tolerances relative to the sizes involved, so that a flat box (a plane)
+  // and points computed on a face still count as inside.
+  double scale = glm::length(box.extent()) + glm::length(box.center());
+  for (const auto& c : frustum) scale = std::max(scale, glm::length(c));
+  const double eps = 1e-9 * scale;
+  auto in_frustum = [&](const glm::dvec3& p) {
+    for (const auto& plane : planes)
+      if (glm::dot(glm::dvec3(plane), p) + plane.w < -eps) return false;
+    return true;
+  };
+  auto in_box = [&](const glm::dvec3& p) {
+    return glm::all(glm::greaterThanEqual(p, box.min - eps)) && glm::all(glm::lessThanEqual(p, box.max + eps));
+  };
+
+  // The intersection of two convex solids is spanned by each one's corners
+  // inside the other and the points where each one's edges cross the
+  // other's faces.
+  for (const auto& c : box_corners)
+    if (in_frustum(c)) out.push_back(c);
+  for (const auto& c : frustum)
+    if (in_box(c)) out.push_back(c);
+  for (const auto& edge : kEdges) {
+    const glm::dvec3 a = box_corners[edge[0]], b = box_corners[edge[1]];
+    for (const auto& plane : planes) {
+      const double da = glm::dot(glm::dvec3(plane), a) + plane.w, db = glm::dot(glm::dvec3(plane), b) + plane.w;
+      if ((da < 0.0) == (db < 0.0)) continue;
+      const glm::dvec3 p = a + (b - a) * (da / (da - db));
+      if (in_frustum(p)) out.push_back(p);
+    }
+  }
+  for (const auto& edge : kEdges) {
+    const glm::dvec3 a = frustum[edge[0]], b = frustum[edge[1]];
+    for (int axis = 0; axis < 3; ++axis) {
+      for (double face : {box.min[axis], box.max[axis]}) {
+        const double da = a[axis] - face, db = b[axis] - face;
+        if ((da < 0.0) == (db < 0.0)) continue;
+        const glm::dvec3 p = a + (b - a) * (da / (da - db));
+        if (in_box(p)) out.push_back(p);
+      }
+    }
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+// Fitting.
+
+namespace {
+
+// Light-space (view-space) box of some points.
+struct Extent {
+  glm::dvec3 min{kInfinity};
+  glm::dvec3 max{-kInfinity};
+  bool empty() const { return min.x > max.x; }
+  void extend(const glm::dvec3& p) {
+    min = glm::min(min, p);
+    max = glm::max(max, p);
+  }
+};
+
+glm::dvec3 transform(const glm::dmat4& m, const glm::dvec3& p) { return glm::dvec3(m * glm::dvec4(p, 1.0)); }
+
+std::vector<Aabb> bounds_of(const Scene& scene) {
+  std::vector<Aabb> boxes;
+  boxes.reserve(scene.objects.size());
+  for (const auto& o : scene.objects) boxes.push_back(object_bounds(o));
+  return boxes;
+}
+
+// Texel size of a view, read from its projection: ortho x scale = 2 / width,
+// perspective y scale = 1 / tan(half fov).
+void set_texel_size(ShadowView& v, bool perspective, int size) {
+  if (perspective) {
+    v.tan_half = 1.0 / v.projection[1][1];
+    v.texel_size = glm::dvec2(2.0 * v.tan_half / size);
+  } else {
+    v.tan_half = 0.0;
+    v.texel_size = glm::dvec2(2.0 / v.projection[0][0] / size, 2.0 / v.projection[1][1] / size);
+  }
+}
+
+// One orthographic view around every object (used when the camera sees no
+// object: there is nothing to focus on).
+ShadowView ortho_around(const glm::dmat4& view, const std::vector<Aabb>& boxes, int size) {
+  Extent e;
+  for (const auto& b : boxes)
+    for (const auto& c : b.corners()) e.extend(transform(view, c));
+  ShadowView v;
+  v.view = view;
+  const double width = std::max(e.max.x - e.min.x, e.max.y - e.min.y);
+  const double margin = std::max({width, e.max.z - e.min.z, 1e-30}) / size;
+  // View space looks down -Z: the nearest point has the largest z.
+  v.near_plane = -e.max.z - margin;
+  v.far_plane = -e.min.z + margin;
+  v.projection = glm::ortho(e.min.x - margin, e.max.x + margin, e.min.y - margin, e.max.y + margin, v.near_plane,
+                            v.far_plane);
+  set_texel_size(v, false, size);
+  return v;
+}
+
+// The orthographic view for the receivers `points` (already in light view
+// space): x/y hold them with `reach` texels to spare, quantised and snapped
+// to whole texels; near is pulled towards the light over every caster above
+// that rectangle.
+ShadowView ortho_for_receivers(const glm::dmat4& view, const Extent& receivers, const std::vector<Extent>& casters,
+                               int size, int reach) {
+  // Width: the larger side, grown so `reach` + 1 texels fit on each side,
+  // then rounded up to a power of 2^(1/16): it keeps its value (and so the
+  // texel grid) under small camera moves.
+  const double raw = std::max({receivers.max.x - receivers.min.x, receivers.max.y - receivers.min.y, 1e-30});
+  const double spare = std::min(2.0 * (reach + 2), 0.5 * size) / size;
+  const double width = std::exp2(std::ceil(std::log2(raw / (1.0 - spare)) * 16.0) / 16.0);
+  const double texel = width / size;
+  // Origin snapped to a multiple of the texel, so that as the rectangle
+  // slides the texels stay where they were and edges do not shimmer.
+  const glm::dvec2 center = 0.5 * (glm::dvec2(receivers.min) + glm::dvec2(receivers.max));
+  const double x0 = std::floor((center.x - 0.5 * width) / texel) * texel;
+  const double y0 = std::floor((center.y - 0.5 * width) / texel) * texel;
+
+  double nearest = receivers.max.z, farthest = receivers.min.z;
+  for (const auto& c : casters) {
+    if (c.max.x < x0 || c.min.x > x0 + width || c.max.y < y0 || c.min.y > y0 + width) continue;
+    nearest = std::max(nearest, c.max.z);
+  }
+  const double depth_margin = 1e-3 * std::max(nearest - farthest, width) + 1e-9 * std::abs(nearest);
+  ShadowView v;
+  v.view = view;
+  v.near_plane = -nearest - depth_margin;
+  v.far_plane = -farthest + depth_margin;
+  v.projection = glm::ortho(x0, x0 + width, y0, y0 + width, v.near_plane, v.far_plane);
+  set_texel_size(v, false, size);
+  return v;
+}
+
+// Camera view depths [near, far] of what the camera sees of the objects,
+// or nothing if it sees none.
+bool visible_depth_range(const CameraMatrices& camera, const std::vector<Aabb>& boxes, double& near_depth,
+                         double& far_depth) {
+  near_depth = kInfinity;
+  far_depth = -kInfinity;
+  const glm::dmat4 view_projection = camera.projection * camera.view;
+  for (const auto& b : boxes) {
+    for (const auto& p : frustum_box_intersection(view_projection, b)) {
+      const double depth = -transform(camera.view, p).z;
+      near_depth = std::min(near_depth, depth);
+      far_depth = std::max(far_depth, depth);
+    }
+  }
+  return near_depth <= far_depth;
+}
+
+// Cascades over the camera's visible depths [d0, d1], split logarithmically:
+// each cascade then spans the same ratio of depths and so keeps about the
+// same ratio of texels to pixels. (The "practical" blend with a uniform
+// split exists for d0 = the camera's near plane; d0 here is the nearest
+// visible geometry, so the blend would only waste the first cascade.)
+std::vector<ShadowView> cascade_views(const RenderRequest& request, const CameraMatrices& camera,
+                                      const glm::dmat4& light_view, const std::vector<Aabb>& boxes,
+                                      const std::vector<Extent>& casters, double d0, double d1, int count, int size) {
+  const Camera& c = request.camera;
+  const double aspect = double(request.width) / request.height;
+  const int reach = filter_reach_texels(request.shadow);
+  std::vector<ShadowView> views;
+  double split_near = d0;
+  for (int i = 1; i <= count; ++i) {
+    const double f = double(i) / count;
+    const double split_far = i == count ? d1 : d0 * std::pow(d1 / d0, f);
+    // The slice's own frustum, a hair deeper so that rounding at the split
+    // never leaves a receiver between two slices.
+    const glm::dmat4 slice = glm::perspective(glm::radians(c.fov_y_deg), aspect, split_near * (1.0 - 1e-6),
+                                              split_far * (1.0 + 1e-6)) * camera.view;
+    Extent receivers;
+    for (const auto& b : boxes)
+      for (const auto& p : frustum_box_intersection(slice, b)) receivers.extend(transform(light_view, p));
+    if (!receivers.empty()) views.push_back(ortho_for_receivers(light_view, receivers, casters, size, reach));
+    split_near = split_far;
+  }
+  return views;
+}
+
+void plan_orthographic(ShadowPlan& plan, const RenderRequest& request, const glm::dmat4& light_view) {
+  const std::vector<Aabb> boxes = bounds_of(request.scene);
+  std::vector<Extent> casters;
+  casters.reserve(boxes.size());
+  for (const auto& b : boxes) {
+    Extent e;
+    for (const auto& corner : b.corners()) e.extend(transform(light_view, corner));
+    casters.push_back(e);
+  }
+  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
+  double d0 = 0.0, d1 = 0.0;
+  if (!visible_depth_range(camera, boxes, d0, d1)) {
+    plan.views = {ortho_around(light_view, boxes, plan.layer_size)};
+    return;
+  }
+  d0 = std::max(d0, request.camera.near_plane);
+  d1 = std::max(d1, d0 * (1.0 + 1e-9));
+
+  // Auto: add cascades until the nearest one gives the nearest visible
+  // receiver no more than kTexelsPerPixel texels per pixel, or kMaxCascades.
+  constexpr double kTexelsPerPixel = 1.5;
+  const double pixel_at_d0 = d0 * 2.0 * std::tan(glm::radians(request.camera.fov_y_deg) * 0.5) / request.height;
+  const int requested = request.shadow.cascades;
+  for (int count = requested > 0 ? requested : 1; count <= (requested > 0 ? requested : kMaxCascades); ++count) {
+    const int size = std::min(request.shadow.map_size, int(std::sqrt(kMaxShadowTexels / count)));
+    plan.layer_size = size;
+    plan.views = cascade_views(request, camera, light_view, boxes, casters, d0, d1, count, size);
+    if (plan.views.empty()) break;
+    if (plan.views.front().texel_size.x <= kTexelsPerPixel * pixel_at_d0) break;
+  }
+  if (plan.views.empty()) plan.views = {ortho_around(light_view, boxes, plan.layer_size)};
+  plan.layout = plan.views.size() > 1 ? ShadowLayout::Cascades : ShadowLayout::Single;
+}
+
+// Near and far of a perspective view from what of the objects lies inside
+// it; `empty` if nothing does.
+void fit_depth_range(ShadowView& v, const std::vector<Aabb>& boxes, double reach_far) {
+  const glm::dmat4 probe = glm::perspective(2.0 * std::atan(v.tan_half), 1.0, reach_far * 1e-9, reach_far) * v.view;
+  double nearest = kInfinity, farthest = 0.0;
+  for (const auto& b : boxes) {
+    for (const auto& p : frustum_box_intersection(probe, b)) {
+      const double depth = -transform(v.view, p).z;
+      nearest = std::min(nearest, depth);
+      farthest = std::max(farthest, depth);
+    }
+  }
+  v.empty = !(nearest <= farthest);
+  if (v.empty) nearest = farthest = reach_far * 0.5;
+  v.far_plane = farthest * 1.01;
+  // 32-bit float depth keeps enough precision for far/near up to ~10^5.
+  v.near_plane = std::max(nearest * 0.99, v.far_plane * 1e-5);
+  v.projection = glm::perspective(2.0 * std::atan(v.tan_half), 1.0, v.near_plane, v.far_plane);
+}
+
+void plan_perspective(ShadowPlan& plan, const RenderRequest& request, const glm::dmat4& light_view) {
+  const std::vector<Aabb> boxes = bounds_of(request.scene);
+  const int reach = filter_reach_texels(request.shadow);
+  double reach_far = 0.0;  // beyond every object
+  for (const auto& b : boxes)
+    for (const auto& c : b.corners()) reach_far = std::max(reach_far, glm::length(c - plan.position));
+  reach_far = std::max(reach_far * 2.0, 1e-30);
+
+  // The narrowest square cone around every corner in front of the light.
+  double tan_half = 0.0;
+  for (const auto& b : boxes) {
+    for (const auto& corner : b.corners()) {
+      const glm::dvec3 p = transform(light_view, corner);
+      const double depth = -p.z;
+      // Beside or behind the light: no cone of less than 180 degrees holds it.
+      tan_half = depth <= 1e-9 * reach_far ? kInfinity : std::max(tan_half, std::max(std::abs(p.x), std::abs(p.y)) / depth);
+    }
+    if (tan_half == kInfinity) break;
+  }
+  const double spare = std::min(2.0 * (reach + 1), 0.5 * request.shadow.map_size) / request.shadow.map_size;
+  if (tan_half / (1.0 - spare) <= std::tan(glm::radians(kMaxFittedLightFovDeg * 0.5))) {
+    ShadowView v;
+    v.view = light_view;
+    v.tan_half = std::max(tan_half / (1.0 - spare), 1e-6);
+    fit_depth_range(v, boxes, reach_far);
+    set_texel_size(v, true, plan.layer_size);
+    plan.views = {v};
+    plan.layout = ShadowLayout::Single;
+    return;
+  }
+
+  // Six faces, each a little wider than 90 degrees so that the filter
+  // kernel of a point on a face's edge still falls inside that face.
+  plan.layout = ShadowLayout::Cube;
+  plan.layer_size = std::min(request.shadow.map_size, int(std::sqrt(kMaxShadowTexels / 6.0)));
+  const double face_spare = std::min(2.0 * (reach + 1), 0.5 * plan.layer_size) / plan.layer_size;
+  static const glm::dvec3 kAxes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  plan.views.clear();
+  for (const auto& axis : kAxes) {
+    ShadowView v;
+    v.view = stable_look_at(plan.position, plan.position + axis, glm::dvec3(0.0, 1.0, 0.0));
+    v.tan_half = 1.0 / (1.0 - face_spare);
+    fit_depth_range(v, boxes, reach_far);
+    set_texel_size(v, true, plan.layer_size);
+    plan.views.push_back(v);
+  }
+}
+
+}  // namespace
+
+ShadowPlan plan_shadow(const RenderRequest& request) {
+  const Light& light = request.light;
+  const ShadowSettings& shadow = request.shadow;
+  ShadowPlan plan;
+  plan.perspective = light.projection == LightProjection::Perspective;
+  plan.position = orbit_light_position(light, request.time);
+  plan.direction = glm::normalize(light.target - plan.position);
+  plan.layer_size = shadow.map_size;
+  const glm::dmat4 light_view = stable_look_at(plan.position, light.target, glm::dvec3(0.0, 1.0, 0.0));
+
+  if (shadow.fit == FrustumFit::Fixed) {
+    ShadowView v;
+    v.view = light_view;
+    v.near_plane = shadow.near_plane;
+    v.far_plane = shadow.far_plane;
+    if (plan.perspective) {
+      v.projection = glm::perspective(glm::radians(light.fov_y_deg), 1.0, v.near_plane, v.far_plane);
+    } else {
+      const double h = shadow.ortho_half_size;
+      v.projection = glm::ortho(-h, h, -h, h, v.near_plane, v.far_plane);
+    }
+    set_texel_size(v, plan.perspective, plan.layer_size);
+    plan.views = {v};
+    return plan;
+  }
+  if (request.scene.objects.empty()) {
+    // Nothing casts or receives: any valid view will do.
+    ShadowView v;
+    v.view = light_view;
+    v.near_plane = plan.perspective ? 0.1 : -1.0;
+    v.far_plane = 1.0;
+    v.projection = plan.perspective ? glm::perspective(glm::radians(90.0), 1.0, 0.1, 1.0)
+                                    : glm::ortho(-1.0, 1.0, -1.0, 1.0, -1.0, 1.0);
+    v.empty = true;
+    set_texel_size(v, plan.perspective, plan.layer_size);
+    plan.views = {v};
+    return plan;
+  }
+  if (plan.perspective)
+    plan_perspective(plan, request, light_view);
+  else
+    plan_orthographic(plan, request, light_view);
+  return plan;
 }
 
 }  // namespace umbra

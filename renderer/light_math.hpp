@@ -4,7 +4,10 @@
 // Everything here is unit tested without a GPU (tests/test_light_math.cpp).
 #pragma once
 
+#include <vector>
+
 #include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include "request.hpp"
@@ -24,43 +27,89 @@ glm::dvec3 orbit_light_position(const Light& light, double time);
 /// Precondition: eye != target, up != 0.
 glm::dmat4 stable_look_at(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up);
 
-/// The light's shadow frustum.
-struct LightFrustum {
-  bool perspective = false;
-  glm::dmat4 view{1.0};
-  glm::dmat4 projection{1.0};
-  /// Near and far planes, world units along the light's view axis. An
-  /// orthographic near plane may be negative (it is just a slab).
-  double near_plane = 1.0;
-  double far_plane = 7.5;
-  /// Orthographic: world size of one shadow-map texel (the larger of x, y).
-  /// Perspective: world size of one texel per unit of distance along the axis.
-  double texel_size = 0.0;
-  /// Light position (orbited) and unit direction of travel of its light
-  /// (position -> target).
-  glm::dvec3 position{0.0};
-  glm::dvec3 direction{0.0, -1.0, 0.0};
-
-  glm::dmat4 view_projection() const { return projection * view; }
-};
-
-/// The largest field of view a fitted perspective light may use: beyond it
-/// the edge texels stretch too far to be worth having (degrees).
-inline constexpr double kMaxFittedLightFovDeg = 150.0;
-
-/// Builds the light's frustum for the request (light already orbited by
-/// request.time). fit "fixed": the seeds' ortho(+-h, +-h, near, far) or
-/// perspective(light.fov_y_deg, 1, near, far). fit "scene": tight around the
-/// bounds of every object (orthographic: the light-space box of the objects'
-/// corners; perspective: the narrowest square cone, nearest and farthest
-/// depth of the objects' boxes).
-LightFrustum light_frustum(const RenderRequest& request);
-
 /// The camera's view and projection for an image of width x height.
 struct CameraMatrices {
   glm::dmat4 view{1.0};
   glm::dmat4 projection{1.0};
 };
 CameraMatrices camera_matrices(const Camera& camera, int width, int height);
+
+/// One view of the light, rendered into one layer of the shadow map array.
+struct ShadowView {
+  glm::dmat4 view{1.0};
+  glm::dmat4 projection{1.0};
+  /// Near and far planes, world units along the view's axis. An orthographic
+  /// near plane may be negative (it is just a slab).
+  double near_plane = 1.0;
+  double far_plane = 7.5;
+  /// Orthographic: world size of one texel along light x and y.
+  /// Perspective: world size of one texel per unit of distance (x = y).
+  glm::dvec2 texel_size{0.0};
+  /// Perspective: tangent of half the field of view; 0 when orthographic.
+  double tan_half = 0.0;
+  /// No object reaches into this view, so its pass has nothing to draw.
+  bool empty = false;
+
+  glm::dmat4 view_projection() const { return projection * view; }
+};
+
+/// How the light's shadow is laid out in the map array.
+enum class ShadowLayout {
+  Single,    ///< one view (fit "fixed", or one cone / one box holds everything)
+  Cascades,  ///< orthographic light: 2..4 views, nearest camera depths first
+  Cube,      ///< point light: six 90-degree (plus a kernel margin) faces
+};
+
+/// Everything the shadow and main passes need to know about the light.
+struct ShadowPlan {
+  bool perspective = false;
+  /// Light position (orbited) and unit direction of travel of its light
+  /// (position -> target).
+  glm::dvec3 position{0.0};
+  glm::dvec3 direction{0.0, -1.0, 0.0};
+  ShadowLayout layout = ShadowLayout::Single;
+  /// Texels per side of each layer: shadow.map_size, unless the layers
+  /// together would exceed kMaxShadowTexels (then the largest that fits).
+  int layer_size = 2048;
+  /// One per layer. The main pass uses, for each point, the first view whose
+  /// map holds the point and its filter kernel.
+  std::vector<ShadowView> views;
+};
+
+/// The most texels all layers together may hold: four 8192^2 maps (1 GiB of
+/// 32-bit depth). Six cube faces at map_size 8192 are made smaller to fit.
+inline constexpr double kMaxShadowTexels = 4.0 * 8192.0 * 8192.0;
+/// The widest single cone a fitted point light uses (degrees); wider than
+/// this, six cube faces spend the texels better than one stretched cone.
+inline constexpr double kMaxFittedLightFovDeg = 120.0;
+inline constexpr int kMaxCascades = 4;
+
+/// Texels a filter reads around a point's own texel: the margin by which a
+/// view must hold a point for the main pass to use it.
+int filter_reach_texels(const ShadowSettings& shadow);
+
+/// Plans the light's views for `request` (light orbited by request.time).
+///
+/// fit "fixed": the seeds' single ortho(+-h, +-h, near, far) or
+/// perspective(light.fov_y_deg, 1, near, far).
+///
+/// fit "scene", orthographic light: fitted to what the camera sees. The
+/// camera frustum is cut into `cascades` depth ranges (auto: as few as give
+/// the nearest visible receiver about one texel per pixel); each range's
+/// intersection with the objects' bounds gives the receivers that matter,
+/// their light-space rectangle gives the view's x/y, and its near plane is
+/// pulled towards the light to hold every caster over that rectangle. The
+/// rectangle's width is quantised and its origin snapped to whole texels, so
+/// shadows do not shimmer as the camera moves.
+///
+/// fit "scene", perspective light: the narrowest cone around all objects if
+/// it is at most kMaxFittedLightFovDeg wide, otherwise six cube faces; near
+/// and far from the objects' distances to the light.
+ShadowPlan plan_shadow(const RenderRequest& request);
+
+/// The vertices of the convex intersection of a frustum (given by its
+/// view-projection matrix, clip z in [-w, w]) and a box; empty if they do not
+/// meet. Exposed for tests.
+std::vector<glm::dvec3> frustum_box_intersection(const glm::dmat4& view_projection, const Aabb& box);
 
 }  // namespace umbra

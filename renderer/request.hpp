@@ -124,6 +124,12 @@ struct ShadowSettings {
   /// culling either side of a one-sided plane would drop it as a caster.
   CullMode cull = CullMode::Front;
   FrustumFit fit = FrustumFit::Scene;
+  /// Fit "scene", orthographic light only: how many cascades split the
+  /// camera's view depth, each with its own map_size^2 layer fitted to what
+  /// the camera sees in its depth range. 0 ("auto"): as few as give the
+  /// nearest visible receivers about one shadow texel per pixel, 1..4.
+  /// (A perspective light picks one cone or six cube faces by itself.)
+  int cascades = 0;
   /// Fixed fit only: orthographic half-extent (world units, > 0) and the
   /// light's near/far planes (world units from the light, 0 < near < far for a
   /// perspective light; near < far for an orthographic one).

@@ -34,9 +34,6 @@ void set_uniform(const gl::Program& p, const char* name, const glm::mat4& m) {
 void set_uniform(const gl::Program& p, const char* name, const glm::vec3& v) {
   glProgramUniform3f(p.id(), gl::uniform_location(p, name), v.x, v.y, v.z);
 }
-void set_uniform(const gl::Program& p, const char* name, const glm::vec2& v) {
-  glProgramUniform2f(p.id(), gl::uniform_location(p, name), v.x, v.y);
-}
 void set_uniform(const gl::Program& p, const char* name, float v) {
   glProgramUniform1f(p.id(), gl::uniform_location(p, name), v);
 }
@@ -109,12 +106,14 @@ void ShadowRenderer::upload_scene(const Scene& scene) {
   scene_.key = std::move(key);
 }
 
-void ShadowRenderer::resize_shadow_map(int size) {
-  if (shadow_.size == size) return;
-  shadow_.depth_map = gl::create_texture(GL_TEXTURE_2D);
+void ShadowRenderer::resize_shadow_map(int size, int layers) {
+  // Kept while it is big enough: a light that needs fewer views uses the
+  // first layers.
+  if (shadow_.size == size && shadow_.layers >= layers) return;
+  shadow_.depth_map = gl::create_texture(GL_TEXTURE_2D_ARRAY);
   const GLuint map = shadow_.depth_map.id();
   // 32-bit float depth: precision that holds at every scene scale.
-  glTextureStorage2D(map, 1, GL_DEPTH_COMPONENT32F, size, size);
+  glTextureStorage3D(map, 1, GL_DEPTH_COMPONENT32F, size, size, layers);
   glTextureParameteri(map, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
   glTextureParameteri(map, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   // Outside the map nothing is known to occlude: border depth 1 = far = lit.
@@ -126,13 +125,14 @@ void ShadowRenderer::resize_shadow_map(int size) {
   glTextureParameteri(map, GL_TEXTURE_COMPARE_MODE, GL_NONE);
 
   shadow_.framebuffer = gl::create_framebuffer();
-  glNamedFramebufferTexture(shadow_.framebuffer.id(), GL_DEPTH_ATTACHMENT, map, 0);
+  glNamedFramebufferTextureLayer(shadow_.framebuffer.id(), GL_DEPTH_ATTACHMENT, map, 0, 0);
   // Depth only: no colour buffer to draw into or read from.
   glNamedFramebufferDrawBuffer(shadow_.framebuffer.id(), GL_NONE);
   glNamedFramebufferReadBuffer(shadow_.framebuffer.id(), GL_NONE);
   if (glCheckNamedFramebufferStatus(shadow_.framebuffer.id(), GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw std::runtime_error("shadow framebuffer incomplete");
   shadow_.size = size;
+  shadow_.layers = layers;
 }
 
 void ShadowRenderer::resize_display(int width, int height) {
@@ -182,24 +182,30 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull) {
   glDisable(GL_CULL_FACE);
 }
 
-void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const LightFrustum& light) {
-  resize_shadow_map(request.shadow.map_size);
-  glBindFramebuffer(GL_FRAMEBUFFER, shadow_.framebuffer.id());
+void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowPlan& light) {
+  resize_shadow_map(light.layer_size, int(light.views.size()));
+  const GLuint framebuffer = shadow_.framebuffer.id();
+  glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
   // The map has its own resolution: without its own viewport it would be
   // drawn partly or not at all.
-  glViewport(0, 0, shadow_.size, shadow_.size);
-  glClear(GL_DEPTH_BUFFER_BIT);
+  glViewport(0, 0, light.layer_size, light.layer_size);
   glUseProgram(shadow_.program.id());
-  glProgramUniformMatrix4fv(shadow_.program.id(), shadow_.light_view_projection, 1, GL_FALSE,
-                            glm::value_ptr(relative_to(light.view_projection(), scene_.mesh.origin)));
-  // Culling front faces stores the far side of closed objects: their lit
-  // faces then sit well in front of the stored depth, so no bias is needed
-  // against self-shadowing there, and the bias stays small elsewhere (less
-  // peter panning). See ShadowSettings::cull for why planes are exempt.
-  draw_scene(request.shadow.cull);
+  for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
+    const ShadowView& view = light.views[layer];
+    glNamedFramebufferTextureLayer(framebuffer, GL_DEPTH_ATTACHMENT, shadow_.depth_map.id(), 0, GLint(layer));
+    glClear(GL_DEPTH_BUFFER_BIT);
+    if (view.empty) continue;  // cleared to far: nothing there to cast
+    glProgramUniformMatrix4fv(shadow_.program.id(), shadow_.light_view_projection, 1, GL_FALSE,
+                              glm::value_ptr(relative_to(view.view_projection(), scene_.mesh.origin)));
+    // Culling front faces stores the far side of closed objects: their lit
+    // faces then sit well in front of the stored depth, so no bias is needed
+    // against self-shadowing there, and the bias stays small elsewhere (less
+    // peter panning). See ShadowSettings::cull for why planes are exempt.
+    draw_scene(request.shadow.cull);
+  }
 }
 
-void ShadowRenderer::run_display_pass(const RenderRequest& request, const LightFrustum& light) {
+void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light) {
   resize_display(request.width, request.height);
   const glm::dvec3 origin = scene_.mesh.origin;
   const gl::Program& p = display_.program;
@@ -216,22 +222,29 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const LightF
   set_uniform(p, "u_ambient", float(request.light.ambient));
   set_uniform(p, "u_shadows_enabled", int(shadows));
   set_uniform(p, "u_output", request.output == Output::Shadow ? 1 : 0);
-  set_uniform(p, "u_light_view", relative_to(light.view, origin));
-  set_uniform(p, "u_light_view_projection", relative_to(light.view_projection(), origin));
-  set_uniform(p, "u_light_near", float(light.near_plane));
-  set_uniform(p, "u_light_far", float(light.far_plane));
-  // Texel footprint from the projection itself, so fixed and fitted frusta
-  // are treated alike: ortho x scale = 2 / width, perspective = 1 / tan(half fov).
-  const int map_size = s.map_size;
-  if (light.perspective) {
-    const double tan_half = 1.0 / light.projection[1][1];
-    set_uniform(p, "u_texel_size", glm::vec2(float(2.0 * tan_half / map_size)));
-    set_uniform(p, "u_tan_half", float(tan_half));
-  } else {
-    set_uniform(p, "u_texel_size", glm::vec2(float(2.0 / light.projection[0][0] / map_size),
-                                             float(2.0 / light.projection[1][1] / map_size)));
-    set_uniform(p, "u_tan_half", 0.0f);
+  // Per view: origin-relative matrices, clip planes and texel footprints.
+  const int views = int(light.views.size());
+  std::vector<glm::mat4> view_matrices, view_projections;
+  std::vector<float> near_planes, far_planes, tan_halves;
+  std::vector<glm::vec2> texel_sizes;
+  for (const ShadowView& v : light.views) {
+    view_matrices.push_back(relative_to(v.view, origin));
+    view_projections.push_back(relative_to(v.view_projection(), origin));
+    near_planes.push_back(float(v.near_plane));
+    far_planes.push_back(float(v.far_plane));
+    texel_sizes.push_back(glm::vec2(v.texel_size));
+    tan_halves.push_back(float(v.tan_half));
   }
+  set_uniform(p, "u_view_count", views);
+  set_uniform(p, "u_filter_reach", filter_reach_texels(s));
+  glProgramUniformMatrix4fv(p.id(), gl::uniform_location(p, "u_light_view"), views, GL_FALSE,
+                            glm::value_ptr(view_matrices[0]));
+  glProgramUniformMatrix4fv(p.id(), gl::uniform_location(p, "u_light_view_projection"), views, GL_FALSE,
+                            glm::value_ptr(view_projections[0]));
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_near"), views, near_planes.data());
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_far"), views, far_planes.data());
+  glProgramUniform2fv(p.id(), gl::uniform_location(p, "u_texel_size"), views, glm::value_ptr(texel_sizes[0]));
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_tan_half"), views, tan_halves.data());
   set_uniform(p, "u_filter", s.filter == ShadowFilter::Hard ? 0 : s.filter == ShadowFilter::Pcf ? 1 : 2);
   set_uniform(p, "u_pcf_radius", s.pcf_radius);
   set_uniform(p, "u_bias_auto", int(s.bias.automatic));
@@ -255,13 +268,24 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const LightF
   draw_scene(CullMode::None);
 }
 
-void ShadowRenderer::run_depth_preview(const LightFrustum& light) {
-  resize_depth_preview(shadow_.size);
+void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size) {
+  resize_depth_preview(image_size);
   const gl::Program& p = preview_.program;
+  const int views = int(light.views.size());
+  std::vector<float> near_planes, far_planes;
+  for (const ShadowView& v : light.views) {
+    near_planes.push_back(float(v.near_plane));
+    far_planes.push_back(float(v.far_plane));
+  }
+  int grid = 1;
+  while (grid * grid < views) ++grid;
   set_uniform(p, "u_shadow_map", 0);
+  set_uniform(p, "u_view_count", views);
+  set_uniform(p, "u_grid", grid);
+  set_uniform(p, "u_image_size", float(image_size));
   set_uniform(p, "u_light_perspective", int(light.perspective));
-  set_uniform(p, "u_light_near", float(light.near_plane));
-  set_uniform(p, "u_light_far", float(light.far_plane));
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_near"), views, near_planes.data());
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_far"), views, far_planes.data());
   glBindTextureUnit(0, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, preview_.framebuffer.id());
   glViewport(0, 0, preview_.size, preview_.size);
@@ -298,7 +322,7 @@ Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int
 RenderResult ShadowRenderer::render(const RenderRequest& request) {
   RenderResult result;
   upload_scene(request.scene);
-  const LightFrustum light = light_frustum(request);
+  const ShadowPlan light = plan_shadow(request);
   const bool depth_output = request.output == Output::Depth;
 
   if (request.shadow.enabled || depth_output) {
@@ -310,7 +334,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
 
   const auto main_start = Clock::now();
   if (depth_output)
-    run_depth_preview(light);
+    run_depth_preview(light, request.shadow.map_size);
   else
     run_display_pass(request, light);
   glFinish();

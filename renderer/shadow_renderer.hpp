@@ -36,13 +36,14 @@ class ShadowRenderer {
     Mesh mesh;           // CPU copy: origin and index ranges (vertices cleared)
     std::string key;     // content of the scene it was built from
   };
-  // Depth-only framebuffer seen from the light.
+  // Depth-only framebuffer seen from the light, one array layer per view.
   struct ShadowPass {
     gl::Program program;
     GLint light_view_projection = -1;
-    gl::Texture depth_map;  // DEPTH_COMPONENT32F, map_size^2
+    gl::Texture depth_map;  // 2D array of DEPTH_COMPONENT32F, size^2 x layers
     gl::Framebuffer framebuffer;
     int size = 0;
+    int layers = 0;
   };
   // The camera's view, into an offscreen colour + depth framebuffer.
   struct DisplayPass {
@@ -61,13 +62,13 @@ class ShadowRenderer {
   };
 
   void upload_scene(const Scene& scene);
-  void resize_shadow_map(int size);
+  void resize_shadow_map(int size, int layers);
   void resize_display(int width, int height);
   void resize_depth_preview(int size);
   void draw_scene(CullMode closed_mesh_cull);
-  void run_shadow_pass(const RenderRequest& request, const LightFrustum& light);
-  void run_display_pass(const RenderRequest& request, const LightFrustum& light);
-  void run_depth_preview(const LightFrustum& light);
+  void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light);
+  void run_display_pass(const RenderRequest& request, const ShadowPlan& light);
+  void run_depth_preview(const ShadowPlan& light, int image_size);
   Image read_pixels(GLuint framebuffer, int width, int height, int channels);
 
   SceneGeometry scene_;

@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
+#include "light_math.hpp"
 #include "scene.hpp"
 
 namespace umbra {
@@ -360,7 +361,8 @@ void read_light(const json* j, Light& l, std::set<std::string>& sent) {
 void read_shadow(const json* j, ShadowSettings& s, std::set<std::string>& sent) {
   if (j == nullptr) return;
   ObjectReader r(*j, "shadow",
-                 {"enabled", "map_size", "filter", "pcf_radius", "bias", "cull", "fit", "ortho_half_size", "near", "far"},
+                 {"enabled", "map_size", "filter", "pcf_radius", "bias", "cull", "fit", "cascades", "ortho_half_size", "near",
+                  "far"},
                  sent);
   if (auto v = r.get("enabled")) s.enabled = read_boolean(*v, r.path("enabled"));
   if (auto v = r.get("map_size")) s.map_size = read_integer(*v, r.path("map_size"), 64, 8192);
@@ -380,6 +382,12 @@ void read_shadow(const json* j, ShadowSettings& s, std::set<std::string>& sent) 
   }
   if (auto v = r.get("cull")) s.cull = CullMode(read_choice(*v, r.path("cull"), {"front", "back", "none"}));
   if (auto v = r.get("fit")) s.fit = FrustumFit(read_choice(*v, r.path("fit"), {"scene", "fixed"}));
+  if (auto v = r.get("cascades")) {
+    if (v->is_string())
+      read_choice(*v, r.path("cascades"), {"auto"});
+    else
+      s.cascades = read_integer(*v, r.path("cascades"), 1, kMaxCascades);
+  }
   if (auto v = r.get("ortho_half_size")) s.ortho_half_size = read_extent(*v, r.path("ortho_half_size"));
   if (auto v = r.get("near"))
     s.near_plane = read_number(*v, r.path("near"), -RequestLimits::kMaxExtent, RequestLimits::kMaxExtent);
@@ -407,6 +415,11 @@ void check_consistency(const RenderRequest& q, const std::set<std::string>& sent
     if (s.far_plane <= s.near_plane)
       reject("shadow.far", "must be greater than shadow.near (" + format_number(s.near_plane) + ")");
   }
+  if (s.cascades > 1 && s.fit == FrustumFit::Fixed)
+    reject("shadow.cascades", "cascades are fitted to the camera: they need shadow.fit \"scene\"");
+  if (s.cascades > 1 && q.light.projection == LightProjection::Perspective)
+    reject("shadow.cascades",
+           "cascades split an orthographic light's map; a perspective light uses one cone or cube faces by itself");
   if (q.light.size > 0.0 && s.filter != ShadowFilter::Pcss && sent.count("shadow.filter"))
     reject("shadow.filter", "an area light (light.size > 0) needs \"pcss\"; \"hard\" and \"pcf\" model an ideal light");
 }
@@ -424,8 +437,10 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   if (!fixed || !perspective) mark("light.fov_y_deg");
   if (!fixed || perspective) mark("shadow.ortho_half_size");
   if (!fixed || !shadow_pass) mark("shadow.near"), mark("shadow.far");
+  if (fixed || perspective) mark("shadow.cascades");
   if (!shadow_pass) {
-    for (const char* f : {"shadow.map_size", "shadow.cull", "shadow.fit", "shadow.ortho_half_size"}) mark(f);
+    for (const char* f : {"shadow.map_size", "shadow.cull", "shadow.fit", "shadow.cascades", "shadow.ortho_half_size"})
+      mark(f);
   }
   const bool filtering = q.shadow.enabled && !depth;
   const bool pcf_used = q.shadow.filter == ShadowFilter::Pcf ||
@@ -436,10 +451,16 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
                           "shadow.bias.normal_offset", "light.size"})
       mark(f);
   }
+  // An orthographic light fitted to the scene is fitted to what the camera
+  // sees: then the camera and image size shape even the depth map.
+  const bool camera_fitted = !fixed && !perspective;
   if (depth) {
-    for (const char* f : {"width", "height", "camera", "camera.position", "camera.target", "camera.up",
-                          "camera.fov_y_deg", "camera.near", "camera.far", "light.color", "light.ambient"})
-      mark(f);
+    for (const char* f : {"light.color", "light.ambient"}) mark(f);
+    if (!camera_fitted) {
+      for (const char* f : {"width", "height", "camera", "camera.position", "camera.target", "camera.up",
+                            "camera.fov_y_deg", "camera.near", "camera.far"})
+        mark(f);
+    }
   }
   std::sort(unused.begin(), unused.end());
   unused.erase(std::unique(unused.begin(), unused.end()), unused.end());

@@ -20,18 +20,24 @@ uniform vec3 u_light_color;        // linear RGB
 uniform float u_ambient;           // fraction of the light that is ambient
 uniform vec3 u_camera_position;
 
-// ---- shadow map ----
+// ---- shadow map: one layer per view of the light ----
+// A light has one view, or several: cascades (a directional light, nearest
+// camera depths first) or cube faces (a point light). Each point uses the
+// first view whose map holds it with its filter kernel.
+const int kMaxViews = 6;
 uniform bool u_shadows_enabled;
-uniform sampler2D u_shadow_map;    // window depth in [0,1], nearest, no compare
-uniform mat4 u_light_view;
-uniform mat4 u_light_view_projection;
-uniform float u_light_near;        // light clip planes, world units along its axis
-uniform float u_light_far;
+uniform sampler2DArray u_shadow_map;  // window depth in [0,1], nearest, no compare
+uniform int u_view_count;
+uniform int u_filter_reach;           // texels a filter reads around its own
+uniform mat4 u_light_view[kMaxViews];
+uniform mat4 u_light_view_projection[kMaxViews];
+uniform float u_light_near[kMaxViews];  // clip planes, world units along the view's axis
+uniform float u_light_far[kMaxViews];
 // Orthographic: world size of one texel in light x and y.
 // Perspective: x = y = world size of one texel per unit of distance, and
 // u_tan_half the tangent of half the field of view.
-uniform vec2 u_texel_size;
-uniform float u_tan_half;
+uniform vec2 u_texel_size[kMaxViews];
+uniform float u_tan_half[kMaxViews];
 uniform int u_filter;              // 0 hard, 1 pcf, 2 pcss
 uniform int u_pcf_radius;          // pcf: (2r+1)^2 bilinear taps
 uniform bool u_bias_auto;
@@ -43,16 +49,23 @@ uniform float u_light_size;
 
 uniform int u_output;              // 0: lit colour, 1: visibility as grey
 
+// The view chosen for the point being shaded (see choose_view).
+int g_layer = 0;
+float g_near = 1.0;
+float g_far = 2.0;
+vec2 g_texel_size = vec2(0.0);
+float g_tan_half = 0.0;
+
 // ---------------------------------------------------------------------------
 // Depth conversions between the depth buffer's window depth and linear depth
 // (world units along the light's axis).
 float linear_from_window(float z) {
-  float n = u_light_near, f = u_light_far;
+  float n = g_near, f = g_far;
   return u_light_perspective ? n * f / (f - z * (f - n)) : n + z * (f - n);
 }
 
 float window_from_linear(float d) {
-  float n = u_light_near, f = u_light_far;
+  float n = g_near, f = g_far;
   return u_light_perspective ? f * (d - n) / (d * (f - n)) : (d - n) / (f - n);
 }
 
@@ -80,7 +93,7 @@ float receiver_depth_at(Receiver r, vec2 texel_center) {
     // The ray through the texel centre is depth * (a, b, -1); it meets the
     // plane n.(x - p) = 0 at depth = n.p / (n.(a, b, -1)). Rays nearly
     // parallel to the plane are kept from running off to infinity.
-    vec3 ray = vec3(texel_center * u_texel_size - vec2(u_tan_half), -1.0);
+    vec3 ray = vec3(texel_center * g_texel_size - vec2(g_tan_half), -1.0);
     float denominator = dot(n, ray);
     float limit = 0.02 * length(ray);
     if (abs(denominator) < limit) denominator = denominator < 0.0 ? -limit : limit;
@@ -90,25 +103,25 @@ float receiver_depth_at(Receiver r, vec2 texel_center) {
   // Orthographic: depth is affine in the texel position. Grazing planes
   // (n.z -> 0) are kept from extrapolating to infinity.
   float nz = n.z < 0.0 ? min(n.z, -0.02) : max(n.z, 0.02);
-  vec2 offset = (texel_center - r.texel) * u_texel_size;
+  vec2 offset = (texel_center - r.texel) * g_texel_size;
   return r.depth + dot(n.xy, offset) / nz;
 }
 
 // Depth stored in texel t (linear); outside the map counts as the far plane,
 // which is what CLAMP_TO_BORDER with border depth 1 gives a sampler.
 float stored_depth(ivec2 t) {
-  ivec2 size = textureSize(u_shadow_map, 0);
-  if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) return u_light_far;
-  return linear_from_window(texelFetch(u_shadow_map, t, 0).r);
+  ivec2 size = textureSize(u_shadow_map, 0).xy;
+  if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) return g_far;
+  return linear_from_window(texelFetch(u_shadow_map, ivec3(t, g_layer), 0).r);
 }
 
 // The bias that remains once each texel is compared with the receiver's own
 // plane: float precision of the depth buffer and of interpolated positions.
 float remaining_bias(Receiver r) {
-  float texel_world = u_light_perspective ? u_texel_size.x * r.depth : max(u_texel_size.x, u_texel_size.y);
+  float texel_world = u_light_perspective ? g_texel_size.x * r.depth : max(g_texel_size.x, g_texel_size.y);
   float precision_bias = u_light_perspective
-      ? 4.0 * 6e-8 * r.depth * r.depth / u_light_near   // window-depth ulp near z = 1, linearised
-      : 4.0 * 6e-8 * (u_light_far - u_light_near);
+      ? 4.0 * 6e-8 * r.depth * r.depth / g_near   // window-depth ulp near z = 1, linearised
+      : 4.0 * 6e-8 * (g_far - g_near);
   return 0.05 * texel_world + precision_bias + 1e-6 * abs(r.depth);
 }
 
@@ -152,10 +165,10 @@ float pixel_rotation() {
 // is seen from the receiver, at linear depth d of the map (d < receiver).
 vec2 light_footprint_texels(Receiver r, float d) {
   if (u_light_perspective) {
-    float angular = u_light_size * (r.depth - d) / (r.depth * max(d, u_light_near));
-    return vec2(angular / u_texel_size.x);
+    float angular = u_light_size * (r.depth - d) / (r.depth * max(d, g_near));
+    return vec2(angular / g_texel_size.x);
   }
-  return vec2((r.depth - d) * u_light_size) / u_texel_size;
+  return vec2((r.depth - d) * u_light_size) / g_texel_size;
 }
 
 // Percentage-closer soft shadows: find the average blocker depth, then
@@ -164,7 +177,7 @@ float pcss(Receiver r, float bias) {
   const int kBlockerSamples = 16;
   const int kFilterSamples = 32;
   float rotation = pixel_rotation();
-  vec2 search = min(light_footprint_texels(r, u_light_near), vec2(32.0));
+  vec2 search = min(light_footprint_texels(r, g_near), vec2(32.0));
   float blocker_sum = 0.0;
   int blockers = 0;
   for (int i = 0; i < kBlockerSamples; ++i) {
@@ -187,27 +200,54 @@ float pcss(Receiver r, float bias) {
   return sum / float(kFilterSamples);
 }
 
+// The first view whose map holds p with the filter's reach to spare; else
+// the first that holds p at all; -1 if none does.
+int choose_view(vec3 p) {
+  vec2 map_size = vec2(textureSize(u_shadow_map, 0).xy);
+  vec2 reach = vec2(float(u_filter_reach));
+  int fallback = -1;
+  for (int i = 0; i < u_view_count; ++i) {
+    vec4 clip = u_light_view_projection[i] * vec4(p, 1.0);
+    if (clip.w <= 0.0) continue;  // behind a point light's view
+    vec3 ndc = clip.xyz / clip.w;
+    if (any(greaterThan(abs(ndc), vec3(1.0)))) continue;
+    vec2 texel = (ndc.xy * 0.5 + 0.5) * map_size;
+    if (all(greaterThanEqual(texel, reach)) && all(lessThanEqual(texel, map_size - reach))) return i;
+    if (fallback < 0) fallback = i;
+  }
+  return fallback;
+}
+
 // Fraction of the direct light reaching point p (1 lit, 0 shadowed).
 float shadow_visibility(vec3 p, vec3 geometric_normal, float n_dot_l) {
   if (!u_shadows_enabled) return 1.0;
-  vec2 map_size = vec2(textureSize(u_shadow_map, 0));
+  // Outside every view (beside the light's frustum, before near, beyond
+  // far): nothing in the map can shadow the point, so it is lit (the seeds'
+  // far-plane fix).
+  int layer = choose_view(p);
+  if (layer < 0) return 1.0;
+  g_layer = layer;
+  g_near = u_light_near[layer];
+  g_far = u_light_far[layer];
+  g_texel_size = u_texel_size[layer];
+  g_tan_half = u_tan_half[layer];
+
+  vec2 map_size = vec2(textureSize(u_shadow_map, 0).xy);
   Receiver r;
-  r.view_point = (u_light_view * vec4(p, 1.0)).xyz;
-  r.view_normal = normalize(mat3(u_light_view) * geometric_normal);
+  r.view_point = (u_light_view[layer] * vec4(p, 1.0)).xyz;
+  r.view_normal = normalize(mat3(u_light_view[layer]) * geometric_normal);
   r.depth = -r.view_point.z;
   r.window_ref = 0.0;
   vec3 lookup_point = p;
   if (!u_bias_auto) {
     // The seeds' bias: move the receiver along its normal, then compare in
     // window depth with max(slope * (1 - N.L), constant) subtracted.
-    float texel_world = u_light_perspective ? u_texel_size.x * r.depth : max(u_texel_size.x, u_texel_size.y);
+    float texel_world = u_light_perspective ? g_texel_size.x * r.depth : max(g_texel_size.x, g_texel_size.y);
     lookup_point = p + geometric_normal * (u_bias_normal_offset * texel_world);
   }
-  vec4 clip = u_light_view_projection * vec4(lookup_point, 1.0);
-  if (clip.w <= 0.0) return 1.0;  // behind a point light: outside its frustum
+  vec4 clip = u_light_view_projection[layer] * vec4(lookup_point, 1.0);
+  if (clip.w <= 0.0) return 1.0;
   vec3 ndc = clip.xyz / clip.w;
-  // Outside the light's frustum (beside it, before near, beyond far): nothing
-  // in the map can shadow the point, so it is lit (the seeds' far-plane fix).
   if (any(greaterThan(abs(ndc), vec3(1.0)))) return 1.0;
   r.texel = (ndc.xy * 0.5 + 0.5) * map_size;
   float bias = 0.0;

@@ -3,7 +3,9 @@
 
 #include <cmath>
 
+#include <glm/ext/matrix_clip_space.hpp>
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 
 #include "light_math.hpp"
 #include "scene.hpp"
@@ -23,74 +25,193 @@ RenderRequest request_with_light(glm::dvec3 position, LightProjection projection
   const BuiltinScene* s = find_builtin_scene(scene);
   r.scene.name = s->name;
   r.scene.objects = s->objects;
+  r.camera.position = s->camera_position;
+  r.camera.target = s->camera_target;
   r.light.position = position;
   r.light.projection = projection;
   return r;
 }
 
-// Every corner of every object lands inside the light's clip volume.
-void expect_scene_inside(const RenderRequest& r) {
-  const LightFrustum f = light_frustum(r);
-  ASSERT_TRUE(finite(f.view_projection()));
+// Every point the camera sees of every object is held by some view of the
+// light (inside its clip volume), as are the objects that can shadow it.
+void expect_visible_scene_inside(const RenderRequest& r) {
+  const ShadowPlan plan = plan_shadow(r);
+  ASSERT_FALSE(plan.views.empty());
+  const CameraMatrices camera = camera_matrices(r.camera, r.width, r.height);
+  int checked = 0;
   for (const auto& o : r.scene.objects) {
-    for (const auto& corner : object_bounds(o).corners()) {
-      const glm::dvec4 clip = f.view_projection() * glm::dvec4(corner, 1.0);
-      ASSERT_GT(clip.w, 0.0);
-      const glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
-      for (int k = 0; k < 3; ++k) {
-        EXPECT_LE(std::abs(ndc[k]), 1.0) << "axis " << k << " corner " << corner.x << "," << corner.y << "," << corner.z;
+    for (const auto& p : frustum_box_intersection(camera.projection * camera.view, object_bounds(o))) {
+      bool held = false;
+      for (const ShadowView& v : plan.views) {
+        ASSERT_TRUE(finite(v.view_projection()));
+        const glm::dvec4 clip = v.view_projection() * glm::dvec4(p, 1.0);
+        if (clip.w <= 0.0) continue;
+        const glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
+        held = held || (std::abs(ndc.x) <= 1.0 && std::abs(ndc.y) <= 1.0 && std::abs(ndc.z) <= 1.0);
       }
+      EXPECT_TRUE(held) << "visible point " << p.x << "," << p.y << "," << p.z << " is in no view";
+      ++checked;
     }
   }
+  EXPECT_GT(checked, 0);
 }
 
 class FitsTheScene : public testing::TestWithParam<std::tuple<LightProjection, glm::dvec3>> {};
 
-TEST_P(FitsTheScene, EveryObjectInsideTheUnitCube) {
+TEST_P(FitsTheScene, EveryVisiblePointInsideAView) {
   const auto [projection, position] = GetParam();
-  expect_scene_inside(request_with_light(position, projection));
+  expect_visible_scene_inside(request_with_light(position, projection));
 }
 
 INSTANTIATE_TEST_SUITE_P(
     Lights, FitsTheScene,
-    testing::Combine(testing::Values(LightProjection::Orthographic),
+    testing::Combine(testing::Values(LightProjection::Orthographic, LightProjection::Perspective),
                      testing::Values(glm::dvec3(-2, 4, -1), glm::dvec3(0, 5, 0),   // overhead
                                      glm::dvec3(0.0001, 5, 0), glm::dvec3(10, 0.35, 0),  // ~2 degrees high
                                      glm::dvec3(0, -3, 0.5))));                          // from below
 
-TEST(LightFrustum, PerspectiveFitCoversObjectsInFrontOfTheLight) {
-  // A point light high above: the whole floor is within a < 150 degree cone.
-  RenderRequest r = request_with_light({0, 40, 0}, LightProjection::Perspective);
-  expect_scene_inside(r);
-  const LightFrustum f = light_frustum(r);
-  EXPECT_GT(f.near_plane, 0.0);
-  EXPECT_LT(f.near_plane, 40.0 - 0.75);  // the tallest cube's top is below y = 1
-  EXPECT_GT(f.far_plane, 40.0);
+TEST(FrustumBoxIntersection, UnitCubeInsideAFrustumIsItself) {
+  const glm::dmat4 vp = glm::ortho(-5.0, 5.0, -5.0, 5.0, -5.0, 5.0);
+  Aabb box;
+  box.extend(glm::dvec3(-1.0));
+  box.extend(glm::dvec3(1.0));
+  const auto points = frustum_box_intersection(vp, box);
+  EXPECT_EQ(points.size(), 8u);
+  for (const auto& p : points) EXPECT_DOUBLE_EQ(glm::length(p), std::sqrt(3.0));
 }
 
-TEST(LightFrustum, PerspectiveOverheadLightIsFinite) {
+TEST(FrustumBoxIntersection, AFlatPlaneIsCutToTheFrustum) {
+  // Camera 2 units above a 100 x 100 plane, looking straight down with a
+  // 90 degree field of view: it sees a 4 x 4 square of it.
+  const glm::dmat4 vp = glm::perspective(glm::radians(90.0), 1.0, 0.1, 100.0) *
+                        stable_look_at({0, 2, 0}, {0, 0, 0}, {0, 1, 0});
+  Aabb plane;
+  plane.extend(glm::dvec3(-50, 0, -50));
+  plane.extend(glm::dvec3(50, 0, 50));
+  const auto points = frustum_box_intersection(vp, plane);
+  ASSERT_FALSE(points.empty());
+  for (const auto& p : points) {
+    EXPECT_NEAR(p.y, 0.0, 1e-9);
+    EXPECT_LE(std::abs(p.x), 2.0 + 1e-9);
+    EXPECT_LE(std::abs(p.z), 2.0 + 1e-9);
+  }
+  EXPECT_TRUE(frustum_box_intersection(vp, [] {
+                Aabb far_away;
+                far_away.extend(glm::dvec3(60, 0, 60));
+                far_away.extend(glm::dvec3(61, 1, 61));
+                return far_away;
+              }()).empty());
+}
+
+RenderRequest huge_plane_request() {
+  RenderRequest r;
+  r.scene.objects = find_builtin_scene("cube-on-plane")->objects;
+  r.scene.objects[0].size = {1000.0, 0.0, 1000.0};
+  r.camera.position = {2.2, 1.6, 3.0};
+  r.camera.target = {0.0, 0.4, 0.0};
+  r.camera.near_plane = 0.05;
+  r.camera.far_plane = 2000.0;
+  r.light.position = {-20, 40, -10};
+  return r;
+}
+
+TEST(Cascades, ACloseCameraOverAHugeFloorGetsFineNearCascades) {
+  const RenderRequest r = huge_plane_request();
+  const ShadowPlan plan = plan_shadow(r);
+  ASSERT_EQ(plan.layout, ShadowLayout::Cascades);
+  ASSERT_EQ(plan.views.size(), std::size_t(kMaxCascades));
+  // Each cascade is coarser than the one before; the first resolves the
+  // nearby cube far better than one map over 1000 units could.
+  for (std::size_t i = 1; i < plan.views.size(); ++i)
+    EXPECT_GT(plan.views[i].texel_size.x, plan.views[i - 1].texel_size.x);
+  EXPECT_LT(plan.views[0].texel_size.x, 0.01);
+  expect_visible_scene_inside(r);
+}
+
+TEST(Cascades, TheSeedsSceneNeedsFewAndAnExplicitCountIsObeyed) {
+  RenderRequest r = request_with_light({-2, 4, -1}, LightProjection::Orthographic, "cube-on-plane");
+  r.camera.position = {2.5, 3.0, 5.0};
+  r.camera.target = {0.6, -0.3, 0.6};
+  EXPECT_LE(plan_shadow(r).views.size(), 3u);
+  r.shadow.cascades = 1;
+  EXPECT_EQ(plan_shadow(r).views.size(), 1u);
+  EXPECT_EQ(plan_shadow(r).layout, ShadowLayout::Single);
+  r.shadow.cascades = 3;
+  EXPECT_EQ(plan_shadow(r).views.size(), 3u);
+}
+
+TEST(Cascades, TexelGridIsSnappedSoShadowsDoNotShimmer) {
+  // Sliding the camera a little keeps the width (quantised) and moves the
+  // rectangle by whole texels only.
+  RenderRequest r = huge_plane_request();
+  r.shadow.cascades = 1;
+  const ShadowView a = plan_shadow(r).views[0];
+  r.camera.position += glm::dvec3(0.0123, 0.0, 0.0071);
+  r.camera.target += glm::dvec3(0.0123, 0.0, 0.0071);
+  const ShadowView b = plan_shadow(r).views[0];
+  ASSERT_DOUBLE_EQ(a.texel_size.x, b.texel_size.x);
+  for (const ShadowView* v : {&a, &b}) {
+    // ortho: left = -(m[3][0] + 1) / m[0][0]
+    const double left = -(v->projection[3][0] + 1.0) / v->projection[0][0];
+    const double in_texels = left / v->texel_size.x;
+    EXPECT_NEAR(in_texels, std::round(in_texels), 1e-6);
+  }
+}
+
+TEST(PointLight, NarrowConeWhenEverythingIsBelowIt) {
+  // A point light high above: the whole scene is within a narrow cone.
+  RenderRequest r = request_with_light({0, 40, 0}, LightProjection::Perspective);
+  const ShadowPlan plan = plan_shadow(r);
+  ASSERT_EQ(plan.layout, ShadowLayout::Single);
+  const ShadowView& v = plan.views[0];
+  EXPECT_GT(v.near_plane, 0.0);
+  EXPECT_LT(v.near_plane, 40.0 - 1.0);  // the tallest cube's top is below y = 1
+  EXPECT_GT(v.far_plane, 40.0);
+  EXPECT_LT(std::atan(v.tan_half) * 2.0, glm::radians(kMaxFittedLightFovDeg));
+}
+
+TEST(PointLight, AmidObjectsItUsesSixFacesAndSkipsEmptyOnes) {
+  // 3 units above a 50 x 50 floor: no cone holds it. Nothing is above the
+  // light, so the upward face has nothing to draw.
   RenderRequest r = request_with_light({0, 3, 0}, LightProjection::Perspective, "cube-on-plane");
-  const LightFrustum f = light_frustum(r);
-  EXPECT_TRUE(finite(f.view_projection()));
-  EXPECT_GT(f.near_plane, 0.0);
-  // The 50 x 50 floor seen from 3 units up cannot fit in a cone: widest allowed.
-  EXPECT_NEAR(std::atan(1.0 / f.projection[1][1]) * 2.0 * 180.0 / 3.14159265358979323846, kMaxFittedLightFovDeg, 1e-6);
+  const ShadowPlan plan = plan_shadow(r);
+  ASSERT_EQ(plan.layout, ShadowLayout::Cube);
+  ASSERT_EQ(plan.views.size(), 6u);
+  int empty = 0;
+  for (const ShadowView& v : plan.views) {
+    EXPECT_TRUE(finite(v.view_projection()));
+    EXPECT_GT(v.tan_half, 1.0);  // a kernel margin beyond 90 degrees
+    EXPECT_LT(v.tan_half, 1.1);
+    empty += v.empty;
+  }
+  EXPECT_EQ(empty, 1);
+  EXPECT_TRUE(plan.views[2].empty);  // +Y
+  expect_visible_scene_inside(r);
+}
+
+TEST(PointLight, CubeFacesAtTheLargestMapStayWithinTheMemoryCap) {
+  RenderRequest r = request_with_light({0, 3, 0}, LightProjection::Perspective, "cube-on-plane");
+  r.shadow.map_size = 8192;
+  const ShadowPlan plan = plan_shadow(r);
+  EXPECT_LT(plan.layer_size, 8192);
+  EXPECT_LE(6.0 * plan.layer_size * plan.layer_size, kMaxShadowTexels);
 }
 
 TEST(LightFrustum, FixedFitIsTheSeedsMatrices) {
   RenderRequest r = request_with_light({-2, 4, -1}, LightProjection::Orthographic);
   r.shadow.fit = FrustumFit::Fixed;
-  const LightFrustum f = light_frustum(r);
+  const ShadowPlan plan = plan_shadow(r);
+  ASSERT_EQ(plan.views.size(), 1u);
+  const ShadowView& f = plan.views[0];
   EXPECT_DOUBLE_EQ(f.near_plane, 1.0);
   EXPECT_DOUBLE_EQ(f.far_plane, 7.5);
   EXPECT_DOUBLE_EQ(f.projection[0][0], 2.0 / 20.0);
-  EXPECT_DOUBLE_EQ(f.texel_size, 20.0 / 2048.0);
+  EXPECT_DOUBLE_EQ(f.texel_size.x, 20.0 / 2048.0);
 }
 
 TEST(LightFrustum, DirectionIsPositionToTarget) {
   RenderRequest r = request_with_light({0, 10, 0}, LightProjection::Orthographic);
-  const LightFrustum f = light_frustum(r);
-  EXPECT_NEAR(f.direction.y, -1.0, 1e-12);
+  EXPECT_NEAR(plan_shadow(r).direction.y, -1.0, 1e-12);
 }
 
 TEST(StableLookAt, OverheadLightHasAFiniteOrthonormalBasis) {
