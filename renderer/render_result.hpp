@@ -2,6 +2,7 @@
 #pragma once
 
 #include <optional>
+#include <string>
 
 #include "image.hpp"
 #include "shadow_error.hpp"
@@ -14,6 +15,10 @@ struct RenderResult {
   /// Output "error" only: the error measures of the rendered shadow term
   /// against the exact reference.
   std::optional<ShadowError> error;
+  /// How the light's shadow was laid out, when a shadow pass ran:
+  /// "single", "cascades" or "cube"; the number of views and the texels per
+  /// side of each (e.g. "cascades; views=3; size=2048").
+  std::string shadow_views;
 };
 
 }  // namespace umbra

@@ -330,6 +330,11 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
     run_shadow_pass(request, light);
     glFinish();
     result.timings.shadow_ms = elapsed_ms(start);
+    const char* layout = light.layout == ShadowLayout::Cascades ? "cascades"
+                         : light.layout == ShadowLayout::Cube   ? "cube"
+                                                                : "single";
+    result.shadow_views = std::string(layout) + "; views=" + std::to_string(light.views.size()) +
+                          "; size=" + std::to_string(light.layer_size);
   }
 
   const auto main_start = Clock::now();

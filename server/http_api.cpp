@@ -188,6 +188,7 @@ void HttpApi::install_routes() {
       for (const auto& f : parsed.unused_fields) list += (list.empty() ? "" : ", ") + f;
       res.set_header("Umbra-Unused-Fields", list);
     }
+    if (!result.shadow_views.empty()) res.set_header("Umbra-Shadow-Views", result.shadow_views);
     if (result.error) {
       const ShadowError& e = *result.error;
       char buffer[200];

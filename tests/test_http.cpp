@@ -146,6 +146,22 @@ TEST(Http, DepthRouteIsTheDepthOutput) {
   expect_json_error(client().Post("/api/depth", R"({"output": "shadow"})", "application/json"), 400, "output");
 }
 
+TEST(Http, TheShadowLayoutIsReported) {
+  auto res = client().Post("/api/render", R"({"width": 32, "height": 32, "shadow": {"map_size": 256, "cascades": 3}})",
+                           "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200);
+  EXPECT_EQ(res->get_header_value("Umbra-Shadow-Views"), "cascades; views=3; size=256");
+  res = client().Post("/api/render", R"({"width": 32, "height": 32, "shadow": {"map_size": 256},
+                                          "light": {"projection": "perspective", "position": [0, 2, 0]}})",
+                      "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->get_header_value("Umbra-Shadow-Views"), "cube; views=6; size=256");
+  res = client().Post("/api/render", R"({"width": 32, "height": 32, "shadow": {"enabled": false}})", "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_FALSE(res->has_header("Umbra-Shadow-Views"));
+}
+
 TEST(Http, UnusedFieldsAreReportedNotIgnored) {
   auto res = client().Post("/api/render", R"({"width": 32, "height": 32, "shadow": {"near": 2}})", "application/json");
   ASSERT_TRUE(res);

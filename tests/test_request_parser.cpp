@@ -195,7 +195,31 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{R"({"light": {"position": [0, 0, 0], "target": [0, 0, 0]}})", "light.position"},
         BadInput{R"({"camera": {"up": [0, 0, 0]}})", "camera.up"},
         // Contradictions.
-        BadInput{R"({"light": {"size": 1}, "shadow": {"filter": "pcf"}})", "shadow.filter"}));
+        BadInput{R"({"light": {"size": 1}, "shadow": {"filter": "pcf"}})", "shadow.filter"},
+        BadInput{R"({"shadow": {"cascades": 5}})", "shadow.cascades"}, BadInput{R"({"shadow": {"cascades": 0}})", "shadow.cascades"},
+        BadInput{R"({"shadow": {"cascades": "many"}})", "shadow.cascades"},
+        BadInput{R"({"shadow": {"cascades": 2, "fit": "fixed"}})", "shadow.cascades"},
+        BadInput{R"({"shadow": {"cascades": 3}, "light": {"projection": "perspective"}})", "shadow.cascades"}));
+
+TEST(RequestParser, CascadesAreAutoOrACount) {
+  EXPECT_EQ(parse_ok(R"({"shadow": {"cascades": "auto"}})").shadow.cascades, 0);
+  EXPECT_EQ(parse_ok(R"({"shadow": {"cascades": 3}})").shadow.cascades, 3);
+  EXPECT_EQ(parse_ok("{}").shadow.cascades, 0);
+  // One cascade with a fixed fit is just the fixed map: accepted, and named
+  // as not changing anything.
+  const ParsedRequest p = parse_render_request(R"({"shadow": {"cascades": 1, "fit": "fixed"}})");
+  ASSERT_TRUE(p.ok());
+  EXPECT_EQ(p.unused_fields, std::vector<std::string>{"shadow.cascades"});
+}
+
+TEST(RequestParser, TheCameraShapesTheDepthMapOfAFittedDirectionalLight) {
+  const char* body = R"({"output": "depth", "camera": {"fov_y_deg": 30}, "LIGHT"})";
+  std::string ortho = body, perspective = body;
+  ortho.replace(ortho.find("\"LIGHT\""), 7, R"("light": {"projection": "orthographic"})");
+  perspective.replace(perspective.find("\"LIGHT\""), 7, R"("light": {"projection": "perspective"})");
+  EXPECT_TRUE(parse_render_request(ortho).unused_fields.empty());
+  EXPECT_EQ(parse_render_request(perspective).unused_fields, (std::vector<std::string>{"camera", "camera.fov_y_deg"}));
+}
 
 TEST(RequestParser, RejectsMoreThanAThousandObjects) {
   std::string body = R"({"scene":{"objects":[)";
