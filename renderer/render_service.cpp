@@ -19,7 +19,37 @@ struct RenderService::Impl {
   struct Job {
     RenderRequest request;
     std::promise<RenderResult> promise;
+    std::chrono::steady_clock::time_point queued;
+    bool holds_place = true;  // false: part of a job that holds one already
   };
+
+  std::future<RenderResult> enqueue(RenderRequest request, bool holds_place) {
+    Job job{std::move(request), {}, std::chrono::steady_clock::now(), holds_place};
+    std::future<RenderResult> result = job.promise.get_future();
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      jobs.push_back(std::move(job));
+    }
+    wake.notify_one();
+    return result;
+  }
+
+  explicit Impl(ServiceLimits l) : limits(l) {}
+
+  // Claims a place in the queue, or throws QueueFull.
+  void reserve() {
+    std::size_t current = in_flight.load();
+    do {
+      if (current >= limits.queue_capacity) {
+        rejected_count.fetch_add(1);
+        throw QueueFull();
+      }
+    } while (!in_flight.compare_exchange_weak(current, current + 1));
+  }
+
+  const ServiceLimits limits;
+  std::atomic<std::uint64_t> rejected_count{0};
+  std::atomic<std::uint64_t> expired_count{0};
 
   mutable std::mutex mutex;
   std::condition_variable wake;
@@ -53,17 +83,21 @@ struct RenderService::Impl {
         jobs.pop_front();
       }
       try {
+        if (std::chrono::steady_clock::now() - job.queued > limits.deadline) {
+          expired_count.fetch_add(1);
+          throw DeadlineExceeded();
+        }
         job.promise.set_value(renderer->render(job.request));
         frames.fetch_add(1);
       } catch (...) {
         job.promise.set_exception(std::current_exception());
       }
-      in_flight.fetch_sub(1);
+      if (job.holds_place) in_flight.fetch_sub(1);
     }
   }
 };
 
-RenderService::RenderService() : impl_(std::make_unique<Impl>()) {
+RenderService::RenderService(ServiceLimits limits) : impl_(std::make_unique<Impl>(limits)) {
   std::promise<void> ready;
   std::future<void> started = ready.get_future();
   impl_->thread = std::thread([this, &ready] { impl_->run(ready); });
@@ -82,31 +116,35 @@ RenderService::~RenderService() {
   }
   impl_->wake.notify_all();
   impl_->thread.join();
+  // Ray casts run on their own threads and give their place back when they
+  // end: wait for them, since they hold a pointer to impl_.
+  while (impl_->in_flight.load() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
 std::future<RenderResult> RenderService::submit(RenderRequest request) {
   if (request.output == Output::Exact || request.output == Output::Error) return submit_reference(std::move(request));
-  Impl::Job job{std::move(request), {}};
-  std::future<RenderResult> result = job.promise.get_future();
-  {
-    std::lock_guard<std::mutex> lock(impl_->mutex);
-    impl_->jobs.push_back(std::move(job));
-    impl_->in_flight.fetch_add(1);
-  }
-  impl_->wake.notify_one();
-  return result;
+  impl_->reserve();
+  return impl_->enqueue(std::move(request), true);
 }
 
 // The exact reference needs no GL: it is ray cast on its own thread so the GL
-// thread keeps rendering. "error" also needs the GL "shadow" output.
+// thread keeps rendering. "error" also needs the GL "shadow" output. The
+// ray cast holds a place in the queue too, so that CPU work is bounded.
 std::future<RenderResult> RenderService::submit_reference(RenderRequest request) {
+  impl_->reserve();
   std::future<RenderResult> rendered;
   if (request.output == Output::Error) {
     RenderRequest shadow = request;
     shadow.output = Output::Shadow;
-    rendered = submit(std::move(shadow));
+    rendered = impl_->enqueue(std::move(shadow), false);
   }
-  return std::async(std::launch::async, [request = std::move(request), rendered = std::move(rendered)]() mutable {
+  Impl* impl = impl_.get();
+  return std::async(std::launch::async, [impl, request = std::move(request), rendered = std::move(rendered)]() mutable {
+    // Gives the place back however the cast ends.
+    struct Release {
+      Impl* impl;
+      ~Release() { impl->in_flight.fetch_sub(1); }
+    } release{impl};
     const auto start = std::chrono::steady_clock::now();
     const std::vector<ExactPixel> pixels = cast_exact_pixels(request);
     const Image exact = exact_image(pixels, request.width, request.height);
@@ -128,5 +166,8 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request)
 const RendererInfo& RenderService::info() const { return impl_->info; }
 std::uint64_t RenderService::frames_rendered() const { return impl_->frames.load(); }
 std::size_t RenderService::queue_depth() const { return impl_->in_flight.load(); }
+std::uint64_t RenderService::rejected() const { return impl_->rejected_count.load(); }
+std::uint64_t RenderService::expired() const { return impl_->expired_count.load(); }
+const ServiceLimits& RenderService::limits() const { return impl_->limits; }
 
 }  // namespace umbra

@@ -3,9 +3,11 @@
 // and wait on a future for pixels. This header includes no GL.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <future>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "render_result.hpp"
@@ -19,19 +21,39 @@ struct RendererInfo {
   std::string egl_source;   ///< how the EGL display was found
 };
 
+/// How much work the service accepts. A full queue refuses at once rather
+/// than building a backlog; a job that waited past its deadline is not
+/// rendered for a client that has likely given up.
+struct ServiceLimits {
+  /// Jobs waiting or being rendered (GL and ray-cast alike), 1.. Default 16.
+  std::size_t queue_capacity = 16;
+  /// Longest a job may wait for its turn, milliseconds, > 0. Default 10 s.
+  std::chrono::milliseconds deadline{10000};
+};
+
+/// submit() refused the job: the queue holds queue_capacity jobs already.
+struct QueueFull : std::runtime_error {
+  QueueFull() : std::runtime_error("the render queue is full") {}
+};
+/// The job waited longer than the deadline and was dropped unrendered.
+struct DeadlineExceeded : std::runtime_error {
+  DeadlineExceeded() : std::runtime_error("the request waited past the render deadline") {}
+};
+
 class RenderService {
  public:
   /// Starts the GL thread and waits until it has a context and compiled
   /// shaders. Throws std::runtime_error with the reason if it cannot (no EGL,
   /// no GL 4.5 core context, a GLSL error).
-  RenderService();
+  explicit RenderService(ServiceLimits limits = {});
   /// Finishes the jobs already queued, then stops the GL thread.
   ~RenderService();
   RenderService(const RenderService&) = delete;
   RenderService& operator=(const RenderService&) = delete;
 
-  /// Queues a render. The future holds the result, or the exception the
-  /// renderer threw. `request` must be valid (see server/request_parser.hpp).
+  /// Queues a render; throws QueueFull at once if the queue is full. The
+  /// future holds the result, DeadlineExceeded if the job waited too long,
+  /// or the exception the renderer threw. `request` must be valid (see server/request_parser.hpp).
   /// "exact" is ray cast on the CPU off the GL thread (its time is reported
   /// as `main`); "error" renders "shadow" on the GL thread, then compares.
   std::future<RenderResult> submit(RenderRequest request);
@@ -40,6 +62,11 @@ class RenderService {
   std::uint64_t frames_rendered() const;
   /// Jobs waiting or being rendered.
   std::size_t queue_depth() const;
+  /// Jobs refused because the queue was full, and jobs dropped at their
+  /// deadline, since start.
+  std::uint64_t rejected() const;
+  std::uint64_t expired() const;
+  const ServiceLimits& limits() const;
 
  private:
   std::future<RenderResult> submit_reference(RenderRequest request);

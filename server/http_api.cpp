@@ -145,7 +145,10 @@ void HttpApi::install_routes() {
                          {"egl_source", info.egl_source},
                          {"uptime_s", uptime},
                          {"frames_rendered", renderer_.frames_rendered()},
-                         {"queue_depth", renderer_.queue_depth()}}
+                         {"queue_depth", renderer_.queue_depth()},
+                         {"queue_capacity", renderer_.limits().queue_capacity},
+                         {"rejected", renderer_.rejected()},
+                         {"expired", renderer_.expired()}}
                         .dump(),
                     "application/json");
   });
@@ -174,7 +177,19 @@ void HttpApi::install_routes() {
       request.output = Output::Depth;
     }
     const auto queued = Clock::now();
-    RenderResult result = renderer_.submit(std::move(request)).get();
+    RenderResult result;
+    try {
+      result = renderer_.submit(std::move(request)).get();
+    } catch (const QueueFull& e) {
+      // Refused at once: the client may retry after about one frame.
+      res.set_header("Retry-After", "1");
+      return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().queue_capacity) +
+                                      " requests); retry later", "");
+    } catch (const DeadlineExceeded& e) {
+      res.set_header("Retry-After", "1");
+      return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().deadline.count()) +
+                                      " ms); retry later", "");
+    }
     const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - queued).count();
     const FrameTimings& t = result.timings;
     const double queue_ms = std::max(0.0, total_ms - t.shadow_ms - t.main_ms - t.readback_ms);

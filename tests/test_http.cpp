@@ -146,6 +146,57 @@ TEST(Http, DepthRouteIsTheDepthOutput) {
   expect_json_error(client().Post("/api/depth", R"({"output": "shadow"})", "application/json"), 400, "output");
 }
 
+// A render slow enough on llvmpipe (about a second) to hold the queue.
+const char* kSlowBody = R"({"width": 2048, "height": 2048, "output": "shadow", "shadow": {"pcf_radius": 8}})";
+
+TEST(Http, AFullQueueAnswers503WithRetryAfterAtOnce) {
+  // A server of its own with room for one render.
+  ServiceLimits limits;
+  limits.queue_capacity = 1;
+  RenderService renderer(limits);
+  ServerOptions options;
+  options.port = 0;
+  options.log_requests = false;
+  HttpApi api(renderer, options);
+  ASSERT_TRUE(api.bind());
+  std::thread server([&api] { api.serve(); });
+  while (!api.serving()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  httplib::Client c("127.0.0.1", api.port());
+  c.set_read_timeout(120, 0);
+
+  int slow_status = 0;
+  std::thread slow([&] {
+    httplib::Client other("127.0.0.1", api.port());
+    other.set_read_timeout(120, 0);
+    auto res = other.Post("/api/render", kSlowBody, "application/json");
+    slow_status = res ? res->status : -1;
+  });
+  while (renderer.queue_depth() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const auto start = std::chrono::steady_clock::now();
+  auto res = c.Post("/api/render", R"({"width": 32, "height": 32})", "application/json");
+  const double waited_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  const bool slow_still_running = renderer.queue_depth() == 1;
+  slow.join();
+  ASSERT_TRUE(res);
+  if (slow_still_running) {  // else the machine was fast enough to finish first: nothing to judge
+    EXPECT_EQ(res->status, 503);
+    EXPECT_EQ(res->get_header_value("Retry-After"), "1");
+    EXPECT_EQ(json::parse(res->body)["field"], "");
+    EXPECT_LT(waited_ms, 500.0) << "refused at once, not after waiting";
+    EXPECT_EQ(renderer.rejected(), 1u);
+    auto health = json::parse(c.Get("/api/health")->body);
+    EXPECT_EQ(health["rejected"], 1);
+    EXPECT_EQ(health["queue_capacity"], 1);
+  }
+  EXPECT_EQ(slow_status, 200);
+  // Room again: served.
+  res = c.Post("/api/render", R"({"width": 32, "height": 32})", "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  api.stop();
+  server.join();
+}
+
 TEST(Http, TheShadowLayoutIsReported) {
   auto res = client().Post("/api/render", R"({"width": 32, "height": 32, "shadow": {"map_size": 256, "cascades": 3}})",
                            "application/json");

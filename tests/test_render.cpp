@@ -244,6 +244,37 @@ TEST(BenchScenes, EveryHardCaseTheIssueNamesIsThere) {
     EXPECT_NE(std::find(names.begin(), names.end(), required), names.end()) << required;
 }
 
+TEST(RenderService, AJobThatWaitedPastItsDeadlineIsDroppedUnrendered) {
+  ServiceLimits limits;
+  limits.deadline = std::chrono::milliseconds(1);
+  RenderService own(limits);
+  // The first job starts at once; the second waits behind it far longer
+  // than 1 ms (a 2048^2 image with a wide PCF kernel takes ~1 s here).
+  auto slow = own.submit(request(R"({"width": 2048, "height": 2048, "output": "shadow", "shadow": {"pcf_radius": 8}})"));
+  auto late = own.submit(request(R"({"width": 32, "height": 32})"));
+  EXPECT_EQ(slow.get().image.width, 2048);
+  EXPECT_THROW(late.get(), DeadlineExceeded);
+  EXPECT_EQ(own.expired(), 1u);
+  EXPECT_EQ(own.frames_rendered(), 1u);
+  EXPECT_EQ(own.queue_depth(), 0u);
+}
+
+TEST(RenderService, AFullQueueRefusesAtOnceAndCountsIt) {
+  ServiceLimits limits;
+  limits.queue_capacity = 2;
+  RenderService own(limits);
+  auto slow = own.submit(request(R"({"width": 2048, "height": 2048, "output": "shadow", "shadow": {"pcf_radius": 8}})"));
+  auto second = own.submit(request(R"({"width": 32, "height": 32})"));
+  EXPECT_THROW(own.submit(request(R"({"width": 32, "height": 32})")), QueueFull);
+  // An "error" job holds one place for its ray cast and its render alike.
+  EXPECT_THROW(own.submit(request(R"({"width": 32, "height": 32, "output": "error"})")), QueueFull);
+  EXPECT_EQ(own.rejected(), 2u);
+  slow.get();
+  second.get();
+  EXPECT_EQ(own.submit(request(R"({"width": 32, "height": 32, "output": "error"})")).get().image.channels, 3);
+  EXPECT_EQ(own.queue_depth(), 0u);
+}
+
 TEST(Renderer, FixedFitLikeTheSeedsLightsWhatIsOutsideTheBox) {
   // The seeds' fixed +-10 box and far 7.5: the floor beyond it must be lit,
   // not black (clamp-to-border and the far-plane fix).
