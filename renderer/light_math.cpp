@@ -143,16 +143,12 @@ std::vector<glm::dvec3> frustum_box_intersection(const glm::dmat4& view_projecti
 
 namespace {
 
-// Light-space (view-space) box of some points.
-struct Extent {
-  glm::dvec3 min{kInfinity};
-  glm::dvec3 max{-kInfinity};
-  bool empty() const { return min.x > max.x; }
-  void extend(const glm::dvec3& p) {
-    min = glm::min(min, p);
-    max = glm::max(max, p);
-  }
-};
+// Boxes below named `Extent` hold light view-space points; `Aabb` world ones.
+using Extent = Aabb;
+
+// Fraction of a map's side kept free for `texels` texels on each side (at
+// most half the side, for tiny maps and wide kernels).
+double spare_fraction(int texels, int size) { return std::min(2.0 * texels, 0.5 * size) / size; }
 
 glm::dvec3 transform(const glm::dmat4& m, const glm::dvec3& p) { return glm::dvec3(m * glm::dvec4(p, 1.0)); }
 
@@ -204,7 +200,7 @@ ShadowView ortho_for_receivers(const glm::dmat4& view, const Extent& receivers, 
   // then rounded up to a power of 2^(1/16): it keeps its value (and so the
   // texel grid) under small camera moves.
   const double raw = std::max({receivers.max.x - receivers.min.x, receivers.max.y - receivers.min.y, 1e-30});
-  const double spare = std::min(2.0 * (reach + 2), 0.5 * size) / size;
+  const double spare = spare_fraction(reach + 2, size);  // + 1 for snapping the origin
   const double width = std::exp2(std::ceil(std::log2(raw / (1.0 - spare)) * 16.0) / 16.0);
   const double texel = width / size;
   // Origin snapped to a multiple of the texel, so that as the rectangle
@@ -347,7 +343,7 @@ void plan_perspective(ShadowPlan& plan, const RenderRequest& request, const glm:
     }
     if (tan_half == kInfinity) break;
   }
-  const double spare = std::min(2.0 * (reach + 1), 0.5 * request.shadow.map_size) / request.shadow.map_size;
+  const double spare = spare_fraction(reach + 1, plan.layer_size);
   if (tan_half / (1.0 - spare) <= std::tan(glm::radians(kMaxFittedLightFovDeg * 0.5))) {
     ShadowView v;
     v.view = light_view;
@@ -363,7 +359,7 @@ void plan_perspective(ShadowPlan& plan, const RenderRequest& request, const glm:
   // kernel of a point on a face's edge still falls inside that face.
   plan.layout = ShadowLayout::Cube;
   plan.layer_size = std::min(request.shadow.map_size, int(std::sqrt(kMaxShadowTexels / 6.0)));
-  const double face_spare = std::min(2.0 * (reach + 1), 0.5 * plan.layer_size) / plan.layer_size;
+  const double face_spare = spare_fraction(reach + 1, plan.layer_size);
   static const glm::dvec3 kAxes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
   plan.views.clear();
   for (const auto& axis : kAxes) {

@@ -41,6 +41,13 @@ void set_uniform(const gl::Program& p, const char* name, int v) {
   glProgramUniform1i(p.id(), gl::uniform_location(p, name), v);
 }
 
+// One float per view of the light, for a uniform array.
+std::vector<float> per_view(const ShadowPlan& light, double ShadowView::*member) {
+  std::vector<float> out;
+  for (const ShadowView& v : light.views) out.push_back(float(v.*member));
+  return out;
+}
+
 // Every number that shapes the geometry, so an identical scene is recognised
 // and not uploaded again.
 std::string scene_key(const Scene& scene) {
@@ -225,15 +232,11 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   // Per view: origin-relative matrices, clip planes and texel footprints.
   const int views = int(light.views.size());
   std::vector<glm::mat4> view_matrices, view_projections;
-  std::vector<float> near_planes, far_planes, tan_halves;
   std::vector<glm::vec2> texel_sizes;
   for (const ShadowView& v : light.views) {
     view_matrices.push_back(relative_to(v.view, origin));
     view_projections.push_back(relative_to(v.view_projection(), origin));
-    near_planes.push_back(float(v.near_plane));
-    far_planes.push_back(float(v.far_plane));
     texel_sizes.push_back(glm::vec2(v.texel_size));
-    tan_halves.push_back(float(v.tan_half));
   }
   set_uniform(p, "u_view_count", views);
   set_uniform(p, "u_filter_reach", filter_reach_texels(s));
@@ -241,10 +244,12 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
                             glm::value_ptr(view_matrices[0]));
   glProgramUniformMatrix4fv(p.id(), gl::uniform_location(p, "u_light_view_projection"), views, GL_FALSE,
                             glm::value_ptr(view_projections[0]));
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_near"), views, near_planes.data());
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_far"), views, far_planes.data());
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_near"), views,
+                      per_view(light, &ShadowView::near_plane).data());
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_far"), views,
+                      per_view(light, &ShadowView::far_plane).data());
   glProgramUniform2fv(p.id(), gl::uniform_location(p, "u_texel_size"), views, glm::value_ptr(texel_sizes[0]));
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_tan_half"), views, tan_halves.data());
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_tan_half"), views, per_view(light, &ShadowView::tan_half).data());
   set_uniform(p, "u_filter", s.filter == ShadowFilter::Hard ? 0 : s.filter == ShadowFilter::Pcf ? 1 : 2);
   set_uniform(p, "u_pcf_radius", s.pcf_radius);
   set_uniform(p, "u_bias_auto", int(s.bias.automatic));
@@ -272,11 +277,6 @@ void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size) 
   resize_depth_preview(image_size);
   const gl::Program& p = preview_.program;
   const int views = int(light.views.size());
-  std::vector<float> near_planes, far_planes;
-  for (const ShadowView& v : light.views) {
-    near_planes.push_back(float(v.near_plane));
-    far_planes.push_back(float(v.far_plane));
-  }
   int grid = 1;
   while (grid * grid < views) ++grid;
   set_uniform(p, "u_shadow_map", 0);
@@ -284,8 +284,10 @@ void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size) 
   set_uniform(p, "u_grid", grid);
   set_uniform(p, "u_image_size", float(image_size));
   set_uniform(p, "u_light_perspective", int(light.perspective));
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_near"), views, near_planes.data());
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_far"), views, far_planes.data());
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_near"), views,
+                      per_view(light, &ShadowView::near_plane).data());
+  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_far"), views,
+                      per_view(light, &ShadowView::far_plane).data());
   glBindTextureUnit(0, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, preview_.framebuffer.id());
   glViewport(0, 0, preview_.size, preview_.size);
