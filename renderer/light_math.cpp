@@ -419,4 +419,42 @@ ShadowPlan plan_shadow(const RenderRequest& request) {
   return plan;
 }
 
+namespace {
+
+// An orthographic view's box in its own view space: x/y from the projection,
+// z as [-far, -near].
+Aabb ortho_box(const ShadowView& v) {
+  const glm::dmat4 inverse = glm::inverse(v.projection);
+  Aabb box;
+  box.extend(glm::dvec3(inverse * glm::dvec4(-1.0, -1.0, -1.0, 1.0)));
+  box.extend(glm::dvec3(inverse * glm::dvec4(1.0, 1.0, 1.0, 1.0)));
+  return box;
+}
+
+bool view_covers(const ShadowView& have, const ShadowView& want, bool perspective) {
+  if (have.view != want.view) return false;
+  if (perspective) return have.projection == want.projection && have.empty == want.empty;
+  if (have.empty && !want.empty) return false;
+  // Texels no larger (a hair of rounding allowed), and want's box inside have's.
+  const double tolerance = 1.0 + 1e-9;
+  if (have.texel_size.x > want.texel_size.x * tolerance || have.texel_size.y > want.texel_size.y * tolerance)
+    return false;
+  const Aabb h = ortho_box(have), w = ortho_box(want);
+  const double slack = 1e-9 * std::max(glm::length(h.extent()), 1e-300);
+  for (int i = 0; i < 3; ++i)
+    if (w.min[i] < h.min[i] - slack || w.max[i] > h.max[i] + slack) return false;
+  return true;
+}
+
+}  // namespace
+
+bool plan_covers(const ShadowPlan& have, const ShadowPlan& want) {
+  if (have.perspective != want.perspective || have.layout != want.layout || have.layer_size != want.layer_size ||
+      have.position != want.position || have.direction != want.direction || have.views.size() != want.views.size())
+    return false;
+  for (std::size_t i = 0; i < have.views.size(); ++i)
+    if (!view_covers(have.views[i], want.views[i], have.perspective)) return false;
+  return true;
+}
+
 }  // namespace umbra

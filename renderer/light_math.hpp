@@ -107,6 +107,14 @@ int filter_reach_texels(const ShadowSettings& shadow);
 /// and far from the objects' distances to the light.
 ShadowPlan plan_shadow(const RenderRequest& request);
 
+/// True if a shadow map rendered for `have` serves a frame that planned
+/// `want` at least as well: same light and layout, and each of have's views
+/// holds want's view (orthographic: its rectangle and depth range contain
+/// want's, with texels no larger; perspective: identical). The renderer then
+/// keeps the map it has and draws with `have` instead of a new shadow pass.
+/// Both plans must be for the same scene and cull mode.
+bool plan_covers(const ShadowPlan& have, const ShadowPlan& want);
+
 /// The vertices of the convex intersection of a frustum (given by its
 /// view-projection matrix, clip z in [-w, w]) and a box; empty if they do not
 /// meet. Exposed for tests.

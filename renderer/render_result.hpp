@@ -19,6 +19,9 @@ struct RenderResult {
   /// "single", "cascades" or "cube"; the number of views and the texels per
   /// side of each (e.g. "cascades; views=3; size=2048").
   std::string shadow_views;
+  /// The shadow map from an earlier frame served this one (nothing it
+  /// depends on changed), so no shadow pass ran.
+  bool shadow_reused = false;
 };
 
 }  // namespace umbra

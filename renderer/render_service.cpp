@@ -57,6 +57,7 @@ struct RenderService::Impl {
   bool stopping = false;
   std::atomic<std::size_t> in_flight{0};
   std::atomic<std::uint64_t> frames{0};
+  std::atomic<std::uint64_t> shadow_reuses{0};
   RendererInfo info;
   std::thread thread;
 
@@ -87,8 +88,10 @@ struct RenderService::Impl {
           expired_count.fetch_add(1);
           throw DeadlineExceeded();
         }
-        job.promise.set_value(renderer->render(job.request));
+        RenderResult result = renderer->render(job.request);
+        if (result.shadow_reused) shadow_reuses.fetch_add(1);
         frames.fetch_add(1);
+        job.promise.set_value(std::move(result));
       } catch (...) {
         job.promise.set_exception(std::current_exception());
       }
@@ -166,6 +169,7 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request)
 const RendererInfo& RenderService::info() const { return impl_->info; }
 std::uint64_t RenderService::frames_rendered() const { return impl_->frames.load(); }
 std::size_t RenderService::queue_depth() const { return impl_->in_flight.load(); }
+std::uint64_t RenderService::shadow_cache_hits() const { return impl_->shadow_reuses.load(); }
 std::uint64_t RenderService::rejected() const { return impl_->rejected_count.load(); }
 std::uint64_t RenderService::expired() const { return impl_->expired_count.load(); }
 const ServiceLimits& RenderService::limits() const { return impl_->limits; }

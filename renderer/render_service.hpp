@@ -60,6 +60,8 @@ class RenderService {
 
   const RendererInfo& info() const;
   std::uint64_t frames_rendered() const;
+  /// Frames that reused the shadow map of an earlier frame (no shadow pass).
+  std::uint64_t shadow_cache_hits() const;
   /// Jobs waiting or being rendered.
   std::size_t queue_depth() const;
   /// Jobs refused because the queue was full, and jobs dropped at their

@@ -28,18 +28,14 @@ glm::mat4 relative_to(const glm::dmat4& m, const glm::dvec3& origin) {
   return glm::mat4(m * glm::translate(glm::dmat4(1.0), origin));
 }
 
-void set_uniform(const gl::Program& p, const char* name, const glm::mat4& m) {
-  glProgramUniformMatrix4fv(p.id(), gl::uniform_location(p, name), 1, GL_FALSE, glm::value_ptr(m));
+// glProgramUniform* for the types the shaders use; `at` is a location
+// looked up once (see DisplayPass::Uniforms).
+void set_uniform(const gl::Program& p, GLint at, const glm::mat4& m) {
+  glProgramUniformMatrix4fv(p.id(), at, 1, GL_FALSE, glm::value_ptr(m));
 }
-void set_uniform(const gl::Program& p, const char* name, const glm::vec3& v) {
-  glProgramUniform3f(p.id(), gl::uniform_location(p, name), v.x, v.y, v.z);
-}
-void set_uniform(const gl::Program& p, const char* name, float v) {
-  glProgramUniform1f(p.id(), gl::uniform_location(p, name), v);
-}
-void set_uniform(const gl::Program& p, const char* name, int v) {
-  glProgramUniform1i(p.id(), gl::uniform_location(p, name), v);
-}
+void set_uniform(const gl::Program& p, GLint at, const glm::vec3& v) { glProgramUniform3f(p.id(), at, v.x, v.y, v.z); }
+void set_uniform(const gl::Program& p, GLint at, float v) { glProgramUniform1f(p.id(), at, v); }
+void set_uniform(const gl::Program& p, GLint at, int v) { glProgramUniform1i(p.id(), at, v); }
 
 // One float per view of the light, for a uniform array.
 std::vector<float> per_view(const ShadowPlan& light, double ShadowView::*member) {
@@ -69,7 +65,24 @@ ShadowRenderer::ShadowRenderer() {
   shadow_.program = gl::build_program("shadow_depth.vert", "shadow_depth.frag");
   shadow_.light_view_projection = gl::uniform_location(shadow_.program, "u_light_view_projection");
   display_.program = gl::build_program("scene.vert", "scene.frag");
+  {
+    const auto at = [&](const char* name) { return gl::uniform_location(display_.program, name); };
+    display_.uniforms = {at("u_view_projection"), at("u_camera_position"),
+                         at("u_light_perspective"), at("u_light_position"), at("u_light_direction"),
+                         at("u_light_color"), at("u_ambient"), at("u_light_size"),
+                         at("u_shadows_enabled"), at("u_output"), at("u_shadow_map"),
+                         at("u_view_count"), at("u_filter_reach"), at("u_light_view"),
+                         at("u_light_view_projection"), at("u_light_near"), at("u_light_far"),
+                         at("u_texel_size"), at("u_tan_half"),
+                         at("u_filter"), at("u_pcf_radius"), at("u_bias_auto"), at("u_bias_constant"),
+                         at("u_bias_slope"), at("u_bias_normal_offset")};
+  }
   preview_.program = gl::build_program("fullscreen.vert", "depth_preview.frag");
+  {
+    const auto at = [&](const char* name) { return gl::uniform_location(preview_.program, name); };
+    preview_.uniforms = {at("u_shadow_map"), at("u_view_count"), at("u_grid"), at("u_image_size"),
+                         at("u_light_perspective"), at("u_light_near"), at("u_light_far")};
+  }
   empty_vertex_array_ = gl::create_vertex_array();
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
@@ -117,6 +130,7 @@ void ShadowRenderer::resize_shadow_map(int size, int layers) {
   // Kept while it is big enough: a light that needs fewer views uses the
   // first layers.
   if (shadow_.size == size && shadow_.layers >= layers) return;
+  shadow_.holds_plan = false;
   shadow_.depth_map = gl::create_texture(GL_TEXTURE_2D_ARRAY);
   const GLuint map = shadow_.depth_map.id();
   // 32-bit float depth: precision that holds at every scene scale.
@@ -210,25 +224,35 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
     // peter panning). See ShadowSettings::cull for why planes are exempt.
     draw_scene(request.shadow.cull);
   }
+  shadow_.holds_plan = true;
+  shadow_.plan = light;
+  shadow_.scene_key = scene_.key;
+  shadow_.cull = request.shadow.cull;
+}
+
+bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const {
+  return shadow_.holds_plan && shadow_.scene_key == scene_.key && shadow_.cull == request.shadow.cull &&
+         plan_covers(shadow_.plan, light);
 }
 
 void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light) {
   resize_display(request.width, request.height);
   const glm::dvec3 origin = scene_.mesh.origin;
   const gl::Program& p = display_.program;
+  const DisplayPass::Uniforms& u = display_.uniforms;
   const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
   const bool shadows = request.shadow.enabled;
   const ShadowSettings& s = request.shadow;
 
-  set_uniform(p, "u_view_projection", relative_to(camera.projection * camera.view, origin));
-  set_uniform(p, "u_camera_position", glm::vec3(request.camera.position - origin));
-  set_uniform(p, "u_light_perspective", int(light.perspective));
-  set_uniform(p, "u_light_position", glm::vec3(light.position - origin));
-  set_uniform(p, "u_light_direction", glm::vec3(light.direction));
-  set_uniform(p, "u_light_color", glm::vec3(request.light.color));
-  set_uniform(p, "u_ambient", float(request.light.ambient));
-  set_uniform(p, "u_shadows_enabled", int(shadows));
-  set_uniform(p, "u_output", request.output == Output::Shadow ? 1 : 0);
+  set_uniform(p, u.view_projection, relative_to(camera.projection * camera.view, origin));
+  set_uniform(p, u.camera_position, glm::vec3(request.camera.position - origin));
+  set_uniform(p, u.light_perspective, int(light.perspective));
+  set_uniform(p, u.light_position, glm::vec3(light.position - origin));
+  set_uniform(p, u.light_direction, glm::vec3(light.direction));
+  set_uniform(p, u.light_color, glm::vec3(request.light.color));
+  set_uniform(p, u.ambient, float(request.light.ambient));
+  set_uniform(p, u.shadows_enabled, int(shadows));
+  set_uniform(p, u.output, request.output == Output::Shadow ? 1 : 0);
   // Per view: origin-relative matrices, clip planes and texel footprints.
   const int views = int(light.views.size());
   std::vector<glm::mat4> view_matrices, view_projections;
@@ -238,28 +262,28 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
     view_projections.push_back(relative_to(v.view_projection(), origin));
     texel_sizes.push_back(glm::vec2(v.texel_size));
   }
-  set_uniform(p, "u_view_count", views);
-  set_uniform(p, "u_filter_reach", filter_reach_texels(s));
-  glProgramUniformMatrix4fv(p.id(), gl::uniform_location(p, "u_light_view"), views, GL_FALSE,
+  set_uniform(p, u.view_count, views);
+  set_uniform(p, u.filter_reach, filter_reach_texels(s));
+  glProgramUniformMatrix4fv(p.id(), u.light_view, views, GL_FALSE,
                             glm::value_ptr(view_matrices[0]));
-  glProgramUniformMatrix4fv(p.id(), gl::uniform_location(p, "u_light_view_projection"), views, GL_FALSE,
+  glProgramUniformMatrix4fv(p.id(), u.light_view_projection, views, GL_FALSE,
                             glm::value_ptr(view_projections[0]));
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_near"), views,
+  glProgramUniform1fv(p.id(), u.light_near, views,
                       per_view(light, &ShadowView::near_plane).data());
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_far"), views,
+  glProgramUniform1fv(p.id(), u.light_far, views,
                       per_view(light, &ShadowView::far_plane).data());
-  glProgramUniform2fv(p.id(), gl::uniform_location(p, "u_texel_size"), views, glm::value_ptr(texel_sizes[0]));
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_tan_half"), views, per_view(light, &ShadowView::tan_half).data());
-  set_uniform(p, "u_filter", s.filter == ShadowFilter::Hard ? 0 : s.filter == ShadowFilter::Pcf ? 1 : 2);
-  set_uniform(p, "u_pcf_radius", s.pcf_radius);
-  set_uniform(p, "u_bias_auto", int(s.bias.automatic));
-  set_uniform(p, "u_bias_constant", float(s.bias.constant));
-  set_uniform(p, "u_bias_slope", float(s.bias.slope));
-  set_uniform(p, "u_bias_normal_offset", float(s.bias.normal_offset));
+  glProgramUniform2fv(p.id(), u.texel_size, views, glm::value_ptr(texel_sizes[0]));
+  glProgramUniform1fv(p.id(), u.tan_half, views, per_view(light, &ShadowView::tan_half).data());
+  set_uniform(p, u.filter, s.filter == ShadowFilter::Hard ? 0 : s.filter == ShadowFilter::Pcf ? 1 : 2);
+  set_uniform(p, u.pcf_radius, s.pcf_radius);
+  set_uniform(p, u.bias_auto, int(s.bias.automatic));
+  set_uniform(p, u.bias_constant, float(s.bias.constant));
+  set_uniform(p, u.bias_slope, float(s.bias.slope));
+  set_uniform(p, u.bias_normal_offset, float(s.bias.normal_offset));
   const double light_size = light.perspective ? request.light.size
                                               : std::tan(0.5 * request.light.size * 3.14159265358979323846 / 180.0);
-  set_uniform(p, "u_light_size", float(light_size));
-  set_uniform(p, "u_shadow_map", 0);
+  set_uniform(p, u.light_size, float(light_size));
+  set_uniform(p, u.shadow_map, 0);
   glBindTextureUnit(0, shadows ? shadow_.depth_map.id() : 0);
 
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
@@ -276,17 +300,18 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
 void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size) {
   resize_depth_preview(image_size);
   const gl::Program& p = preview_.program;
+  const DepthPreviewPass::Uniforms& u = preview_.uniforms;
   const int views = int(light.views.size());
   int grid = 1;
   while (grid * grid < views) ++grid;
-  set_uniform(p, "u_shadow_map", 0);
-  set_uniform(p, "u_view_count", views);
-  set_uniform(p, "u_grid", grid);
-  set_uniform(p, "u_image_size", float(image_size));
-  set_uniform(p, "u_light_perspective", int(light.perspective));
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_near"), views,
+  set_uniform(p, u.shadow_map, 0);
+  set_uniform(p, u.view_count, views);
+  set_uniform(p, u.grid, grid);
+  set_uniform(p, u.image_size, float(image_size));
+  set_uniform(p, u.light_perspective, int(light.perspective));
+  glProgramUniform1fv(p.id(), u.light_near, views,
                       per_view(light, &ShadowView::near_plane).data());
-  glProgramUniform1fv(p.id(), gl::uniform_location(p, "u_light_far"), views,
+  glProgramUniform1fv(p.id(), u.light_far, views,
                       per_view(light, &ShadowView::far_plane).data());
   glBindTextureUnit(0, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, preview_.framebuffer.id());
@@ -324,14 +349,21 @@ Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int
 RenderResult ShadowRenderer::render(const RenderRequest& request) {
   RenderResult result;
   upload_scene(request.scene);
-  const ShadowPlan light = plan_shadow(request);
+  ShadowPlan light = plan_shadow(request);
   const bool depth_output = request.output == Output::Depth;
 
   if (request.shadow.enabled || depth_output) {
-    const auto start = Clock::now();
-    run_shadow_pass(request, light);
-    glFinish();
-    result.timings.shadow_ms = elapsed_ms(start);
+    if (shadow_map_serves(request, light)) {
+      // Nothing the map depends on changed (typically only the camera
+      // moved): draw with the views it was made for; shadow_ms stays 0.
+      light = shadow_.plan;
+      result.shadow_reused = true;
+    } else {
+      const auto start = Clock::now();
+      run_shadow_pass(request, light);
+      glFinish();
+      result.timings.shadow_ms = elapsed_ms(start);
+    }
     const char* layout = light.layout == ShadowLayout::Cascades ? "cascades"
                          : light.layout == ShadowLayout::Cube   ? "cube"
                                                                 : "single";

@@ -44,10 +44,24 @@ class ShadowRenderer {
     gl::Framebuffer framebuffer;
     int size = 0;
     int layers = 0;
+    // What the map holds now, so that a frame whose light, scene and cull
+    // mode are unchanged (a camera-only change) reuses it.
+    bool holds_plan = false;
+    ShadowPlan plan;
+    std::string scene_key;
+    CullMode cull = CullMode::Front;
   };
   // The camera's view, into an offscreen colour + depth framebuffer.
   struct DisplayPass {
     gl::Program program;
+    // Uniform locations, looked up once when the program is built.
+    struct Uniforms {
+      GLint view_projection, camera_position;
+      GLint light_perspective, light_position, light_direction, light_color, ambient, light_size;
+      GLint shadows_enabled, output, shadow_map;
+      GLint view_count, filter_reach, light_view, light_view_projection, light_near, light_far, texel_size, tan_half;
+      GLint filter, pcf_radius, bias_auto, bias_constant, bias_slope, bias_normal_offset;
+    } uniforms{};
     gl::Renderbuffer color;  // RGBA8
     gl::Renderbuffer depth;  // DEPTH_COMPONENT32F
     gl::Framebuffer framebuffer;
@@ -56,6 +70,9 @@ class ShadowRenderer {
   // The depth map turned into a grey image for the "depth" output.
   struct DepthPreviewPass {
     gl::Program program;
+    struct Uniforms {
+      GLint shadow_map, view_count, grid, image_size, light_perspective, light_near, light_far;
+    } uniforms{};
     gl::Texture grey;        // R8, map_size^2
     gl::Framebuffer framebuffer;
     int size = 0;
@@ -67,6 +84,7 @@ class ShadowRenderer {
   void resize_depth_preview(int size);
   void draw_scene(CullMode closed_mesh_cull);
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light);
+  bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const;
   void run_display_pass(const RenderRequest& request, const ShadowPlan& light);
   void run_depth_preview(const ShadowPlan& light, int image_size);
   Image read_pixels(GLuint framebuffer, int width, int height, int channels);

@@ -145,6 +145,7 @@ void HttpApi::install_routes() {
                          {"egl_source", info.egl_source},
                          {"uptime_s", uptime},
                          {"frames_rendered", renderer_.frames_rendered()},
+                         {"shadow_cache_hits", renderer_.shadow_cache_hits()},
                          {"queue_depth", renderer_.queue_depth()},
                          {"queue_capacity", renderer_.limits().queue_capacity},
                          {"rejected", renderer_.rejected()},

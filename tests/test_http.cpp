@@ -82,6 +82,7 @@ TEST(Http, HealthReportsTheGlContextAndCounters) {
   EXPECT_TRUE(j["uptime_s"].is_number());
   EXPECT_TRUE(j["frames_rendered"].is_number_unsigned());
   EXPECT_TRUE(j["queue_depth"].is_number_unsigned());
+  EXPECT_TRUE(j["shadow_cache_hits"].is_number_unsigned());
 }
 
 TEST(Http, ScenesListsTheBuiltInsInCustomSceneForm) {
@@ -211,6 +212,35 @@ TEST(Http, TheShadowLayoutIsReported) {
   res = client().Post("/api/render", R"({"width": 32, "height": 32, "shadow": {"enabled": false}})", "application/json");
   ASSERT_TRUE(res);
   EXPECT_FALSE(res->has_header("Umbra-Shadow-Views"));
+}
+
+// The "shadow" entry of a Server-Timing header, in milliseconds.
+double shadow_duration(const std::string& server_timing) {
+  const std::string key = "shadow;dur=";
+  const std::size_t at = server_timing.find(key);
+  EXPECT_NE(at, std::string::npos) << server_timing;
+  return at == std::string::npos ? -1.0 : std::stod(server_timing.substr(at + key.size()));
+}
+
+TEST(Http, ACameraOnlyChangeSkipsTheShadowPass) {
+  httplib::Client c = client();
+  const std::string light = R"("light": {"projection": "perspective", "position": [-1, 5, 2]})";
+  auto first = c.Post("/api/render", R"({"width": 64, "height": 48, )" + light + "}", "application/json");
+  ASSERT_TRUE(first);
+  ASSERT_EQ(first->status, 200);
+  const auto hits_before = json::parse(c.Get("/api/health")->body)["shadow_cache_hits"].get<std::uint64_t>();
+  auto moved = c.Post("/api/render", R"({"width": 64, "height": 48, "camera": {"position": [4, 4, 7]}, )" + light + "}",
+                      "application/json");
+  ASSERT_TRUE(moved);
+  ASSERT_EQ(moved->status, 200);
+  EXPECT_EQ(shadow_duration(moved->get_header_value("Server-Timing")), 0.0);
+  const auto hits_after = json::parse(c.Get("/api/health")->body)["shadow_cache_hits"].get<std::uint64_t>();
+  EXPECT_EQ(hits_after, hits_before + 1);
+  // The light moved: a new shadow pass.
+  auto relit = c.Post("/api/render", R"({"width": 64, "height": 48, "light": {"projection": "perspective", "position": [1, 5, 2]}})",
+                      "application/json");
+  ASSERT_TRUE(relit);
+  EXPECT_GT(shadow_duration(relit->get_header_value("Server-Timing")), 0.0);
 }
 
 TEST(Http, UnusedFieldsAreReportedNotIgnored) {

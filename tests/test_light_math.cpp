@@ -255,5 +255,66 @@ TEST(CameraMatrices, AspectFollowsTheImage) {
   EXPECT_NEAR(m.projection[1][1] / m.projection[0][0], 2.0, 1e-12);
 }
 
+// --- Shadow-map reuse -------------------------------------------------------
+
+TEST(PlanCovers, AnIdenticalPlanCoversItself) {
+  for (LightProjection projection : {LightProjection::Orthographic, LightProjection::Perspective}) {
+    const RenderRequest r = request_with_light({-2.0, 4.0, -1.0}, projection);
+    EXPECT_TRUE(plan_covers(plan_shadow(r), plan_shadow(r)));
+  }
+}
+
+TEST(PlanCovers, APointLightIgnoresTheCamera) {
+  RenderRequest a = request_with_light({-2.0, 4.0, -1.0}, LightProjection::Perspective);
+  RenderRequest b = a;
+  b.camera.position = {6.0, 2.0, -5.0};
+  EXPECT_TRUE(plan_covers(plan_shadow(a), plan_shadow(b)));
+}
+
+TEST(PlanCovers, AFixedFitIgnoresTheCamera) {
+  RenderRequest a = request_with_light({-2.0, 4.0, -1.0}, LightProjection::Orthographic);
+  a.shadow.fit = FrustumFit::Fixed;
+  RenderRequest b = a;
+  b.camera.position = {6.0, 2.0, -5.0};
+  EXPECT_TRUE(plan_covers(plan_shadow(a), plan_shadow(b)));
+}
+
+TEST(PlanCovers, AMovedLightIsNeverCovered) {
+  for (LightProjection projection : {LightProjection::Orthographic, LightProjection::Perspective}) {
+    RenderRequest a = request_with_light({-2.0, 4.0, -1.0}, projection);
+    RenderRequest b = a;
+    b.light.position.x += 1e-6;
+    EXPECT_FALSE(plan_covers(plan_shadow(a), plan_shadow(b)));
+  }
+}
+
+TEST(PlanCovers, ACameraFittedMapServesOnlyWhatItHolds) {
+  // The camera fit follows the camera: moving in closer wants finer texels,
+  // which the old map does not have.
+  RenderRequest far = request_with_light({-2.0, 4.0, -1.0}, LightProjection::Orthographic);
+  far.shadow.cascades = 1;
+  RenderRequest near = far;
+  near.camera.position = far.camera.target + 0.3 * (far.camera.position - far.camera.target);
+  const ShadowPlan far_plan = plan_shadow(far), near_plan = plan_shadow(near);
+  EXPECT_FALSE(plan_covers(far_plan, near_plan));
+  // A view whose box holds the wanted one with texels no larger serves it.
+  ShadowPlan wider = near_plan;
+  ShadowView& v = wider.views[0];
+  const double texel = v.texel_size.x;
+  const glm::dmat4 inverse = glm::inverse(v.projection);
+  const glm::dvec3 lo(inverse * glm::dvec4(-1, -1, -1, 1)), hi(inverse * glm::dvec4(1, 1, 1, 1));
+  // Twice the width at the same texel size: a layer of twice the size.
+  wider.layer_size *= 2;
+  v.projection = glm::ortho(lo.x - 0.5 * (hi.x - lo.x), hi.x + 0.5 * (hi.x - lo.x), lo.y - 0.5 * (hi.y - lo.y),
+                            hi.y + 0.5 * (hi.y - lo.y), v.near_plane - 1.0, v.far_plane + 1.0);
+  v.texel_size = glm::dvec2(texel);
+  ShadowPlan want = near_plan;
+  want.layer_size = wider.layer_size;
+  EXPECT_TRUE(plan_covers(wider, want));
+  EXPECT_FALSE(plan_covers(want, wider)) << "the smaller box cannot serve the larger";
+  v.texel_size = glm::dvec2(texel * 1.01);
+  EXPECT_FALSE(plan_covers(wider, want)) << "coarser texels do not serve";
+}
+
 }  // namespace
 }  // namespace umbra

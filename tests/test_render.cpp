@@ -290,5 +290,45 @@ TEST(Renderer, FixedFitLikeTheSeedsLightsWhatIsOutsideTheBox) {
   EXPECT_LT(dark, int(lit.size()) / 100);
 }
 
+TEST(Renderer, ACameraOnlyChangeReusesTheShadowMapAndDrawsTheSameFrame) {
+  // A point light's views do not depend on the camera.
+  const std::string light = R"("light": {"projection": "perspective", "position": [-2, 4, -1]})";
+  const RenderRequest first = request(R"({"width": 160, "height": 90, )" + light + "}");
+  const RenderRequest moved = request(R"({"width": 160, "height": 90, "camera": {"position": [5, 3, 6]}, )" + light + "}");
+  const RenderRequest other_light =
+      request(R"({"width": 160, "height": 90, "light": {"projection": "perspective", "position": [2, 4, 1]}})");
+  const std::uint64_t hits = service().shadow_cache_hits();
+  EXPECT_FALSE(render(first).shadow_reused);
+  const RenderResult reused = render(moved);
+  EXPECT_TRUE(reused.shadow_reused);
+  EXPECT_EQ(reused.timings.shadow_ms, 0.0);
+  EXPECT_EQ(service().shadow_cache_hits(), hits + 1);
+  // The same frame with a freshly drawn map: identical pixels.
+  EXPECT_FALSE(render(other_light).shadow_reused);
+  const RenderResult fresh = render(moved);
+  EXPECT_FALSE(fresh.shadow_reused);
+  EXPECT_GT(fresh.timings.shadow_ms, 0.0);
+  EXPECT_EQ(fresh.image.pixels, reused.image.pixels);
+}
+
+TEST(Renderer, AnythingTheShadowMapDependsOnDrawsItAgain) {
+  const auto body = [](const std::string& light_extra, const std::string& extra) {
+    return R"({"width": 64, "height": 64, "light": {"projection": "perspective", "position": [-2, 4, -1])" +
+           light_extra + "}" + extra + "}";
+  };
+  const std::pair<const char*, const char*> changes[] = {
+      {R"(, "orbit_deg_per_s": 10)", R"(, "time": 1)"},
+      {"", R"(, "shadow": {"map_size": 1024})"},
+      {"", R"(, "shadow": {"cull": "back"})"},
+      {"", R"(, "scene": "three-cubes")"},
+      {"", R"(, "shadow": {"filter": "pcf", "pcf_radius": 4})"},
+  };
+  for (const auto& [light_extra, extra] : changes) {
+    render(request(body("", "")));
+    EXPECT_TRUE(render(request(body("", R"(, "camera": {"position": [5, 3, 6]})"))).shadow_reused);
+    EXPECT_FALSE(render(request(body(light_extra, extra))).shadow_reused) << light_extra << extra;
+  }
+}
+
 }  // namespace
 }  // namespace umbra
