@@ -21,10 +21,11 @@ struct RenderService::Impl {
     std::promise<RenderResult> promise;
     std::chrono::steady_clock::time_point queued;
     bool holds_place = true;  // false: part of a job that holds one already
+    ClientGoneCheck client_gone;
   };
 
-  std::future<RenderResult> enqueue(RenderRequest request, bool holds_place) {
-    Job job{std::move(request), {}, std::chrono::steady_clock::now(), holds_place};
+  std::future<RenderResult> enqueue(RenderRequest request, bool holds_place, ClientGoneCheck client_gone) {
+    Job job{std::move(request), {}, std::chrono::steady_clock::now(), holds_place, std::move(client_gone)};
     std::future<RenderResult> result = job.promise.get_future();
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -50,6 +51,19 @@ struct RenderService::Impl {
   const ServiceLimits limits;
   std::atomic<std::uint64_t> rejected_count{0};
   std::atomic<std::uint64_t> expired_count{0};
+  std::atomic<std::uint64_t> abandoned_count{0};
+
+  // Throws if the job should not run: its client left, or it waited too long.
+  void check_still_wanted(std::chrono::steady_clock::time_point queued, const ClientGoneCheck& client_gone) {
+    if (client_gone && client_gone()) {
+      abandoned_count.fetch_add(1);
+      throw ClientGone();
+    }
+    if (std::chrono::steady_clock::now() - queued > limits.deadline) {
+      expired_count.fetch_add(1);
+      throw DeadlineExceeded();
+    }
+  }
 
   mutable std::mutex mutex;
   std::condition_variable wake;
@@ -84,10 +98,7 @@ struct RenderService::Impl {
         jobs.pop_front();
       }
       try {
-        if (std::chrono::steady_clock::now() - job.queued > limits.deadline) {
-          expired_count.fetch_add(1);
-          throw DeadlineExceeded();
-        }
+        check_still_wanted(job.queued, job.client_gone);
         RenderResult result = renderer->render(job.request);
         if (result.shadow_reused) shadow_reuses.fetch_add(1);
         frames.fetch_add(1);
@@ -124,37 +135,48 @@ RenderService::~RenderService() {
   while (impl_->in_flight.load() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
-std::future<RenderResult> RenderService::submit(RenderRequest request) {
-  if (request.output == Output::Exact || request.output == Output::Error) return submit_reference(std::move(request));
+std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGoneCheck client_gone) {
+  if (request.output == Output::Exact || request.output == Output::Error)
+    return submit_reference(std::move(request), std::move(client_gone));
   impl_->reserve();
-  return impl_->enqueue(std::move(request), true);
+  return impl_->enqueue(std::move(request), true, std::move(client_gone));
 }
 
 // The exact reference needs no GL: it is ray cast on its own thread so the GL
 // thread keeps rendering. "error" also needs the GL "shadow" output. The
 // ray cast holds a place in the queue too, so that CPU work is bounded.
-std::future<RenderResult> RenderService::submit_reference(RenderRequest request) {
+std::future<RenderResult> RenderService::submit_reference(RenderRequest request, ClientGoneCheck client_gone) {
   impl_->reserve();
   std::future<RenderResult> rendered;
   if (request.output == Output::Error) {
     RenderRequest shadow = request;
     shadow.output = Output::Shadow;
-    rendered = impl_->enqueue(std::move(shadow), false);
+    rendered = impl_->enqueue(std::move(shadow), false, client_gone);
   }
   Impl* impl = impl_.get();
-  return std::async(std::launch::async, [impl, request = std::move(request), rendered = std::move(rendered)]() mutable {
+  const auto queued = std::chrono::steady_clock::now();
+  return std::async(std::launch::async, [impl, queued, request = std::move(request), rendered = std::move(rendered),
+                                         client_gone = std::move(client_gone)]() mutable {
     // Gives the place back however the cast ends.
     struct Release {
       Impl* impl;
       ~Release() { impl->in_flight.fetch_sub(1); }
     } release{impl};
+    // "error": its GL job checks the client and the deadline (and counts
+    // them). If the client has already left, wait for that job's verdict
+    // rather than cast rays for nobody.
+    std::optional<RenderResult> shadow;
+    if (request.output == Output::Exact)
+      impl->check_still_wanted(queued, client_gone);
+    else if (client_gone && client_gone())
+      shadow = rendered.get();
     const auto start = std::chrono::steady_clock::now();
     const std::vector<ExactPixel> pixels = cast_exact_pixels(request);
     const Image exact = exact_image(pixels, request.width, request.height);
     const double cast_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     RenderResult result;
     if (request.output == Output::Error) {
-      result = rendered.get();
+      result = shadow ? std::move(*shadow) : rendered.get();
       result.error = measure_shadow_error(result.image, pixels);
       result.image = error_image(result.image, exact);
       result.timings.main_ms += cast_ms;
@@ -171,6 +193,7 @@ std::uint64_t RenderService::frames_rendered() const { return impl_->frames.load
 std::size_t RenderService::queue_depth() const { return impl_->in_flight.load(); }
 std::uint64_t RenderService::shadow_cache_hits() const { return impl_->shadow_reuses.load(); }
 std::uint64_t RenderService::rejected() const { return impl_->rejected_count.load(); }
+std::uint64_t RenderService::abandoned() const { return impl_->abandoned_count.load(); }
 std::uint64_t RenderService::expired() const { return impl_->expired_count.load(); }
 const ServiceLimits& RenderService::limits() const { return impl_->limits; }
 

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <future>
 #include <memory>
 #include <stdexcept>
@@ -35,6 +36,11 @@ struct ServiceLimits {
 struct QueueFull : std::runtime_error {
   QueueFull() : std::runtime_error("the render queue is full") {}
 };
+/// The client that asked for the job went away before its turn; it was
+/// dropped unrendered.
+struct ClientGone : std::runtime_error {
+  ClientGone() : std::runtime_error("the client disconnected before its turn") {}
+};
 /// The job waited longer than the deadline and was dropped unrendered.
 struct DeadlineExceeded : std::runtime_error {
   DeadlineExceeded() : std::runtime_error("the request waited past the render deadline") {}
@@ -56,7 +62,11 @@ class RenderService {
   /// or the exception the renderer threw. `request` must be valid (see server/request_parser.hpp).
   /// "exact" is ray cast on the CPU off the GL thread (its time is reported
   /// as `main`); "error" renders "shadow" on the GL thread, then compares.
-  std::future<RenderResult> submit(RenderRequest request);
+  ///
+  /// `client_gone`, if given, is asked (on another thread) just before the
+  /// job's turn; if it answers true the job is dropped with ClientGone.
+  using ClientGoneCheck = std::function<bool()>;
+  std::future<RenderResult> submit(RenderRequest request, ClientGoneCheck client_gone = {});
 
   const RendererInfo& info() const;
   std::uint64_t frames_rendered() const;
@@ -68,10 +78,12 @@ class RenderService {
   /// deadline, since start.
   std::uint64_t rejected() const;
   std::uint64_t expired() const;
+  /// Jobs dropped because their client disconnected before their turn.
+  std::uint64_t abandoned() const;
   const ServiceLimits& limits() const;
 
  private:
-  std::future<RenderResult> submit_reference(RenderRequest request);
+  std::future<RenderResult> submit_reference(RenderRequest request, ClientGoneCheck client_gone);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -1,12 +1,18 @@
 #include "http_api.hpp"
 
+#include <cctype>
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
 #include <sstream>
 #include <utility>
 
 #include <httplib.h>
 #include <nlohmann/json.hpp>
+#include <sys/stat.h>
 
+#include "client_socket.hpp"
 #include "png.hpp"
 #include "request_parser.hpp"
 #include "scene.hpp"
@@ -66,6 +72,22 @@ thread_local Clock::time_point request_started{};
 
 }  // namespace
 
+bool valid_cors_origin(const std::string& origin) {
+  if (origin == "*") return true;
+  std::string rest;
+  if (origin.rfind("http://", 0) == 0)
+    rest = origin.substr(7);
+  else if (origin.rfind("https://", 0) == 0)
+    rest = origin.substr(8);
+  else
+    return false;
+  if (rest.empty()) return false;
+  for (char c : rest)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == ':' || c == '[' || c == ']'))
+      return false;
+  return true;
+}
+
 HttpApi::HttpApi(RenderService& renderer, ServerOptions options)
     : renderer_(renderer), options_(std::move(options)), http_(std::make_unique<httplib::Server>()),
       started_(Clock::now()) {
@@ -89,9 +111,51 @@ bool HttpApi::serving() const { return http_->is_running(); }
 
 void HttpApi::stop() { http_->stop(); }
 
+bool HttpApi::read_static_file(const std::string& name, std::string& bytes) const {
+  if (options_.web_dir.empty()) {
+    // Embedded: only the files that were built in, by exact name.
+    for (std::string_view asset : web_asset_names()) {
+      if (asset != name) continue;
+      bytes = std::string(web_asset(asset));
+      return true;
+    }
+    return false;
+  }
+  // A folder: the file's real path (every "..", "//" and symlink resolved;
+  // cpp-httplib has already decoded %2e%2e into "..") must lie inside the
+  // folder's real path, and be a regular file.
+  if (name.find('\0') != std::string::npos) return false;
+  char* root = realpath(options_.web_dir.c_str(), nullptr);
+  char* file = realpath((options_.web_dir + "/" + name).c_str(), nullptr);
+  const std::string root_path = root ? root : "", file_path = file ? file : "";
+  std::free(root);
+  std::free(file);
+  if (root_path.empty() || file_path.size() <= root_path.size() + 1 ||
+      file_path.compare(0, root_path.size() + 1, root_path + "/") != 0)
+    return false;
+  struct stat info {};
+  if (stat(file_path.c_str(), &info) != 0 || !S_ISREG(info.st_mode)) return false;
+  std::ifstream in(file_path, std::ios::binary);
+  if (!in) return false;
+  bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  return bool(in) || in.eof();
+}
+
 void HttpApi::install_routes() {
   httplib::Server& http = *http_;
   http.set_payload_max_length(kMaxBodyBytes);
+  // One worker per connection (cpp-httplib's model): enough for a full
+  // render queue plus a few for health checks and the panel's files, so
+  // that the render queue, not a hidden backlog of accepted connections,
+  // is what bounds the waiting.
+  const std::size_t workers = std::max<std::size_t>(8, renderer_.limits().queue_capacity + 4);
+  http.new_task_queue = [workers] { return new httplib::ThreadPool(workers); };
+  // An animation loop reuses its connection; an idle one is closed after
+  // 2 s, which is also the longest it can hold up a graceful stop.
+  http.set_keep_alive_max_count(1000);
+  http.set_keep_alive_timeout(2);
+  http.set_read_timeout(10, 0);
+  http.set_write_timeout(10, 0);
   // cpp-httplib's default also sets SO_REUSEPORT, which lets a second server
   // start on a port that is already serving and silently take half of its
   // connections. SO_REUSEADDR alone still allows a quick restart.
@@ -100,8 +164,36 @@ void HttpApi::install_routes() {
     setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   });
 
-  http.set_pre_routing_handler([](const httplib::Request&, httplib::Response&) {
+  if (!options_.cors_origin.empty()) {
+    // Every response, errors included, so a page can read why it failed.
+    http.set_default_headers({{"Access-Control-Allow-Origin", options_.cors_origin},
+                              {"Vary", "Origin"},
+                              {"Access-Control-Expose-Headers",
+                               "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error"},
+                              {"Timing-Allow-Origin", options_.cors_origin}});
+    // The preflight a browser sends before a cross-origin JSON POST.
+    http.Options(R"(/.*)", [](const httplib::Request&, httplib::Response& res) {
+      res.status = 204;
+      res.set_header("Access-Control-Allow-Methods", "GET, POST");
+      res.set_header("Access-Control-Allow-Headers", "Content-Type");
+      res.set_header("Access-Control-Max-Age", "600");
+    });
+  }
+  http.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
     request_started = Clock::now();
+    if (req.target.size() > kMaxUriBytes) {
+      send_error(res, 414, "request URI longer than " + std::to_string(kMaxUriBytes) + " bytes", "");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    std::size_t header_bytes = 0;
+    for (const auto& [name, value] : req.headers) header_bytes += name.size() + value.size();
+    if (req.headers.size() > kMaxHeaderCount || header_bytes > kMaxHeaderBytes) {
+      send_error(res, 431,
+                 "request headers too large (at most " + std::to_string(kMaxHeaderCount) + " fields and " +
+                     std::to_string(kMaxHeaderBytes) + " bytes)",
+                 "");
+      return httplib::Server::HandlerResponse::Handled;
+    }
     return httplib::Server::HandlerResponse::Unhandled;
   });
   // Errors raised inside cpp-httplib itself (413, 400 on a bad request line,
@@ -149,7 +241,8 @@ void HttpApi::install_routes() {
                          {"queue_depth", renderer_.queue_depth()},
                          {"queue_capacity", renderer_.limits().queue_capacity},
                          {"rejected", renderer_.rejected()},
-                         {"expired", renderer_.expired()}}
+                         {"expired", renderer_.expired()},
+                         {"abandoned", renderer_.abandoned()}}
                         .dump(),
                     "application/json");
   });
@@ -178,9 +271,14 @@ void HttpApi::install_routes() {
       request.output = Output::Depth;
     }
     const auto queued = Clock::now();
+    // Asked just before the job's turn: a client that has gone costs no render.
+    const int socket = find_client_socket(req.remote_addr, req.remote_port, req.local_port);
     RenderResult result;
     try {
-      result = renderer_.submit(std::move(request)).get();
+      result = renderer_.submit(std::move(request), [socket] { return peer_closed(socket); }).get();
+    } catch (const ClientGone& e) {
+      // Nobody will read this; the log shows 499 (nginx's "client closed request").
+      return send_error(res, 499, e.what(), "");
     } catch (const QueueFull& e) {
       // Refused at once: the client may retry after about one frame.
       res.set_header("Retry-After", "1");
@@ -217,22 +315,6 @@ void HttpApi::install_routes() {
   http.Post("/api/render", [render](const httplib::Request& req, httplib::Response& res) { render(req, res, false); });
   http.Post("/api/depth", [render](const httplib::Request& req, httplib::Response& res) { render(req, res, true); });
 
-  // Static files: the embedded panel, or a folder given with --web.
-  if (options_.web_dir.empty()) {
-    for (std::string_view name : web_asset_names()) {
-      const std::string file(name);
-      const std::string route = file == "index.html" ? "/" : "/" + file;
-      const auto serve_file = [file](const httplib::Request&, httplib::Response& res) {
-        const std::string_view bytes = web_asset(file);
-        res.set_content(std::string(bytes), content_type_for(file).c_str());
-      };
-      http.Get(route, serve_file);
-      if (file == "index.html") http.Get("/index.html", serve_file);
-    }
-  } else {
-    http.set_mount_point("/", options_.web_dir);
-  }
-
   // A known path with the wrong method is 405, not 404.
   struct Route {
     const char* path;
@@ -252,6 +334,14 @@ void HttpApi::install_routes() {
     http.Delete(route.path, not_allowed);
     http.Patch(route.path, not_allowed);
   }
+
+  // Static files last, so that every API route (and its 405) is matched first.
+  http.Get(R"(/.*)", [this](const httplib::Request& req, httplib::Response& res) {
+    const std::string name = req.path == "/" ? "index.html" : req.path.substr(1);
+    std::string bytes;
+    if (!read_static_file(name, bytes)) return send_error(res, 404, "no such path", "");
+    res.set_content(std::move(bytes), content_type_for(name).c_str());
+  });
 }
 
 }  // namespace umbra

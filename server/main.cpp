@@ -1,30 +1,40 @@
 // umbra-server: the headless shadow-mapping render service.
 //
-//   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000] [--quiet]
+//   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
+//                [--cors ORIGIN] [--quiet]
+#include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <thread>
+
+#include <malloc.h>
+#include <pthread.h>
+#include <signal.h>
+#include <sys/stat.h>
 
 #include "http_api.hpp"
 #include "render_service.hpp"
 
 namespace {
 
-umbra::HttpApi* g_api = nullptr;
-
 void usage(std::FILE* out) {
   std::fprintf(out,
-               "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N] [--quiet]\n"
+               "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N] [--cors ORIGIN]\n"
+               "                    [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
                "  --web DIR       serve the web panel from DIR instead of the copy built in\n"
                "  --queue N       renders waiting or running at most, 1..4096; more get 503 (default 16)\n"
                "  --deadline-ms N a render that waited longer gets 503 unrendered, 1..3600000 (default 10000)\n"
-               "  --quiet         no per-request log lines\n");
+               "  --cors ORIGIN   let web pages from ORIGIN (or \"*\": any) call the API; default: none\n"
+               "  --quiet         no per-request log lines\n"
+               "SIGINT or SIGTERM: stop accepting, answer the requests in flight, exit 0 (a second one exits at once).\n");
 }
 
 }  // namespace
@@ -60,6 +70,13 @@ int main(int argc, char** argv) {
       limits.queue_capacity = std::size_t(integer_flag("--queue", value("--queue"), 1, 4096));
     } else if (arg == "--deadline-ms") {
       limits.deadline = std::chrono::milliseconds(integer_flag("--deadline-ms", value("--deadline-ms"), 1, 3600000));
+    } else if (arg == "--cors") {
+      options.cors_origin = value("--cors");
+      if (!umbra::valid_cors_origin(options.cors_origin)) {
+        std::fprintf(stderr, "umbra-server: --cors must be \"*\" or an origin like https://app.example:8443, got '%s'\n",
+                     options.cors_origin.c_str());
+        return 2;
+      }
     } else if (arg == "--web") {
       options.web_dir = value("--web");
     } else if (arg == "--quiet") {
@@ -74,6 +91,24 @@ int main(int argc, char** argv) {
     }
   }
 
+
+  if (!options.web_dir.empty()) {
+    struct stat info {};
+    if (stat(options.web_dir.c_str(), &info) != 0 || !S_ISDIR(info.st_mode)) {
+      std::fprintf(stderr, "umbra-server: --web: '%s' is not a folder\n", options.web_dir.c_str());
+      return 2;
+    }
+  }
+
+  // SIGINT and SIGTERM are blocked here, before any thread starts (threads
+  // inherit the mask), and taken by one thread with sigwait: it may then do
+  // what a signal handler may not, such as stopping the server.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+
   try {
     umbra::RenderService renderer(limits);
     const umbra::RendererInfo& info = renderer.info();
@@ -85,12 +120,55 @@ int main(int argc, char** argv) {
                    std::strerror(errno));
       return 1;
     }
-    g_api = &api;
-    std::signal(SIGINT, [](int) { if (g_api) g_api->stop(); });
-    std::signal(SIGTERM, [](int) { if (g_api) g_api->stop(); });
+    // First signal: stop accepting; requests in flight finish and are
+    // answered, then the render queue drains and main returns 0. A second
+    // signal while draining exits at once.
+    std::atomic<bool> served{false};
+    std::thread signal_waiter([&] {
+      int signal = 0;
+      sigwait(&stop_signals, &signal);
+      if (served.load()) return;  // woken by main below, not by a signal
+      std::fprintf(stderr, "umbra-server: %s: finishing %zu request(s) in flight, then stopping\n",
+                   signal == SIGINT ? "SIGINT" : "SIGTERM", renderer.queue_depth());
+      // A stop() before serve() has started is lost: repeat it until
+      // serve() returns, watching for a second signal meanwhile.
+      const timespec poll{0, 10 * 1000 * 1000};
+      for (;;) {
+        api.stop();
+        const int again = sigtimedwait(&stop_signals, nullptr, &poll);
+        if (served.load()) return;
+        if (again > 0) {
+          std::fprintf(stderr, "umbra-server: second signal: exiting without finishing\n");
+          std::_Exit(128 + again);
+        }
+      }
+    });
+    // Frames leave large freed blocks (images, PNGs, llvmpipe's scratch) in
+    // the malloc arenas of whichever threads used them. Once the renderer
+    // has been idle for a second, hand the free pages back to the system,
+    // so that resident memory follows the work, not the history.
+    std::thread idle_trimmer([&] {
+      std::uint64_t seen = renderer.frames_rendered(), trimmed = seen;
+      auto quiet_since = std::chrono::steady_clock::now();
+      while (!served.load()) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        const std::uint64_t frames = renderer.frames_rendered();
+        const auto now = std::chrono::steady_clock::now();
+        if (frames != seen || renderer.queue_depth() > 0) {
+          seen = frames;
+          quiet_since = now;
+        } else if (trimmed != frames && now - quiet_since > std::chrono::seconds(1)) {
+          malloc_trim(0);
+          trimmed = frames;
+        }
+      }
+    });
     std::fprintf(stderr, "umbra-server: listening on http://%s:%d/\n", options.host.c_str(), api.port());
     api.serve();
-    g_api = nullptr;
+    served.store(true);
+    idle_trimmer.join();
+    pthread_kill(signal_waiter.native_handle(), SIGTERM);  // wake it; blocked signals are only queued
+    signal_waiter.join();
     std::fprintf(stderr, "umbra-server: stopped\n");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "umbra-server: %s\n", e.what());

@@ -6,6 +6,15 @@
 #include <memory>
 #include <thread>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 #include <stb_image.h>
@@ -196,6 +205,181 @@ TEST(Http, AFullQueueAnswers503WithRetryAfterAtOnce) {
   EXPECT_EQ(res->status, 200);
   api.stop();
   server.join();
+}
+
+// Sends `request` on a new connection and returns the socket, unread.
+int send_raw(int port, const std::string& request) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(std::uint16_t(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+  EXPECT_EQ(send(fd, request.data(), request.size(), 0), ssize_t(request.size()));
+  return fd;
+}
+
+std::string post_request(const std::string& path, const std::string& body) {
+  return "POST " + path + " HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/json\r\nContent-Length: " +
+         std::to_string(body.size()) + "\r\n\r\n" + body;
+}
+
+TEST(Http, AClientThatLeftBeforeItsTurnCostsNoRender) {
+  RenderService& renderer = *ServerEnvironment::renderer;
+  const std::uint64_t frames_before = renderer.frames_rendered();
+  std::thread slow([] {
+    auto res = client().Post("/api/render", kSlowBody, "application/json");
+    EXPECT_TRUE(res && res->status == 200);
+  });
+  while (renderer.queue_depth() < 1) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  // Two clients queue behind it and hang up: one for a frame, one for an
+  // "error" image (whose GL half waits its turn; its ray cast does not).
+  const int gl_client = send_raw(ServerEnvironment::api->port(), post_request("/api/render", R"({"width": 64, "height": 64})"));
+  const int cast_client = send_raw(ServerEnvironment::api->port(),
+                                   post_request("/api/render", R"({"width": 64, "height": 64, "output": "error"})"));
+  while (renderer.queue_depth() < 3) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const bool slow_still_running = renderer.frames_rendered() == frames_before;
+  close(gl_client);
+  close(cast_client);
+  slow.join();
+  while (renderer.queue_depth() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  if (!slow_still_running) GTEST_SKIP() << "the slow render finished before the clients left";
+  EXPECT_EQ(renderer.abandoned(), 2u);
+  EXPECT_EQ(renderer.frames_rendered(), frames_before + 1) << "only the slow render ran";
+  EXPECT_EQ(json::parse(client().Get("/api/health")->body)["abandoned"], 2);
+}
+
+// Sends a whole request on its own connection and reads the whole answer
+// (the request should say "Connection: close").
+std::string raw_exchange(int port, const std::string& request) {
+  const int fd = send_raw(port, request);
+  std::string answer;
+  char buffer[4096];
+  for (ssize_t n; (n = recv(fd, buffer, sizeof buffer, 0)) > 0;) answer.append(buffer, std::size_t(n));
+  close(fd);
+  return answer;
+}
+
+int status_of(const std::string& answer) {
+  return answer.size() > 12 && answer.rfind("HTTP/1.1 ", 0) == 0 ? std::atoi(answer.c_str() + 9) : -1;
+}
+
+std::string get_request(const std::string& target) {
+  return "GET " + target + " HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n";
+}
+
+// A server of its own on the shared renderer, with other options.
+struct OwnServer {
+  explicit OwnServer(ServerOptions options) : api(*ServerEnvironment::renderer, prepared(std::move(options))) {
+    EXPECT_TRUE(api.bind());
+    thread = std::thread([this] { api.serve(); });
+    while (!api.serving()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ~OwnServer() {
+    api.stop();
+    thread.join();
+  }
+  static ServerOptions prepared(ServerOptions o) {
+    o.port = 0;
+    o.log_requests = false;
+    return o;
+  }
+  HttpApi api;
+  std::thread thread;
+};
+
+// Paths that try to leave the web folder, as a client could send them.
+const char* const kEscapes[] = {"/../secret.txt", "/%2e%2e/secret.txt", "/%2E%2E%2Fsecret.txt", "/..%2fsecret.txt",
+                                "/sub/../../secret.txt", "//etc/passwd", "/etc/passwd", "/link.txt",
+                                "/sub/up/secret.txt", "/%00index.html", "/sub"};
+
+TEST(Http, StaticFilesNeverLeaveTheWebFolder) {
+  namespace fs = std::filesystem;
+  const fs::path base = fs::temp_directory_path() / ("umbra-web-" + std::to_string(getpid()));
+  fs::remove_all(base);
+  fs::create_directories(base / "web" / "sub");
+  std::ofstream(base / "web" / "index.html") << "<p>panel</p>";
+  std::ofstream(base / "web" / "sub" / "inner.css") << "p{}";
+  std::ofstream(base / "secret.txt") << "secret";
+  fs::create_symlink(base / "secret.txt", base / "web" / "link.txt");
+  fs::create_directory_symlink(base, base / "web" / "sub" / "up");
+  fs::create_symlink(base / "web" / "index.html", base / "web" / "alias.html");
+  {
+    ServerOptions options;
+    options.web_dir = (base / "web").string();
+    OwnServer server(options);
+    const int port = server.api.port();
+    for (const char* path : {"/", "/index.html", "/sub/inner.css", "/alias.html"})
+      EXPECT_EQ(status_of(raw_exchange(port, get_request(path))), 200) << path;
+    for (const char* path : kEscapes) {
+      const std::string answer = raw_exchange(port, get_request(path));
+      EXPECT_EQ(status_of(answer), 404) << path;
+      EXPECT_EQ(answer.find("secret\n"), std::string::npos) << path;
+    }
+  }
+  fs::remove_all(base);
+  // The embedded panel too.
+  for (const char* path : kEscapes)
+    EXPECT_EQ(status_of(raw_exchange(ServerEnvironment::api->port(), get_request(path))), 404) << path;
+}
+
+TEST(Http, ExplicitLimitsOnUriAndHeaders) {
+  const int port = ServerEnvironment::api->port();
+  const std::string long_uri = "/api/health?" + std::string(HttpApi::kMaxUriBytes, 'a');
+  std::string answer = raw_exchange(port, get_request(long_uri));
+  EXPECT_EQ(status_of(answer), 414);
+  EXPECT_NE(answer.find("\"field\":\"\""), std::string::npos) << answer;
+  std::string many = "GET /api/health HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n";
+  for (std::size_t i = 0; i <= HttpApi::kMaxHeaderCount; ++i) many += "X-" + std::to_string(i) + ": 1\r\n";
+  EXPECT_EQ(status_of(raw_exchange(port, many + "\r\n")), 431);
+  std::string big = "GET /api/health HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n";
+  for (int i = 0; i < 8; ++i) big += "X-" + std::to_string(i) + ": " + std::string(HttpApi::kMaxHeaderBytes / 8, 'b') + "\r\n";
+  EXPECT_EQ(status_of(raw_exchange(port, big + "\r\n")), 431);
+  // Still answering.
+  EXPECT_EQ(status_of(raw_exchange(port, get_request("/api/health"))), 200);
+}
+
+TEST(Http, NoCorsUnlessAskedFor) {
+  auto res = client().Get("/api/health");
+  ASSERT_TRUE(res);
+  EXPECT_FALSE(res->has_header("Access-Control-Allow-Origin"));
+  const std::string preflight =
+      "OPTIONS /api/render HTTP/1.1\r\nHost: localhost\r\nOrigin: https://elsewhere.example\r\n"
+      "Access-Control-Request-Method: POST\r\nConnection: close\r\n\r\n";
+  const std::string answer = raw_exchange(ServerEnvironment::api->port(), preflight);
+  EXPECT_NE(status_of(answer), 204);
+  EXPECT_EQ(answer.find("Access-Control-Allow-Origin"), std::string::npos);
+}
+
+TEST(Http, CorsForTheOneOriginGiven) {
+  ServerOptions options;
+  options.cors_origin = "https://app.example";
+  OwnServer server(options);
+  httplib::Client c("127.0.0.1", server.api.port());
+  c.set_read_timeout(60, 0);
+  auto ok = c.Post("/api/render", R"({"width": 16, "height": 16})", "application/json");
+  auto bad = c.Post("/api/render", R"({"width": -1})", "application/json");
+  ASSERT_TRUE(ok && bad);
+  for (const auto* res : {&ok, &bad}) {
+    EXPECT_EQ((*res)->get_header_value("Access-Control-Allow-Origin"), "https://app.example");
+    EXPECT_NE((*res)->get_header_value("Access-Control-Expose-Headers").find("Server-Timing"), std::string::npos);
+  }
+  const std::string preflight =
+      "OPTIONS /api/render HTTP/1.1\r\nHost: localhost\r\nOrigin: https://app.example\r\n"
+      "Access-Control-Request-Method: POST\r\nAccess-Control-Request-Headers: content-type\r\n"
+      "Connection: close\r\n\r\n";
+  const std::string answer = raw_exchange(server.api.port(), preflight);
+  EXPECT_EQ(status_of(answer), 204) << answer;
+  EXPECT_NE(answer.find("Access-Control-Allow-Methods: GET, POST"), std::string::npos) << answer;
+  EXPECT_NE(answer.find("Access-Control-Allow-Headers: Content-Type"), std::string::npos) << answer;
+}
+
+TEST(Http, CorsOriginsAreChecked) {
+  for (const char* good : {"*", "https://app.example", "http://localhost:3000", "http://[::1]:8080"})
+    EXPECT_TRUE(valid_cors_origin(good)) << good;
+  for (const char* bad : {"", "app.example", "https://", "https://a.example/path", "ftp://a.example",
+                          "https://a.example\r\nX-Evil: 1", "https://a b"})
+    EXPECT_FALSE(valid_cors_origin(bad)) << bad;
 }
 
 TEST(Http, TheShadowLayoutIsReported) {

@@ -1,0 +1,163 @@
+// The real umbra-server binary as a process: signals, exit codes, memory.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <thread>
+
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+
+#include "server_process.hpp"
+
+namespace umbra::testing {
+namespace {
+
+using json = nlohmann::json;
+
+ServerProcess start(std::vector<std::string> args = {}) {
+  args.push_back("--quiet");
+  return ServerProcess(UMBRA_SERVER_BINARY, args);
+}
+
+httplib::Client client(const ServerProcess& server) {
+  httplib::Client c("127.0.0.1", server.port());
+  c.set_read_timeout(120, 0);
+  return c;
+}
+
+std::size_t queue_depth(const ServerProcess& server) {
+  auto res = client(server).Get("/api/health");
+  return res && res->status == 200 ? json::parse(res->body)["queue_depth"].get<std::size_t>() : 0;
+}
+
+// A render that takes about two seconds on a 2-core llvmpipe machine.
+const char* kSlowBody = R"({"width": 2048, "height": 2048, "output": "shadow", "shadow": {"pcf_radius": 8}})";
+
+class GracefulStop : public ::testing::TestWithParam<int> {};
+
+TEST_P(GracefulStop, AnswersTheRequestInFlightThenExitsZero) {
+  ServerProcess server = start();
+  int status = 0;
+  std::size_t bytes = 0;
+  std::thread slow([&] {
+    auto res = client(server).Post("/api/render", kSlowBody, "application/json");
+    status = res ? res->status : -1;
+    bytes = res ? res->body.size() : 0;
+  });
+  while (queue_depth(server) == 0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  server.send_signal(GetParam());
+  slow.join();
+  EXPECT_EQ(status, 200) << "the request in flight is answered";
+  EXPECT_GT(bytes, 1000u);
+  EXPECT_EQ(server.wait(), 0) << server.log();
+  EXPECT_NE(server.log().find("stopped"), std::string::npos) << server.log();
+  // And it no longer accepts connections.
+  httplib::Client after("127.0.0.1", server.port());
+  after.set_connection_timeout(1, 0);
+  EXPECT_FALSE(after.Get("/api/health"));
+}
+
+INSTANTIATE_TEST_SUITE_P(Signals, GracefulStop, ::testing::Values(SIGTERM, SIGINT),
+                         [](const auto& info) { return info.param == SIGTERM ? "SIGTERM" : "SIGINT"; });
+
+TEST(GracefulStop, AnIdleServerStopsAtOnceAndAnIdleKeepAliveClientDoesNotHoldItLong) {
+  ServerProcess server = start();
+  httplib::Client keep_alive = client(server);
+  keep_alive.set_keep_alive(true);
+  ASSERT_TRUE(keep_alive.Get("/api/health"));
+  const auto start_time = std::chrono::steady_clock::now();
+  server.send_signal(SIGTERM);
+  EXPECT_EQ(server.wait(), 0) << server.log();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+  EXPECT_LT(seconds, 10.0) << "an idle keep-alive connection is closed after 2 s";
+}
+
+// The n-th request of a fixed mix: every output, sizes, map sizes, scenes
+// (built-in and custom, of changing size), light modes, filters and times,
+// with a bad request now and then. Request n and n + 60 are alike, so the
+// server's state after 500 and after 5000 requests is comparable.
+std::string mixed_body(int n) {
+  const char* outputs[] = {"color", "depth", "shadow", "color", "exact", "color", "error", "shadow"};
+  const int sizes[][2] = {{64, 48}, {160, 90}, {97, 131}, {320, 180}, {48, 48}};
+  const int maps[] = {256, 512, 1024, 128};
+  const char* filters[] = {R"("filter": "pcf", "pcf_radius": 2)", R"("filter": "hard")", R"("filter": "pcf")"};
+  const int k = n % 60;
+  json body = {{"width", sizes[k % 5][0]}, {"height", sizes[k % 5][1]}, {"output", outputs[k % 8]}, {"time", 0.1 * k}};
+  const bool cheap = body["output"] == "exact" || body["output"] == "error";
+  if (cheap) body["width"] = 40, body["height"] = 30;
+  json shadow = json::parse(std::string("{") + filters[k % 3] + "}");
+  shadow["map_size"] = maps[k % 4];
+  const bool point_light = k % 4 == 1;
+  if (k % 7 == 0 && !point_light) shadow["cascades"] = 1 + k % 3;
+  body["shadow"] = shadow;
+  if (point_light) body["light"] = {{"projection", "perspective"}, {"position", {-1.0, 3.0 + 0.01 * k, 1.0}}};
+  if (k % 5 == 2) {
+    body["scene"] = "three-cubes";
+  } else if (k % 5 == 4) {
+    json objects = json::array({{{"type", "plane"}, {"center", {0, 0, 0}}, {"size", {10, 10}}}});
+    for (int i = 0; i < 1 + k % 13; ++i) {
+      const json center = {i - 6.0, 0.5, 0.3 * i};
+      if (i % 2)
+        objects.push_back({{"type", "box"}, {"center", center}, {"size", {0.5, 1.0, 0.5}}});
+      else
+        objects.push_back({{"type", "sphere"}, {"center", center}, {"radius", 0.4}});
+    }
+    body["scene"] = {{"objects", objects}};
+  }
+  if (k == 17) return R"({"width": 0})";          // 400
+  if (k == 41) return R"({"light": {"color": )";  // truncated: 400
+  return body.dump();
+}
+
+TEST(Memory, FiveThousandMixedRequestsHoldResidentMemorySteady) {
+  const int total = std::getenv("UMBRA_RSS_REQUESTS") ? std::atoi(std::getenv("UMBRA_RSS_REQUESTS")) : 5000;
+  ServerProcess server = start();
+  std::atomic<int> failures{0};
+  const auto send = [&](httplib::Client& c, int n) {
+    const std::string body = mixed_body(n);
+    const bool scenes = n % 97 == 0;
+    auto res = scenes ? c.Get("/api/scenes") : c.Post("/api/render", body, "application/json");
+    const int expected = !scenes && body.size() < 40 ? 400 : 200;
+    if ((!res || res->status != expected) && failures.fetch_add(1) < 5)
+      ADD_FAILURE() << "request " << n << ": " << (res ? std::to_string(res->status) + " " + res->body : "no answer")
+                    << "\n" << body;
+  };
+  // Requests [from, to) from two clients at once.
+  const auto run = [&](int from, int to) {
+    std::atomic<int> next{from};
+    const auto work = [&] {
+      httplib::Client c = client(server);
+      for (int n; (n = next.fetch_add(1)) < to;) send(c, n);
+    };
+    std::thread a(work), b(work);
+    a.join();
+    b.join();
+  };
+  // What is resident depends on the last few requests (map and image sizes,
+  // the scene held): the same 60 requests in the same order before each
+  // measurement make the two comparable. The server returns free pages to
+  // the system after a second of idleness; give it three.
+  const auto settled_resident_kib = [&] {
+    httplib::Client c = client(server);
+    for (int n = 0; n < 60; ++n) send(c, n);
+    std::this_thread::sleep_for(std::chrono::seconds(3));
+    return server.resident_kib();
+  };
+  run(0, 500);
+  const long after_500 = settled_resident_kib();
+  run(500, total);
+  const long after_all = settled_resident_kib();
+  std::printf("resident memory: %ld KiB after 500 requests, %ld KiB after %d (%+.1f %%)\n", after_500, after_all, total,
+              100.0 * double(after_all - after_500) / double(after_500));
+  EXPECT_EQ(failures.load(), 0);
+  ASSERT_GT(after_500, 0);
+  EXPECT_LE(double(after_all), 1.10 * double(after_500));
+  server.send_signal(SIGTERM);
+  EXPECT_EQ(server.wait(), 0);
+}
+
+}  // namespace
+}  // namespace umbra::testing
