@@ -27,7 +27,9 @@ using Clock = std::chrono::steady_clock;
 
 void send_error(httplib::Response& res, int status, const std::string& message, const std::string& field) {
   res.status = status;
-  res.set_content(json{{"error", message}, {"field", field}}.dump(), "application/json");
+  // Replace, not throw, should a message ever carry invalid UTF-8.
+  res.set_content(json{{"error", message}, {"field", field}}.dump(-1, ' ', false, json::error_handler_t::replace),
+                  "application/json");
 }
 
 json vec3_json(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }

@@ -25,6 +25,22 @@ struct Rejection {
   std::string message;
 };
 
+// nlohmann quotes the bytes it stopped at, which may be invalid UTF-8 or
+// control characters: escaped as \xNN, the message is always printable.
+std::string printable(const std::string& text) {
+  std::string out;
+  for (unsigned char c : text) {
+    if (c >= 0x20 && c < 0x7f) {
+      out += char(c);
+    } else {
+      char escaped[5];
+      std::snprintf(escaped, sizeof escaped, "\\x%02X", c);
+      out += escaped;
+    }
+  }
+  return out;
+}
+
 std::string join(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
 std::string index(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
 
@@ -60,7 +76,7 @@ class LocatingBuilder : public nlohmann::json_sax<json> {
     std::string what = e.what();
     // nlohmann prefixes "[json.exception.parse_error.101] parse error at line 1, column 7: ".
     const auto colon = what.find(": ");
-    std::string detail = colon == std::string::npos ? what : what.substr(colon + 2);
+    std::string detail = printable(colon == std::string::npos ? what : what.substr(colon + 2));
     if (e.id == 406) detail = "number out of range (not a finite double)";
     return fail("malformed JSON: " + detail, current_path());
   }

@@ -382,6 +382,83 @@ TEST(Http, CorsOriginsAreChecked) {
     EXPECT_FALSE(valid_cors_origin(bad)) << bad;
 }
 
+// Hostile bodies: every one gets its 4xx with a JSON error, and the server
+// keeps answering.
+TEST(Http, HostileBodiesGetTheRight4xxAndTheServerStaysUp) {
+  struct Case {
+    std::string name, body;
+    int status;
+    const char* field;  // nullptr: any
+  };
+  std::vector<Case> cases;
+  const std::string full =
+      R"({"width": 64, "height": 48, "light": {"color": [1, 0.5, 0.25], "position": [-2, 4, -1]}, "shadow": {"filter": "pcf"}})";
+  // (An empty body is all defaults, like {}: not truncated.)
+  for (std::size_t n = 1; n < full.size(); n += 7)
+    cases.push_back({"truncated at " + std::to_string(n), full.substr(0, n), 400, nullptr});
+  cases.push_back({"10000-deep arrays", "{\"width\": " + std::string(10000, '[') + std::string(10000, ']') + "}", 400, nullptr});
+  std::string deep_objects;
+  for (int i = 0; i < 10000; ++i) deep_objects += "{\"a\": ";
+  cases.push_back({"10000-deep objects", deep_objects + "1" + std::string(10000, '}'), 400, nullptr});
+  cases.push_back({"a million unclosed arrays", std::string(1000000, '['), 400, nullptr});
+  cases.push_back({"10^400", R"({"width": 1e400})", 400, "width"});
+  cases.push_back({"-10^400", R"({"camera": {"position": [0, -1e400, 5]}})", 400, "camera.position[1]"});
+  cases.push_back({"NaN string", R"({"width": "NaN"})", 400, "width"});
+  cases.push_back({"NaN string in a colour", R"({"light": {"color": ["NaN", 0, 0]}})", 400, "light.color[0]"});
+  cases.push_back({"bare NaN", R"({"time": NaN})", 400, "time"});
+  cases.push_back({"Infinity string", R"({"time": "Infinity"})", 400, "time"});
+  std::string million = R"({"scene": {"objects": [)";
+  for (int i = 0; i < 1000000; ++i) million += i ? ",{}" : "{}";
+  cases.push_back({"10^6 objects (3 MB)", million + "]}}", 413, ""});
+  std::string many = R"({"scene": {"objects": [)";
+  for (int i = 0; i < 300000; ++i) many += i ? ",{}" : "{}";
+  cases.push_back({"300000 objects (under 1 MiB)", many + "]}}", 400, "scene.objects"});
+  cases.push_back({"invalid UTF-8", "{\"scene\": \"\xff\xfe\"}", 400, "scene"});
+  cases.push_back({"overlong UTF-8", "{\"scene\": \"\xc0\xaf\"}", 400, "scene"});
+  cases.push_back({"lone surrogate", R"({"scene": "\ud800"})", 400, "scene"});
+  cases.push_back({"invalid UTF-8 key", "{\"w\xff\": 1}", 400, nullptr});
+  cases.push_back({"2 MiB body", "{\"scene\": \"" + std::string(2 << 20, 'x') + "\"}", 413, ""});
+  for (const char* not_object : {"null", "[]", "42", "\"text\"", "true"})
+    cases.push_back({std::string("top level ") + not_object, not_object, 400, ""});
+  cases.push_back({"huge integer", R"({"width": 1000000000000000000000})", 400, "width"});
+  cases.push_back({"fractional width", R"({"width": 16.5})", 400, "width"});
+  std::string keys = "{";
+  for (int i = 0; i < 50000; ++i) keys += (i ? ",\"k" : "\"k") + std::to_string(i) + "\": 0";
+  cases.push_back({"50000 unknown keys", keys + "}", 400, nullptr});
+  cases.push_back({"NUL in a string", std::string("{\"scene\": \"a\0b\"}", 17), 400, "scene"});
+
+  httplib::Client c = client();
+  for (const Case& k : cases) {
+    auto res = c.Post("/api/render", k.body, "application/json");
+    ASSERT_TRUE(res) << k.name << ": no answer";
+    EXPECT_EQ(res->status, k.status) << k.name << ": " << res->body.substr(0, 200);
+    const json error = json::parse(res->body, nullptr, false);
+    ASSERT_TRUE(error.is_object()) << k.name << ": " << res->body.substr(0, 200);
+    EXPECT_TRUE(error.contains("error") && error.contains("field")) << k.name;
+    if (k.field) {
+      EXPECT_EQ(error["field"], k.field) << k.name << ": " << res->body;
+    }
+    ASSERT_EQ(client().Get("/api/health")->status, 200) << "after " << k.name;
+  }
+  auto frame = c.Post("/api/render", full, "application/json");
+  ASSERT_TRUE(frame);
+  EXPECT_EQ(frame->status, 200);
+}
+
+TEST(Http, TheLargestRequestTheApiAllowsIsRenderedWhole) {
+  // API.md allows width and height up to 4096 and map_size up to 8192 each,
+  // so all three at once is a valid request, not a hostile one: it is
+  // rendered (the map layers are capped at 4 x 8192^2 texels in all).
+  auto res = client().Post("/api/render", R"({"width": 4096, "height": 4096, "shadow": {"map_size": 8192}})",
+                           "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  const Decoded d = decode_png(res->body);
+  EXPECT_EQ(d.width, 4096);
+  EXPECT_EQ(d.height, 4096);
+  EXPECT_EQ(client().Get("/api/health")->status, 200);
+}
+
 TEST(Http, TheShadowLayoutIsReported) {
   auto res = client().Post("/api/render", R"({"width": 32, "height": 32, "shadow": {"map_size": 256, "cascades": 3}})",
                            "application/json");

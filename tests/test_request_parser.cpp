@@ -241,5 +241,17 @@ TEST(RequestParser, RejectsDeepNestingWithoutRecursing) {
   EXPECT_EQ(q.error.field.rfind("light", 0), 0u) << q.error.field;
 }
 
+TEST(RequestParser, InvalidUtf8IsRejectedWithAPrintableMessage) {
+  // Regression: the message once quoted the bad byte, and turning it into
+  // the JSON error then threw (a 500).
+  for (std::string body : {std::string("{\"scene\": \"\xff\xfe\"}"), std::string("{\"w\xff\": 1}"),
+                           std::string("{\"scene\": \"\xc0\xaf\"}"), std::string("{\"scene\": \"a\x01\"}")}) {
+    const ParsedRequest p = parse_render_request(body);
+    ASSERT_FALSE(p.ok()) << body;
+    for (unsigned char c : p.error.message) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << p.error.message;
+    for (unsigned char c : p.error.field) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << p.error.field;
+  }
+}
+
 }  // namespace
 }  // namespace umbra
