@@ -97,16 +97,23 @@ struct RenderService::Impl {
         job = std::move(jobs.front());
         jobs.pop_front();
       }
+      std::optional<RenderResult> result;
+      std::exception_ptr error;
       try {
         check_still_wanted(job.queued, job.client_gone);
-        RenderResult result = renderer->render(job.request);
-        if (result.shadow_reused) shadow_reuses.fetch_add(1);
+        result = renderer->render(job.request);
+        if (result->shadow_reused) shadow_reuses.fetch_add(1);
         frames.fetch_add(1);
-        job.promise.set_value(std::move(result));
       } catch (...) {
-        job.promise.set_exception(std::current_exception());
+        error = std::current_exception();
       }
+      // Counters first, then the answer: whoever holds the answer sees the
+      // place already given back.
       if (job.holds_place) in_flight.fetch_sub(1);
+      if (error)
+        job.promise.set_exception(error);
+      else
+        job.promise.set_value(std::move(*result));
     }
   }
 };

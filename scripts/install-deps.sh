@@ -10,8 +10,13 @@ PACKAGES=(
   libcpp-httplib-dev                                  # HTTP server (and test client)
   nlohmann-json3-dev                                  # JSON
   libstb-dev                                          # stb_image_write (PNG)
+  zlib1g-dev                                          # deflate for the PNGs
   libgtest-dev                                        # GoogleTest
 )
+# --fuzz: also clang and its libFuzzer runtime (scripts/fuzz.sh).
+if [ "${1:-}" = "--fuzz" ]; then
+  PACKAGES+=(clang-14 libclang-rt-14-dev)
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -248,7 +248,8 @@ class ObjectReader {
                std::set<std::string>& sent)
       : object_(j), path_(std::move(path)), sent_(sent) {
     if (!j.is_object()) reject(path_, std::string("must be an object, not ") + type_name(j));
-    for (const auto& [key, value] : j.items()) {
+    for (const auto& item : j.items()) {
+      const std::string& key = item.key();
       const bool known = std::any_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; });
       if (!known) {
         std::string list;

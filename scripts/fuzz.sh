@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Fuzzes the request parser with libFuzzer for a bounded time.
+#   scripts/fuzz.sh [SECONDS]   (default 60)
+# Seeds: fuzz/corpus and bench/scenes. New inputs go to build-fuzz/corpus;
+# a crash is written to fuzz/crashes/ and fails the run: add it to
+# tests/test_request_parser.cpp as a regression test, then fix the parser.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds="${1:-60}"
+bash scripts/install-deps.sh --fuzz
+cmake -S . -B build-fuzz -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      -DUMBRA_FUZZ=ON -DUMBRA_BUILD_TESTS=OFF >/dev/null
+cmake --build build-fuzz -j"$(nproc)" --target fuzz_request_parser
+mkdir -p build-fuzz/corpus fuzz/crashes
+# -max_len: bodies up to 64 KiB (the server takes 1 MiB, but nothing in the
+# grammar needs more to be reached); -timeout: a slow input is a finding too.
+build-fuzz/fuzz/fuzz_request_parser build-fuzz/corpus fuzz/corpus bench/scenes \
+  -dict=fuzz/request.dict -max_total_time="$seconds" -max_len=65536 -timeout=5 -rss_limit_mb=2048 \
+  -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
