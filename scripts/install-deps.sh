@@ -13,10 +13,21 @@ PACKAGES=(
   zlib1g-dev                                          # deflate for the PNGs
   libgtest-dev                                        # GoogleTest
 )
-# --fuzz: also clang and its libFuzzer runtime (scripts/fuzz.sh).
-if [ "${1:-}" = "--fuzz" ]; then
-  PACKAGES+=(clang-14 libclang-rt-14-dev)
-fi
+# Optional groups:
+#   --fuzz     clang and its libFuzzer runtime (scripts/fuzz.sh)
+#   --browser  Debian's chromium, and node + npm for the panel's browser test
+for group in "$@"; do
+  case "$group" in
+    --fuzz) PACKAGES+=(clang-14 libclang-rt-14-dev) ;;
+    --browser)
+      PACKAGES+=(chromium nodejs)
+      # A node from elsewhere (e.g. NodeSource) brings its own npm, and
+      # Debian's npm package would conflict with it.
+      command -v npm >/dev/null || PACKAGES+=(npm)
+      ;;
+    *) echo "install-deps: unknown option $group (known: --fuzz, --browser)" >&2; exit 2 ;;
+  esac
+done
 
 missing=()
 for p in "${PACKAGES[@]}"; do

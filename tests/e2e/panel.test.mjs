@@ -1,0 +1,221 @@
+// The web panel as a person uses it: Debian's chromium (headless, driven by
+// playwright-core) against the real umbra-server binary.
+//
+//   node tests/e2e/panel.test.mjs SERVER_BINARY [ARTIFACTS_DIR]
+//
+// Each step writes a screenshot to ARTIFACTS_DIR (default artifacts/e2e).
+// Exits non-zero, naming the step, at the first failed check.
+import assert from "node:assert/strict";
+import { spawn } from "node:child_process";
+import fs from "node:fs";
+import path from "node:path";
+import { chromium } from "playwright-core";
+
+const [serverBinary, artifacts = "artifacts/e2e"] = process.argv.slice(2);
+if (!serverBinary) {
+  console.error("usage: node panel.test.mjs SERVER_BINARY [ARTIFACTS_DIR]");
+  process.exit(2);
+}
+const chromiumPath = process.env.UMBRA_CHROMIUM || "/usr/bin/chromium";
+fs.mkdirSync(artifacts, { recursive: true });
+
+// --- The server ------------------------------------------------------------
+
+function startServer() {
+  const child = spawn(serverBinary, ["--port", "0", "--quiet"], { stdio: ["ignore", "ignore", "pipe"] });
+  let log = "";
+  const exited = new Promise((resolve) => child.on("exit", (code, signal) => resolve({ code, signal })));
+  const port = new Promise((resolve, reject) => {
+    child.stderr.on("data", (chunk) => {
+      log += chunk;
+      const match = log.match(/listening on http:\/\/[^:]+:(\d+)\//);
+      if (match) resolve(Number(match[1]));
+    });
+    exited.then(() => reject(new Error("umbra-server exited before listening:\n" + log)));
+    setTimeout(() => reject(new Error("umbra-server did not listen within 60 s:\n" + log)), 60000);
+  });
+  return { child, port, exited, log: () => log };
+}
+
+// --- The page ------------------------------------------------------------
+
+// Counts the panel's requests and how many are in flight at once, by
+// wrapping fetch before the panel's script runs.
+function countRequests() {
+  const counter = { sent: 0, inFlight: 0, maxInFlight: 0, frames: 0 };
+  window.__umbra = counter;
+  const original = window.fetch.bind(window);
+  window.fetch = async (...args) => {
+    counter.sent += 1;
+    counter.inFlight += 1;
+    counter.maxInFlight = Math.max(counter.maxInFlight, counter.inFlight);
+    try {
+      return await original(...args);
+    } finally {
+      counter.inFlight -= 1;
+    }
+  };
+  // Every new frame image that finishes loading.
+  document.addEventListener("load", (e) => { if (e.target.id === "frame") counter.frames += 1; }, true);
+}
+
+// Size and mean colour of a loaded <img>, read through a canvas.
+async function imageStats(page, id) {
+  return page.$eval(`#${id}`, (img) => {
+    const canvas = document.createElement("canvas");
+    canvas.width = img.naturalWidth;
+    canvas.height = img.naturalHeight;
+    const context = canvas.getContext("2d");
+    context.drawImage(img, 0, 0);
+    const data = context.getImageData(0, 0, canvas.width, canvas.height).data;
+    let r = 0, g = 0, b = 0, digest = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      r += data[i];
+      g += data[i + 1];
+      b += data[i + 2];
+      digest = (digest * 31 + data[i] + 7 * data[i + 1] + 13 * data[i + 2]) % 1000000007;
+    }
+    const n = data.length / 4;
+    return { width: img.naturalWidth, height: img.naturalHeight, r: r / n, g: g / n, b: b / n, digest, src: img.src };
+  });
+}
+
+// Waits until both images have been replaced since `before` (and loaded).
+async function waitForNewImages(page, before) {
+  await page.waitForFunction(
+    ([frameSrc, depthSrc]) => {
+      const frame = document.getElementById("frame");
+      const depth = document.getElementById("depth");
+      return frame.src !== frameSrc && depth.src !== depthSrc && frame.complete && depth.complete &&
+             frame.naturalWidth > 0 && depth.naturalWidth > 0 && window.__umbra.inFlight === 0;
+    },
+    [before.frame, before.depth],
+    { timeout: 60000 },
+  );
+}
+
+async function currentSources(page) {
+  return page.evaluate(() => ({ frame: document.getElementById("frame").src, depth: document.getElementById("depth").src }));
+}
+
+let stepNumber = 0;
+async function step(page, name, body) {
+  stepNumber += 1;
+  const label = `${String(stepNumber).padStart(2, "0")}-${name}`;
+  try {
+    await body();
+  } finally {
+    await page.screenshot({ path: path.join(artifacts, `${label}.png`), fullPage: true }).catch(() => {});
+  }
+  console.log(`ok ${stepNumber} - ${name}`);
+}
+
+// --- The checks ------------------------------------------------------------
+
+const server = startServer();
+const port = await server.port;
+const browser = await chromium.launch({
+  executablePath: chromiumPath,
+  args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"],
+});
+let failed = false;
+try {
+  const page = await browser.newPage({ viewport: { width: 1400, height: 1000 } });
+  await page.addInitScript(countRequests);
+  await page.goto(`http://127.0.0.1:${port}/`);
+
+  let ortho;
+  await step(page, "first-frame-and-depth-preview", async () => {
+    await waitForNewImages(page, { frame: "", depth: "" });
+    const frame = await imageStats(page, "frame");
+    const depth = await imageStats(page, "depth");
+    const mapSize = Number(await page.$eval("#map_size", (s) => s.value));
+    assert.deepEqual([frame.width, frame.height], [960, 540], "the frame is 960x540");
+    assert.deepEqual([depth.width, depth.height], [mapSize, mapSize], "the depth preview is map_size square");
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    ortho = { frame, depth };
+  });
+
+  await step(page, "perspective-changes-frame-and-depth", async () => {
+    const before = await currentSources(page);
+    await page.selectOption("#projection", "perspective");
+    await waitForNewImages(page, before);
+    const frame = await imageStats(page, "frame");
+    const depth = await imageStats(page, "depth");
+    assert.notEqual(frame.digest, ortho.frame.digest, "the frame changed");
+    assert.notEqual(depth.digest, ortho.depth.digest, "the depth preview changed");
+    const back = await currentSources(page);
+    await page.selectOption("#projection", "orthographic");
+    await waitForNewImages(page, back);
+  });
+
+  await step(page, "red-light-tints-the-frame", async () => {
+    const white = await imageStats(page, "frame");
+    const before = await currentSources(page);
+    await page.$eval("#color", (input) => {
+      input.value = "#ff0000";
+      input.dispatchEvent(new Event("input", { bubbles: true }));
+    });
+    await waitForNewImages(page, before);
+    const red = await imageStats(page, "frame");
+    // White light: about grey-balanced. Red light: green and blue keep only
+    // the ambient share, red keeps all of it.
+    assert.ok(red.r > 1.5 * red.g && red.r > 1.5 * red.b, `red dominates (r ${red.r.toFixed(1)}, g ${red.g.toFixed(1)}, b ${red.b.toFixed(1)})`);
+    assert.ok(red.g < 0.8 * white.g, "green fell under a red light");
+  });
+
+  await step(page, "play-advances-time-one-request-at-a-time", async () => {
+    const time0 = Number(await page.$eval("#time", (i) => i.value));
+    const frames0 = await page.evaluate(() => window.__umbra.frames);
+    await page.evaluate(() => { window.__umbra.maxInFlight = 0; });
+    await page.click("#play");
+    assert.equal(await page.$eval("#play", (b) => b.getAttribute("aria-pressed")), "true");
+    await page.waitForFunction((n) => window.__umbra.frames >= n + 3, frames0, { timeout: 60000 });
+    const time1 = Number(await page.$eval("#time", (i) => i.value));
+    assert.ok(time1 > time0, `time advanced (${time0} -> ${time1})`);
+    assert.equal(await page.evaluate(() => window.__umbra.maxInFlight), 1, "never more than one request in flight");
+    assert.match(await page.$eval("#timing", (p) => p.textContent), /frames\/s/, "frames per second shown while playing");
+  });
+
+  await step(page, "pause-stops-the-requests", async () => {
+    await page.click("#play");
+    assert.equal(await page.$eval("#play", (b) => b.getAttribute("aria-pressed")), "false");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
+    const sent = await page.evaluate(() => window.__umbra.sent);
+    const time = await page.$eval("#time", (i) => i.value);
+    await page.waitForTimeout(1500);
+    assert.equal(await page.evaluate(() => window.__umbra.sent), sent, "no request after pausing");
+    assert.equal(await page.$eval("#time", (i) => i.value), time, "time stands still");
+  });
+
+  await step(page, "server-error-is-a-readable-message", async () => {
+    // A bad value first: the server's 400 names the field.
+    await page.$eval("#lx", (input) => {
+      input.value = "1e9";
+      input.dispatchEvent(new Event("input", { bubbles: true }));
+    });
+    await page.waitForFunction(() => !document.getElementById("error").hidden, null, { timeout: 60000 });
+    assert.match(await page.$eval("#error", (e) => e.textContent), /light\.position/, "the message names the field");
+    // Then the server goes away.
+    server.child.kill("SIGTERM");
+    await server.exited;
+    await page.$eval("#lx", (input) => {
+      input.value = "-2";
+      input.dispatchEvent(new Event("input", { bubbles: true }));
+    });
+    await page.waitForFunction(() => /unreachable/.test(document.getElementById("error").textContent), null,
+                               { timeout: 60000 });
+    const frame = await imageStats(page, "frame");
+    assert.equal(frame.width, 960, "the last good frame stays, not a broken image");
+  });
+} catch (error) {
+  failed = true;
+  console.error(`not ok ${stepNumber + 1} - ${error.message}`);
+  if (error.stack) console.error(error.stack);
+  console.error("server log:\n" + server.log());
+} finally {
+  await browser.close();
+  if (server.child.exitCode === null) server.child.kill("SIGKILL");
+}
+console.log(`screenshots in ${artifacts}`);
+process.exit(failed ? 1 : 0);
