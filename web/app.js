@@ -26,6 +26,7 @@ function buildRequest() {
   if (number("size") > 0) light.size = number("size");
   const shadow = { enabled };
   if (enabled) {
+    if (!perspective && !fixed && $("cascades").value !== "auto") shadow.cascades = Number($("cascades").value);
     shadow.filter = $("filter").value;
     if (shadow.filter === "pcf" || (shadow.filter === "pcss" && !(number("size") > 0))) shadow.pcf_radius = Math.round(number("pcf_radius"));
     if (shadow.filter !== "pcss" && number("size") > 0) delete light.size;
@@ -74,7 +75,12 @@ async function post(path, body) {
     } catch (_) { /* not JSON */ }
     throw new Error(`Server error (${response.status}): ${detail}`);
   }
-  return { blob: await response.blob(), timing: response.headers.get("Server-Timing") || "", unused: response.headers.get("Umbra-Unused-Fields") };
+  return {
+    blob: await response.blob(),
+    timing: response.headers.get("Server-Timing") || "",
+    unused: response.headers.get("Umbra-Unused-Fields"),
+    views: response.headers.get("Umbra-Shadow-Views"),
+  };
 }
 
 function parseTiming(header) {
@@ -109,6 +115,7 @@ async function requestFrame() {
     state.lastTick = now;
   }
   const body = buildRequest();
+  saveToUrl();
   try {
     const frame = await post("/api/render", body);
     replaceImage($("frame"), frame.blob, "frameUrl");
@@ -119,7 +126,8 @@ async function requestFrame() {
     const fps = state.playing ? ` · ${(1000 / ms).toFixed(1)} frames/s` : "";
     $("timing").textContent =
       `server: shadow ${fmt(t.shadow)} · main ${fmt(t.main)} · readback ${fmt(t.readback)} · encode ${fmt(t.encode)} ms` +
-      ` · round trip ${ms.toFixed(0)} ms${fps}` + (frame.unused ? ` · unused: ${frame.unused}` : "");
+      ` · round trip ${ms.toFixed(0)} ms${fps}` + (frame.views ? ` · light views: ${frame.views}` : "") +
+      (frame.unused ? ` · unused: ${frame.unused}` : "");
     $("frame-info").textContent = `(${body.output}, t = ${body.time.toFixed(2)} s)`;
     clearError();
   } catch (e) {
@@ -145,13 +153,89 @@ function togglePlay() {
 
 function syncFixedSettings() {
   const fixed = $("fit").value === "fixed";
+  const perspective = $("projection").value === "perspective";
   $("fixed-settings").setAttribute("aria-disabled", String(!fixed));
   for (const id of ["near", "far", "half"]) $(id).disabled = !fixed;
-  $("half").disabled = !fixed || $("projection").value === "perspective";
+  $("half").disabled = !fixed || perspective;
+  $("cascades").disabled = fixed || perspective;
+}
+
+// --- Settings in the address bar ---------------------------------------------
+// Every control whose value differs from the page's default is a query
+// parameter named after the control, so the address is a link to this view.
+
+function controls() {
+  return Array.from($("controls").elements).filter((e) => e.name);
+}
+
+function isDefault(e) {
+  if (e.type === "checkbox") return e.checked === e.defaultChecked;
+  if (e.tagName === "SELECT") return Array.from(e.options).every((o) => o.selected === o.defaultSelected);
+  return e.value === e.defaultValue;
+}
+
+function saveToUrl() {
+  const params = new URLSearchParams();
+  for (const e of controls()) {
+    if (isDefault(e)) continue;
+    params.set(e.name, e.type === "checkbox" ? (e.checked ? "1" : "0") : e.value);
+  }
+  const query = params.toString();
+  history.replaceState(null, "", query ? `?${query}` : location.pathname);
+}
+
+// Applies the address's settings; a value a control cannot take is skipped
+// (and reported), never half applied.
+function loadFromUrl() {
+  const params = new URLSearchParams(location.search);
+  const skipped = [];
+  for (const e of controls()) {
+    if (!params.has(e.name)) continue;
+    const value = params.get(e.name);
+    if (e.type === "checkbox") {
+      if (value === "1" || value === "0") e.checked = value === "1";
+      else skipped.push(e.name);
+    } else if (e.tagName === "SELECT") {
+      if (Array.from(e.options).some((o) => o.value === value)) e.value = value;
+      else skipped.push(e.name);
+    } else if (e.type === "number" || e.type === "range") {
+      if (value.trim() !== "" && Number.isFinite(Number(value))) e.value = value;
+      else skipped.push(e.name);
+    } else if (e.type === "color") {
+      if (/^#[0-9a-fA-F]{6}$/.test(value)) e.value = value.toLowerCase();
+      else skipped.push(e.name);
+    }
+  }
+  const known = new Set(controls().map((e) => e.name));
+  for (const name of params.keys()) if (!known.has(name)) skipped.push(name);
+  $("notice").textContent = skipped.length
+    ? `Ignored from the address: ${skipped.join(", ")} (not a setting, or a value it cannot take).` : "";
+}
+
+// --- Copy as curl --------------------------------------------------------------
+
+function curlCommand(body) {
+  const json = JSON.stringify(body).replace(/'/g, "'\\''");
+  const file = body.output === "color" ? "frame.png" : `${body.output}.png`;
+  return `curl -X POST '${location.origin}/api/render' -H 'Content-Type: application/json' -d '${json}' -o ${file}`;
+}
+
+async function copyCurl() {
+  const command = curlCommand(buildRequest());
+  $("curl").textContent = command;
+  $("curl").hidden = false;
+  try {
+    await navigator.clipboard.writeText(command);
+    $("copy-status").textContent = "Copied to the clipboard.";
+  } catch (_) {
+    $("copy-status").textContent = "The clipboard is not available here: select the command below and copy it.";
+  }
 }
 
 $("controls").addEventListener("input", () => { syncFixedSettings(); requestFrame(); });
 $("controls").addEventListener("submit", (e) => e.preventDefault());
 $("play").addEventListener("click", togglePlay);
+$("copy-curl").addEventListener("click", copyCurl);
+loadFromUrl();
 syncFixedSettings();
 requestFrame();

@@ -42,11 +42,12 @@ function startServer() {
 // Counts the panel's requests and how many are in flight at once, by
 // wrapping fetch before the panel's script runs.
 function countRequests() {
-  const counter = { sent: 0, inFlight: 0, maxInFlight: 0, frames: 0 };
+  const counter = { sent: 0, inFlight: 0, maxInFlight: 0, frames: 0, lastRenderBody: null };
   window.__umbra = counter;
   const original = window.fetch.bind(window);
   window.fetch = async (...args) => {
     counter.sent += 1;
+    if (String(args[0]).endsWith("/api/render")) counter.lastRenderBody = args[1].body;
     counter.inFlight += 1;
     counter.maxInFlight = Math.max(counter.maxInFlight, counter.inFlight);
     try {
@@ -120,7 +121,9 @@ const browser = await chromium.launch({
 });
 let failed = false;
 try {
-  const page = await browser.newPage({ viewport: { width: 1400, height: 1000 } });
+  const context = await browser.newContext({ viewport: { width: 1400, height: 1000 } });
+  await context.grantPermissions(["clipboard-read", "clipboard-write"], { origin: `http://127.0.0.1:${port}` });
+  const page = await context.newPage();
   await page.addInitScript(countRequests);
   await page.goto(`http://127.0.0.1:${port}/`);
 
@@ -186,6 +189,71 @@ try {
     await page.waitForTimeout(1500);
     assert.equal(await page.evaluate(() => window.__umbra.sent), sent, "no request after pausing");
     assert.equal(await page.$eval("#time", (i) => i.value), time, "time stands still");
+  });
+
+  await step(page, "settings-live-in-the-url", async () => {
+    const before = await currentSources(page);
+    await page.selectOption("#scene", "three-cubes");
+    await page.selectOption("#cascades", "3");
+    await waitForNewImages(page, before);
+    const url = new URL(page.url());
+    assert.equal(url.searchParams.get("scene"), "three-cubes");
+    assert.equal(url.searchParams.get("color"), "#ff0000");
+    assert.equal(url.searchParams.get("cascades"), "3");
+    assert.ok(!url.searchParams.has("map_size"), "defaults stay out of the link");
+    const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    // The link opens the same view: same controls, same request.
+    const other = await page.context().newPage();
+    await other.addInitScript(countRequests);
+    await other.goto(url.href);
+    await waitForNewImages(other, { frame: "", depth: "" });
+    assert.equal(await other.$eval("#scene", (s) => s.value), "three-cubes");
+    assert.equal(await other.$eval("#color", (c) => c.value), "#ff0000");
+    assert.deepEqual(JSON.parse(await other.evaluate(() => window.__umbra.lastRenderBody)), body);
+    await other.screenshot({ path: path.join(artifacts, "settings-link-opened.png"), fullPage: true });
+    await other.close();
+    // A link with a value no control can take says so and renders the rest.
+    const bad = await page.context().newPage();
+    await bad.goto(`http://127.0.0.1:${port}/?map_size=3&bogus=1&scene=three-cubes`);
+    await bad.waitForFunction(() => /map_size, bogus/.test(document.getElementById("notice").textContent));
+    assert.equal(await bad.$eval("#scene", (s) => s.value), "three-cubes");
+    await bad.close();
+  });
+
+  await step(page, "copy-as-curl-is-the-exact-request", async () => {
+    await page.click("#copy-curl");
+    const command = await page.$eval("#curl", (pre) => pre.textContent);
+    assert.equal(await page.$eval("#copy-status", (s) => s.textContent), "Copied to the clipboard.");
+    assert.equal(await page.evaluate(() => navigator.clipboard.readText()), command, "the clipboard holds it");
+    const match = command.match(/^curl -X POST '([^']+)' -H 'Content-Type: application\/json' -d '(.*)' -o \S+$/);
+    assert.ok(match, `a curl command: ${command}`);
+    assert.equal(match[1], `http://127.0.0.1:${port}/api/render`);
+    const body = JSON.parse(match[2].replace(/'\\''/g, "'"));
+    assert.deepEqual(body, JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)));
+    // Sent as it is, it gives the very PNG the panel shows.
+    const response = await fetch(match[1], { method: "POST", headers: { "Content-Type": "application/json" }, body: match[2] });
+    assert.equal(response.status, 200);
+    const curlBytes = Buffer.from(await response.arrayBuffer());
+    const panelBytes = Buffer.from(await page.evaluate(async () => {
+      const blob = await (await fetch(document.getElementById("frame").src)).arrayBuffer();
+      return Array.from(new Uint8Array(blob));
+    }));
+    assert.ok(curlBytes.equals(panelBytes), "same PNG bytes as the panel's frame");
+  });
+
+  await step(page, "keyboard-and-labels", async () => {
+    const unlabelled = await page.$$eval("#controls input, #controls select, button", (elements) =>
+      elements.filter((e) => !(e.labels && e.labels.length) && !e.getAttribute("aria-label") && !e.textContent.trim())
+              .map((e) => e.id));
+    assert.deepEqual(unlabelled, [], "every control has a label");
+    await page.focus("#time");
+    await page.keyboard.press("Shift+Tab");
+    assert.equal(await page.evaluate(() => document.activeElement.id), "play", "Play is reached with the keyboard");
+    await page.keyboard.press("Space");
+    assert.equal(await page.$eval("#play", (b) => b.getAttribute("aria-pressed")), "true");
+    await page.keyboard.press("Space");
+    assert.equal(await page.$eval("#play", (b) => b.getAttribute("aria-pressed")), "false");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
   });
 
   await step(page, "server-error-is-a-readable-message", async () => {
