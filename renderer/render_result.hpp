@@ -22,6 +22,8 @@ struct RenderResult {
   /// The shadow map from an earlier frame served this one (nothing it
   /// depends on changed), so no shadow pass ran.
   bool shadow_reused = false;
+  /// The scene's meshes had to be uploaded (not among the cached scenes).
+  bool scene_uploaded = false;
 };
 
 }  // namespace umbra

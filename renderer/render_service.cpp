@@ -72,6 +72,7 @@ struct RenderService::Impl {
   std::atomic<std::size_t> in_flight{0};
   std::atomic<std::uint64_t> frames{0};
   std::atomic<std::uint64_t> shadow_reuses{0};
+  std::atomic<std::uint64_t> scene_uploads{0};
   RendererInfo info;
   std::thread thread;
 
@@ -103,6 +104,7 @@ struct RenderService::Impl {
         check_still_wanted(job.queued, job.client_gone);
         result = renderer->render(job.request);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
+        if (result->scene_uploaded) scene_uploads.fetch_add(1);
         frames.fetch_add(1);
       } catch (...) {
         error = std::current_exception();
@@ -200,6 +202,7 @@ std::uint64_t RenderService::frames_rendered() const { return impl_->frames.load
 std::size_t RenderService::queue_depth() const { return impl_->in_flight.load(); }
 std::uint64_t RenderService::shadow_cache_hits() const { return impl_->shadow_reuses.load(); }
 std::uint64_t RenderService::rejected() const { return impl_->rejected_count.load(); }
+std::uint64_t RenderService::scene_uploads() const { return impl_->scene_uploads.load(); }
 std::uint64_t RenderService::abandoned() const { return impl_->abandoned_count.load(); }
 std::uint64_t RenderService::expired() const { return impl_->expired_count.load(); }
 const ServiceLimits& RenderService::limits() const { return impl_->limits; }

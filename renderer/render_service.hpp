@@ -72,6 +72,9 @@ class RenderService {
   std::uint64_t frames_rendered() const;
   /// Frames that reused the shadow map of an earlier frame (no shadow pass).
   std::uint64_t shadow_cache_hits() const;
+  /// Scenes whose meshes were uploaded: the renderer keeps the last 8
+  /// distinct scenes, so a scene seen recently costs no upload.
+  std::uint64_t scene_uploads() const;
   /// Jobs waiting or being rendered.
   std::size_t queue_depth() const;
   /// Jobs refused because the queue was full, and jobs dropped at their

@@ -96,22 +96,31 @@ std::string ShadowRenderer::gl_version() const {
   return reinterpret_cast<const char*>(glGetString(GL_VERSION));
 }
 
-void ShadowRenderer::upload_scene(const Scene& scene) {
+bool ShadowRenderer::use_scene(const Scene& scene) {
   std::string key = scene_key(scene);
-  if (scene_.vertex_array && key == scene_.key) return;
+  for (auto it = scenes_.begin(); it != scenes_.end(); ++it) {
+    if (it->key != key) continue;
+    if (it != scenes_.begin()) {
+      SceneGeometry found = std::move(*it);
+      scenes_.erase(it);
+      scenes_.push_front(std::move(found));
+    }
+    return false;
+  }
   Mesh mesh = tessellate(scene);
-  scene_.vertices = gl::create_buffer();
-  scene_.indices = gl::create_buffer();
-  scene_.vertex_array = gl::create_vertex_array();
+  SceneGeometry g;
+  g.vertices = gl::create_buffer();
+  g.indices = gl::create_buffer();
+  g.vertex_array = gl::create_vertex_array();
   // glNamedBufferStorage needs a non-zero size; an empty scene draws nothing.
-  glNamedBufferStorage(scene_.vertices.id(), GLsizeiptr(std::max<std::size_t>(1, mesh.vertices.size()) * sizeof(Vertex)),
+  glNamedBufferStorage(g.vertices.id(), GLsizeiptr(std::max<std::size_t>(1, mesh.vertices.size()) * sizeof(Vertex)),
                        mesh.vertices.empty() ? nullptr : mesh.vertices.data(), 0);
-  glNamedBufferStorage(scene_.indices.id(),
+  glNamedBufferStorage(g.indices.id(),
                        GLsizeiptr(std::max<std::size_t>(1, mesh.indices.size()) * sizeof(std::uint32_t)),
                        mesh.indices.empty() ? nullptr : mesh.indices.data(), 0);
-  const GLuint vao = scene_.vertex_array.id();
-  glVertexArrayVertexBuffer(vao, 0, scene_.vertices.id(), 0, sizeof(Vertex));
-  glVertexArrayElementBuffer(vao, scene_.indices.id());
+  const GLuint vao = g.vertex_array.id();
+  glVertexArrayVertexBuffer(vao, 0, g.vertices.id(), 0, sizeof(Vertex));
+  glVertexArrayElementBuffer(vao, g.indices.id());
   const GLuint offsets[3] = {offsetof(Vertex, position), offsetof(Vertex, normal), offsetof(Vertex, color)};
   for (GLuint attribute = 0; attribute < 3; ++attribute) {
     glEnableVertexArrayAttrib(vao, attribute);
@@ -122,8 +131,11 @@ void ShadowRenderer::upload_scene(const Scene& scene) {
   mesh.vertices.shrink_to_fit();
   mesh.indices.clear();
   mesh.indices.shrink_to_fit();
-  scene_.mesh = std::move(mesh);
-  scene_.key = std::move(key);
+  g.mesh = std::move(mesh);
+  g.key = std::move(key);
+  scenes_.push_front(std::move(g));
+  if (scenes_.size() > kCachedScenes) scenes_.pop_back();
+  return true;
 }
 
 void ShadowRenderer::resize_shadow_map(int size, int layers) {
@@ -183,8 +195,8 @@ void ShadowRenderer::resize_depth_preview(int size) {
 }
 
 void ShadowRenderer::draw_scene(CullMode closed_mesh_cull) {
-  const Mesh& mesh = scene_.mesh;
-  glBindVertexArray(scene_.vertex_array.id());
+  const Mesh& mesh = scene().mesh;
+  glBindVertexArray(scene().vertex_array.id());
   if (mesh.closed_index_count > 0) {
     if (closed_mesh_cull == CullMode::None) {
       glDisable(GL_CULL_FACE);
@@ -217,7 +229,7 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
     glClear(GL_DEPTH_BUFFER_BIT);
     if (view.empty) continue;  // cleared to far: nothing there to cast
     glProgramUniformMatrix4fv(shadow_.program.id(), shadow_.light_view_projection, 1, GL_FALSE,
-                              glm::value_ptr(relative_to(view.view_projection(), scene_.mesh.origin)));
+                              glm::value_ptr(relative_to(view.view_projection(), scene().mesh.origin)));
     // Culling front faces stores the far side of closed objects: their lit
     // faces then sit well in front of the stored depth, so no bias is needed
     // against self-shadowing there, and the bias stays small elsewhere (less
@@ -226,18 +238,18 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   }
   shadow_.holds_plan = true;
   shadow_.plan = light;
-  shadow_.scene_key = scene_.key;
+  shadow_.scene_key = scene().key;
   shadow_.cull = request.shadow.cull;
 }
 
 bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const {
-  return shadow_.holds_plan && shadow_.scene_key == scene_.key && shadow_.cull == request.shadow.cull &&
+  return shadow_.holds_plan && shadow_.scene_key == scene().key && shadow_.cull == request.shadow.cull &&
          plan_covers(shadow_.plan, light);
 }
 
 void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light) {
   resize_display(request.width, request.height);
-  const glm::dvec3 origin = scene_.mesh.origin;
+  const glm::dvec3 origin = scene().mesh.origin;
   const gl::Program& p = display_.program;
   const DisplayPass::Uniforms& u = display_.uniforms;
   const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
@@ -348,7 +360,7 @@ Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int
 
 RenderResult ShadowRenderer::render(const RenderRequest& request) {
   RenderResult result;
-  upload_scene(request.scene);
+  result.scene_uploaded = use_scene(request.scene);
   ShadowPlan light = plan_shadow(request);
   const bool depth_output = request.output == Output::Depth;
 

@@ -2,6 +2,7 @@
 // lights the scene from the camera with that texture, then read-back.
 #pragma once
 
+#include <deque>
 #include <string>
 
 #include "gl/objects.hpp"
@@ -28,7 +29,7 @@ class ShadowRenderer {
   std::string gl_version() const;
 
  private:
-  // The scene's triangles, uploaded once per distinct scene.
+  // A scene's triangles, uploaded once per distinct scene (see scenes_).
   struct SceneGeometry {
     gl::VertexArray vertex_array;
     gl::Buffer vertices;
@@ -78,7 +79,11 @@ class ShadowRenderer {
     int size = 0;
   };
 
-  void upload_scene(const Scene& scene);
+  /// Makes `scene` the current one (scenes_.front()), uploading it unless a
+  /// scene with the same content is cached; true if it was uploaded.
+  bool use_scene(const Scene& scene);
+  SceneGeometry& scene() { return scenes_.front(); }
+  const SceneGeometry& scene() const { return scenes_.front(); }
   void resize_shadow_map(int size, int layers);
   void resize_display(int width, int height);
   void resize_depth_preview(int size);
@@ -89,7 +94,10 @@ class ShadowRenderer {
   void run_depth_preview(const ShadowPlan& light, int image_size);
   Image read_pixels(GLuint framebuffer, int width, int height, int channels);
 
-  SceneGeometry scene_;
+  // The last few distinct scenes, most recently used first, so that
+  // clients alternating between scenes do not re-upload them.
+  static constexpr std::size_t kCachedScenes = 8;
+  std::deque<SceneGeometry> scenes_;
   ShadowPass shadow_;
   DisplayPass display_;
   DepthPreviewPass preview_;

@@ -243,6 +243,7 @@ void HttpApi::install_routes() {
                          {"uptime_s", uptime},
                          {"frames_rendered", renderer_.frames_rendered()},
                          {"shadow_cache_hits", renderer_.shadow_cache_hits()},
+                         {"scene_uploads", renderer_.scene_uploads()},
                          {"queue_depth", renderer_.queue_depth()},
                          {"queue_capacity", renderer_.limits().queue_capacity},
                          {"rejected", renderer_.rejected()},

@@ -92,6 +92,8 @@ TEST(Http, HealthReportsTheGlContextAndCounters) {
   EXPECT_TRUE(j["frames_rendered"].is_number_unsigned());
   EXPECT_TRUE(j["queue_depth"].is_number_unsigned());
   EXPECT_TRUE(j["shadow_cache_hits"].is_number_unsigned());
+  EXPECT_TRUE(j["scene_uploads"].is_number_unsigned());
+  EXPECT_TRUE(j["abandoned"].is_number_unsigned());
 }
 
 TEST(Http, ScenesListsTheBuiltInsInCustomSceneForm) {

@@ -336,5 +336,23 @@ TEST(Renderer, AnythingTheShadowMapDependsOnDrawsItAgain) {
   }
 }
 
+TEST(Renderer, RecentScenesAreNotUploadedAgain) {
+  // A custom scene with one sphere of radius r: a distinct scene per r.
+  const auto scene = [](int r) {
+    return request(R"({"width": 32, "height": 32, "scene": {"objects": [{"type": "sphere", "center": [0, 0, 0], "radius": )" +
+                   std::to_string(r) + "}]}}");
+  };
+  const std::uint64_t before = service().scene_uploads();
+  EXPECT_TRUE(render(scene(1)).scene_uploaded);
+  EXPECT_TRUE(render(scene(2)).scene_uploaded);
+  EXPECT_FALSE(render(scene(1)).scene_uploaded) << "alternating scenes stay cached";
+  EXPECT_FALSE(render(scene(2)).scene_uploaded);
+  EXPECT_EQ(service().scene_uploads(), before + 2);
+  // Eight other scenes later, the first has been dropped: uploaded again.
+  for (int r = 3; r <= 10; ++r) EXPECT_TRUE(render(scene(r)).scene_uploaded);
+  EXPECT_TRUE(render(scene(1)).scene_uploaded);
+  EXPECT_FALSE(render(scene(10)).scene_uploaded);
+}
+
 }  // namespace
 }  // namespace umbra
