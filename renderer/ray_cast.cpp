@@ -80,11 +80,25 @@ double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec
   return kInf;
 }
 
-bool occluded(const Scene& scene, const glm::dvec3& origin, const glm::dvec3& dir, double t_max) {
-  glm::dvec3 unused;
-  for (const auto& o : scene.objects)
-    if (intersect(o, origin, dir, 0.0, t_max, unused) < kInf) return true;
-  return false;
+// Whether the ray meets `box` (grown by a relative hair, so that rounding
+// never makes it miss what the exact primitive test would hit) within
+// (t_min, t_max).
+bool meets(const Aabb& box, const glm::dvec3& origin, const glm::dvec3& dir, double t_min, double t_max) {
+  const glm::dvec3 grow = 1e-9 * (glm::abs(box.min) + glm::abs(box.max) + box.extent()) + 1e-300;
+  double t0 = t_min, t1 = t_max;
+  for (int a = 0; a < 3; ++a) {
+    const double lo = box.min[a] - grow[a], hi = box.max[a] + grow[a];
+    if (dir[a] == 0.0) {
+      if (origin[a] < lo || origin[a] > hi) return false;
+      continue;
+    }
+    double near_t = (lo - origin[a]) / dir[a], far_t = (hi - origin[a]) / dir[a];
+    if (near_t > far_t) std::swap(near_t, far_t);
+    t0 = std::max(t0, near_t);
+    t1 = std::min(t1, far_t);
+    if (t0 > t1) return false;
+  }
+  return true;
 }
 
 // 64 points on the unit disc, one per cell of an 8 x 8 grid mapped
@@ -126,29 +140,122 @@ glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_positi
                                                           : glm::normalize(light_position - light.target);
 }
 
+double visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
+                  const glm::dvec3& point, const glm::dvec3& normal);
+
 }  // namespace
 
-std::optional<RayHit> cast_ray(const Scene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
-                               double t_min, double t_max) {
-  RayHit best;
-  best.t = t_max;
-  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
-    glm::dvec3 normal;
-    const double t = intersect(scene.objects[i], origin, direction, t_min, best.t, normal);
-    if (t < best.t) {
-      best.t = t;
-      best.normal = normal;
-      best.object = int(i);
+RayScene::RayScene(const Scene& scene) : scene_(scene) {
+  const std::size_t n = scene.objects.size();
+  std::vector<Aabb> bounds(n);
+  std::vector<glm::dvec3> centers(n);
+  order_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    bounds[i] = object_bounds(scene.objects[i]);
+    centers[i] = bounds[i].center();
+    order_[i] = int(i);
+  }
+  nodes_.reserve(2 * n + 1);
+  if (n > 0) build(0, int(n), bounds, centers);
+}
+
+// Median split along the widest axis of the objects' centres; leaves of up
+// to four objects.
+int RayScene::build(int first, int count, const std::vector<Aabb>& bounds, const std::vector<glm::dvec3>& centers) {
+  const int index = int(nodes_.size());
+  nodes_.emplace_back();
+  Aabb box, spread;
+  for (int i = first; i < first + count; ++i) {
+    box.extend(bounds[order_[i]]);
+    spread.extend(centers[order_[i]]);
+  }
+  nodes_[index].box = box;
+  if (count <= 4) {
+    nodes_[index].first = first;
+    nodes_[index].count = count;
+    return index;
+  }
+  const glm::dvec3 e = spread.extent();
+  const int axis = e.x >= e.y && e.x >= e.z ? 0 : e.y >= e.z ? 1 : 2;
+  const int half = count / 2;
+  std::nth_element(order_.begin() + first, order_.begin() + first + half, order_.begin() + first + count,
+                   [&](int a, int b) { return centers[a][axis] < centers[b][axis]; });
+  const int left = build(first, half, bounds, centers);
+  const int right = build(first + half, count - half, bounds, centers);
+  nodes_[index].left = left;
+  nodes_[index].right = right;
+  return index;
+}
+
+template <class Visit>
+void RayScene::traverse(const glm::dvec3& origin, const glm::dvec3& direction, double t_min, const double* t_max,
+                        Visit&& visit) const {
+  if (nodes_.empty()) return;
+  int stack[128];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (!meets(node.box, origin, direction, t_min, *t_max)) continue;
+    if (node.left < 0) {
+      for (int i = node.first; i < node.first + node.count; ++i)
+        if (!visit(order_[i])) return;
+    } else {
+      stack[top++] = node.right;
+      stack[top++] = node.left;
     }
   }
+}
+
+std::optional<RayHit> RayScene::cast(const glm::dvec3& origin, const glm::dvec3& direction, double t_min,
+                                     double t_max) const {
+  RayHit best;
+  best.t = t_max;
+  // Objects come in tree order, not index order: an equally near hit wins
+  // when its index is lower, as it would testing every object in order.
+  double reach = t_max;
+  traverse(origin, direction, t_min, &reach, [&](int i) {
+    glm::dvec3 normal;
+    const double limit = best.object < 0 ? t_max : std::nextafter(best.t, kInf);
+    const double t = intersect(scene_.objects[i], origin, direction, t_min, limit, normal);
+    if (t < best.t || (t == best.t && best.object >= 0 && i < best.object)) {
+      best.t = t;
+      best.normal = normal;
+      best.object = i;
+      reach = std::nextafter(best.t, kInf);
+    }
+    return true;
+  });
   if (best.object < 0) return std::nullopt;
   best.point = origin + best.t * direction;
   if (glm::dot(best.normal, direction) > 0.0) best.normal = -best.normal;
   return best;
 }
 
+bool RayScene::occluded(const glm::dvec3& origin, const glm::dvec3& direction, double t_max) const {
+  bool hit = false;
+  traverse(origin, direction, 0.0, &t_max, [&](int i) {
+    glm::dvec3 unused;
+    hit = intersect(scene_.objects[i], origin, direction, 0.0, t_max, unused) < kInf;
+    return !hit;
+  });
+  return hit;
+}
+
+std::optional<RayHit> cast_ray(const Scene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
+                               double t_min, double t_max) {
+  return RayScene(scene).cast(origin, direction, t_min, t_max);
+}
+
 double exact_visibility(const RenderRequest& request, const glm::dvec3& light_position, const glm::dvec3& point,
                         const glm::dvec3& normal) {
+  return visibility(RayScene(request.scene), request, light_position, point, normal);
+}
+
+namespace {
+
+double visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
+                  const glm::dvec3& point, const glm::dvec3& normal) {
   const Light& light = request.light;
   const bool perspective = light.projection == LightProjection::Perspective;
   const glm::dvec3 to_light_center = direction_to_light(light, light_position, point);
@@ -158,9 +265,9 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
   const double lift = 1e-9 * (1.0 + glm::length(point));
   const glm::dvec3 origin = point + normal * lift;
   if (light.size <= 0.0) {
-    if (!perspective) return occluded(request.scene, origin, to_light_center, kInf) ? 0.0 : 1.0;
+    if (!perspective) return rays.occluded(origin, to_light_center, kInf) ? 0.0 : 1.0;
     const double distance = glm::length(light_position - origin);
-    return occluded(request.scene, origin, (light_position - origin) / distance, distance) ? 0.0 : 1.0;
+    return rays.occluded(origin, (light_position - origin) / distance, distance) ? 0.0 : 1.0;
   }
   glm::dvec3 u, v;
   basis(to_light_center, u, v);
@@ -180,10 +287,12 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
     } else {
       dir = glm::normalize(to_light_center + spread * (s.x * u + s.y * v));
     }
-    if (glm::dot(normal, dir) > 0.0 && !occluded(request.scene, origin, dir, t_max)) ++seen;
+    if (glm::dot(normal, dir) > 0.0 && !rays.occluded(origin, dir, t_max)) ++seen;
   }
   return double(seen) / double(samples.size());
 }
+
+}  // namespace
 
 std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
   const int width = request.width, height = request.height;
@@ -191,6 +300,7 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
   const CameraMatrices camera = camera_matrices(request.camera, width, height);
   const glm::dmat4 inverse = glm::inverse(camera.projection * camera.view);
   const glm::dvec3 light_position = orbit_light_position(request.light, request.time);
+  const RayScene rays(request.scene);
 
   const auto rows = [&](int first, int step) {
     for (int y = first; y < height; y += step) {
@@ -206,12 +316,12 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
         // The camera sees between its near and far planes, as GL clips.
         const double t_far = glm::length(far_p - near_p);
         ExactPixel& px = pixels[std::size_t(y) * width + x];
-        const auto hit = cast_ray(request.scene, near_p, dir, 0.0, t_far);
+        const auto hit = rays.cast(near_p, dir, 0.0, t_far);
         if (!hit) continue;
         px.geometry = true;
         px.object = hit->object;
         px.n_dot_l = glm::dot(hit->normal, direction_to_light(request.light, light_position, hit->point));
-        px.visibility = exact_visibility(request, light_position, hit->point, hit->normal);
+        px.visibility = visibility(rays, request, light_position, hit->point, hit->normal);
       }
     }
   };

@@ -9,6 +9,7 @@
 
 #include "image.hpp"
 #include "request.hpp"
+#include "scene.hpp"
 
 namespace umbra {
 
@@ -18,6 +19,36 @@ struct RayHit {
   glm::dvec3 point{0.0};
   glm::dvec3 normal{0.0};  ///< unit, facing the ray's origin
   int object = -1;         ///< index into scene.objects
+};
+
+/// The scene's objects in a bounding-volume hierarchy over their bounds, so
+/// a ray is tested against the few objects near it instead of all of them.
+/// It answers exactly as testing every object in order would: the nearest
+/// hit, the lowest object index among equally near ones.
+class RayScene {
+ public:
+  explicit RayScene(const Scene& scene);
+  /// First hit of origin + t * direction (unit) with t in (t_min, t_max).
+  std::optional<RayHit> cast(const glm::dvec3& origin, const glm::dvec3& direction, double t_min, double t_max) const;
+  /// Whether anything lies on the ray with t in (0, t_max).
+  bool occluded(const glm::dvec3& origin, const glm::dvec3& direction, double t_max) const;
+
+ private:
+  struct Node {
+    Aabb box;
+    int first = 0, count = 0;  // leaf: objects order_[first, first + count)
+    int left = -1, right = -1; // inner node: children
+  };
+  int build(int first, int count, const std::vector<Aabb>& bounds, const std::vector<glm::dvec3>& centers);
+  // Calls visit(object index) for each object in a leaf whose box the ray
+  // meets within (t_min, *t_max); visit may lower *t_max and returns false to stop.
+  template <class Visit>
+  void traverse(const glm::dvec3& origin, const glm::dvec3& direction, double t_min, const double* t_max,
+                Visit&& visit) const;
+
+  const Scene& scene_;
+  std::vector<int> order_;
+  std::vector<Node> nodes_;
 };
 
 /// First hit of the ray origin + t * direction (unit) with t in (t_min, t_max).

@@ -1,6 +1,11 @@
 // The exact reference against cases solved by hand.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <random>
+
+#include <glm/geometric.hpp>
+
 #include "ray_cast.hpp"
 #include "scene.hpp"
 
@@ -87,6 +92,54 @@ TEST(ExactImages, ErrorIsRedForFalseShadowAndBlueForFalseLight) {
   EXPECT_EQ(e.pixels[2], 0);
   EXPECT_EQ(e.pixels[3], 0);
   EXPECT_EQ(e.pixels[5], 255);  // pixel 1 blue
+}
+
+// The hierarchy must answer exactly as testing every object in order:
+// random scenes of boxes, spheres and planes (touching and overlapping
+// ones included), random rays, compared with a brute-force cast.
+TEST(RayScene, AnswersExactlyAsTestingEveryObject) {
+  std::mt19937 random(12345);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    Scene scene;
+    const int n = 1 + trial * 25;
+    for (int i = 0; i < n; ++i) {
+      SceneObject o;
+      o.type = SceneObject::Type(i % 3);
+      // On a coarse grid, so that objects touch and share faces often.
+      o.center = glm::dvec3(std::round(5 * u(random)), std::round(2 * u(random)), std::round(5 * u(random)));
+      o.size = glm::dvec3(1.0 + std::round(u(random)), 1.0, 1.0 + std::round(u(random)));
+      o.radius = 0.5 + 0.25 * std::round(u(random));
+      o.rotation_y_deg = i % 4 == 0 ? 30.0 * std::round(3 * u(random)) : 0.0;
+      scene.objects.push_back(o);
+    }
+    const RayScene rays(scene);
+    for (int k = 0; k < 2000; ++k) {
+      const glm::dvec3 origin(8 * u(random), 4 * u(random), 8 * u(random));
+      glm::dvec3 dir(u(random), u(random), u(random));
+      if (k % 5 == 0) dir[k % 3] = 0.0;  // axis-parallel rays too
+      if (glm::length(dir) < 1e-3) continue;
+      dir = glm::normalize(dir);
+      // Brute force: every object in index order.
+      RayHit best;
+      best.t = 1e9;
+      for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+        Scene one;
+        one.objects.push_back(scene.objects[i]);
+        const auto hit = RayScene(one).cast(origin, dir, 0.0, best.t);
+        if (hit && hit->t < best.t) best = *hit, best.object = int(i);
+      }
+      const auto hit = rays.cast(origin, dir, 0.0, 1e9);
+      ASSERT_EQ(hit.has_value(), best.object >= 0) << "trial " << trial << " ray " << k;
+      if (hit) {
+        EXPECT_EQ(hit->object, best.object) << "trial " << trial << " ray " << k;
+        EXPECT_EQ(hit->t, best.t);
+        EXPECT_EQ(hit->normal, best.normal);
+      }
+      const double reach = 3.0 * (1.0 + u(random));
+      EXPECT_EQ(rays.occluded(origin, dir, reach), best.object >= 0 && best.t < reach) << "trial " << trial;
+    }
+  }
 }
 
 }  // namespace
