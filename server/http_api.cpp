@@ -267,8 +267,9 @@ void HttpApi::install_routes() {
     res.set_content(json{{"scenes", scenes}}.dump(), "application/json");
   });
 
-  const auto render = [this](const httplib::Request& req, httplib::Response& res, bool depth_route) {
-    ParsedRequest parsed = parse_render_request(req.body);
+  const auto render = [this](const httplib::Request& req, httplib::Response& res, const std::string& body,
+                             bool depth_route) {
+    ParsedRequest parsed = parse_render_request(body);
     if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
     RenderRequest request = std::move(*parsed.request);
     if (depth_route) {
@@ -318,8 +319,33 @@ void HttpApi::install_routes() {
     }
     res.set_content(std::move(png), "image/png");
   };
-  http.Post("/api/render", [render](const httplib::Request& req, httplib::Response& res) { render(req, res, false); });
-  http.Post("/api/depth", [render](const httplib::Request& req, httplib::Response& res) { render(req, res, true); });
+  // The body is read through a content reader, whatever its Content-Type:
+  // cpp-httplib would otherwise parse a body sent as
+  // application/x-www-form-urlencoded (curl -d's default) as a form and
+  // refuse it above 8 KiB. The 1 MiB limit still applies.
+  const auto read_then_render = [render](const httplib::Request& req, httplib::Response& res,
+                                        const httplib::ContentReader& content_reader, bool depth_route) {
+    std::string body;
+    const bool whole = content_reader([&body](const char* data, std::size_t length) {
+      body.append(data, length);
+      return true;
+    });
+    // Never render from part of a body: too large (cpp-httplib has set
+    // 413), or the connection failed mid-way.
+    if (!whole) {
+      if (res.status == 413) return send_error(res, 413, "request body larger than 1 MiB", "");
+      return send_error(res, 400, "the request body could not be read whole", "");
+    }
+    render(req, res, body, depth_route);
+  };
+  http.Post("/api/render", [read_then_render](const httplib::Request& req, httplib::Response& res,
+                                              const httplib::ContentReader& content_reader) {
+    read_then_render(req, res, content_reader, false);
+  });
+  http.Post("/api/depth", [read_then_render](const httplib::Request& req, httplib::Response& res,
+                                             const httplib::ContentReader& content_reader) {
+    read_then_render(req, res, content_reader, true);
+  });
 
   // A known path with the wrong method is 405, not 404.
   struct Route {

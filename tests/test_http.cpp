@@ -461,6 +461,22 @@ TEST(Http, TheLargestRequestTheApiAllowsIsRenderedWhole) {
   EXPECT_EQ(client().Get("/api/health")->status, 200);
 }
 
+TEST(Http, ABodyOver8KiBIsTakenWhateverItsContentType) {
+  // curl -d sends application/x-www-form-urlencoded; cpp-httplib alone
+  // would refuse such a body above 8 KiB (413) and parse it as a form.
+  json objects = json::array({{{"type", "plane"}, {"center", {0, 0, 0}}, {"size", {20, 20}}}});
+  for (int i = 0; i < 300; ++i)
+    objects.push_back({{"type", "sphere"}, {"center", {i % 20 - 10.0, 0.5, i / 20 - 7.0}}, {"radius", 0.3}});
+  const std::string body =
+      json{{"width", 64}, {"height", 48}, {"shadow", {{"map_size", 256}}}, {"scene", {{"objects", objects}}}}.dump();
+  ASSERT_GT(body.size(), 8u << 10);
+  for (const char* type : {"application/x-www-form-urlencoded", "application/json", "text/plain"}) {
+    auto res = client().Post("/api/render", body, type);
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200) << type << ": " << res->body;
+  }
+}
+
 TEST(Http, TheShadowLayoutIsReported) {
   auto res = client().Post("/api/render", R"({"width": 32, "height": 32, "shadow": {"map_size": 256, "cascades": 3}})",
                            "application/json");
