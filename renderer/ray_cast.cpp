@@ -140,8 +140,44 @@ glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_positi
                                                           : glm::normalize(light_position - light.target);
 }
 
+// See exact_visibility (ray_cast.hpp); `rays` indexes request.scene.
 double visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
-                  const glm::dvec3& point, const glm::dvec3& normal);
+                  const glm::dvec3& point, const glm::dvec3& normal) {
+  const Light& light = request.light;
+  const bool perspective = light.projection == LightProjection::Perspective;
+  const glm::dvec3 to_light_center = direction_to_light(light, light_position, point);
+  if (glm::dot(normal, to_light_center) <= 0.0) return 0.0;
+  // Leave the surface by a hair so it does not hit itself; relative to the
+  // point's magnitude, so it holds at every scale.
+  const double lift = 1e-9 * (1.0 + glm::length(point));
+  const glm::dvec3 origin = point + normal * lift;
+  if (light.size <= 0.0) {
+    if (!perspective) return rays.occluded(origin, to_light_center, kInf) ? 0.0 : 1.0;
+    const double distance = glm::length(light_position - origin);
+    return rays.occluded(origin, (light_position - origin) / distance, distance) ? 0.0 : 1.0;
+  }
+  glm::dvec3 u, v;
+  basis(to_light_center, u, v);
+  // Orthographic: the sun's disc, directions within half the angular diameter.
+  const double spread = perspective ? 0.0 : std::tan(glm::radians(0.5 * light.size));
+  int seen = 0;
+  const auto& samples = disc_samples();
+  for (const glm::dvec2& s : samples) {
+    glm::dvec3 dir;
+    double t_max = kInf;
+    if (perspective) {
+      // A spherical light of radius `size` seen from the point is a disc
+      // facing it.
+      const glm::dvec3 target = light_position + light.size * (s.x * u + s.y * v);
+      t_max = glm::length(target - origin);
+      dir = (target - origin) / t_max;
+    } else {
+      dir = glm::normalize(to_light_center + spread * (s.x * u + s.y * v));
+    }
+    if (glm::dot(normal, dir) > 0.0 && !rays.occluded(origin, dir, t_max)) ++seen;
+  }
+  return double(seen) / double(samples.size());
+}
 
 }  // namespace
 
@@ -251,48 +287,6 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
                         const glm::dvec3& normal) {
   return visibility(RayScene(request.scene), request, light_position, point, normal);
 }
-
-namespace {
-
-double visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
-                  const glm::dvec3& point, const glm::dvec3& normal) {
-  const Light& light = request.light;
-  const bool perspective = light.projection == LightProjection::Perspective;
-  const glm::dvec3 to_light_center = direction_to_light(light, light_position, point);
-  if (glm::dot(normal, to_light_center) <= 0.0) return 0.0;
-  // Leave the surface by a hair so it does not hit itself; relative to the
-  // point's magnitude, so it holds at every scale.
-  const double lift = 1e-9 * (1.0 + glm::length(point));
-  const glm::dvec3 origin = point + normal * lift;
-  if (light.size <= 0.0) {
-    if (!perspective) return rays.occluded(origin, to_light_center, kInf) ? 0.0 : 1.0;
-    const double distance = glm::length(light_position - origin);
-    return rays.occluded(origin, (light_position - origin) / distance, distance) ? 0.0 : 1.0;
-  }
-  glm::dvec3 u, v;
-  basis(to_light_center, u, v);
-  // Orthographic: the sun's disc, directions within half the angular diameter.
-  const double spread = perspective ? 0.0 : std::tan(glm::radians(0.5 * light.size));
-  int seen = 0;
-  const auto& samples = disc_samples();
-  for (const glm::dvec2& s : samples) {
-    glm::dvec3 dir;
-    double t_max = kInf;
-    if (perspective) {
-      // A spherical light of radius `size` seen from the point is a disc
-      // facing it.
-      const glm::dvec3 target = light_position + light.size * (s.x * u + s.y * v);
-      t_max = glm::length(target - origin);
-      dir = (target - origin) / t_max;
-    } else {
-      dir = glm::normalize(to_light_center + spread * (s.x * u + s.y * v));
-    }
-    if (glm::dot(normal, dir) > 0.0 && !rays.occluded(origin, dir, t_max)) ++seen;
-  }
-  return double(seen) / double(samples.size());
-}
-
-}  // namespace
 
 std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
   const int width = request.width, height = request.height;
