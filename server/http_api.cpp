@@ -330,11 +330,12 @@ void HttpApi::install_routes() {
       body.append(data, length);
       return true;
     });
-    // Never render from part of a body: too large (cpp-httplib has set
-    // 413), or the connection failed mid-way.
+    // Never render from part of a body. Too large: cpp-httplib has set 413,
+    // and the error handler above writes its JSON. Else the connection
+    // failed mid-way.
     if (!whole) {
-      if (res.status == 413) return send_error(res, 413, "request body larger than 1 MiB", "");
-      return send_error(res, 400, "the request body could not be read whole", "");
+      if (res.status != 413) send_error(res, 400, "the request body could not be read whole", "");
+      return;
     }
     render(req, res, body, depth_route);
   };
