@@ -1,5 +1,7 @@
 #include "light_math.hpp"
 
+#include "shader_interface.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -43,7 +45,7 @@ int filter_reach_texels(const ShadowSettings& shadow) {
   switch (shadow.filter) {
     case ShadowFilter::Hard: return 1;
     case ShadowFilter::Pcf: return shadow.pcf_radius + 1;
-    case ShadowFilter::Pcss: return 33;  // scene.frag's blocker search reaches 32 texels
+    case ShadowFilter::Pcss: return kPcssSearchTexels + 1;  // the blocker search's reach
   }
   return 1;
 }

@@ -10,6 +10,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "gl/program.hpp"
+#include "shader_interface.hpp"
 
 namespace umbra {
 
@@ -19,29 +20,6 @@ using Clock = std::chrono::steady_clock;
 
 double elapsed_ms(Clock::time_point since) {
   return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
-}
-
-// Origin-relative float matrix: vertex positions are stored relative to the
-// mesh origin, so the translation by the origin is folded in while still in
-// double precision.
-glm::mat4 relative_to(const glm::dmat4& m, const glm::dvec3& origin) {
-  return glm::mat4(m * glm::translate(glm::dmat4(1.0), origin));
-}
-
-// glProgramUniform* for the types the shaders use; `at` is a location
-// looked up once (see DisplayPass::Uniforms).
-void set_uniform(const gl::Program& p, GLint at, const glm::mat4& m) {
-  glProgramUniformMatrix4fv(p.id(), at, 1, GL_FALSE, glm::value_ptr(m));
-}
-void set_uniform(const gl::Program& p, GLint at, const glm::vec3& v) { glProgramUniform3f(p.id(), at, v.x, v.y, v.z); }
-void set_uniform(const gl::Program& p, GLint at, float v) { glProgramUniform1f(p.id(), at, v); }
-void set_uniform(const gl::Program& p, GLint at, int v) { glProgramUniform1i(p.id(), at, v); }
-
-// One float per view of the light, for a uniform array.
-std::vector<float> per_view(const ShadowPlan& light, double ShadowView::*member) {
-  std::vector<float> out;
-  for (const ShadowView& v : light.views) out.push_back(float(v.*member));
-  return out;
 }
 
 // Every number that shapes the geometry, so an identical scene is recognised
@@ -62,27 +40,16 @@ std::string scene_key(const Scene& scene) {
 }  // namespace
 
 ShadowRenderer::ShadowRenderer() {
-  shadow_.program = gl::build_program("shadow_depth.vert", "shadow_depth.frag");
-  shadow_.light_view_projection = gl::uniform_location(shadow_.program, "u_light_view_projection");
-  display_.program = gl::build_program("scene.vert", "scene.frag");
-  {
-    const auto at = [&](const char* name) { return gl::uniform_location(display_.program, name); };
-    display_.uniforms = {at("u_view_projection"), at("u_camera_position"),
-                         at("u_light_perspective"), at("u_light_position"), at("u_light_direction"),
-                         at("u_light_color"), at("u_ambient"), at("u_light_size"),
-                         at("u_shadows_enabled"), at("u_output"), at("u_shadow_map"),
-                         at("u_view_count"), at("u_filter_reach"), at("u_light_view"),
-                         at("u_light_view_projection"), at("u_light_near"), at("u_light_far"),
-                         at("u_texel_size"), at("u_tan_half"),
-                         at("u_filter"), at("u_pcf_radius"), at("u_bias_auto"), at("u_bias_constant"),
-                         at("u_bias_slope"), at("u_bias_normal_offset")};
-  }
-  preview_.program = gl::build_program("fullscreen.vert", "depth_preview.frag");
-  {
-    const auto at = [&](const char* name) { return gl::uniform_location(preview_.program, name); };
-    preview_.uniforms = {at("u_shadow_map"), at("u_view_count"), at("u_grid"), at("u_image_size"),
-                         at("u_light_perspective"), at("u_light_near"), at("u_light_far")};
-  }
+  shadow_.program = gl::build_program("shadow_depth.vert", "shadow_depth.frag", glsl_prelude(""));
+  shadow_.layer = gl::uniform_location(shadow_.program, "u_layer");
+  // Built now, so that a GLSL error shows at start-up: the default frame's
+  // variant (the others are built when first asked for).
+  RenderRequest defaults;
+  defaults.scene.objects.push_back({});
+  display_.programs.get(display_variant(defaults, plan_shadow(defaults)).defines());
+  frame_block_ = gl::create_buffer();
+  glNamedBufferStorage(frame_block_.id(), sizeof(FrameBlock), nullptr, GL_DYNAMIC_STORAGE_BIT);
+  glBindBufferBase(GL_UNIFORM_BUFFER, 0, frame_block_.id());
   empty_vertex_array_ = gl::create_vertex_array();
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
@@ -215,6 +182,11 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull) {
   glDisable(GL_CULL_FACE);
 }
 
+void ShadowRenderer::upload_frame_block(const RenderRequest& request, const ShadowPlan& light) {
+  const FrameBlock block = frame_block(request, light, scene().mesh.origin);
+  glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
+}
+
 void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowPlan& light) {
   resize_shadow_map(light.layer_size, int(light.views.size()));
   const GLuint framebuffer = shadow_.framebuffer.id();
@@ -224,12 +196,10 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   glViewport(0, 0, light.layer_size, light.layer_size);
   glUseProgram(shadow_.program.id());
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
-    const ShadowView& view = light.views[layer];
     glNamedFramebufferTextureLayer(framebuffer, GL_DEPTH_ATTACHMENT, shadow_.depth_map.id(), 0, GLint(layer));
     glClear(GL_DEPTH_BUFFER_BIT);
-    if (view.empty) continue;  // cleared to far: nothing there to cast
-    glProgramUniformMatrix4fv(shadow_.program.id(), shadow_.light_view_projection, 1, GL_FALSE,
-                              glm::value_ptr(relative_to(view.view_projection(), scene().mesh.origin)));
+    if (light.views[layer].empty) continue;  // cleared to far: nothing there to cast
+    glProgramUniform1i(shadow_.program.id(), shadow_.layer, GLint(layer));
     // Culling front faces stores the far side of closed objects: their lit
     // faces then sit well in front of the stored depth, so no bias is needed
     // against self-shadowing there, and the bias stays small elsewhere (less
@@ -249,55 +219,8 @@ bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const Shado
 
 void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light) {
   resize_display(request.width, request.height);
-  const glm::dvec3 origin = scene().mesh.origin;
-  const gl::Program& p = display_.program;
-  const DisplayPass::Uniforms& u = display_.uniforms;
-  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
-  const bool shadows = request.shadow.enabled;
-  const ShadowSettings& s = request.shadow;
-
-  set_uniform(p, u.view_projection, relative_to(camera.projection * camera.view, origin));
-  set_uniform(p, u.camera_position, glm::vec3(request.camera.position - origin));
-  set_uniform(p, u.light_perspective, int(light.perspective));
-  set_uniform(p, u.light_position, glm::vec3(light.position - origin));
-  set_uniform(p, u.light_direction, glm::vec3(light.direction));
-  set_uniform(p, u.light_color, glm::vec3(request.light.color));
-  set_uniform(p, u.ambient, float(request.light.ambient));
-  set_uniform(p, u.shadows_enabled, int(shadows));
-  set_uniform(p, u.output, request.output == Output::Shadow ? 1 : 0);
-  // Per view: origin-relative matrices, clip planes and texel footprints.
-  const int views = int(light.views.size());
-  std::vector<glm::mat4> view_matrices, view_projections;
-  std::vector<glm::vec2> texel_sizes;
-  for (const ShadowView& v : light.views) {
-    view_matrices.push_back(relative_to(v.view, origin));
-    view_projections.push_back(relative_to(v.view_projection(), origin));
-    texel_sizes.push_back(glm::vec2(v.texel_size));
-  }
-  set_uniform(p, u.view_count, views);
-  set_uniform(p, u.filter_reach, filter_reach_texels(s));
-  glProgramUniformMatrix4fv(p.id(), u.light_view, views, GL_FALSE,
-                            glm::value_ptr(view_matrices[0]));
-  glProgramUniformMatrix4fv(p.id(), u.light_view_projection, views, GL_FALSE,
-                            glm::value_ptr(view_projections[0]));
-  glProgramUniform1fv(p.id(), u.light_near, views,
-                      per_view(light, &ShadowView::near_plane).data());
-  glProgramUniform1fv(p.id(), u.light_far, views,
-                      per_view(light, &ShadowView::far_plane).data());
-  glProgramUniform2fv(p.id(), u.texel_size, views, glm::value_ptr(texel_sizes[0]));
-  glProgramUniform1fv(p.id(), u.tan_half, views, per_view(light, &ShadowView::tan_half).data());
-  set_uniform(p, u.filter, s.filter == ShadowFilter::Hard ? 0 : s.filter == ShadowFilter::Pcf ? 1 : 2);
-  set_uniform(p, u.pcf_radius, s.pcf_radius);
-  set_uniform(p, u.bias_auto, int(s.bias.automatic));
-  set_uniform(p, u.bias_constant, float(s.bias.constant));
-  set_uniform(p, u.bias_slope, float(s.bias.slope));
-  set_uniform(p, u.bias_normal_offset, float(s.bias.normal_offset));
-  const double light_size = light.perspective ? request.light.size
-                                              : std::tan(0.5 * request.light.size * 3.14159265358979323846 / 180.0);
-  set_uniform(p, u.light_size, float(light_size));
-  set_uniform(p, u.shadow_map, 0);
-  glBindTextureUnit(0, shadows ? shadow_.depth_map.id() : 0);
-
+  glUseProgram(display_.programs.get(display_variant(request, light).defines()).id());
+  if (request.shadow.enabled) glBindTextureUnit(0, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
   glViewport(0, 0, display_.width, display_.height);
   if (request.output == Output::Shadow)
@@ -305,31 +228,17 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   else
     glClearColor(0.11f, 0.12f, 0.14f, 1.0f);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  glUseProgram(p.id());
   draw_scene(CullMode::None);
 }
 
 void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size) {
   resize_depth_preview(image_size);
-  const gl::Program& p = preview_.program;
-  const DepthPreviewPass::Uniforms& u = preview_.uniforms;
-  const int views = int(light.views.size());
-  int grid = 1;
-  while (grid * grid < views) ++grid;
-  set_uniform(p, u.shadow_map, 0);
-  set_uniform(p, u.view_count, views);
-  set_uniform(p, u.grid, grid);
-  set_uniform(p, u.image_size, float(image_size));
-  set_uniform(p, u.light_perspective, int(light.perspective));
-  glProgramUniform1fv(p.id(), u.light_near, views,
-                      per_view(light, &ShadowView::near_plane).data());
-  glProgramUniform1fv(p.id(), u.light_far, views,
-                      per_view(light, &ShadowView::far_plane).data());
+  const PreviewVariant variant{light.perspective, int(light.views.size())};
+  glUseProgram(preview_.programs.get(variant.defines()).id());
   glBindTextureUnit(0, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, preview_.framebuffer.id());
   glViewport(0, 0, preview_.size, preview_.size);
   glDisable(GL_DEPTH_TEST);
-  glUseProgram(p.id());
   glBindVertexArray(empty_vertex_array_.id());
   glDrawArrays(GL_TRIANGLES, 0, 3);
   glEnable(GL_DEPTH_TEST);
@@ -364,13 +273,16 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
   ShadowPlan light = plan_shadow(request);
   const bool depth_output = request.output == Output::Depth;
 
-  if (request.shadow.enabled || depth_output) {
-    if (shadow_map_serves(request, light)) {
-      // Nothing the map depends on changed (typically only the camera
-      // moved): draw with the views it was made for; shadow_ms stays 0.
-      light = shadow_.plan;
-      result.shadow_reused = true;
-    } else {
+  const bool needs_map = request.shadow.enabled || depth_output;
+  if (needs_map && shadow_map_serves(request, light)) {
+    // Nothing the map depends on changed (typically only the camera
+    // moved): draw with the views it was made for; shadow_ms stays 0.
+    light = shadow_.plan;
+    result.shadow_reused = true;
+  }
+  upload_frame_block(request, light);
+  if (needs_map) {
+    if (!result.shadow_reused) {
       const auto start = Clock::now();
       run_shadow_pass(request, light);
       glFinish();

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "gl/objects.hpp"
+#include "gl/program.hpp"
 #include "render_result.hpp"
 #include "light_math.hpp"
 #include "request.hpp"
@@ -40,7 +41,7 @@ class ShadowRenderer {
   // Depth-only framebuffer seen from the light, one array layer per view.
   struct ShadowPass {
     gl::Program program;
-    GLint light_view_projection = -1;
+    GLint layer = -1;       // u_layer: the view a draw fills
     gl::Texture depth_map;  // 2D array of DEPTH_COMPONENT32F, size^2 x layers
     gl::Framebuffer framebuffer;
     int size = 0;
@@ -54,15 +55,7 @@ class ShadowRenderer {
   };
   // The camera's view, into an offscreen colour + depth framebuffer.
   struct DisplayPass {
-    gl::Program program;
-    // Uniform locations, looked up once when the program is built.
-    struct Uniforms {
-      GLint view_projection, camera_position;
-      GLint light_perspective, light_position, light_direction, light_color, ambient, light_size;
-      GLint shadows_enabled, output, shadow_map;
-      GLint view_count, filter_reach, light_view, light_view_projection, light_near, light_far, texel_size, tan_half;
-      GLint filter, pcf_radius, bias_auto, bias_constant, bias_slope, bias_normal_offset;
-    } uniforms{};
+    gl::ProgramVariants programs{"scene.vert", "scene.frag", kKeptVariants};  // per DisplayVariant
     gl::Renderbuffer color;  // RGBA8
     gl::Renderbuffer depth;  // DEPTH_COMPONENT32F
     gl::Framebuffer framebuffer;
@@ -70,14 +63,14 @@ class ShadowRenderer {
   };
   // The depth map turned into a grey image for the "depth" output.
   struct DepthPreviewPass {
-    gl::Program program;
-    struct Uniforms {
-      GLint shadow_map, view_count, grid, image_size, light_perspective, light_near, light_far;
-    } uniforms{};
+    gl::ProgramVariants programs{"fullscreen.vert", "depth_preview.frag", kKeptVariants};  // per PreviewVariant
     gl::Texture grey;        // R8, map_size^2
     gl::Framebuffer framebuffer;
     int size = 0;
   };
+  // Compiled variants kept per pass: every combination a client can ask
+  // for is a few hundred, each a large program on a software rasteriser.
+  static constexpr std::size_t kKeptVariants = 24;
 
   /// Makes `scene` the current one (scenes_.front()), uploading it unless a
   /// scene with the same content is cached; true if it was uploaded.
@@ -88,6 +81,7 @@ class ShadowRenderer {
   void resize_display(int width, int height);
   void resize_depth_preview(int size);
   void draw_scene(CullMode closed_mesh_cull);
+  void upload_frame_block(const RenderRequest& request, const ShadowPlan& light);
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light);
   bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const;
   void run_display_pass(const RenderRequest& request, const ShadowPlan& light);
@@ -101,6 +95,7 @@ class ShadowRenderer {
   ShadowPass shadow_;
   DisplayPass display_;
   DepthPreviewPass preview_;
+  gl::Buffer frame_block_;  // FrameBlock, binding 0: every pass reads it
   gl::VertexArray empty_vertex_array_;  // for the full-screen triangle
 };
 

@@ -1,4 +1,3 @@
-#version 450 core
 // One triangle that covers the viewport; no vertex buffer needed.
 void main() {
   const vec2 corners[3] = vec2[3](vec2(-1.0, -1.0), vec2(3.0, -1.0), vec2(-1.0, 3.0));

@@ -1,4 +1,3 @@
-#version 450 core
 // Main pass: Blinn-Phong lighting with a shadow-mapped direct term.
 //
 //   colour = (ambient + visibility * (diffuse + specular)) * albedo
@@ -6,149 +5,221 @@
 // Ambient is never shadowed (it stands for light scattered around the
 // scene); `visibility` in [0, 1] is the fraction of the light's direct light
 // that reaches the surface, and is also what the "shadow" output shows.
+//
+// Built once per variant (DisplayVariant in renderer/shader_interface.hpp,
+// which also declares the FrameBlock `u`): SHADOWS, OUTPUT_SHADOW,
+// LIGHT_PERSPECTIVE, LIGHT_CUBE, VIEW_COUNT, FILTER, PCF_RADIUS,
+// FILTER_REACH and BIAS_AUTO are #defines, so nothing below branches on a
+// uniform and every loop has a constant trip count.
 in vec3 v_position;  // relative to the mesh origin
 in vec3 v_normal;
 in vec3 v_color;
 
 layout(location = 0) out vec4 o_color;
 
-// ---- light (positions relative to the mesh origin) ----
-uniform bool u_light_perspective;  // false: directional light, true: point light
-uniform vec3 u_light_position;
-uniform vec3 u_light_direction;    // unit direction of travel, position -> target
-uniform vec3 u_light_color;        // linear RGB
-uniform float u_ambient;           // fraction of the light that is ambient
-uniform vec3 u_camera_position;
-
-// ---- shadow map: one layer per view of the light ----
-// A light has one view, or several: cascades (a directional light, nearest
-// camera depths first) or cube faces (a point light). Each point uses the
-// first view whose map holds it with its filter kernel.
-const int kMaxViews = 6;
-uniform bool u_shadows_enabled;
-uniform sampler2DArray u_shadow_map;  // window depth in [0,1], nearest, no compare
-uniform int u_view_count;
-uniform int u_filter_reach;           // texels a filter reads around its own
-uniform mat4 u_light_view[kMaxViews];
-uniform mat4 u_light_view_projection[kMaxViews];
-uniform float u_light_near[kMaxViews];  // clip planes, world units along the view's axis
-uniform float u_light_far[kMaxViews];
-// Orthographic: world size of one texel in light x and y.
-// Perspective: x = y = world size of one texel per unit of distance, and
-// u_tan_half the tangent of half the field of view.
-uniform vec2 u_texel_size[kMaxViews];
-uniform float u_tan_half[kMaxViews];
-uniform int u_filter;              // 0 hard, 1 pcf, 2 pcss
-uniform int u_pcf_radius;          // pcf: (2r+1)^2 bilinear taps
-uniform bool u_bias_auto;
-uniform float u_bias_constant;     // explicit bias, window-depth units (the seeds')
-uniform float u_bias_slope;        // explicit bias, window-depth units * (1 - N.L)
-uniform float u_bias_normal_offset;// explicit bias, texels along the normal
-// pcss: orthographic: tan(half the angular diameter); perspective: radius.
-uniform float u_light_size;
-
-uniform int u_output;              // 0: lit colour, 1: visibility as grey
-
-// The view chosen for the point being shaded (see choose_view).
-int g_layer = 0;
-float g_near = 1.0;
-float g_far = 2.0;
-vec2 g_texel_size = vec2(0.0);
-float g_tan_half = 0.0;
+#if SHADOWS
+// Window depth in [0, 1] per layer; nearest, no compare; outside the map
+// the border reads 1 (far).
+layout(binding = 0) uniform sampler2DArray u_shadow_map;
 
 // ---------------------------------------------------------------------------
-// Depth conversions between the depth buffer's window depth and linear depth
-// (world units along the light's axis).
-float linear_from_window(float z) {
-  float n = g_near, f = g_far;
-  return u_light_perspective ? n * f / (f - z * (f - n)) : n + z * (f - n);
+// The view of the light that holds the point being shaded.
+//
+// A light has one view, or several: cascades (a directional light, nearest
+// camera depths first) or cube faces (a point light).
+struct View {
+  int layer;
+  float near, far;  // world units along the view's axis
+  vec2 texel;       // world size of a texel (perspective: per unit of distance)
+  float tan_half;   // perspective: tangent of half the field of view
+};
+
+View view_of(int layer) {
+  vec4 v = u.view_depth_texel[layer];
+#if LIGHT_PERSPECTIVE
+  return View(layer, v.x, v.y, vec2(v.z), v.w);
+#else
+  return View(layer, v.x, v.y, v.zw, 0.0);
+#endif
 }
 
-float window_from_linear(float d) {
-  float n = g_near, f = g_far;
-  return u_light_perspective ? f * (d - n) / (d * (f - n)) : (d - n) / (f - n);
+// The first view whose map holds p with the filter's reach (FILTER_REACH
+// texels) to spare; else the first that holds p at all; -1 if none does.
+int choose_view(vec3 p) {
+#if LIGHT_CUBE
+  // Faces +X, -X, +Y, -Y, +Z, -Z, each a little wider than 90 degrees so
+  // that the face of p's major axis holds p with its kernel.
+  vec3 d = p - u.light_position.xyz;
+  vec3 a = abs(d);
+  int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
+  return 2 * axis + (d[axis] < 0.0 ? 1 : 0);
+#else
+  int fallback = -1;
+  for (int i = 0; i < VIEW_COUNT; ++i) {
+    vec4 clip = u.light_view_projection[i] * vec4(p, 1.0);
+    if (clip.w <= 0.0) continue;  // behind a point light's view
+    vec3 ndc = clip.xyz / clip.w;
+    if (any(greaterThan(abs(ndc), vec3(1.0)))) continue;
+    vec2 texel = (ndc.xy * 0.5 + 0.5) * u.map_size;
+    if (all(greaterThanEqual(texel, vec2(FILTER_REACH))) && all(lessThanEqual(texel, vec2(u.map_size - FILTER_REACH))))
+      return i;
+    if (fallback < 0) fallback = i;
+  }
+  return fallback;
+#endif
+}
+
+// Depth along the view's axis (world units) of window depth z.
+float linear_from_window(View v, float z) {
+#if LIGHT_PERSPECTIVE
+  return v.near * v.far / (v.far - z * (v.far - v.near));
+#else
+  return v.near + z * (v.far - v.near);
+#endif
 }
 
 // ---------------------------------------------------------------------------
 // The receiver: the surface point being shaded, as the shadow map sees it.
 //
 // Instead of one depth with a guessed bias, the receiver's own plane (from
-// the triangle's true normal) gives its exact depth along the light ray
-// through any texel centre: each texel is compared with the receiver where
-// that texel actually looks. This removes acne on planar surfaces at any
-// slope without the large slope bias that causes peter panning, and it keeps
-// PCF kernels of any radius correct on tilted receivers.
+// the triangle's true normal) gives its depth along the light ray through
+// any texel centre: each texel is compared with the receiver where that
+// texel actually looks. This removes acne on planar surfaces at any slope
+// without the large slope bias that causes peter panning, and it keeps PCF
+// kernels of any radius correct on tilted receivers.
+//
+// On a plane, window depth is affine in the texel position for both kinds
+// of light (orthographic: depth is affine and window depth is affine in
+// depth; perspective: 1/depth is affine and window depth is affine in
+// 1/depth). So the receiver is a reference depth at its own texel and a
+// gradient, and each texel's comparison is one multiply-add in the map's
+// own units, with no per-texel linearisation.
 struct Receiver {
-  vec2 texel;        // position in texel units (uv * map size)
-  float depth;       // linear depth of the point itself
-  vec3 view_point;   // the point in light view space
-  vec3 view_normal;  // its plane's normal in light view space
-  float window_ref;  // explicit bias only: the seeds' window-depth reference
+  vec2 texel;       // where the point falls, texel units (uv * map size)
+  float reference;  // window depth compared with at `texel`, bias subtracted
+  vec2 gradient;    // change of `reference` per texel
+  float depth;      // linear depth of the point itself (PCSS)
 };
 
-float receiver_depth_at(Receiver r, vec2 texel_center) {
-  if (!u_bias_auto) return linear_from_window(r.window_ref);
-  vec3 n = r.view_normal;
-  if (u_light_perspective) {
-    // The ray through the texel centre is depth * (a, b, -1); it meets the
-    // plane n.(x - p) = 0 at depth = n.p / (n.(a, b, -1)). Rays nearly
-    // parallel to the plane are kept from running off to infinity.
-    vec3 ray = vec3(texel_center * g_texel_size - vec2(g_tan_half), -1.0);
-    float denominator = dot(n, ray);
-    float limit = 0.02 * length(ray);
-    if (abs(denominator) < limit) denominator = denominator < 0.0 ? -limit : limit;
-    float depth = dot(n, r.view_point) / denominator;
-    return depth > 0.0 ? depth : r.depth;
-  }
-  // Orthographic: depth is affine in the texel position. Grazing planes
-  // (n.z -> 0) are kept from extrapolating to infinity.
-  float nz = n.z < 0.0 ? min(n.z, -0.02) : max(n.z, 0.02);
-  vec2 offset = (texel_center - r.texel) * g_texel_size;
-  return r.depth + dot(n.xy, offset) / nz;
-}
-
-// Depth stored in texel t (linear); outside the map counts as the far plane,
-// which is what CLAMP_TO_BORDER with border depth 1 gives a sampler.
-float stored_depth(ivec2 t) {
-  ivec2 size = textureSize(u_shadow_map, 0).xy;
-  if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) return g_far;
-  return linear_from_window(texelFetch(u_shadow_map, ivec3(t, g_layer), 0).r);
-}
-
 // The bias that remains once each texel is compared with the receiver's own
-// plane: float precision of the depth buffer and of interpolated positions.
-float remaining_bias(Receiver r) {
-  float texel_world = u_light_perspective ? g_texel_size.x * r.depth : max(g_texel_size.x, g_texel_size.y);
-  float precision_bias = u_light_perspective
-      ? 4.0 * 6e-8 * r.depth * r.depth / g_near   // window-depth ulp near z = 1, linearised
-      : 4.0 * 6e-8 * (g_far - g_near);
-  return 0.05 * texel_world + precision_bias + 1e-6 * abs(r.depth);
+// plane: float precision of the depth buffer and of interpolated positions,
+// in world units.
+float remaining_bias(View v, float depth) {
+#if LIGHT_PERSPECTIVE
+  float texel_world = v.texel.x * depth;
+  float precision_bias = 4.0 * 6e-8 * depth * depth / v.near;  // window-depth ulp near z = 1, linearised
+#else
+  float texel_world = max(v.texel.x, v.texel.y);
+  float precision_bias = 4.0 * 6e-8 * (v.far - v.near);
+#endif
+  return 0.05 * texel_world + precision_bias + 1e-6 * abs(depth);
 }
 
-// 1 where texel t does not occlude the receiver, 0 where it does.
-float lit_by_texel(Receiver r, ivec2 t, float bias) {
-  float reference = receiver_depth_at(r, vec2(t) + 0.5) - bias;
-  return stored_depth(t) < reference ? 0.0 : 1.0;
+// False if the point lies outside the view (then nothing in the map can
+// shadow it).
+bool make_receiver(View v, vec3 p, vec3 geometric_normal, float n_dot_l, out Receiver r) {
+  vec3 view_point = (u.light_view[v.layer] * vec4(p, 1.0)).xyz;
+  r.depth = -view_point.z;
+  vec3 lookup_point = p;
+#if !BIAS_AUTO
+  // The seeds' bias: move the receiver along its normal, then compare in
+  // window depth with max(slope * (1 - N.L), constant) subtracted.
+#if LIGHT_PERSPECTIVE
+  float texel_world = v.texel.x * r.depth;
+#else
+  float texel_world = max(v.texel.x, v.texel.y);
+#endif
+  lookup_point = p + geometric_normal * (u.bias_normal_offset * texel_world);
+#endif
+  vec4 clip = u.light_view_projection[v.layer] * vec4(lookup_point, 1.0);
+  if (clip.w <= 0.0) return false;
+  vec3 ndc = clip.xyz / clip.w;
+  if (any(greaterThan(abs(ndc), vec3(1.0)))) return false;
+  r.texel = (ndc.xy * 0.5 + 0.5) * u.map_size;
+#if BIAS_AUTO
+  vec3 n = normalize(mat3(u.light_view[v.layer]) * geometric_normal);
+  float range = v.far - v.near;
+#if LIGHT_PERSPECTIVE
+  // The ray through texel t is depth * (t * texel - tan_half, -1); it meets
+  // the plane n.(x - p) = 0 where 1/depth = n.ray(t) / n.p, and n.p =
+  // depth_p * n.ray(t_p). Window depth = far / range - (near far / range) /
+  // depth. Rays nearly parallel to the plane are kept from running off to
+  // infinity.
+  vec3 ray = vec3(r.texel * v.texel - vec2(v.tan_half), -1.0);
+  float denominator = dot(n, ray);
+  float limit = 0.02 * length(ray);
+  if (abs(denominator) < limit) denominator = denominator < 0.0 ? -limit : limit;
+  float b_over_depth = v.near * v.far / (range * r.depth);
+  r.reference = v.far / range - b_over_depth;
+  r.gradient = -b_over_depth * n.xy * v.texel / denominator;
+  float window_per_world = b_over_depth / r.depth;
+#else
+  // Depth is affine in the texel position; grazing planes (n.z -> 0) are
+  // kept from extrapolating to infinity.
+  float nz = n.z < 0.0 ? min(n.z, -0.02) : max(n.z, 0.02);
+  r.reference = (r.depth - v.near) / range;
+  r.gradient = n.xy * v.texel / (nz * range);
+  float window_per_world = 1.0 / range;
+#endif
+  r.reference -= remaining_bias(v, r.depth) * window_per_world;
+#else
+  r.reference = (ndc.z * 0.5 + 0.5) - max(u.bias_slope * (1.0 - n_dot_l), u.bias_constant);
+  r.gradient = vec2(0.0);
+#endif
+  return true;
 }
 
-// Bilinearly weighted percentage-closer filter: (2r+1)^2 bilinear taps one
-// texel apart are the same as a tent-weighted sum over (2r+2)^2 texels.
-float pcf(Receiver r, int radius, float bias) {
+// The receiver's reference at a texel centre. A texel holding 1 (cleared:
+// nothing was drawn there within the view's depth range) never shadows: the
+// reference is capped at 1, so a receiver whose plane runs past the far
+// plane is not darkened by the empty texels beyond it (the seam that a
+// cascade's far plane would otherwise draw across the floor).
+float reference_at(Receiver r, vec2 texel_center) {
+  return min(r.reference + dot(r.gradient, texel_center - r.texel), 1.0);
+}
+
+float stored_depth(View v, vec2 texel_center) {
+  return textureLod(u_shadow_map, vec3(texel_center / u.map_size, float(v.layer)), 0.0).r;
+}
+
+// 1 where the texel at texel_center does not occlude the receiver, else 0.
+float lit_by_texel(View v, Receiver r, vec2 texel_center) {
+  return step(reference_at(r, texel_center), stored_depth(v, texel_center));
+}
+
+// Bilinearly weighted percentage-closer filter: (2R+1)^2 bilinear taps one
+// texel apart are the same as a tent-weighted sum over (2R+2)^2 texels,
+// read here four at a time with textureGather.
+float pcf(View v, Receiver r, const int R) {
   vec2 base = r.texel - 0.5;
-  ivec2 origin = ivec2(floor(base));
-  vec2 f = base - floor(base);
+  vec2 origin = floor(base);  // the texel a bilinear tap at r.texel starts from
+  vec2 f = base - origin;
+  float reference_origin = r.reference - dot(r.gradient, f);
   float sum = 0.0;
-  for (int j = -radius; j <= radius + 1; ++j) {
-    float wy = j == -radius ? 1.0 - f.y : (j == radius + 1 ? f.y : 1.0);
-    for (int i = -radius; i <= radius + 1; ++i) {
-      float wx = i == -radius ? 1.0 - f.x : (i == radius + 1 ? f.x : 1.0);
-      sum += wx * wy * lit_by_texel(r, origin + ivec2(i, j), bias);
+  for (int by = 0; by <= R; ++by) {
+    for (int bx = 0; bx <= R; ++bx) {
+      // This 2x2 block's lower-left texel, relative to `origin`.
+      vec2 corner = vec2(2 * bx - R, 2 * by - R);
+      vec4 stored = textureGather(u_shadow_map, vec3((origin + corner + 1.0) / u.map_size, float(v.layer)));
+      // textureGather's order: (x0, y1), (x1, y1), (x1, y0), (x0, y0).
+      vec4 dx = corner.x + vec4(0.0, 1.0, 1.0, 0.0);
+      vec4 dy = corner.y + vec4(1.0, 1.0, 0.0, 0.0);
+      vec4 reference = min(reference_origin + r.gradient.x * dx + r.gradient.y * dy, vec4(1.0));
+      vec4 lit = step(reference, stored);
+      // The tent's edge columns and rows weigh by the tap's fraction.
+      vec4 wx = vec4(1.0), wy = vec4(1.0);
+      if (bx == 0) wx.xw = vec2(1.0 - f.x);
+      if (bx == R) wx.yz = vec2(f.x);
+      if (by == 0) wy.zw = vec2(1.0 - f.y);
+      if (by == R) wy.xy = vec2(f.y);
+      sum += dot(lit, wx * wy);
     }
   }
-  float taps = float(2 * radius + 1);
+  float taps = float(2 * R + 1);
   return sum / (taps * taps);
 }
 
+#if FILTER == FILTER_PCSS
 // A well-spread disk of sample points (Vogel spiral), rotated per pixel so
 // that too few samples show as fine grain rather than as banding.
 vec2 disk_sample(int i, int count, float rotation) {
@@ -163,128 +234,93 @@ float pixel_rotation() {
 
 // Radius, in texels, of the region of the map through which the light's disc
 // is seen from the receiver, at linear depth d of the map (d < receiver).
-vec2 light_footprint_texels(Receiver r, float d) {
-  if (u_light_perspective) {
-    float angular = u_light_size * (r.depth - d) / (r.depth * max(d, g_near));
-    return vec2(angular / g_texel_size.x);
-  }
-  return vec2((r.depth - d) * u_light_size) / g_texel_size;
+vec2 light_footprint_texels(View v, Receiver r, float d) {
+#if LIGHT_PERSPECTIVE
+  float angular = u.light_size * (r.depth - d) / (r.depth * max(d, v.near));
+  return vec2(angular / v.texel.x);
+#else
+  return vec2((r.depth - d) * u.light_size) / v.texel;
+#endif
 }
 
 // Percentage-closer soft shadows: find the average blocker depth, then
 // filter over the region the light's disc covers at that depth.
-float pcss(Receiver r, float bias) {
-  const int kBlockerSamples = 16;
-  const int kFilterSamples = 32;
+float pcss(View v, Receiver r) {
   float rotation = pixel_rotation();
-  vec2 search = min(light_footprint_texels(r, g_near), vec2(32.0));
+  vec2 search = min(light_footprint_texels(v, r, v.near), vec2(kPcssSearchTexels));
   float blocker_sum = 0.0;
   int blockers = 0;
-  for (int i = 0; i < kBlockerSamples; ++i) {
-    vec2 p = r.texel + disk_sample(i, kBlockerSamples, rotation) * search;
-    ivec2 t = ivec2(floor(p));
-    float stored = stored_depth(t);
-    if (stored < receiver_depth_at(r, vec2(t) + 0.5) - bias) {
-      blocker_sum += stored;
+  for (int i = 0; i < kPcssBlockerSamples; ++i) {
+    vec2 t = floor(r.texel + disk_sample(i, kPcssBlockerSamples, rotation) * search) + 0.5;
+    float stored = stored_depth(v, t);
+    if (stored < reference_at(r, t)) {
+      blocker_sum += linear_from_window(v, stored);
       ++blockers;
     }
   }
   if (blockers == 0) return 1.0;
-  vec2 penumbra = min(light_footprint_texels(r, blocker_sum / float(blockers)), vec2(64.0));
-  if (max(penumbra.x, penumbra.y) < 1.0) return pcf(r, 0, bias);
+  vec2 penumbra = min(light_footprint_texels(v, r, blocker_sum / float(blockers)), vec2(kPcssMaxPenumbraTexels));
+  if (max(penumbra.x, penumbra.y) < 1.0) return pcf(v, r, 0);
   float sum = 0.0;
-  for (int i = 0; i < kFilterSamples; ++i) {
-    vec2 p = r.texel + disk_sample(i, kFilterSamples, rotation) * penumbra;
-    sum += lit_by_texel(r, ivec2(floor(p)), bias);
-  }
-  return sum / float(kFilterSamples);
+  for (int i = 0; i < kPcssFilterSamples; ++i)
+    sum += lit_by_texel(v, r, floor(r.texel + disk_sample(i, kPcssFilterSamples, rotation) * penumbra) + 0.5);
+  return sum / float(kPcssFilterSamples);
 }
-
-// The first view whose map holds p with the filter's reach to spare; else
-// the first that holds p at all; -1 if none does.
-int choose_view(vec3 p) {
-  vec2 map_size = vec2(textureSize(u_shadow_map, 0).xy);
-  vec2 reach = vec2(float(u_filter_reach));
-  int fallback = -1;
-  for (int i = 0; i < u_view_count; ++i) {
-    vec4 clip = u_light_view_projection[i] * vec4(p, 1.0);
-    if (clip.w <= 0.0) continue;  // behind a point light's view
-    vec3 ndc = clip.xyz / clip.w;
-    if (any(greaterThan(abs(ndc), vec3(1.0)))) continue;
-    vec2 texel = (ndc.xy * 0.5 + 0.5) * map_size;
-    if (all(greaterThanEqual(texel, reach)) && all(lessThanEqual(texel, map_size - reach))) return i;
-    if (fallback < 0) fallback = i;
-  }
-  return fallback;
-}
+#endif
 
 // Fraction of the direct light reaching point p (1 lit, 0 shadowed).
 float shadow_visibility(vec3 p, vec3 geometric_normal, float n_dot_l) {
-  if (!u_shadows_enabled) return 1.0;
   // Outside every view (beside the light's frustum, before near, beyond
   // far): nothing in the map can shadow the point, so it is lit (the seeds'
   // far-plane fix).
   int layer = choose_view(p);
   if (layer < 0) return 1.0;
-  g_layer = layer;
-  g_near = u_light_near[layer];
-  g_far = u_light_far[layer];
-  g_texel_size = u_texel_size[layer];
-  g_tan_half = u_tan_half[layer];
-
-  vec2 map_size = vec2(textureSize(u_shadow_map, 0).xy);
+  View v = view_of(layer);
   Receiver r;
-  r.view_point = (u_light_view[layer] * vec4(p, 1.0)).xyz;
-  r.view_normal = normalize(mat3(u_light_view[layer]) * geometric_normal);
-  r.depth = -r.view_point.z;
-  r.window_ref = 0.0;
-  vec3 lookup_point = p;
-  if (!u_bias_auto) {
-    // The seeds' bias: move the receiver along its normal, then compare in
-    // window depth with max(slope * (1 - N.L), constant) subtracted.
-    float texel_world = u_light_perspective ? g_texel_size.x * r.depth : max(g_texel_size.x, g_texel_size.y);
-    lookup_point = p + geometric_normal * (u_bias_normal_offset * texel_world);
-  }
-  vec4 clip = u_light_view_projection[layer] * vec4(lookup_point, 1.0);
-  if (clip.w <= 0.0) return 1.0;
-  vec3 ndc = clip.xyz / clip.w;
-  if (any(greaterThan(abs(ndc), vec3(1.0)))) return 1.0;
-  r.texel = (ndc.xy * 0.5 + 0.5) * map_size;
-  float bias = 0.0;
-  if (u_bias_auto) {
-    bias = remaining_bias(r);
-  } else {
-    r.window_ref = (ndc.z * 0.5 + 0.5) - max(u_bias_slope * (1.0 - n_dot_l), u_bias_constant);
-  }
-  if (u_filter == 0) return lit_by_texel(r, ivec2(floor(r.texel)), bias);
-  if (u_filter == 2 && u_light_size > 0.0) return pcss(r, bias);
-  return pcf(r, u_pcf_radius, bias);
+  if (!make_receiver(v, p, geometric_normal, n_dot_l, r)) return 1.0;
+#if FILTER == FILTER_HARD
+  return lit_by_texel(v, r, floor(r.texel) + 0.5);
+#elif FILTER == FILTER_PCSS
+  return pcss(v, r);
+#else
+  return pcf(v, r, PCF_RADIUS);
+#endif
 }
+#endif  // SHADOWS
 
 void main() {
   vec3 albedo = v_color;
   vec3 normal = normalize(v_normal);
   if (!gl_FrontFacing) normal = -normal;  // planes are seen from both sides
+#if LIGHT_PERSPECTIVE
+  vec3 to_light = normalize(u.light_position.xyz - v_position);
+#else
+  vec3 to_light = -u.light_direction.xyz;
+#endif
+  float n_dot_l = dot(normal, to_light);
+#if SHADOWS
   // The triangle's true plane, for the shadow lookup (a sphere's interpolated
-  // normal is not the plane the shadow pass rasterised).
+  // normal is not the plane the shadow pass rasterised). Derivatives are
+  // taken here, outside any branch.
   vec3 geometric_normal = normalize(cross(dFdx(v_position), dFdy(v_position)));
   if (dot(geometric_normal, normal) < 0.0) geometric_normal = -geometric_normal;
-
-  vec3 to_light = u_light_perspective ? normalize(u_light_position - v_position) : -u_light_direction;
-  float n_dot_l = dot(normal, to_light);
   // Surfaces facing away from the light get no direct light at all.
   float visibility = n_dot_l > 0.0 ? shadow_visibility(v_position, geometric_normal, n_dot_l) : 0.0;
+#else
+  float visibility = n_dot_l > 0.0 ? 1.0 : 0.0;
+#endif
 
-  if (u_output == 1) {
-    o_color = vec4(vec3(visibility), 1.0);
-    return;
-  }
-  vec3 to_camera = normalize(u_camera_position - v_position);
+#if OUTPUT_SHADOW
+  o_color = vec4(vec3(visibility), 1.0);
+#else
+  vec3 light_color = u.light_color_ambient.rgb;
+  float ambient = u.light_color_ambient.a;
+  vec3 to_camera = normalize(u.camera_position.xyz - v_position);
   vec3 halfway = normalize(to_light + to_camera);
-  float direct = 1.0 - u_ambient;
-  vec3 ambient = u_ambient * u_light_color;
-  vec3 diffuse = direct * max(n_dot_l, 0.0) * u_light_color;
-  vec3 specular = n_dot_l > 0.0 ? direct * 0.25 * pow(max(dot(normal, halfway), 0.0), 64.0) * u_light_color : vec3(0.0);
-  vec3 lighting = (ambient + visibility * (diffuse + specular)) * albedo;
+  float direct = 1.0 - ambient;
+  vec3 diffuse = direct * max(n_dot_l, 0.0) * light_color;
+  vec3 specular = n_dot_l > 0.0 ? direct * 0.25 * pow(max(dot(normal, halfway), 0.0), 64.0) * light_color : vec3(0.0);
+  vec3 lighting = (ambient * light_color + visibility * (diffuse + specular)) * albedo;
   o_color = vec4(clamp(lighting, 0.0, 1.0), 1.0);
+#endif
 }

@@ -1,10 +1,7 @@
-#version 450 core
 // Main pass: the scene from the camera.
 layout(location = 0) in vec3 a_position;  // relative to the mesh origin
 layout(location = 1) in vec3 a_normal;
 layout(location = 2) in vec3 a_color;
-
-uniform mat4 u_view_projection;           // camera, origin-relative
 
 out vec3 v_position;
 out vec3 v_normal;
@@ -14,5 +11,5 @@ void main() {
   v_position = a_position;
   v_normal = a_normal;
   v_color = a_color;
-  gl_Position = u_view_projection * vec4(a_position, 1.0);
+  gl_Position = u.camera_view_projection * vec4(a_position, 1.0);
 }

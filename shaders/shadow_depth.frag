@@ -1,4 +1,3 @@
-#version 450 core
 // Shadow pass: no colour attachment; the rasterizer writes gl_FragCoord.z to
 // the depth texture by itself.
 void main() {}

@@ -1,9 +1,8 @@
-#version 450 core
-// Shadow pass: positions into the light's clip space, nothing else.
+// Shadow pass: positions into the clip space of the light's view being drawn.
 layout(location = 0) in vec3 a_position;  // relative to the mesh origin
 
-uniform mat4 u_light_view_projection;     // origin-relative
+uniform int u_layer;  // the view (map layer) this draw fills; set per layer
 
 void main() {
-  gl_Position = u_light_view_projection * vec4(a_position, 1.0);
+  gl_Position = u.light_view_projection[u_layer] * vec4(a_position, 1.0);
 }

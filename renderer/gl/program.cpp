@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "../embedded_shaders.hpp"
+#include "../shader_interface.hpp"
 
 namespace umbra::gl {
 
@@ -40,8 +41,42 @@ std::string_view embedded(std::string_view file) {
 
 }  // namespace
 
-Program build_program(std::string_view vertex_file, std::string_view fragment_file) {
-  return build_program_from_sources(vertex_file, embedded(vertex_file), fragment_file, embedded(fragment_file));
+Program build_program(std::string_view vertex_file, std::string_view fragment_file, const std::string& prelude) {
+  Program program = build_program_from_sources(vertex_file, prelude + std::string(embedded(vertex_file)),
+                                               fragment_file, prelude + std::string(embedded(fragment_file)));
+  check_block_layout(program);
+  return program;
+}
+
+const Program& ProgramVariants::get(const std::string& defines) {
+  for (auto it = kept_.begin(); it != kept_.end(); ++it) {
+    if (it->first != defines) continue;
+    kept_.splice(kept_.begin(), kept_, it);
+    return kept_.front().second;
+  }
+  kept_.emplace_front(defines, build_program(vertex_file_, fragment_file_, glsl_prelude(defines)));
+  if (kept_.size() > capacity_) kept_.pop_back();
+  return kept_.front().second;
+}
+
+void check_block_layout(const Program& program) {
+  if (glGetUniformBlockIndex(program.id(), "FrameBlock") == GL_INVALID_INDEX) return;  // not used
+  std::size_t count = 0;
+  const BlockMember* members = frame_block_members(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const BlockMember& m = members[i];
+    GLuint index = GL_INVALID_INDEX;
+    glGetUniformIndices(program.id(), 1, &m.gl_name, &index);
+    GLint offset = -1, stride = -1;
+    if (index != GL_INVALID_INDEX) {
+      glGetActiveUniformsiv(program.id(), 1, &index, GL_UNIFORM_OFFSET, &offset);
+      glGetActiveUniformsiv(program.id(), 1, &index, GL_UNIFORM_ARRAY_STRIDE, &stride);
+    }
+    if (offset != GLint(m.offset) || stride != GLint(m.array_stride))
+      throw std::runtime_error(std::string("FrameBlock member ") + m.gl_name + " is at GL offset " +
+                               std::to_string(offset) + " stride " + std::to_string(stride) + ", C++ has " +
+                               std::to_string(m.offset) + " stride " + std::to_string(m.array_stride));
+  }
 }
 
 Program build_program_from_sources(std::string_view vertex_file, std::string_view vertex_source,
