@@ -8,6 +8,9 @@
 // part of rendering and is excluded). Everything in one table comes from one
 // run on one machine. Writes Markdown, JSON and an SVG of error against time
 // (the Pareto front) under --out.
+//
+// With --speed it runs the other mode instead: Umbra's frame time against
+// the plain frame's (speed_bench.cpp).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -27,6 +30,7 @@
 #include "render_service.hpp"
 #include "scene_files.hpp"
 #include "shadow_error.hpp"
+#include "speed_bench.hpp"
 
 namespace umbra {
 namespace {
@@ -266,7 +270,9 @@ void usage() {
                "Renders every scene in --scenes (default: the source tree's bench/scenes) with a grid\n"
                "of shadow techniques and writes STEM.md, STEM.json and STEM.svg under --out\n"
                "(default: the source tree's bench/results). --from-json rewrites the reports of a\n"
-               "saved run without measuring again.\n";
+               "saved run without measuring again.\n"
+               "umbra-bench --speed [...] compares Umbra's frame time with the plain frame's instead\n"
+               "(see umbra-bench --speed --help).\n";
 }
 
 int run(int argc, char** argv) {
@@ -414,6 +420,8 @@ void write_reports(const std::vector<Row>& rows, const Options& options, const s
 
 int main(int argc, char** argv) {
   try {
+    for (int i = 1; i < argc; ++i)
+      if (std::string(argv[i]) == "--speed") return umbra::bench::run_speed(argc, argv);
     return umbra::run(argc, argv);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "umbra-bench: %s\n", e.what());
