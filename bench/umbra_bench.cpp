@@ -8,31 +8,41 @@
 // part of rendering and is excluded). Everything in one table comes from one
 // run on one machine. Writes Markdown, JSON and an SVG of error against time
 // (the Pareto front) under --out.
+//
+// With --speed it runs the other mode instead: Umbra's frame time against
+// the plain frame's (speed_bench.cpp).
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
 #include <sstream>
+#include <stdexcept>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "bench_report.hpp"
 #include "ray_cast.hpp"
 #include "render_service.hpp"
 #include "scene_files.hpp"
 #include "shadow_error.hpp"
+#include "speed_bench.hpp"
 
 namespace umbra {
 namespace {
 
 using nlohmann::json;
+using bench::format;
+using bench::machine_description;
+using bench::median;
+using bench::parse_int_list;
+using bench::percent;
+using bench::utc_now;
+using bench::write_file;
 
 struct Options {
   std::string scenes_dir = UMBRA_SCENES_DIR;
@@ -86,38 +96,6 @@ struct Row {
   ShadowError error;
 };
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n == 0 ? 0.0 : n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-std::string machine_description(const RenderService& service) {
-  std::string cpu = "unknown CPU";
-  std::ifstream cpuinfo("/proc/cpuinfo");
-  for (std::string line; std::getline(cpuinfo, line);) {
-    if (line.rfind("model name", 0) == 0) {
-      cpu = line.substr(line.find(':') + 2);
-      break;
-    }
-  }
-  return cpu + ", " + std::to_string(std::thread::hardware_concurrency()) + " hardware threads; GL: " +
-         service.info().gl_renderer;
-}
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  char buffer[32];
-  std::strftime(buffer, sizeof buffer, "%Y-%m-%d %H:%M UTC", std::gmtime(&t));
-  return buffer;
-}
-
-std::string format(const char* pattern, double v) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, pattern, v);
-  return buffer;
-}
-
 std::vector<Technique> techniques_for(const RenderRequest& base, const Options& options) {
   // An ideal light (size 0) has hard and PCF filters (PCSS would be PCF r1
   // again); an area light accepts PCSS only.
@@ -157,8 +135,6 @@ Row measure(RenderService& service, const Options& options, const std::string& s
   row.median_shadow_ms = median(shadow_pass);
   return row;
 }
-
-std::string percent(double share) { return format("%.3f", 100.0 * share); }
 
 // ---------------------------------------------------------------------------
 // Summary over scenes and the Pareto front.
@@ -284,20 +260,6 @@ std::string pareto_svg(const std::vector<Summary>& all, const std::string& capti
 
 // ---------------------------------------------------------------------------
 
-void write_file(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  out.close();
-  if (!out) throw std::runtime_error("cannot write " + path);
-}
-
-std::vector<int> parse_int_list(const std::string& s) {
-  std::vector<int> out;
-  std::stringstream in(s);
-  for (std::string item; std::getline(in, item, ',');) out.push_back(std::stoi(item));
-  return out;
-}
-
 void write_reports(const std::vector<Row>& rows, const Options& options, const std::string& machine,
                    const std::string& when);
 std::vector<Row> read_rows(const json& j);
@@ -308,7 +270,9 @@ void usage() {
                "Renders every scene in --scenes (default: the source tree's bench/scenes) with a grid\n"
                "of shadow techniques and writes STEM.md, STEM.json and STEM.svg under --out\n"
                "(default: the source tree's bench/results). --from-json rewrites the reports of a\n"
-               "saved run without measuring again.\n";
+               "saved run without measuring again.\n"
+               "umbra-bench --speed [...] compares Umbra's frame time with the plain frame's instead\n"
+               "(see umbra-bench --speed --help).\n";
 }
 
 int run(int argc, char** argv) {
@@ -456,6 +420,8 @@ void write_reports(const std::vector<Row>& rows, const Options& options, const s
 
 int main(int argc, char** argv) {
   try {
+    for (int i = 1; i < argc; ++i)
+      if (std::string(argv[i]) == "--speed") return umbra::bench::run_speed(argc, argv);
     return umbra::run(argc, argv);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "umbra-bench: %s\n", e.what());

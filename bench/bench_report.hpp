@@ -1,0 +1,37 @@
+// Helpers that umbra-bench's modes share for measuring and writing reports:
+// one copy, so the accuracy grid and the speed comparison describe the
+// machine, round numbers and write files the same way.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace umbra {
+
+class RenderService;
+
+namespace bench {
+
+/// The middle value (mean of the two middle ones for an even count); 0 if empty.
+double median(std::vector<double> values);
+
+/// "CPU model, N hardware threads; GL: <GL_RENDERER of the service's context>".
+std::string machine_description(const RenderService& service);
+
+/// The current time as "YYYY-MM-DD HH:MM UTC".
+std::string utc_now();
+
+/// One double through a printf pattern, e.g. format("%.2f", 1.234) == "1.23".
+std::string format(const char* pattern, double value);
+
+/// A share in [0, 1] as a percentage with three decimals.
+std::string percent(double share);
+
+/// Writes `text` to `path` (binary, replacing it); throws std::runtime_error if it cannot.
+void write_file(const std::string& path, const std::string& text);
+
+/// "512,1024" -> {512, 1024}.
+std::vector<int> parse_int_list(const std::string& text);
+
+}  // namespace bench
+}  // namespace umbra
