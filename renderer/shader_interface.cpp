@@ -87,7 +87,7 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   for (std::size_t i = 0; i < plan.views.size() && i < std::size_t(kMaxViews); ++i) {
     const ShadowView& v = plan.views[i];
     b.light_view[i] = relative(v.view);
-    b.light_view_projection[i] = relative(v.view_projection());
+    b.light_projection[i] = glm::mat4(v.projection);
     b.view_depth_texel[i] = plan.perspective ? glm::vec4(v.near_plane, v.far_plane, v.texel_size.x, v.tan_half)
                                              : glm::vec4(v.near_plane, v.far_plane, v.texel_size.x, v.texel_size.y);
   }

@@ -54,9 +54,10 @@ inline constexpr int kPcssFilterSamples = 32;
   MEMBER(vec4, light_position)                                                                     \
   MEMBER(vec4, light_direction)                                                                    \
   MEMBER(vec4, light_color_ambient)                                                                \
-  /* One entry per view of the light (layer of the map). */                                       \
+  /* One entry per view of the light (layer of the map). All views but */                        \
+  /* cube faces share light_view[0]. */                                                           \
   ARRAY(mat4, light_view, kMaxViews)                                                               \
-  ARRAY(mat4, light_view_projection, kMaxViews)                                                    \
+  ARRAY(mat4, light_projection, kMaxViews)                                                    \
   /* x, y: near and far planes, world units along the view's axis. */                             \
   /* z, w: orthographic: world size of one texel along light x and y; */                          \
   /*       perspective: z = that size per unit of distance, w = tan(half fov). */                 \

@@ -26,48 +26,108 @@ layout(binding = 0) uniform sampler2DArray u_shadow_map;
 // The view of the light that holds the point being shaded.
 //
 // A light has one view, or several: cascades (a directional light, nearest
-// camera depths first) or cube faces (a point light).
+// camera depths first) or cube faces (a point light). Views are read from
+// the block with constant indices only: an index that differs from pixel to
+// pixel would make a software rasteriser fetch each matrix lane by lane.
 struct View {
   int layer;
+  vec3 eye;       // the shaded point in this view's eye space
+  vec3 ndc;       // ... and in its normalized device coordinates
+  mat3 rotation;  // world -> eye space, for normals
   float near, far;  // world units along the view's axis
   vec2 texel;       // world size of a texel (perspective: per unit of distance)
   float tan_half;   // perspective: tangent of half the field of view
 };
 
-View view_of(int layer) {
-  vec4 v = u.view_depth_texel[layer];
+#if !LIGHT_CUBE
+// All views but cube faces share one eye space: the vertex shader puts the
+// point in it.
+in vec3 v_light_eye;
+#endif
+
+// Clip coordinates in view i of a point in its eye space. An orthographic
+// projection only scales and offsets each axis.
+vec4 clip_in_view(int i, vec3 eye) {
+  mat4 p = u.light_projection[i];
 #if LIGHT_PERSPECTIVE
-  return View(layer, v.x, v.y, vec2(v.z), v.w);
+  return p * vec4(eye, 1.0);
 #else
-  return View(layer, v.x, v.y, v.zw, 0.0);
+  return vec4(eye * vec3(p[0][0], p[1][1], p[2][2]) + p[3].xyz, 1.0);
 #endif
 }
 
-// The first view whose map holds p with the filter's reach (FILTER_REACH
-// texels) to spare; else the first that holds p at all; -1 if none does.
-int choose_view(vec3 p) {
+bool holds(vec4 clip, out vec3 ndc) {
+  ndc = clip.xyz / clip.w;
+  return clip.w > 0.0 && all(lessThanEqual(abs(ndc), vec3(1.0)));  // w <= 0: behind a point light
+}
+
+// Everything but the point's own coordinates, for view `layer`.
+void set_view_constants(inout View v) {
+  vec4 depth_texel = u.view_depth_texel[0];
+  for (int i = 1; i < VIEW_COUNT; ++i)
+    if (v.layer == i) depth_texel = u.view_depth_texel[i];
+  v.near = depth_texel.x;
+  v.far = depth_texel.y;
+#if LIGHT_PERSPECTIVE
+  v.texel = vec2(depth_texel.z);
+  v.tan_half = depth_texel.w;
+#else
+  v.texel = depth_texel.zw;
+  v.tan_half = 0.0;
+#endif
+}
+
 #if LIGHT_CUBE
-  // Faces +X, -X, +Y, -Y, +Z, -Z, each a little wider than 90 degrees so
-  // that the face of p's major axis holds p with its kernel.
+// Faces +X, -X, +Y, -Y, +Z, -Z, each a little wider than 90 degrees so that
+// the face of p's major axis holds p with its filter kernel.
+bool choose_view(vec3 p, out View v) {
   vec3 d = p - u.light_position.xyz;
   vec3 a = abs(d);
   int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
-  return 2 * axis + (d[axis] < 0.0 ? 1 : 0);
-#else
-  int fallback = -1;
-  for (int i = 0; i < VIEW_COUNT; ++i) {
-    vec4 clip = u.light_view_projection[i] * vec4(p, 1.0);
-    if (clip.w <= 0.0) continue;  // behind a point light's view
-    vec3 ndc = clip.xyz / clip.w;
-    if (any(greaterThan(abs(ndc), vec3(1.0)))) continue;
-    vec2 texel = (ndc.xy * 0.5 + 0.5) * u.map_size;
-    if (all(greaterThanEqual(texel, vec2(FILTER_REACH))) && all(lessThanEqual(texel, vec2(u.map_size - FILTER_REACH))))
-      return i;
-    if (fallback < 0) fallback = i;
+  v.layer = 2 * axis + (d[axis] < 0.0 ? 1 : 0);
+  mat4 view = u.light_view[0];
+  mat4 projection = u.light_projection[0];
+  for (int i = 1; i < VIEW_COUNT; ++i) {
+    if (v.layer == i) {
+      view = u.light_view[i];
+      projection = u.light_projection[i];
+    }
   }
-  return fallback;
-#endif
+  v.rotation = mat3(view);
+  v.eye = (view * vec4(p, 1.0)).xyz;
+  set_view_constants(v);
+  return holds(projection * vec4(v.eye, 1.0), v.ndc);
 }
+#else
+// The first view whose map holds the point with the filter's reach
+// (FILTER_REACH texels) to spare; else the first that holds it at all;
+// false if none does.
+bool choose_view(vec3 p, out View v) {
+  v.eye = v_light_eye;
+  v.rotation = mat3(u.light_view[0]);
+  int chosen = -1, fallback = -1;
+  vec3 chosen_ndc = vec3(0.0), fallback_ndc = vec3(0.0);
+  for (int i = 0; i < VIEW_COUNT; ++i) {
+    vec3 ndc;
+    bool inside = holds(clip_in_view(i, v.eye), ndc);
+    vec2 texel = (ndc.xy * 0.5 + 0.5) * u.map_size;
+    bool with_kernel = inside && all(greaterThanEqual(texel, vec2(FILTER_REACH))) &&
+                       all(lessThanEqual(texel, vec2(u.map_size - FILTER_REACH)));
+    if (chosen < 0 && with_kernel) {
+      chosen = i;
+      chosen_ndc = ndc;
+    }
+    if (fallback < 0 && inside) {
+      fallback = i;
+      fallback_ndc = ndc;
+    }
+  }
+  v.layer = chosen >= 0 ? chosen : fallback;
+  v.ndc = chosen >= 0 ? chosen_ndc : fallback_ndc;
+  set_view_constants(v);
+  return v.layer >= 0;
+}
+#endif
 
 // Depth along the view's axis (world units) of window depth z.
 float linear_from_window(View v, float z) {
@@ -115,12 +175,11 @@ float remaining_bias(View v, float depth) {
   return 0.05 * texel_world + precision_bias + 1e-6 * abs(depth);
 }
 
-// False if the point lies outside the view (then nothing in the map can
-// shadow it).
-bool make_receiver(View v, vec3 p, vec3 geometric_normal, float n_dot_l, out Receiver r) {
-  vec3 view_point = (u.light_view[v.layer] * vec4(p, 1.0)).xyz;
-  r.depth = -view_point.z;
-  vec3 lookup_point = p;
+// False if the (moved) point falls outside the view: nothing in the map can
+// shadow it then.
+bool make_receiver(View v, vec3 geometric_normal, float n_dot_l, out Receiver r) {
+  r.depth = -v.eye.z;
+  vec3 ndc = v.ndc;
 #if !BIAS_AUTO
   // The seeds' bias: move the receiver along its normal, then compare in
   // window depth with max(slope * (1 - N.L), constant) subtracted.
@@ -129,15 +188,15 @@ bool make_receiver(View v, vec3 p, vec3 geometric_normal, float n_dot_l, out Rec
 #else
   float texel_world = max(v.texel.x, v.texel.y);
 #endif
-  lookup_point = p + geometric_normal * (u.bias_normal_offset * texel_world);
+  vec3 moved = v.eye + v.rotation * geometric_normal * (u.bias_normal_offset * texel_world);
+  vec4 clip = clip_in_view(0, moved);
+  for (int i = 1; i < VIEW_COUNT; ++i)
+    if (v.layer == i) clip = clip_in_view(i, moved);
+  if (!holds(clip, ndc)) return false;
 #endif
-  vec4 clip = u.light_view_projection[v.layer] * vec4(lookup_point, 1.0);
-  if (clip.w <= 0.0) return false;
-  vec3 ndc = clip.xyz / clip.w;
-  if (any(greaterThan(abs(ndc), vec3(1.0)))) return false;
   r.texel = (ndc.xy * 0.5 + 0.5) * u.map_size;
 #if BIAS_AUTO
-  vec3 n = normalize(mat3(u.light_view[v.layer]) * geometric_normal);
+  vec3 n = normalize(v.rotation * geometric_normal);
   float range = v.far - v.near;
 #if LIGHT_PERSPECTIVE
   // The ray through texel t is depth * (t * texel - tan_half, -1); it meets
@@ -273,11 +332,10 @@ float shadow_visibility(vec3 p, vec3 geometric_normal, float n_dot_l) {
   // Outside every view (beside the light's frustum, before near, beyond
   // far): nothing in the map can shadow the point, so it is lit (the seeds'
   // far-plane fix).
-  int layer = choose_view(p);
-  if (layer < 0) return 1.0;
-  View v = view_of(layer);
+  View v;
+  if (!choose_view(p, v)) return 1.0;
   Receiver r;
-  if (!make_receiver(v, p, geometric_normal, n_dot_l, r)) return 1.0;
+  if (!make_receiver(v, geometric_normal, n_dot_l, r)) return 1.0;
 #if FILTER == FILTER_HARD
   return lit_by_texel(v, r, floor(r.texel) + 0.5);
 #elif FILTER == FILTER_PCSS

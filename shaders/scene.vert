@@ -6,10 +6,16 @@ layout(location = 2) in vec3 a_color;
 out vec3 v_position;
 out vec3 v_normal;
 out vec3 v_color;
+#if SHADOWS && !LIGHT_CUBE
+out vec3 v_light_eye;  // the point in the light's eye space (shared by all its views)
+#endif
 
 void main() {
   v_position = a_position;
   v_normal = a_normal;
   v_color = a_color;
+#if SHADOWS && !LIGHT_CUBE
+  v_light_eye = (u.light_view[0] * vec4(a_position, 1.0)).xyz;
+#endif
   gl_Position = u.camera_view_projection * vec4(a_position, 1.0);
 }

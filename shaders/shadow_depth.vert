@@ -4,5 +4,5 @@ layout(location = 0) in vec3 a_position;  // relative to the mesh origin
 uniform int u_layer;  // the view (map layer) this draw fills; set per layer
 
 void main() {
-  gl_Position = u.light_view_projection[u_layer] * vec4(a_position, 1.0);
+  gl_Position = u.light_projection[u_layer] * (u.light_view[u_layer] * vec4(a_position, 1.0));
 }

@@ -13,6 +13,7 @@
 #include "render_service.hpp"
 #include "request_parser.hpp"
 #include "scene_files.hpp"
+#include "shader_interface.hpp"
 #include "shadow_error.hpp"
 
 namespace umbra {
@@ -60,6 +61,52 @@ TEST(GlProgram, CompileErrorCarriesTheGlslLog) {
     const std::string what = e.what();
     EXPECT_NE(what.find("broken.frag"), std::string::npos) << what;
     EXPECT_NE(what.find("undeclared_thing"), std::string::npos) << what;
+  }
+}
+
+TEST(GlProgram, EveryKindOfVariantBuildsWithTheBlockLayoutOfCxx) {
+  gl::EglContext context;
+  gl::ProgramVariants programs("scene.vert", "scene.frag", 4);
+  std::vector<DisplayVariant> variants;
+  for (ShadowFilter filter : {ShadowFilter::Hard, ShadowFilter::Pcf, ShadowFilter::Pcss})
+    for (bool perspective : {false, true}) {
+      DisplayVariant v;
+      v.filter = filter;
+      v.perspective = perspective;
+      v.view_count = perspective ? 1 : 4;
+      v.pcf_radius = filter == ShadowFilter::Pcf ? 8 : 0;
+      variants.push_back(v);
+    }
+  DisplayVariant cube;
+  cube.perspective = cube.cube = true;
+  cube.view_count = kMaxViews;
+  cube.bias_auto = false;
+  cube.shadow_output = true;
+  variants.push_back(cube);
+  DisplayVariant unshadowed;
+  unshadowed.shadows = false;
+  variants.push_back(unshadowed);
+  // Each builds, and build_program checks every FrameBlock member's offset.
+  for (const DisplayVariant& v : variants) EXPECT_NO_THROW(programs.get(v.defines())) << v.defines();
+  EXPECT_EQ(programs.size(), 4u);  // the most recently used four are kept
+}
+
+TEST(GlProgram, ABlockWhoseLayoutDiffersFromCxxIsRefused) {
+  gl::EglContext context;
+  // FrameBlock as C++ has it, but with two members swapped.
+  std::string prelude = glsl_prelude("");
+  const std::string a = "  vec4 light_position;\n", b = "  vec4 light_direction;\n";
+  const std::size_t at = prelude.find(a);
+  ASSERT_NE(at, std::string::npos);
+  prelude.replace(at, a.size() + b.size(), b + a);
+  const std::string vertex = prelude + "void main() { gl_Position = u.light_position + u.light_direction; }\n";
+  const std::string fragment = prelude + "out vec4 c;\nvoid main() { c = vec4(u.map_size); }\n";
+  const gl::Program program = gl::build_program_from_sources("swapped.vert", vertex, "swapped.frag", fragment);
+  try {
+    gl::check_block_layout(program);
+    FAIL() << "a block laid out unlike FrameBlock was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("FrameBlock.light_"), std::string::npos) << e.what();
   }
 }
 
