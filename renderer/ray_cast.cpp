@@ -314,6 +314,7 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
         if (!hit) continue;
         px.geometry = true;
         px.object = hit->object;
+        px.normal = glm::vec3(hit->normal);
         px.n_dot_l = glm::dot(hit->normal, direction_to_light(request.light, light_position, hit->point));
         px.visibility = visibility(rays, request, light_position, hit->point, hit->normal);
       }

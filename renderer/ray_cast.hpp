@@ -69,6 +69,9 @@ struct ExactPixel {
   int object = -1;
   double n_dot_l = 0.0;   ///< cosine between the surface normal and the light
   double visibility = 1.0;
+  /// Unit surface normal facing the viewer; zero where no geometry. Float:
+  /// it only tells smooth surfaces from creases, never feeds the shadow test.
+  glm::vec3 normal{0.0f};
 };
 
 /// Every pixel of the request's camera view (width x height, row 0 at the

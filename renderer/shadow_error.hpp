@@ -14,6 +14,17 @@ namespace umbra {
 /// ill-conditioned there for any technique, so they are not measured.
 inline constexpr double kGrazingNDotL = 0.05;
 
+/// How far (pixels, Chebyshev) an interior pixel keeps from edges.
+inline constexpr int kArtifactMargin = 3;
+/// Neighbours on one object whose unit normals have a smaller dot product
+/// (more than about 2.6 degrees apart) are on a crease. A sphere's normals
+/// turn by about 115 / (its diameter in pixels) degrees per pixel at its
+/// centre and faster towards its outline, so only the middle of a sphere over
+/// ~45 pixels across is interior: curved surfaces are left out, conservatively.
+inline constexpr float kCreaseNDotN = 0.999f;
+/// A rendered value off by more than this on an interior pixel is an artifact.
+inline constexpr double kArtifactError = 0.1;
+
 struct ShadowError {
   /// Pixels measured: they see geometry, are not on a geometric silhouette
   /// (every 4-neighbour sees the same object) and are not grazing.
@@ -28,6 +39,24 @@ struct ShadowError {
   /// ... and rendered lit where exactly dark (peter panning, shadows cut off
   /// by the light's frustum, leaks).
   double false_light = 0.0;
+
+  /// Pixels where any shadow technique should be exact, so that a small
+  /// error there is a visible artifact, not blur: they see geometry, are not
+  /// grazing, are exactly lit or exactly dark (never penumbra), and lie more
+  /// than kArtifactMargin pixels (Chebyshev) from every pixel of a 4-neighbour
+  /// pair that differs by
+  /// - a silhouette: `geometry` or `object` differs,
+  /// - a shadow edge: the exact visibility differs at all,
+  /// - a crease: same object, normals' dot product below kCreaseNDotN (a
+  ///   box's edge).
+  /// Filtering and resolution limits blur shadows near those, honestly; away
+  /// from them a value off by 0.1 is something a viewer sees (a dotted line
+  /// along a cascade seam). The image border is no edge. Reported so that
+  /// artifacts = 0 can be told from "nothing measured".
+  std::size_t interior_pixels = 0;
+  /// Share of interior pixels with |v - v_exact| > kArtifactError, in [0, 1]:
+  /// thin artifacts that `wrong` misses because they stay within 0.5.
+  double artifacts = 0.0;
 };
 
 /// `rendered` is a 1-channel "shadow" image of the same size as `exact`

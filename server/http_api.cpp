@@ -312,9 +312,13 @@ void HttpApi::install_routes() {
     if (!result.shadow_views.empty()) res.set_header("Umbra-Shadow-Views", result.shadow_views);
     if (result.error) {
       const ShadowError& e = *result.error;
-      char buffer[200];
-      std::snprintf(buffer, sizeof buffer, "mae=%.5f, wrong=%.4f%%, false_shadow=%.4f%%, false_light=%.4f%%, pixels=%zu",
-                    e.mae, 100.0 * e.wrong, 100.0 * e.false_shadow, 100.0 * e.false_light, e.pixels);
+      // New fields go last, so that clients parsing the first ones keep working.
+      char buffer[256];
+      std::snprintf(buffer, sizeof buffer,
+                    "mae=%.5f, wrong=%.4f%%, false_shadow=%.4f%%, false_light=%.4f%%, pixels=%zu, artifacts=%.4f%%, "
+                    "interior_pixels=%zu",
+                    e.mae, 100.0 * e.wrong, 100.0 * e.false_shadow, 100.0 * e.false_light, e.pixels,
+                    100.0 * e.artifacts, e.interior_pixels);
       res.set_header("Umbra-Shadow-Error", buffer);
     }
     res.set_content(std::move(png), "image/png");

@@ -84,6 +84,30 @@ TEST(ExactVisibility, AreaLightGivesAPenumbra) {
   EXPECT_LT(v, 1.0);
 }
 
+// The default camera looks down at the cube from (0, 3, 6): it sees the floor
+// from above and the cube's top and front. A visible face of a convex box lies
+// between its centre and the camera, so its normal points from the centre
+// towards the camera by more than the half size.
+TEST(ExactPixels, NormalsAreUnitAndFaceTheCamera) {
+  RenderRequest r = cube_on_plane();
+  r.width = 64;
+  r.height = 36;
+  int floor_pixels = 0, cube_pixels = 0;
+  for (const ExactPixel& p : cast_exact_pixels(r)) {
+    if (!p.geometry) continue;
+    EXPECT_NEAR(glm::length(p.normal), 1.0f, 1e-6f);
+    if (p.object == 0) {
+      ++floor_pixels;
+      EXPECT_TRUE(p.normal == glm::vec3(0.0f, 1.0f, 0.0f));
+    } else {
+      ++cube_pixels;
+      EXPECT_GT(glm::dot(glm::dvec3(p.normal), r.camera.position - glm::dvec3(0.0)), 0.5);
+    }
+  }
+  EXPECT_GT(floor_pixels, 0);
+  EXPECT_GT(cube_pixels, 0);
+}
+
 TEST(ExactImages, ErrorIsRedForFalseShadowAndBlueForFalseLight) {
   Image rendered{2, 1, 1, {0, 255}};
   Image exact{2, 1, 1, {255, 0}};
