@@ -11,6 +11,7 @@ PACKAGES=(
   nlohmann-json3-dev                                  # JSON
   libstb-dev                                          # stb_image_write (PNG)
   zlib1g-dev                                          # deflate for the PNGs
+  libspng-dev libpng-dev                              # PNG encoders weighed by umbra-png-bench
   libgtest-dev                                        # GoogleTest
 )
 # Optional groups:
