@@ -79,8 +79,9 @@ std::string encode_png(const Image& image, const PngSettings& settings) {
   ihdr.bit_depth = std::uint8_t(image.bit_depth);
   ihdr.color_type = image.channels == 1 ? SPNG_COLOR_TYPE_GRAYSCALE : SPNG_COLOR_TYPE_TRUECOLOR;
   // The zlib strategy is left to libspng (Z_FILTERED for filtered rows, the
-  // default for unfiltered ones): forcing Z_FILTERED on unfiltered rows or
-  // Z_RLE measured no faster at this budget (bench/results/png.md).
+  // default for unfiltered ones). Z_FILTERED on unfiltered rows changed
+  // nothing measurable; Z_RLE halves the grey images but makes the RGB frame
+  // 685 KiB (bench/results/png.md).
   check(spng_set_option(ctx.get(), SPNG_ENCODE_TO_BUFFER, 1));
   check(spng_set_option(ctx.get(), SPNG_IMG_COMPRESSION_LEVEL, settings.level));
   check(spng_set_option(ctx.get(), SPNG_FILTER_CHOICE, filter_choice(settings.filter)));

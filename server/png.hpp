@@ -15,27 +15,35 @@ namespace umbra {
 /// The encoder and the defaults were chosen by measurement (umbra-png-bench;
 /// bench/results/png.md) among stb_image_write + zlib, libpng and libspng at
 /// zlib levels 1-3 and 6 with filters none / sub / up / adaptive, and the
-/// strategies Z_RLE and Z_FILTERED. The rule: the fastest encode whose PNG is
-/// at most 2x the bytes of what Umbra used before (stb + zlib, level 6, no
-/// filter: 5-9 ms and 16 KiB for the default 960x540 frame), where times
-/// within 10 % count as a tie (the spread between runs on a shared machine).
-/// Level 2 with no filter is that fastest, for all three libraries alike,
-/// about 3x faster than before at 1.9x the bytes (30 KiB). Unfiltered, the
-/// libraries differ only in how they feed zlib: libpng and libspng tie,
-/// stb is ~20 % slower (it filters into a second buffer first). Of the tie,
-/// libspng is the one that takes 16-bit samples in host order, keeps every
-/// option in a per-call context (stb's are process-wide globals) and reports
-/// errors by return code (libpng's longjmp would skip C++ destructors).
-/// Level 1 is no faster and at the edge of the budget (2.0x); level 3 saves
-/// 3 % of the bytes but searches 4x longer match chains. Row filters cost
+/// strategies Z_RLE and Z_FILTERED, on the default frame, shadow mask and
+/// depth map. The rule: of the settings whose PNG is at most 2x the bytes of
+/// what Umbra used before (stb + zlib, level 6, no filter: 16 KiB and 7-9 ms
+/// for the default 960x540 frame) on all three images, the fastest on the
+/// frame; times within 10 % tie (load on a shared machine moves them that
+/// much), and of a tie the smallest frame PNG wins.
+///
+/// That is level 3 with no filter: 3.3 ms for 29 KiB in the committed run
+/// (0.4x the time, 1.8x the bytes of before). Levels 1 and 2 were within 5 %
+/// of it and 1-3 KiB larger; level 6 takes 2.4x as long. Row filters cost
 /// time at every level and, on these smooth images at levels 1-3, make the
-/// PNG larger, not smaller.
+/// PNG larger, not smaller. Z_RLE halves the grey images in the same time
+/// but makes the RGB frame 685 KiB unfiltered (31 KiB and slower filtered),
+/// so it is not used.
+///
+/// Unfiltered, the libraries differ only in how they feed zlib: libpng and
+/// libspng write the same bytes, their times within the noise; stb + zlib is
+/// ~10 % slower, keeps its options in process-wide globals and writes no
+/// 16-bit PNG. Of libpng and libspng, libspng is used: it takes 16-bit
+/// samples in host order as they are, and reports errors by return code
+/// where libpng longjmps, which would skip the C++ destructors in between.
 struct PngSettings {
-  /// zlib deflate effort: 1 (fastest) .. 9 (smallest). Default 2.
-  int level = 2;
+  /// zlib deflate effort: 1 (fastest) .. 9 (smallest). Default 3.
+  int level = 3;
   /// PNG row filter: -1 lets libspng pick one per row (the one with the
   /// smallest sum of absolute differences); 0..4 forces none, sub, up,
-  /// average or Paeth for every row. Default 0 (none).
+  /// average or Paeth for every row. Default 0 (none). libspng filters more
+  /// slowly than libpng: on the frame at level 3, sub takes 6.0 against
+  /// 4.4 ms and adaptive 24 against 13 ms.
   int filter = 0;
 };
 

@@ -198,7 +198,7 @@ TEST(Png, Grey16DecodesToTheSameSamplesWithEveryFilter) {
 
 TEST(Png, SettingsAreValidatedAndABadOneChangesNothing) {
   const PngSettings before = png_settings();
-  EXPECT_EQ(before.level, 2);
+  EXPECT_EQ(before.level, 3);
   EXPECT_EQ(before.filter, 0);
   for (const PngSettings bad : {PngSettings{0, 0}, PngSettings{10, 0}, PngSettings{2, -2}, PngSettings{2, 5}}) {
     EXPECT_THROW(set_png_settings(bad), std::invalid_argument) << bad.level << ", " << bad.filter;
