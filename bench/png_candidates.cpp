@@ -1,6 +1,7 @@
 #include "png_candidates.hpp"
 
 #include <csetjmp>
+#include <cstdint>
 #include <cstdlib>
 #include <stdexcept>
 
@@ -84,8 +85,10 @@ bool libpng_write(const Image& image, int level, Filter filter, Strategy strateg
   png_set_filter(png, PNG_FILTER_TYPE_BASE, filters[int(filter)]);
   if (strategy != Strategy::library) png_set_compression_strategy(png, zlib_strategy(strategy));
   png_write_info(png, info);
-  // Image keeps 16-bit samples in native (little-endian) order; PNG wants big.
-  if (image.bit_depth == 16) png_set_swap(png);
+  // Image keeps 16-bit samples in host order; PNG wants big-endian, so a
+  // little-endian host has libpng swap them.
+  const std::uint16_t one = 1;
+  if (image.bit_depth == 16 && *reinterpret_cast<const unsigned char*>(&one) == 1) png_set_swap(png);
   for (int y = 0; y < image.height; ++y) png_write_row(png, image.row(y));
   png_write_end(png, info);
   png_destroy_write_struct(&png, &info);
