@@ -1,22 +1,34 @@
 // Pixels and timings handed from the renderer to whoever encodes them.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
 namespace umbra {
 
-/// 8-bit image, rows top to bottom, `channels` interleaved bytes per pixel
-/// (1 = grey, 3 = RGB).
+/// Image, rows top to bottom, `channels` interleaved samples per pixel
+/// (1 = grey, 3 = RGB) of `bit_depth` bits each.
+///
+/// bit_depth 8: one byte per sample. bit_depth 16 (for a depth preview finer
+/// than 256 steps): two bytes per sample in the host's native byte order, so
+/// `pixels` holds exactly what glReadPixels(..., GL_UNSIGNED_SHORT, ...) or a
+/// std::memcpy from a uint16_t array writes (a uint16_t* cast of the bytes
+/// would break C++'s aliasing rules). encode_png swaps to PNG's big-endian.
 struct Image {
   int width = 0;
   int height = 0;
   int channels = 0;
   std::vector<std::uint8_t> pixels;
+  // Last, so that the brace-initialised 8-bit images (Image{w, h, c, pixels})
+  // elsewhere keep compiling unchanged.
+  int bit_depth = 8;
 
-  std::uint8_t* row(int y) { return pixels.data() + std::size_t(y) * width * channels; }
-  const std::uint8_t* row(int y) const { return pixels.data() + std::size_t(y) * width * channels; }
-  const std::uint8_t* at(int x, int y) const { return row(y) + std::size_t(x) * channels; }
+  std::size_t bytes_per_pixel() const { return std::size_t(channels) * std::size_t(bit_depth / 8); }
+  std::size_t row_bytes() const { return std::size_t(width) * bytes_per_pixel(); }
+  std::uint8_t* row(int y) { return pixels.data() + std::size_t(y) * row_bytes(); }
+  const std::uint8_t* row(int y) const { return pixels.data() + std::size_t(y) * row_bytes(); }
+  const std::uint8_t* at(int x, int y) const { return row(y) + std::size_t(x) * bytes_per_pixel(); }
 };
 
 /// Milliseconds spent in each stage of one frame (0 for a stage not run).

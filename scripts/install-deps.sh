@@ -9,8 +9,10 @@ PACKAGES=(
   libglm-dev                                          # vector math
   libcpp-httplib-dev                                  # HTTP server (and test client)
   nlohmann-json3-dev                                  # JSON
-  libstb-dev                                          # stb_image_write (PNG)
-  zlib1g-dev                                          # deflate for the PNGs
+  libspng-dev                                         # PNG encoder (server/png.cpp), chosen by umbra-png-bench
+  zlib1g-dev                                          # deflate, under libspng; the PNG tests inflate with it
+  libstb-dev                                          # stb_image: the tests' PNG decoder; stb_image_write: bench
+  libpng-dev                                          # libpng: only for umbra-png-bench's comparison
   libgtest-dev                                        # GoogleTest
 )
 # Optional groups:
