@@ -45,6 +45,7 @@ using nlohmann::json;
 constexpr double kTimeStep = 0.37;
 // The scene whose stage times the summary quotes.
 constexpr const char* kDefaultScene = "seeds";
+constexpr double kSweepSeconds = 18.0;
 
 struct ImageSize {
   int width = 0, height = 0;
@@ -56,6 +57,10 @@ struct SpeedOptions {
   std::string out_dir = UMBRA_RESULTS_DIR;
   std::string name = "speed";
   int frames = 15;
+  // Times of the orbit sweep: artifacts at `sweep` times spread evenly over
+  // [0, kSweepSeconds] (the default orbit, 20 degrees per second, turns the
+  // light once in 18 s). 0: no sweep.
+  int sweep = 9;
   std::vector<ImageSize> sizes = {{640, 360}, {960, 540}};
   std::vector<std::string> only_scenes;  // empty: all
   std::string command_line;
@@ -76,6 +81,7 @@ const ErrorColumn kErrorColumns[] = {
     {"wrong", "wrong %", [](const ShadowError& e) { return e.wrong; }, percent},
     {"false_shadow", "false shadow %", [](const ShadowError& e) { return e.false_shadow; }, percent},
     {"false_light", "false light %", [](const ShadowError& e) { return e.false_light; }, percent},
+    {"artifacts", "artifacts %", [](const ShadowError& e) { return e.artifacts; }, percent},
 };
 
 // One renderer on one scene at one size: medians over the measured frames
@@ -124,6 +130,10 @@ struct SpeedRow {
   Measured plain, umbra;
   std::string views;         // Umbra's shadow layout (RenderResult::shadow_views)
   int umbra_remeasured = 0;  // frames measured again because Umbra had reused its map
+  // The orbit sweep: the worst artifact share of each over the swept
+  // times, and the time it was seen at.
+  double plain_sweep_artifacts = 0.0, umbra_sweep_artifacts = 0.0;
+  double plain_sweep_worst_time = 0.0, umbra_sweep_worst_time = 0.0;
 
   double ratio() const { return plain.total_ms > 0.0 ? umbra.total_ms / plain.total_ms : 0.0; }
 };
@@ -161,6 +171,20 @@ SpeedRow measure_scene(RenderService& service, PlainFrameRenderer& plain, const 
   row.umbra.error = measure_shadow_error(umbra_shadow.image, exact);
   row.views = umbra_shadow.shadow_views;
   row.plain.error = measure_shadow_error(plain.render(base, true).image, exact);
+
+  // Artifacts over the light's orbit: a seam or speckle that shows at some
+  // moments of the panel's Play and not at the scene's own time.
+  for (int k = 0; k < options.sweep; ++k) {
+    RenderRequest moment = shadow_request;
+    moment.time = options.sweep > 1 ? kSweepSeconds * k / (options.sweep - 1) : 0.0;
+    const std::vector<ExactPixel> exact_then = cast_exact_pixels(moment);
+    const double umbra_artifacts = measure_shadow_error(service.submit(moment).get().image, exact_then).artifacts;
+    const double plain_artifacts = measure_shadow_error(plain.render(moment, true).image, exact_then).artifacts;
+    if (umbra_artifacts >= row.umbra_sweep_artifacts)
+      row.umbra_sweep_artifacts = umbra_artifacts, row.umbra_sweep_worst_time = moment.time;
+    if (plain_artifacts >= row.plain_sweep_artifacts)
+      row.plain_sweep_artifacts = plain_artifacts, row.plain_sweep_worst_time = moment.time;
+  }
 
   // Speed: one warm-up frame each, then interleaved frames with the light moving.
   plain.render(base, false);
@@ -215,19 +239,19 @@ std::string summary_line(const SizeSummary& s) {
   return line;
 }
 
-constexpr const char* kRowPattern = "%-20s %9s %9s %6s %-15s %-15s %-19s %-19s %s\n";
+constexpr const char* kRowPattern = "%-20s %9s %9s %6s %-15s %-15s %-19s %-19s %-10s %s\n";
 
 void print_header(ImageSize size) {
   std::printf("\n%s\n", size.label().c_str());
   std::printf(kRowPattern, "scene", "plain ms", "Umbra ms", "ratio", "plain s+m+r", "Umbra s+m+r", "plain wrong%/MAE",
-              "Umbra wrong%/MAE", "Umbra views");
+              "Umbra wrong%/MAE", "sweep art%", "Umbra views");
 }
 
 void print_row(const SpeedRow& r) {
   std::printf(kRowPattern, r.scene.c_str(), format("%.2f", r.plain.total_ms).c_str(),
               format("%.2f", r.umbra.total_ms).c_str(), format("%.2f", r.ratio()).c_str(),
               r.plain.breakdown().c_str(), r.umbra.breakdown().c_str(), r.plain.wrong_and_mae().c_str(),
-              r.umbra.wrong_and_mae().c_str(), r.views.c_str());
+              r.umbra.wrong_and_mae().c_str(), percent(r.umbra_sweep_artifacts).c_str(), r.views.c_str());
   std::fflush(stdout);
 }
 
@@ -239,9 +263,14 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
   json j = {{"machine", machine}, {"date", when}, {"command", options.command_line}, {"frames", options.frames},
             {"time_step_s", kTimeStep}, {"sizes", json::array()}, {"rows", json::array()}, {"summary", json::array()}};
   for (const ImageSize& size : options.sizes) j["sizes"].push_back({size.width, size.height});
+  j["sweep_times"] = options.sweep;
   for (const SpeedRow& r : rows)
     j["rows"].push_back({{"size", {r.size.width, r.size.height}}, {"scene", r.scene}, {"ratio", r.ratio()},
                          {"views", r.views}, {"umbra_remeasured_frames", r.umbra_remeasured},
+                         {"sweep", {{"plain_max_artifacts", r.plain_sweep_artifacts},
+                                    {"plain_worst_time_s", r.plain_sweep_worst_time},
+                                    {"umbra_max_artifacts", r.umbra_sweep_artifacts},
+                                    {"umbra_worst_time_s", r.umbra_sweep_worst_time}}},
                          {"plain", r.plain.to_json()}, {"umbra", r.umbra.to_json()}});
 
   std::ostringstream md;
@@ -258,7 +287,12 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
      << "every frame draws its shadow map. ms = shadow + main pass + read-back from each renderer's own timings "
         "(wall clock with glFinish); s+m+r = the median of each stage on its own. ratio = Umbra ms / plain ms.\n"
      << "- Error: the shadow output at the scene's own time against the exact ray-cast reference "
-        "(`renderer/shadow_error.hpp`); wrong = share of measured pixels with |v - v_exact| > 0.5.\n";
+        "(`renderer/shadow_error.hpp`); wrong = share of measured pixels with |v - v_exact| > 0.5; artifacts = "
+        "share of interior pixels (exactly lit or dark, over 3 px from any shadow edge, silhouette or crease) off "
+        "by more than 0.1.\n"
+     << "- Orbit sweep: the artifacts of the shadow output at " << options.sweep << " times spread evenly over 0-"
+     << kSweepSeconds << " s (one turn of the default orbit), each against its own exact reference; the worst "
+        "time of each.\n";
   std::string remeasured;
   for (const SpeedRow& r : rows)
     if (r.umbra_remeasured > 0)
@@ -302,6 +336,17 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
         for (const ErrorColumn& c : kErrorColumns) md << " " << c.text(c.value(*e)) << " |";
       md << "\n";
     }
+
+    if (options.sweep > 0) {
+      md << "\n### Orbit sweep, " << size.label() << "\n\n| scene | plain worst artifacts % (at s) | "
+            "Umbra worst artifacts % (at s) |\n|---|---|---|\n";
+      for (const SpeedRow& r : rows) {
+        if (r.size.width != size.width || r.size.height != size.height) continue;
+        md << "| " << r.scene << " | " << percent(r.plain_sweep_artifacts) << " ("
+           << format("%.2f", r.plain_sweep_worst_time) << ") | " << percent(r.umbra_sweep_artifacts) << " ("
+           << format("%.2f", r.umbra_sweep_worst_time) << ") |\n";
+      }
+    }
   }
 
   write_file(stem + ".json", j.dump(1) + "\n");
@@ -324,12 +369,13 @@ std::vector<ImageSize> parse_sizes(const std::string& text) {
 }
 
 void usage() {
-  std::cout << "usage: umbra-bench --speed [--frames N] [--sizes WxH,WxH...] [--scene NAME]...\n"
+  std::cout << "usage: umbra-bench --speed [--frames N] [--sizes WxH,WxH...] [--sweep T] [--scene NAME]...\n"
                "                   [--scenes DIR] [--out DIR] [--name STEM]\n"
                "Umbra at its defaults against the plain frame (the seeds' algorithm) on every scene in\n"
                "--scenes (default: the source tree's bench/scenes) at each size (default 640x360,960x540):\n"
                "median frame time over N frames (default 15) with the light moving, and the error of\n"
-               "the shadow output against the exact reference. Writes STEM.md and STEM.json (default\n"
+               "the shadow output against the exact reference, and its artifacts at T times (default 9)\n"
+               "over one turn of the light's orbit. Writes STEM.md and STEM.json (default\n"
                "STEM: speed) under --out (default: the source tree's bench/results).\n";
 }
 
@@ -348,6 +394,7 @@ int run_speed(int argc, char** argv) {
     if (arg == "--speed") continue;
     if (arg == "--frames") options.frames = std::max(1, std::stoi(value()));
     else if (arg == "--sizes") options.sizes = parse_sizes(value());
+    else if (arg == "--sweep") options.sweep = std::max(0, std::stoi(value()));
     else if (arg == "--scene") options.only_scenes.push_back(value());
     else if (arg == "--scenes") options.scenes_dir = value();
     else if (arg == "--out") options.out_dir = value();

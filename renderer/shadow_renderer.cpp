@@ -196,9 +196,12 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   glViewport(0, 0, light.layer_size, light.layer_size);
   glUseProgram(shadow_.program.id());
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
+    // An empty view (no object reaches into it) holds no receiver either,
+    // so the main pass never reads its layer: it is not even cleared (the
+    // depth preview clears it before showing it).
+    if (light.views[layer].empty) continue;
     glNamedFramebufferTextureLayer(framebuffer, GL_DEPTH_ATTACHMENT, shadow_.depth_map.id(), 0, GLint(layer));
     glClear(GL_DEPTH_BUFFER_BIT);
-    if (light.views[layer].empty) continue;  // cleared to far: nothing there to cast
     glProgramUniform1i(shadow_.program.id(), shadow_.layer, GLint(layer));
     // Culling front faces stores the far side of closed objects: their lit
     // faces then sit well in front of the stored depth, so no bias is needed
@@ -233,6 +236,13 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
 
 void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size) {
   resize_depth_preview(image_size);
+  // The shadow pass leaves empty views' layers as they were: show them as
+  // cleared, far everywhere.
+  const float far = 1.0f;
+  for (std::size_t layer = 0; layer < light.views.size(); ++layer)
+    if (light.views[layer].empty)
+      glClearTexSubImage(shadow_.depth_map.id(), 0, 0, 0, GLint(layer), light.layer_size, light.layer_size, 1,
+                         GL_DEPTH_COMPONENT, GL_FLOAT, &far);
   const PreviewVariant variant{light.perspective, int(light.views.size())};
   glUseProgram(preview_.programs.get(variant.defines()).id());
   glBindTextureUnit(0, shadow_.depth_map.id());

@@ -79,24 +79,24 @@ void set_view_constants(inout View v) {
 
 #if LIGHT_CUBE
 // Faces +X, -X, +Y, -Y, +Z, -Z, each a little wider than 90 degrees so that
-// the face of p's major axis holds p with its filter kernel.
+// the face of p's major axis holds p with its filter kernel. Only the
+// chosen face's rotation and translation are selected (constant indices),
+// and its projection is rebuilt from near, far and tan_half.
 bool choose_view(vec3 p, out View v) {
   vec3 d = p - u.light_position.xyz;
   vec3 a = abs(d);
   int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
   v.layer = 2 * axis + (d[axis] < 0.0 ? 1 : 0);
   mat4 view = u.light_view[0];
-  mat4 projection = u.light_projection[0];
-  for (int i = 1; i < VIEW_COUNT; ++i) {
-    if (v.layer == i) {
-      view = u.light_view[i];
-      projection = u.light_projection[i];
-    }
-  }
+  for (int i = 1; i < VIEW_COUNT; ++i)
+    if (v.layer == i) view = u.light_view[i];
   v.rotation = mat3(view);
-  v.eye = (view * vec4(p, 1.0)).xyz;
+  v.eye = v.rotation * p + view[3].xyz;
   set_view_constants(v);
-  return holds(projection * vec4(v.eye, 1.0), v.ndc);
+  // gluPerspective's clip coordinates, w = depth.
+  float depth = -v.eye.z;
+  float z = (v.far + v.near) / (v.far - v.near) * depth - 2.0 * v.far * v.near / (v.far - v.near);
+  return holds(vec4(v.eye.xy / v.tan_half, z, depth), v.ndc);
 }
 #else
 // The first view whose map holds the point with the filter's reach
