@@ -484,7 +484,7 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   return unused;
 }
 
-RenderRequest read_request(const json& root, std::set<std::string>& sent) {
+RenderRequest read_request(const json& root, Route route, std::set<std::string>& sent) {
   ObjectReader r(root, "", {"width", "height", "scene", "camera", "light", "time", "shadow", "output"}, sent);
   RenderRequest q;
   const BuiltinScene* builtin = nullptr;
@@ -513,13 +513,18 @@ RenderRequest read_request(const json& root, std::set<std::string>& sent) {
   if (q.light.size > 0.0 && !sent.count("shadow.filter")) q.shadow.filter = ShadowFilter::Pcss;
   if (auto v = r.get("output"))
     q.output = Output(read_choice(*v, "output", {"color", "depth", "shadow", "exact", "error"}));
+  if (route == Route::Depth) {
+    if (q.output != Output::Color && q.output != Output::Depth)
+      reject("output", "/api/depth always returns the depth map; omit output or use \"depth\"");
+    q.output = Output::Depth;
+  }
   check_consistency(q, sent);
   return q;
 }
 
 }  // namespace
 
-ParsedRequest parse_render_request(std::string_view body) {
+ParsedRequest parse_render_request(std::string_view body, Route route) {
   ParsedRequest result;
   json root;
   LocatingBuilder builder(root);
@@ -537,7 +542,7 @@ ParsedRequest parse_render_request(std::string_view body) {
   }
   std::set<std::string> sent;
   try {
-    result.request = read_request(root, sent);
+    result.request = read_request(root, route, sent);
     result.unused_fields = unused_fields(*result.request, sent);
   } catch (const Rejection& r) {
     result.error = {r.message, r.field};

@@ -535,6 +535,11 @@ TEST(Http, UnusedFieldsAreReportedNotIgnored) {
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 200);
   EXPECT_EQ(res->get_header_value("Umbra-Unused-Fields"), "shadow.near");
+  // /api/depth draws the depth map, which the ambient light does not shape, though the body names no output.
+  auto depth = client().Post("/api/depth", R"({"shadow": {"map_size": 64}, "light": {"ambient": 0.5}})", "application/json");
+  ASSERT_TRUE(depth);
+  EXPECT_EQ(depth->status, 200) << depth->body;
+  EXPECT_EQ(depth->get_header_value("Umbra-Unused-Fields"), "light.ambient");
 }
 
 TEST(Http, BadBodiesAre400WithTheField) {

@@ -221,6 +221,23 @@ TEST(RequestParser, TheCameraShapesTheDepthMapOfAFittedDirectionalLight) {
   EXPECT_EQ(parse_render_request(perspective).unused_fields, (std::vector<std::string>{"camera", "camera.fov_y_deg"}));
 }
 
+TEST(RequestParser, TheDepthRouteDrawsTheDepthMapAndJudgesUnusedFieldsByIt) {
+  // light.ambient shapes the colour frame, not the depth map: on /api/depth it is reported as unused.
+  const ParsedRequest p = parse_render_request(R"({"light": {"ambient": 0.5}})", Route::Depth);
+  ASSERT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  EXPECT_EQ(p.request->output, Output::Depth);
+  EXPECT_EQ(p.unused_fields, std::vector<std::string>{"light.ambient"});
+  EXPECT_TRUE(parse_render_request(R"({"light": {"ambient": 0.5}})").unused_fields.empty());
+  for (const char* body : {R"({"output": "depth"})", R"({"output": "color"})"}) {
+    const ParsedRequest q = parse_render_request(body, Route::Depth);
+    ASSERT_TRUE(q.ok()) << body;
+    EXPECT_EQ(q.request->output, Output::Depth) << body;
+  }
+  const ParsedRequest bad = parse_render_request(R"({"output": "shadow"})", Route::Depth);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error.field, "output");
+}
+
 TEST(RequestParser, RejectsMoreThanAThousandObjects) {
   std::string body = R"({"scene":{"objects":[)";
   for (int i = 0; i < 1001; ++i) body += std::string(i ? "," : "") + R"({"type":"sphere"})";
