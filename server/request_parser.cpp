@@ -191,6 +191,14 @@ int read_integer(const json& j, const std::string& path, int lo, int hi) {
   return int(v);
 }
 
+// The depth output's bits per sample: exactly 8 or 16, the two depths a grey
+// PNG sample can take that an 8- or 16-bit texture reads back as.
+int read_depth_bits(const json& j, const std::string& path) {
+  const double v = read_number(j, path);
+  if (v != 8.0 && v != 16.0) reject(path, "must be 8 or 16, got " + format_number(v));
+  return int(v);
+}
+
 bool read_boolean(const json& j, const std::string& path) {
   if (!j.is_boolean()) reject(path, std::string("must be true or false, not ") + type_name(j));
   return j.get<bool>();
@@ -471,6 +479,7 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   // An orthographic light fitted to the scene is fitted to what the camera
   // sees: then the camera and image size shape even the depth map.
   const bool camera_fitted = !fixed && !perspective;
+  if (!depth) mark("depth_bits");
   if (depth) {
     for (const char* f : {"light.color", "light.ambient"}) mark(f);
     if (!camera_fitted) {
@@ -485,7 +494,8 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
 }
 
 RenderRequest read_request(const json& root, Route route, std::set<std::string>& sent) {
-  ObjectReader r(root, "", {"width", "height", "scene", "camera", "light", "time", "shadow", "output"}, sent);
+  ObjectReader r(root, "", {"width", "height", "scene", "camera", "light", "time", "shadow", "output", "depth_bits"},
+                 sent);
   RenderRequest q;
   const BuiltinScene* builtin = nullptr;
   q.scene = read_scene(r.get("scene"), builtin, sent);
@@ -518,6 +528,7 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
       reject("output", "/api/depth always returns the depth map; omit output or use \"depth\"");
     q.output = Output::Depth;
   }
+  if (auto v = r.get("depth_bits")) q.depth_bits = read_depth_bits(*v, "depth_bits");
   check_consistency(q, sent);
   return q;
 }
