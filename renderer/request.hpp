@@ -152,6 +152,10 @@ struct RenderRequest {
   double time = 0.0;
   ShadowSettings shadow;
   Output output = Output::Color;
+  /// Bits per sample of the "depth" output's grey image: 8 (256 levels, the
+  /// default clients rely on) or 16 (65536 levels, for reading depths; the
+  /// same mapping, near = black). Default 8. No effect on other outputs.
+  int depth_bits = 8;
 };
 
 const char* to_string(Output output);

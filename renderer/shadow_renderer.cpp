@@ -150,15 +150,18 @@ void ShadowRenderer::resize_display(int width, int height) {
   display_.height = height;
 }
 
-void ShadowRenderer::resize_depth_preview(int size) {
-  if (preview_.size == size) return;
+void ShadowRenderer::resize_depth_preview(int size, int bits) {
+  if (preview_.size == size && preview_.bits == bits) return;
   preview_.grey = gl::create_texture(GL_TEXTURE_2D);
-  glTextureStorage2D(preview_.grey.id(), 1, GL_R8, size, size);
+  // The shader's float is stored as UNORM: R8 keeps the 8-bit preview byte for byte what it was, R16 gives the 16-bit
+  // one 65536 levels of the same mapping (the map itself is 32F, so they are real).
+  glTextureStorage2D(preview_.grey.id(), 1, bits == 16 ? GL_R16 : GL_R8, size, size);
   preview_.framebuffer = gl::create_framebuffer();
   glNamedFramebufferTexture(preview_.framebuffer.id(), GL_COLOR_ATTACHMENT0, preview_.grey.id(), 0);
   if (glCheckNamedFramebufferStatus(preview_.framebuffer.id(), GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw std::runtime_error("depth preview framebuffer incomplete");
   preview_.size = size;
+  preview_.bits = bits;
 }
 
 void ShadowRenderer::draw_scene(CullMode closed_mesh_cull) {
@@ -234,8 +237,8 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   draw_scene(CullMode::None);
 }
 
-void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size) {
-  resize_depth_preview(image_size);
+void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size, int bits) {
+  resize_depth_preview(image_size, bits);
   // The shadow pass leaves empty views' layers as they were: show them as
   // cleared, far everywhere.
   const float far = 1.0f;
@@ -254,18 +257,21 @@ void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size) 
   glEnable(GL_DEPTH_TEST);
 }
 
-Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int channels) {
+Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth) {
   Image image;
   image.width = width;
   image.height = height;
   image.channels = channels;
-  image.pixels.resize(std::size_t(width) * height * channels);
+  image.bit_depth = bit_depth;
+  image.pixels.resize(image.row_bytes() * std::size_t(height));
   glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
   glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width, height, channels == 1 ? GL_RED : GL_RGB, GL_UNSIGNED_BYTE, image.pixels.data());
+  // 16 bits: GL writes host-order uint16_t samples, which is what Image holds.
+  const GLenum type = bit_depth == 16 ? GL_UNSIGNED_SHORT : GL_UNSIGNED_BYTE;
+  glReadPixels(0, 0, width, height, channels == 1 ? GL_RED : GL_RGB, type, image.pixels.data());
   // GL's row 0 is the bottom; images start at the top.
-  const std::size_t stride = std::size_t(width) * channels;
+  const std::size_t stride = image.row_bytes();
   std::vector<std::uint8_t> swap(stride);
   for (int y = 0; y < height / 2; ++y) {
     std::uint8_t* a = image.row(y);
@@ -307,7 +313,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
 
   const auto main_start = Clock::now();
   if (depth_output)
-    run_depth_preview(light, request.shadow.map_size);
+    run_depth_preview(light, request.shadow.map_size, request.depth_bits);
   else
     run_display_pass(request, light);
   glFinish();
@@ -315,7 +321,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
 
   const auto readback_start = Clock::now();
   if (depth_output)
-    result.image = read_pixels(preview_.framebuffer.id(), preview_.size, preview_.size, 1);
+    result.image = read_pixels(preview_.framebuffer.id(), preview_.size, preview_.size, 1, preview_.bits);
   else
     result.image = read_pixels(display_.framebuffer.id(), display_.width, display_.height,
                                request.output == Output::Shadow ? 1 : 3);

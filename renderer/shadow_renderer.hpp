@@ -64,9 +64,10 @@ class ShadowRenderer {
   // The depth map turned into a grey image for the "depth" output.
   struct DepthPreviewPass {
     gl::ProgramVariants programs{"fullscreen.vert", "depth_preview.frag", kKeptVariants};  // per PreviewVariant
-    gl::Texture grey;        // R8, map_size^2
+    gl::Texture grey;        // R8 or R16 (depth_bits), map_size^2
     gl::Framebuffer framebuffer;
     int size = 0;
+    int bits = 0;
   };
   // Compiled variants kept per pass: every combination a client can ask
   // for is a few hundred, each a large program on a software rasteriser.
@@ -79,14 +80,14 @@ class ShadowRenderer {
   const SceneGeometry& scene() const { return scenes_.front(); }
   void resize_shadow_map(int size, int layers);
   void resize_display(int width, int height);
-  void resize_depth_preview(int size);
+  void resize_depth_preview(int size, int bits);
   void draw_scene(CullMode closed_mesh_cull);
   void upload_frame_block(const RenderRequest& request, const ShadowPlan& light);
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light);
   bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const;
   void run_display_pass(const RenderRequest& request, const ShadowPlan& light);
-  void run_depth_preview(const ShadowPlan& light, int image_size);
-  Image read_pixels(GLuint framebuffer, int width, int height, int channels);
+  void run_depth_preview(const ShadowPlan& light, int image_size, int bits);
+  Image read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth = 8);
 
   // The last few distinct scenes, most recently used first, so that
   // clients alternating between scenes do not re-upload them.

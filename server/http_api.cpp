@@ -269,14 +269,10 @@ void HttpApi::install_routes() {
 
   const auto render = [this](const httplib::Request& req, httplib::Response& res, const std::string& body,
                              bool depth_route) {
-    ParsedRequest parsed = parse_render_request(body);
+    // The parser sets a depth route's output itself, so that Umbra-Unused-Fields is judged against the depth map.
+    ParsedRequest parsed = parse_render_request(body, depth_route ? Route::Depth : Route::Render);
     if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
     RenderRequest request = std::move(*parsed.request);
-    if (depth_route) {
-      if (request.output != Output::Color && request.output != Output::Depth)
-        return send_error(res, 400, "/api/depth always returns the depth map; omit output or use \"depth\"", "output");
-      request.output = Output::Depth;
-    }
     const auto queued = Clock::now();
     // Asked just before the job's turn: a client that has gone costs no render.
     const int socket = find_client_socket(req.remote_addr, req.remote_port, req.local_port);

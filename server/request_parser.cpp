@@ -191,6 +191,14 @@ int read_integer(const json& j, const std::string& path, int lo, int hi) {
   return int(v);
 }
 
+// The depth output's bits per sample: exactly 8 or 16, the two depths a grey
+// PNG sample can take that an 8- or 16-bit texture reads back as.
+int read_depth_bits(const json& j, const std::string& path) {
+  const double v = read_number(j, path);
+  if (v != 8.0 && v != 16.0) reject(path, "must be 8 or 16, got " + format_number(v));
+  return int(v);
+}
+
 bool read_boolean(const json& j, const std::string& path) {
   if (!j.is_boolean()) reject(path, std::string("must be true or false, not ") + type_name(j));
   return j.get<bool>();
@@ -471,6 +479,7 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   // An orthographic light fitted to the scene is fitted to what the camera
   // sees: then the camera and image size shape even the depth map.
   const bool camera_fitted = !fixed && !perspective;
+  if (!depth) mark("depth_bits");
   if (depth) {
     for (const char* f : {"light.color", "light.ambient"}) mark(f);
     if (!camera_fitted) {
@@ -484,8 +493,9 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   return unused;
 }
 
-RenderRequest read_request(const json& root, std::set<std::string>& sent) {
-  ObjectReader r(root, "", {"width", "height", "scene", "camera", "light", "time", "shadow", "output"}, sent);
+RenderRequest read_request(const json& root, Route route, std::set<std::string>& sent) {
+  ObjectReader r(root, "", {"width", "height", "scene", "camera", "light", "time", "shadow", "output", "depth_bits"},
+                 sent);
   RenderRequest q;
   const BuiltinScene* builtin = nullptr;
   q.scene = read_scene(r.get("scene"), builtin, sent);
@@ -513,13 +523,19 @@ RenderRequest read_request(const json& root, std::set<std::string>& sent) {
   if (q.light.size > 0.0 && !sent.count("shadow.filter")) q.shadow.filter = ShadowFilter::Pcss;
   if (auto v = r.get("output"))
     q.output = Output(read_choice(*v, "output", {"color", "depth", "shadow", "exact", "error"}));
+  if (route == Route::Depth) {
+    if (q.output != Output::Color && q.output != Output::Depth)
+      reject("output", "/api/depth always returns the depth map; omit output or use \"depth\"");
+    q.output = Output::Depth;
+  }
+  if (auto v = r.get("depth_bits")) q.depth_bits = read_depth_bits(*v, "depth_bits");
   check_consistency(q, sent);
   return q;
 }
 
 }  // namespace
 
-ParsedRequest parse_render_request(std::string_view body) {
+ParsedRequest parse_render_request(std::string_view body, Route route) {
   ParsedRequest result;
   json root;
   LocatingBuilder builder(root);
@@ -537,7 +553,7 @@ ParsedRequest parse_render_request(std::string_view body) {
   }
   std::set<std::string> sent;
   try {
-    result.request = read_request(root, sent);
+    result.request = read_request(root, route, sent);
     result.unused_fields = unused_fields(*result.request, sent);
   } catch (const Rejection& r) {
     result.error = {r.message, r.field};

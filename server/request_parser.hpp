@@ -45,6 +45,12 @@ struct RequestLimits {
   static constexpr double kMaxLightAngularSize = 90.0;
 };
 
-ParsedRequest parse_render_request(std::string_view body);
+/// Where the body was posted. POST /api/depth always renders the depth map
+/// (its body's `output` may only be left out, "color" or "depth"): the
+/// parser needs to know, so that fields are judged used or unused against
+/// the output that is really drawn.
+enum class Route { Render, Depth };
+
+ParsedRequest parse_render_request(std::string_view body, Route route = Route::Render);
 
 }  // namespace umbra

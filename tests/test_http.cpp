@@ -166,6 +166,37 @@ TEST(Http, DepthRouteIsTheDepthOutput) {
   expect_json_error(client().Post("/api/depth", R"({"output": "shadow"})", "application/json"), 400, "output");
 }
 
+TEST(Http, DepthBits16GivesA16BitGreyPng) {
+  auto res = client().Post("/api/depth", R"({"depth_bits": 16, "shadow": {"map_size": 128}})", "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  EXPECT_EQ(res->get_header_value("Umbra-Unused-Fields"), "");
+  // The signature, then IHDR: length, "IHDR", width, height (big-endian), bit depth, colour type.
+  const std::string& png = res->body;
+  ASSERT_GE(png.size(), 26u);
+  EXPECT_EQ(png.substr(0, 8), "\x89PNG\r\n\x1a\n");
+  EXPECT_EQ(png.substr(12, 4), "IHDR");
+  const auto byte = [&](std::size_t i) { return int(static_cast<unsigned char>(png[i])); };
+  EXPECT_EQ((byte(16) << 24) | (byte(17) << 16) | (byte(18) << 8) | byte(19), 128);
+  EXPECT_EQ((byte(20) << 24) | (byte(21) << 16) | (byte(22) << 8) | byte(23), 128);
+  EXPECT_EQ(byte(24), 16) << "bit depth";
+  EXPECT_EQ(byte(25), 0) << "colour type: grey";
+  EXPECT_TRUE(stbi_is_16_bit_from_memory(reinterpret_cast<const unsigned char*>(png.data()), int(png.size())));
+  // Without the field: the 8-bit grey PNG clients rely on.
+  auto plain = client().Post("/api/depth", R"({"shadow": {"map_size": 128}})", "application/json");
+  ASSERT_TRUE(plain);
+  ASSERT_EQ(plain->status, 200);
+  ASSERT_GE(plain->body.size(), 26u);
+  EXPECT_EQ(int(static_cast<unsigned char>(plain->body[24])), 8);
+  EXPECT_EQ(int(static_cast<unsigned char>(plain->body[25])), 0);
+  // Any other output takes it and says it had no effect.
+  auto color = client().Post("/api/render", R"({"width": 32, "height": 32, "depth_bits": 16})", "application/json");
+  ASSERT_TRUE(color);
+  EXPECT_EQ(color->status, 200);
+  EXPECT_EQ(color->get_header_value("Umbra-Unused-Fields"), "depth_bits");
+  expect_json_error(client().Post("/api/depth", R"({"depth_bits": 12})", "application/json"), 400, "depth_bits");
+}
+
 // A render slow enough on llvmpipe (about a second) to hold the queue.
 const char* kSlowBody = R"({"width": 2048, "height": 2048, "output": "shadow", "shadow": {"pcf_radius": 8}})";
 
@@ -535,6 +566,11 @@ TEST(Http, UnusedFieldsAreReportedNotIgnored) {
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 200);
   EXPECT_EQ(res->get_header_value("Umbra-Unused-Fields"), "shadow.near");
+  // /api/depth draws the depth map, which the ambient light does not shape, though the body names no output.
+  auto depth = client().Post("/api/depth", R"({"shadow": {"map_size": 64}, "light": {"ambient": 0.5}})", "application/json");
+  ASSERT_TRUE(depth);
+  EXPECT_EQ(depth->status, 200) << depth->body;
+  EXPECT_EQ(depth->get_header_value("Umbra-Unused-Fields"), "light.ambient");
 }
 
 TEST(Http, BadBodiesAre400WithTheField) {

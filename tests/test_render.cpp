@@ -5,7 +5,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstring>
 #include <memory>
+#include <set>
 
 #include "gl/egl_context.hpp"
 #include "gl/program.hpp"
@@ -163,6 +166,40 @@ TEST(Renderer, DepthOutputIsMapSizeSquare) {
     EXPECT_EQ(result.image.width, size);
     EXPECT_EQ(result.image.height, size);
     EXPECT_EQ(result.image.channels, 1);
+  }
+}
+
+TEST(Renderer, A16BitDepthPreviewIsTheSameMappingWithFinerSteps) {
+  for (const char* projection : {"orthographic", "perspective"}) {
+    const RenderRequest r8 = request(std::string(R"({"output": "depth", "shadow": {"map_size": 256},)") +
+                                     R"("light": {"projection": ")" + projection + "\"}}");
+    RenderRequest r16 = r8;
+    r16.depth_bits = 16;
+    const Image grey8 = render(r8).image;
+    const Image grey16 = render(r16).image;
+    ASSERT_EQ(grey8.bit_depth, 8);
+    ASSERT_EQ(grey8.pixels.size(), 256u * 256u);
+    EXPECT_EQ(grey16.width, 256);
+    EXPECT_EQ(grey16.height, 256);
+    EXPECT_EQ(grey16.channels, 1);
+    ASSERT_EQ(grey16.bit_depth, 16);
+    ASSERT_EQ(grey16.pixels.size(), 2u * 256u * 256u);
+    std::set<int> levels8, levels16;
+    int far_apart = 0;
+    for (int y = 0; y < 256; ++y) {
+      for (int x = 0; x < 256; ++x) {
+        std::uint16_t v16;
+        std::memcpy(&v16, grey16.at(x, y), sizeof v16);  // host order, as Image documents
+        const int v8 = *grey8.at(x, y);
+        // 65535 / 255 = 257: the same grey lands within one 8-bit step (a
+        // flipped or byte-swapped 16-bit image would not).
+        if (std::abs(v16 / 257.0 - v8) > 1.0) ++far_apart;
+        levels8.insert(v8);
+        levels16.insert(v16);
+      }
+    }
+    EXPECT_EQ(far_apart, 0) << projection;
+    EXPECT_GT(levels16.size(), levels8.size()) << projection;
   }
 }
 

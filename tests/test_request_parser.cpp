@@ -46,6 +46,7 @@ TEST(RequestParser, EmptyObjectGivesTheApiDefaults) {
   EXPECT_DOUBLE_EQ(q.shadow.near_plane, 1.0);
   EXPECT_DOUBLE_EQ(q.shadow.far_plane, 7.5);
   EXPECT_EQ(q.output, Output::Color);
+  EXPECT_EQ(q.depth_bits, 8);
 }
 
 TEST(RequestParser, EmptyBodyIsTheSameAsEmptyObject) {
@@ -199,7 +200,13 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{R"({"shadow": {"cascades": 5}})", "shadow.cascades"}, BadInput{R"({"shadow": {"cascades": 0}})", "shadow.cascades"},
         BadInput{R"({"shadow": {"cascades": "many"}})", "shadow.cascades"},
         BadInput{R"({"shadow": {"cascades": 2, "fit": "fixed"}})", "shadow.cascades"},
-        BadInput{R"({"shadow": {"cascades": 3}, "light": {"projection": "perspective"}})", "shadow.cascades"}));
+        BadInput{R"({"shadow": {"cascades": 3}, "light": {"projection": "perspective"}})", "shadow.cascades"},
+        // The depth output's bits per sample: 8 or 16, nothing between, no string.
+        BadInput{R"({"output": "depth", "depth_bits": 12})", "depth_bits"},
+        BadInput{R"({"output": "depth", "depth_bits": "16"})", "depth_bits"},
+        BadInput{R"({"output": "depth", "depth_bits": 16.5})", "depth_bits"},
+        BadInput{R"({"output": "depth", "depth_bits": -1})", "depth_bits"},
+        BadInput{R"({"depth_bits": 32})", "depth_bits"}));
 
 TEST(RequestParser, CascadesAreAutoOrACount) {
   EXPECT_EQ(parse_ok(R"({"shadow": {"cascades": "auto"}})").shadow.cascades, 0);
@@ -219,6 +226,49 @@ TEST(RequestParser, TheCameraShapesTheDepthMapOfAFittedDirectionalLight) {
   perspective.replace(perspective.find("\"LIGHT\""), 7, R"("light": {"projection": "perspective"})");
   EXPECT_TRUE(parse_render_request(ortho).unused_fields.empty());
   EXPECT_EQ(parse_render_request(perspective).unused_fields, (std::vector<std::string>{"camera", "camera.fov_y_deg"}));
+}
+
+TEST(RequestParser, TheDepthRouteDrawsTheDepthMapAndJudgesUnusedFieldsByIt) {
+  // light.ambient shapes the colour frame, not the depth map: on /api/depth it is reported as unused.
+  const ParsedRequest p = parse_render_request(R"({"light": {"ambient": 0.5}})", Route::Depth);
+  ASSERT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  EXPECT_EQ(p.request->output, Output::Depth);
+  EXPECT_EQ(p.unused_fields, std::vector<std::string>{"light.ambient"});
+  EXPECT_TRUE(parse_render_request(R"({"light": {"ambient": 0.5}})").unused_fields.empty());
+  for (const char* body : {R"({"output": "depth"})", R"({"output": "color"})"}) {
+    const ParsedRequest q = parse_render_request(body, Route::Depth);
+    ASSERT_TRUE(q.ok()) << body;
+    EXPECT_EQ(q.request->output, Output::Depth) << body;
+  }
+  const ParsedRequest bad = parse_render_request(R"({"output": "shadow"})", Route::Depth);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error.field, "output");
+}
+
+TEST(RequestParser, DepthBitsIs8Or16AndReportedUnusedWithoutTheDepthOutput) {
+  EXPECT_EQ(parse_ok(R"({"output": "depth"})").depth_bits, 8);
+  EXPECT_EQ(parse_ok(R"({"output": "depth", "depth_bits": 8})").depth_bits, 8);
+  const ParsedRequest depth = parse_render_request(R"({"output": "depth", "depth_bits": 16})");
+  ASSERT_TRUE(depth.ok()) << depth.error.field << ": " << depth.error.message;
+  EXPECT_EQ(depth.request->depth_bits, 16);
+  EXPECT_TRUE(depth.unused_fields.empty());
+  // /api/depth draws the depth map though the body names no output.
+  EXPECT_TRUE(parse_render_request(R"({"depth_bits": 16})", Route::Depth).unused_fields.empty());
+  // Refused for its value, not as an unknown field (BadBodies checks the field named for each bad value).
+  for (const char* bad : {"12", "\"16\"", "16.5", "-1"}) {
+    const ParsedRequest p = parse_render_request(std::string(R"({"output": "depth", "depth_bits": )") + bad + "}");
+    ASSERT_FALSE(p.ok()) << bad;
+    EXPECT_EQ(p.error.field, "depth_bits") << bad;
+    EXPECT_EQ(p.error.message.find("unknown"), std::string::npos) << bad << " -> " << p.error.message;
+  }
+  // Accepted with any other output (a client may keep one body for every
+  // view), but named as having no effect.
+  for (const char* output : {"color", "shadow", "exact", "error"}) {
+    const ParsedRequest p =
+        parse_render_request(std::string(R"({"depth_bits": 16, "output": ")") + output + "\"}");
+    ASSERT_TRUE(p.ok()) << output;
+    EXPECT_EQ(p.unused_fields, std::vector<std::string>{"depth_bits"}) << output;
+  }
 }
 
 TEST(RequestParser, RejectsMoreThanAThousandObjects) {
