@@ -18,6 +18,7 @@
 #include "ray_cast.hpp"
 #include "render_service.hpp"
 #include "request_parser.hpp"
+#include "scene_files.hpp"
 #include "shadow_error.hpp"
 
 namespace umbra {
@@ -116,6 +117,49 @@ TEST(CascadeSeam, AThreeDegreeSunDrawsNoLineAcrossTheFloor) {
   EXPECT_GT(m.error.interior_pixels, 960u * 540u / 5u) << describe(m);
   EXPECT_EQ(m.error.artifacts, 0.0) << describe(m);
 }
+
+// Every hard case over one full turn of its light (the default orbit, 20
+// degrees per second, turns once in 18 s): a seam or speckle that shows only
+// at some light angle is caught here, not by the single time of
+// HardCaseAtDefaults.
+class OrbitSweep : public testing::TestWithParam<std::string> {};
+
+TEST_P(OrbitSweep, EveryBenchSceneHasNoArtifactOverOneTurnOfTheLight) {
+  constexpr int kTimes = 9;
+  constexpr double kTurnSeconds = 18.0;
+  // The default size, so the sweep sees what a client sees. All 14 scenes x 9
+  // times took 37-51 s on the 2-core development machine (80 s while another
+  // build ran), most of it the exact reference of the two area lights (64
+  // shadow rays per pixel). 640x360 took 23 s but missed artifacts that
+  // 960x540 shows (wide-x40 at 9 s, huge-plane at 4.5 and 9 s).
+  constexpr int kWidth = 960, kHeight = 540;
+  for (int k = 0; k < kTimes; ++k) {
+    const double time = kTurnSeconds * k / (kTimes - 1);
+    const RenderRequest r = load_scene_request(
+        UMBRA_SCENES_DIR, GetParam(), {{"width", kWidth}, {"height", kHeight}, {"output", "shadow"}, {"time", time}});
+    std::ostringstream label;
+    label << GetParam() << "-t" << time;
+    const Measured m = render_and_measure(r, label.str());
+    // Zero artifacts over next to nothing measured would prove nothing: each
+    // scene keeps well over 1 % of the frame interior at every light angle.
+    EXPECT_GT(m.error.interior_pixels, std::size_t(kWidth) * kHeight / 100)
+        << GetParam() << " at time " << time << " s: " << describe(m);
+    EXPECT_EQ(m.error.artifacts, 0.0) << GetParam() << " at time " << time << " s: " << describe(m);
+  }
+}
+
+// KNOWN FAILING when added (on 595e5e1): huge-plane (at 2.25, 4.5, 6.75, 9 and
+// 11.25 s) and wide-x40 (at 9 s) show a stair-stepped false shadow, 0.1-0.4
+// dark, on box faces lit at a shallow angle (N.L 0.06-0.27), 4-11 px from the
+// faces' edges. It is not the cascade seam: reverting that fix leaves these
+// numbers as they are. Left failing on purpose until it is fixed.
+INSTANTIATE_TEST_SUITE_P(BenchScenes, OrbitSweep, testing::ValuesIn(scene_file_names(UMBRA_SCENES_DIR)),
+                         [](const testing::TestParamInfo<std::string>& info) {
+                           std::string name = info.param;
+                           for (char& c : name)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
 
 }  // namespace
 }  // namespace umbra
