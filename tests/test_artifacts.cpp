@@ -1,0 +1,165 @@
+// Thin artifacts against the exact reference: the "artifacts" measure of
+// shadow_error.hpp (interior pixels, exactly lit or dark and away from every
+// edge, off by more than 0.1). `wrong` (> 0.5) never saw the dotted line a
+// cascade's far plane drew across the lit floor; these tests would.
+#include <gtest/gtest.h>
+
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <sys/stat.h>
+
+#include <glm/trigonometric.hpp>
+
+#include "png.hpp"
+#include "ray_cast.hpp"
+#include "render_service.hpp"
+#include "request_parser.hpp"
+#include "scene_files.hpp"
+#include "shadow_error.hpp"
+
+namespace umbra {
+namespace {
+
+RenderService& service() {
+  static std::unique_ptr<RenderService> instance = std::make_unique<RenderService>();
+  return *instance;
+}
+
+RenderRequest request(const std::string& body) {
+  ParsedRequest p = parse_render_request(body);
+  EXPECT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  return *p.request;
+}
+
+struct Measured {
+  ShadowError error;
+  std::string shadow_views;
+  // Where the images of a case with artifacts went; empty when there were none.
+  std::string images;
+};
+
+std::string describe(const Measured& m) {
+  std::ostringstream s;
+  s << "artifacts " << m.error.artifacts * 100.0 << " % of " << m.error.interior_pixels << " interior pixels"
+    << " (wrong " << m.error.wrong * 100.0 << " %, MAE " << m.error.mae << "); shadow views: " << m.shadow_views;
+  if (!m.images.empty()) s << "; images: " << m.images;
+  return s.str();
+}
+
+std::string file_safe(std::string name) {
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '-') c = '_';
+  return name;
+}
+
+bool write_png(const std::string& path, const Image& image) {
+  std::ofstream out(path, std::ios::binary);
+  out << encode_png(image);
+  return bool(out);
+}
+
+// Renders `r` (output "shadow") and measures it against the exact reference.
+// A case with artifacts leaves its rendered, exact and error images in
+// <TempDir>/sweep-failures/ (/tmp/ unless TEST_TMPDIR says otherwise), since
+// a share alone does not show whether it is a seam, speckle or a line.
+Measured render_and_measure(const RenderRequest& r, const std::string& label) {
+  const RenderResult result = service().submit(r).get();
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  Measured m{measure_shadow_error(result.image, exact), result.shadow_views, {}};
+  if (m.error.artifacts > 0.0) {
+    const std::string dir = testing::TempDir() + "sweep-failures";
+    ::mkdir(dir.c_str(), 0755);
+    const std::string stem = dir + "/" + file_safe(label);
+    const Image exact_shadow = exact_image(exact, r.width, r.height);
+    const bool written = write_png(stem + "-shadow.png", result.image) &&
+                         write_png(stem + "-exact.png", exact_shadow) &&
+                         write_png(stem + "-error.png", error_image(result.image, exact_shadow));
+    m.images = written ? stem + "-{shadow,exact,error}.png" : "(could not be written to " + dir + ")";
+  }
+  return m;
+}
+
+bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
+
+// The default scene used to show 0.6-0.9 along the boundary between two
+// cascades where the floor is fully lit: receivers near the nearer cascade's
+// far plane compared their PCF kernel against cleared texels beyond it.
+TEST(CascadeSeam, TheDefaultSceneAtTimeFiveHasNoArtifact) {
+  const RenderRequest r = request(R"({"time": 5, "width": 960, "height": 540, "output": "shadow"})");
+  const Measured m = render_and_measure(r, "default-time-5");
+  // Without a second cascade there is no seam to test.
+  ASSERT_TRUE(starts_with(m.shadow_views, "cascades")) << m.shadow_views;
+  // Most of the frame is floor far from the cube's shadow: an artifact-free
+  // answer must come from measuring it, not from measuring nothing.
+  EXPECT_GT(m.error.interior_pixels, 100000u) << describe(m);
+  EXPECT_EQ(m.error.artifacts, 0.0) << describe(m);
+}
+
+// A sun 3 degrees above the horizon stretches the cascades' depth ranges
+// along the floor, and the seam used to show as a full line across it.
+TEST(CascadeSeam, AThreeDegreeSunDrawsNoLineAcrossTheFloor) {
+  RenderRequest r = request(R"({"width": 960, "height": 540, "output": "shadow"})");
+  const double elevation = glm::radians(3.0), distance = 20.0;
+  // Time 0 with the default orbit: the light stays where it is put.
+  ASSERT_EQ(r.time, 0.0);
+  r.light.target = glm::dvec3(0.0);
+  r.light.position = glm::dvec3(std::cos(elevation) * distance, std::sin(elevation) * distance, 0.0);
+  const Measured m = render_and_measure(r, "sun-3deg");
+  ASSERT_TRUE(starts_with(m.shadow_views, "cascades")) << m.shadow_views;
+  // The floor's N.L = sin 3 deg = 0.052 is just above kGrazingNDotL, so the
+  // floor is measured: its lit interior covers far more than a fifth of the
+  // frame. Were it cut as grazing, the test would check next to nothing.
+  ASSERT_GT(std::sin(elevation), kGrazingNDotL);
+  EXPECT_GT(m.error.interior_pixels, 960u * 540u / 5u) << describe(m);
+  EXPECT_EQ(m.error.artifacts, 0.0) << describe(m);
+}
+
+// Every hard case over one full turn of its light (the default orbit, 20
+// degrees per second, turns once in 18 s): a seam or speckle that shows only
+// at some light angle is caught here, not by the single time of
+// HardCaseAtDefaults.
+class OrbitSweep : public testing::TestWithParam<std::string> {};
+
+TEST_P(OrbitSweep, EveryBenchSceneHasNoArtifactOverOneTurnOfTheLight) {
+  constexpr int kTimes = 9;
+  constexpr double kTurnSeconds = 18.0;
+  // The default size, so the sweep sees what a client sees. All 14 scenes x 9
+  // times took 37-51 s on the 2-core development machine (80 s while another
+  // build ran), most of it the exact reference of the two area lights (64
+  // shadow rays per pixel). 640x360 took 23 s but missed artifacts that
+  // 960x540 shows (wide-x40 at 9 s, huge-plane at 4.5 and 9 s).
+  constexpr int kWidth = 960, kHeight = 540;
+  for (int k = 0; k < kTimes; ++k) {
+    const double time = kTurnSeconds * k / (kTimes - 1);
+    const RenderRequest r = load_scene_request(
+        UMBRA_SCENES_DIR, GetParam(), {{"width", kWidth}, {"height", kHeight}, {"output", "shadow"}, {"time", time}});
+    std::ostringstream label;
+    label << GetParam() << "-t" << time;
+    const Measured m = render_and_measure(r, label.str());
+    // Zero artifacts over next to nothing measured would prove nothing: each
+    // scene keeps well over 1 % of the frame interior at every light angle.
+    EXPECT_GT(m.error.interior_pixels, std::size_t(kWidth) * kHeight / 100)
+        << GetParam() << " at time " << time << " s: " << describe(m);
+    EXPECT_EQ(m.error.artifacts, 0.0) << GetParam() << " at time " << time << " s: " << describe(m);
+  }
+}
+
+// KNOWN FAILING when added (on 595e5e1): huge-plane (at 2.25, 4.5, 6.75, 9 and
+// 11.25 s) and wide-x40 (at 9 s) show a stair-stepped false shadow, 0.1-0.4
+// dark, on box faces lit at a shallow angle (N.L 0.06-0.27), 4-11 px from the
+// faces' edges. It is not the cascade seam: reverting that fix leaves these
+// numbers as they are. Left failing on purpose until it is fixed.
+INSTANTIATE_TEST_SUITE_P(BenchScenes, OrbitSweep, testing::ValuesIn(scene_file_names(UMBRA_SCENES_DIR)),
+                         [](const testing::TestParamInfo<std::string>& info) {
+                           std::string name = info.param;
+                           for (char& c : name)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
+
+}  // namespace
+}  // namespace umbra
