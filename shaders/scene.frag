@@ -228,13 +228,21 @@ bool make_receiver(View v, vec3 geometric_normal, float n_dot_l, out Receiver r)
   return true;
 }
 
-// The receiver's reference at a texel centre. A texel holding 1 (cleared:
-// nothing was drawn there within the view's depth range) never shadows: the
-// reference is capped at 1, so a receiver whose plane runs past the far
-// plane is not darkened by the empty texels beyond it (the seam that a
-// cascade's far plane would otherwise draw across the floor).
+// The receiver's reference at a texel centre: its plane where that texel
+// looks, but never deeper than the point itself. Only what lies in front of
+// the point can shadow it, and capping the plane there keeps two things
+// out:
+// - a plane extended past its own edge: a box face lit at a shallow angle
+//   runs, beyond its base, beneath the floor the box stands on, and the
+//   floor's texels would grey the face along its base;
+// - empty texels: a texel holding 1 (nothing drawn there within the view's
+//   depth range) is never in front of a point inside the view, so a
+//   receiver just inside a cascade's far plane is not darkened by the empty
+//   texels beyond it (the seam a cascade boundary drew across the floor).
+// A texel on the receiver's own surface is at its plane, so nearer texels
+// keep the plane: no acne on sloped receivers.
 float reference_at(Receiver r, vec2 texel_center) {
-  return min(r.reference + dot(r.gradient, texel_center - r.texel), 1.0);
+  return r.reference + min(dot(r.gradient, texel_center - r.texel), 0.0);
 }
 
 float stored_depth(View v, vec2 texel_center) {
@@ -253,7 +261,6 @@ float pcf(View v, Receiver r, const int R) {
   vec2 base = r.texel - 0.5;
   vec2 origin = floor(base);  // the texel a bilinear tap at r.texel starts from
   vec2 f = base - origin;
-  float reference_origin = r.reference - dot(r.gradient, f);
   float sum = 0.0;
   for (int by = 0; by <= R; ++by) {
     for (int bx = 0; bx <= R; ++bx) {
@@ -261,9 +268,10 @@ float pcf(View v, Receiver r, const int R) {
       vec2 corner = vec2(2 * bx - R, 2 * by - R);
       vec4 stored = textureGather(u_shadow_map, vec3((origin + corner + 1.0) / u.map_size, float(v.layer)));
       // textureGather's order: (x0, y1), (x1, y1), (x1, y0), (x0, y0).
-      vec4 dx = corner.x + vec4(0.0, 1.0, 1.0, 0.0);
-      vec4 dy = corner.y + vec4(1.0, 1.0, 0.0, 0.0);
-      vec4 reference = min(reference_origin + r.gradient.x * dx + r.gradient.y * dy, vec4(1.0));
+      // Each texel centre's offset from r.texel, and reference_at for all four.
+      vec4 dx = corner.x + vec4(0.0, 1.0, 1.0, 0.0) - f.x;
+      vec4 dy = corner.y + vec4(1.0, 1.0, 0.0, 0.0) - f.y;
+      vec4 reference = r.reference + min(r.gradient.x * dx + r.gradient.y * dy, vec4(0.0));
       vec4 lit = step(reference, stored);
       // The tent's edge columns and rows weigh by the tap's fraction.
       vec4 wx = vec4(1.0), wy = vec4(1.0);

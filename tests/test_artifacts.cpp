@@ -148,11 +148,12 @@ TEST_P(OrbitSweep, EveryBenchSceneHasNoArtifactOverOneTurnOfTheLight) {
   }
 }
 
-// KNOWN FAILING when added (on 595e5e1): huge-plane (at 2.25, 4.5, 6.75, 9 and
-// 11.25 s) and wide-x40 (at 9 s) show a stair-stepped false shadow, 0.1-0.4
-// dark, on box faces lit at a shallow angle (N.L 0.06-0.27), 4-11 px from the
-// faces' edges. It is not the cascade seam: reverting that fix leaves these
-// numbers as they are. Left failing on purpose until it is fixed.
+// This sweep found a second artifact besides the cascade seam: huge-plane
+// (at 2.25-11.25 s) and wide-x40 (at 9 s) drew a stair-stepped false shadow,
+// 0.1-0.4 dark, on box faces lit at a shallow angle (N.L 0.06-0.27) along
+// their base: the face's plane, extended past its edge, ran beneath the
+// floor. Fixed by never comparing a texel deeper than the point itself
+// (reference_at in shaders/scene.frag).
 INSTANTIATE_TEST_SUITE_P(BenchScenes, OrbitSweep, testing::ValuesIn(scene_file_names(UMBRA_SCENES_DIR)),
                          [](const testing::TestParamInfo<std::string>& info) {
                            std::string name = info.param;
