@@ -321,8 +321,8 @@ int run(int argc, char** argv) {
   const std::string machine = machine_description(service);
   const std::string when = utc_now();
   std::vector<Row> rows;
-  std::printf("%-20s %-24s %-24s %9s %9s %9s %8s %8s %8s\n", "scene", "technique", "views", "ms", "shadow ms", "MAE",
-              "wrong%", "f.shad%", "f.light%");
+  std::printf("%-20s %-24s %-24s %9s %9s %9s %8s %8s %8s %8s\n", "scene", "technique", "views", "ms", "shadow ms",
+              "MAE", "wrong%", "f.shad%", "f.light%", "artif.%");
   for (const std::string& scene : scenes) {
     const RenderRequest base = load_scene_request(options.scenes_dir, scene,
                                                   {{"width", options.width}, {"height", options.height}, {"output", "shadow"}});
@@ -330,9 +330,10 @@ int run(int argc, char** argv) {
     const bool perspective = base.light.projection == LightProjection::Perspective;
     for (const Technique& t : techniques_for(base, options)) {
       Row row = measure(service, options, scene, t, exact, perspective);
-      std::printf("%-20s %-24s %-24s %9.2f %9.2f %9.5f %8s %8s %8s\n", scene.c_str(), t.label().c_str(),
+      std::printf("%-20s %-24s %-24s %9.2f %9.2f %9.5f %8s %8s %8s %8s\n", scene.c_str(), t.label().c_str(),
                   row.views.c_str(), row.median_ms, row.median_shadow_ms, row.error.mae, percent(row.error.wrong).c_str(),
-                  percent(row.error.false_shadow).c_str(), percent(row.error.false_light).c_str());
+                  percent(row.error.false_shadow).c_str(), percent(row.error.false_light).c_str(),
+                  percent(row.error.artifacts).c_str());
       std::fflush(stdout);
       rows.push_back(std::move(row));
     }
@@ -360,6 +361,9 @@ std::vector<Row> read_rows(const json& j) {
     row.error.wrong = r.at("wrong");
     row.error.false_shadow = r.at("false_shadow");
     row.error.false_light = r.at("false_light");
+    // Reports written before the artifact figure existed have none.
+    row.error.artifacts = r.value("artifacts", 0.0);
+    row.error.interior_pixels = r.value("interior_pixels", std::size_t(0));
     row.error.pixels = r.at("pixels");
     rows.push_back(row);
   }
@@ -379,6 +383,7 @@ void write_reports(const std::vector<Row>& rows, const Options& options, const s
                          {"map_size", r.technique.map_size}, {"views", r.views}, {"median_ms", r.median_ms},
                          {"median_shadow_ms", r.median_shadow_ms}, {"mae", r.error.mae}, {"wrong", r.error.wrong},
                          {"false_shadow", r.error.false_shadow}, {"false_light", r.error.false_light},
+                         {"artifacts", r.error.artifacts}, {"interior_pixels", r.error.interior_pixels},
                          {"pixels", r.error.pixels}, {"seeds", r.technique.is_seeds()}});
   }
   for (const Summary& s : summary)
@@ -394,7 +399,9 @@ void write_reports(const std::vector<Row>& rows, const Options& options, const s
      << "- Machine: " << machine << "\n"
      << "- Frames: " << setup << "; time = shadow + main pass + read-back on the GL thread (PNG encoding excluded).\n"
      << "- Error: the `shadow` output against the exact ray-cast reference (`renderer/shadow_error.hpp`): "
-        "`wrong` = share of measured pixels with |v - v_exact| > 0.5, split into false shadow and false light.\n"
+        "`wrong` = share of measured pixels with |v - v_exact| > 0.5, split into false shadow and false light; "
+        "`artifacts` = share of interior pixels (exactly lit or dark, over 3 px from any shadow edge, silhouette or "
+        "crease) off by more than 0.1.\n"
      << "- `seeds-fixed`: the seeds' frustum (ortho +-10, or a 90 degree cone; near 1, far 7.5) and bias "
         "max(0.05 (1 - N.L), 0.005); the seeds' own configuration is `seeds-fixed pcf r1 1024`. "
         "`scene`: Umbra's fit and automatic bias.\n\n"
@@ -409,12 +416,12 @@ void write_reports(const std::vector<Row>& rows, const Options& options, const s
     if (r.scene != current) {
       current = r.scene;
       md << "\n## " << current << "\n\n| technique | views | median ms | shadow ms | MAE | wrong % | false shadow % | "
-                                  "false light % |\n|---|---|---|---|---|---|---|---|\n";
+                                  "false light % | artifacts % |\n|---|---|---|---|---|---|---|---|---|\n";
     }
     md << "| " << r.technique.label() << (r.technique.is_seeds() ? " (the seeds)" : "") << " | " << r.views << " | "
        << format("%.2f", r.median_ms) << " | " << format("%.2f", r.median_shadow_ms) << " | "
        << format("%.5f", r.error.mae) << " | " << percent(r.error.wrong) << " | " << percent(r.error.false_shadow)
-       << " | " << percent(r.error.false_light) << " |\n";
+       << " | " << percent(r.error.false_light) << " | " << percent(r.error.artifacts) << " |\n";
   }
   write_file(stem + ".md", md.str());
   write_file(stem + ".svg", pareto_svg(summary, "Umbra shadows: error against time, " + setup + " (" + machine + ")"));
