@@ -169,6 +169,34 @@ TEST(Renderer, DepthOutputIsMapSizeSquare) {
   }
 }
 
+TEST(Renderer, AnEmptyCubeFaceIsNeitherDrawnNorShownAsAnythingButFar) {
+  // A point light 1 above the floor: no object is above it, so the +Y face
+  // (layer 2) is empty. The shadow pass skips it; the preview must still
+  // show it cleared (far = white), not whatever the layer held.
+  const RenderRequest r = request(R"({"output": "depth", "shadow": {"map_size": 240},
+      "light": {"projection": "perspective", "position": [0, 1, 0], "target": [0, 0, 0.001]}})");
+  const ShadowPlan plan = plan_shadow(r);
+  ASSERT_EQ(plan.layout, ShadowLayout::Cube);
+  ASSERT_TRUE(plan.views[2].empty);
+  ASSERT_FALSE(plan.views[3].empty);
+  const RenderResult result = render(r);
+  ASSERT_EQ(result.image.width, 240);
+  // A 3 x 3 grid of 80-pixel tiles, layer 0 top left, row by row.
+  const auto tile_range = [&](int layer, int& lo, int& hi) {
+    lo = 255, hi = 0;
+    for (int y = (layer / 3) * 80 + 2; y < (layer / 3 + 1) * 80 - 2; ++y)
+      for (int x = (layer % 3) * 80 + 2; x < (layer % 3 + 1) * 80 - 2; ++x) {
+        lo = std::min<int>(lo, result.image.row(y)[x]);
+        hi = std::max<int>(hi, result.image.row(y)[x]);
+      }
+  };
+  int lo = 0, hi = 0;
+  tile_range(2, lo, hi);
+  EXPECT_EQ(lo, 255) << "the empty face's tile is not far everywhere";
+  tile_range(3, lo, hi);
+  EXPECT_LT(lo, 128) << "the face below the light shows no floor";
+}
+
 TEST(Renderer, A16BitDepthPreviewIsTheSameMappingWithFinerSteps) {
   for (const char* projection : {"orthographic", "perspective"}) {
     const RenderRequest r8 = request(std::string(R"({"output": "depth", "shadow": {"map_size": 256},)") +
