@@ -287,16 +287,21 @@ float pcf(View v, Receiver r, const int R) {
 }
 
 #if FILTER == FILTER_PCSS
-// A well-spread disk of sample points (Vogel spiral), rotated per pixel so
-// that too few samples show as fine grain rather than as banding.
-vec2 disk_sample(int i, int count, float rotation) {
+// A well-spread disk of sample points (Vogel spiral), turned per pixel by
+// `turn` (cos, sin of the angle) so that too few samples show as fine grain
+// rather than as banding. i and count are constants in every call, so the
+// spiral itself folds to constants: a pixel pays one rotation per sample,
+// not a sine, a cosine and a square root.
+vec2 disk_sample(int i, int count, vec2 turn) {
   float radius = sqrt((float(i) + 0.5) / float(count));
-  float angle = float(i) * 2.39996323 + rotation;
-  return radius * vec2(cos(angle), sin(angle));
+  float angle = float(i) * 2.39996323;
+  vec2 d = radius * vec2(cos(angle), sin(angle));
+  return vec2(turn.x * d.x - turn.y * d.y, turn.y * d.x + turn.x * d.y);
 }
 
-float pixel_rotation() {
-  return 6.2831853 * fract(52.9829189 * fract(dot(gl_FragCoord.xy, vec2(0.06711056, 0.00583715))));
+vec2 pixel_turn() {
+  float angle = 6.2831853 * fract(52.9829189 * fract(dot(gl_FragCoord.xy, vec2(0.06711056, 0.00583715))));
+  return vec2(cos(angle), sin(angle));
 }
 
 // Radius, in texels, of the region of the map through which the light's disc
@@ -313,12 +318,12 @@ vec2 light_footprint_texels(View v, Receiver r, float d) {
 // Percentage-closer soft shadows: find the average blocker depth, then
 // filter over the region the light's disc covers at that depth.
 float pcss(View v, Receiver r) {
-  float rotation = pixel_rotation();
+  vec2 turn = pixel_turn();
   vec2 search = min(light_footprint_texels(v, r, v.near), vec2(kPcssSearchTexels));
   float blocker_sum = 0.0;
   int blockers = 0;
   for (int i = 0; i < kPcssBlockerSamples; ++i) {
-    vec2 t = floor(r.texel + disk_sample(i, kPcssBlockerSamples, rotation) * search) + 0.5;
+    vec2 t = floor(r.texel + disk_sample(i, kPcssBlockerSamples, turn) * search) + 0.5;
     float stored = stored_depth(v, t);
     if (stored < reference_at(r, t)) {
       blocker_sum += linear_from_window(v, stored);
@@ -330,7 +335,7 @@ float pcss(View v, Receiver r) {
   if (max(penumbra.x, penumbra.y) < 1.0) return pcf(v, r, 0);
   float sum = 0.0;
   for (int i = 0; i < kPcssFilterSamples; ++i)
-    sum += lit_by_texel(v, r, floor(r.texel + disk_sample(i, kPcssFilterSamples, rotation) * penumbra) + 0.5);
+    sum += lit_by_texel(v, r, floor(r.texel + disk_sample(i, kPcssFilterSamples, turn) * penumbra) + 0.5);
   return sum / float(kPcssFilterSamples);
 }
 #endif
