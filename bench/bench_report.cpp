@@ -53,6 +53,18 @@ void write_file(const std::string& path, const std::string& text) {
   if (!out) throw std::runtime_error("cannot write " + path);
 }
 
+RenderResult frame_with_shadow_pass(RenderService& service, const RenderRequest& request, int& remeasured) {
+  RenderResult result = service.submit(request).get();
+  if (!result.shadow_reused) return result;
+  RenderRequest other = request;
+  other.shadow.cull = request.shadow.cull == CullMode::Back ? CullMode::Front : CullMode::Back;
+  service.submit(other).get();
+  result = service.submit(request).get();
+  if (result.shadow_reused) throw std::runtime_error("the shadow map was reused after a change of cull mode");
+  ++remeasured;
+  return result;
+}
+
 std::vector<int> parse_int_list(const std::string& text) {
   std::vector<int> out;
   std::stringstream in(text);

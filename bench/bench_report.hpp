@@ -6,6 +6,9 @@
 #include <string>
 #include <vector>
 
+#include "render_result.hpp"
+#include "request.hpp"
+
 namespace umbra {
 
 class RenderService;
@@ -29,6 +32,13 @@ std::string percent(double share);
 
 /// Writes `text` to `path` (binary, replacing it); throws std::runtime_error if it cannot.
 void write_file(const std::string& path, const std::string& text);
+
+/// Renders `request` with a shadow pass. Umbra keeps its shadow map while
+/// the light, scene and views still serve the frame; a benchmark moves the
+/// light between frames, but orbiting does not move a light straight above
+/// its target. Then one untimed frame with the other cull mode makes the map
+/// stale, the frame is rendered again, and `remeasured` counts it.
+RenderResult frame_with_shadow_pass(RenderService& service, const RenderRequest& request, int& remeasured);
 
 /// "512,1024" -> {512, 1024}.
 std::vector<int> parse_int_list(const std::string& text);

@@ -11,6 +11,14 @@
 
 namespace umbra {
 
+/// The orbit sweep (umbra-bench --speed and the OrbitSweep test): a scene
+/// at `count` light angles spread evenly over one turn of the default orbit
+/// (20 degrees per second turns once in kOrbitTurnSeconds); angle k of count
+/// is at orbit_sweep_time(k, count) seconds.
+inline constexpr double kOrbitTurnSeconds = 18.0;
+inline constexpr int kOrbitSweepTimes = 9;
+inline double orbit_sweep_time(int k, int count) { return kOrbitTurnSeconds * k / count; }
+
 /// Names (file stems) of every *.json in `directory`, sorted.
 std::vector<std::string> scene_file_names(const std::string& directory);
 

@@ -45,7 +45,6 @@ using nlohmann::json;
 constexpr double kTimeStep = 0.37;
 // The scene whose stage times the summary quotes.
 constexpr const char* kDefaultScene = "seeds";
-constexpr double kSweepSeconds = 18.0;
 
 struct ImageSize {
   int width = 0, height = 0;
@@ -57,10 +56,8 @@ struct SpeedOptions {
   std::string out_dir = UMBRA_RESULTS_DIR;
   std::string name = "speed";
   int frames = 15;
-  // Times of the orbit sweep: artifacts at `sweep` times spread evenly over
-  // [0, kSweepSeconds] (the default orbit, 20 degrees per second, turns the
-  // light once in 18 s). 0: no sweep.
-  int sweep = 9;
+  // Light angles of the orbit sweep (orbit_sweep_time); 0: no sweep.
+  int sweep = kOrbitSweepTimes;
   std::vector<ImageSize> sizes = {{640, 360}, {960, 540}};
   std::vector<std::string> only_scenes;  // empty: all
   std::string command_line;
@@ -138,23 +135,6 @@ struct SpeedRow {
   double ratio() const { return plain.total_ms > 0.0 ? umbra.total_ms / plain.total_ms : 0.0; }
 };
 
-// Umbra keeps its shadow map while the light, scene and views still serve
-// the frame. The light moves between measured frames, except where orbiting
-// does not move it (a light straight above its target): such a frame would
-// be timed without a shadow pass. Then one untimed frame with the other cull
-// mode makes the map stale, and the frame is measured again.
-RenderResult umbra_frame(RenderService& service, const RenderRequest& request, int& remeasured) {
-  RenderResult result = service.submit(request).get();
-  if (!result.shadow_reused) return result;
-  RenderRequest other = request;
-  other.shadow.cull = request.shadow.cull == CullMode::Back ? CullMode::Front : CullMode::Back;
-  service.submit(other).get();
-  result = service.submit(request).get();
-  if (result.shadow_reused) throw std::runtime_error("Umbra reused its shadow map after a change of cull mode");
-  ++remeasured;
-  return result;
-}
-
 SpeedRow measure_scene(RenderService& service, PlainFrameRenderer& plain, const SpeedOptions& options,
                        const std::string& scene, ImageSize size) {
   SpeedRow row;
@@ -176,13 +156,13 @@ SpeedRow measure_scene(RenderService& service, PlainFrameRenderer& plain, const 
   // moments of the panel's Play and not at the scene's own time.
   for (int k = 0; k < options.sweep; ++k) {
     RenderRequest moment = shadow_request;
-    moment.time = options.sweep > 1 ? kSweepSeconds * k / (options.sweep - 1) : 0.0;
+    moment.time = orbit_sweep_time(k, options.sweep);
     const std::vector<ExactPixel> exact_then = cast_exact_pixels(moment);
     const double umbra_artifacts = measure_shadow_error(service.submit(moment).get().image, exact_then).artifacts;
     const double plain_artifacts = measure_shadow_error(plain.render(moment, true).image, exact_then).artifacts;
-    if (umbra_artifacts >= row.umbra_sweep_artifacts)
+    if (umbra_artifacts > row.umbra_sweep_artifacts)
       row.umbra_sweep_artifacts = umbra_artifacts, row.umbra_sweep_worst_time = moment.time;
-    if (plain_artifacts >= row.plain_sweep_artifacts)
+    if (plain_artifacts > row.plain_sweep_artifacts)
       row.plain_sweep_artifacts = plain_artifacts, row.plain_sweep_worst_time = moment.time;
   }
 
@@ -194,7 +174,7 @@ SpeedRow measure_scene(RenderService& service, PlainFrameRenderer& plain, const 
   for (int i = 0; i < options.frames; ++i) {
     request.time = base.time + (i + 1) * kTimeStep;
     plain_frames.add(plain.render(request, false).timings);
-    umbra_frames.add(umbra_frame(service, request, row.umbra_remeasured).timings);
+    umbra_frames.add(frame_with_shadow_pass(service, request, row.umbra_remeasured).timings);
   }
   plain_frames.fill(row.plain);
   umbra_frames.fill(row.umbra);
@@ -244,7 +224,7 @@ constexpr const char* kRowPattern = "%-20s %9s %9s %6s %-15s %-15s %-19s %-19s %
 void print_header(ImageSize size) {
   std::printf("\n%s\n", size.label().c_str());
   std::printf(kRowPattern, "scene", "plain ms", "Umbra ms", "ratio", "plain s+m+r", "Umbra s+m+r", "plain wrong%/MAE",
-              "Umbra wrong%/MAE", "sweep art%", "Umbra views");
+              "Umbra wrong%/MAE", "Umbra sweep", "Umbra views");
 }
 
 void print_row(const SpeedRow& r) {
@@ -290,9 +270,9 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
         "(`renderer/shadow_error.hpp`); wrong = share of measured pixels with |v - v_exact| > 0.5; artifacts = "
         "share of interior pixels (exactly lit or dark, over 3 px from any shadow edge, silhouette or crease) off "
         "by more than 0.1.\n"
-     << "- Orbit sweep: the artifacts of the shadow output at " << options.sweep << " times spread evenly over 0-"
-     << kSweepSeconds << " s (one turn of the default orbit), each against its own exact reference; the worst "
-        "time of each.\n";
+     << "- Orbit sweep: the artifacts of the shadow output at " << options.sweep << " light angles spread evenly "
+     << "over one turn of the default orbit (t = k x " << kOrbitTurnSeconds << " / " << options.sweep
+     << " s), each against its own exact reference; the worst time of each (- where every angle had none).\n";
   std::string remeasured;
   for (const SpeedRow& r : rows)
     if (r.umbra_remeasured > 0)
@@ -342,9 +322,11 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
             "Umbra worst artifacts % (at s) |\n|---|---|---|\n";
       for (const SpeedRow& r : rows) {
         if (r.size.width != size.width || r.size.height != size.height) continue;
-        md << "| " << r.scene << " | " << percent(r.plain_sweep_artifacts) << " ("
-           << format("%.2f", r.plain_sweep_worst_time) << ") | " << percent(r.umbra_sweep_artifacts) << " ("
-           << format("%.2f", r.umbra_sweep_worst_time) << ") |\n";
+        const auto worst = [](double share, double time) {
+          return percent(share) + " (" + (share > 0.0 ? format("%.2f", time) : std::string("-")) + ")";
+        };
+        md << "| " << r.scene << " | " << worst(r.plain_sweep_artifacts, r.plain_sweep_worst_time) << " | "
+           << worst(r.umbra_sweep_artifacts, r.umbra_sweep_worst_time) << " |\n";
       }
     }
   }

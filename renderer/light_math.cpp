@@ -19,6 +19,8 @@ glm::dvec3 orbit_light_position(const Light& light, double time) {
   return light.target + rotate_y(light.position - light.target, std::fmod(time * light.orbit_deg_per_s, 360.0));
 }
 
+double sun_disc_tan_radius(const Light& light) { return std::tan(glm::radians(0.5 * light.size)); }
+
 glm::dmat4 stable_look_at(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up) {
   const glm::dvec3 forward = glm::normalize(target - eye);
   glm::dvec3 chosen_up = glm::normalize(up);

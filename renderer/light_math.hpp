@@ -20,6 +20,11 @@ namespace umbra {
 /// counter-clockwise seen from above.
 glm::dvec3 orbit_light_position(const Light& light, double time);
 
+/// A directional area light's angular radius, as its tangent: tan(size / 2),
+/// size being the disc's angular diameter in degrees. The shader's penumbra
+/// and the exact reference's disc both use this one value.
+double sun_disc_tan_radius(const Light& light);
+
 /// glm::lookAt, except that when `up` is (nearly) parallel to the view
 /// direction — a light straight above its target, a camera looking straight
 /// down with up = +Y — it substitutes a stable axis instead of producing NaNs:

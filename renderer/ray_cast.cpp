@@ -159,7 +159,7 @@ double visibility(const RayScene& rays, const RenderRequest& request, const glm:
   glm::dvec3 u, v;
   basis(to_light_center, u, v);
   // Orthographic: the sun's disc, directions within half the angular diameter.
-  const double spread = perspective ? 0.0 : std::tan(glm::radians(0.5 * light.size));
+  const double spread = perspective ? 0.0 : sun_disc_tan_radius(light);
   int seen = 0;
   const auto& samples = disc_samples();
   for (const glm::dvec2& s : samples) {

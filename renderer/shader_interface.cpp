@@ -1,10 +1,9 @@
 #include "shader_interface.hpp"
 
-#include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include <glm/ext/matrix_transform.hpp>
-#include <glm/trigonometric.hpp>
 
 namespace umbra {
 
@@ -84,7 +83,10 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   b.light_position = glm::vec4(glm::vec3(plan.position - origin), 1.0f);
   b.light_direction = glm::vec4(glm::vec3(plan.direction), 0.0f);
   b.light_color_ambient = glm::vec4(glm::vec3(request.light.color), float(request.light.ambient));
-  for (std::size_t i = 0; i < plan.views.size() && i < std::size_t(kMaxViews); ++i) {
+  if (plan.views.size() > std::size_t(kMaxViews))
+    throw std::logic_error("a light with " + std::to_string(plan.views.size()) + " views; the shaders hold " +
+                           std::to_string(kMaxViews));
+  for (std::size_t i = 0; i < plan.views.size(); ++i) {
     const ShadowView& v = plan.views[i];
     b.light_view[i] = relative(v.view);
     b.light_projection[i] = glm::mat4(v.projection);
@@ -97,8 +99,7 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   b.bias_normal_offset = float(bias.normal_offset);
   // An area light: a point light's radius, or the tangent of half a
   // directional light's angular diameter.
-  b.light_size = float(plan.perspective ? request.light.size
-                                        : std::tan(0.5 * glm::radians(request.light.size)));
+  b.light_size = float(plan.perspective ? request.light.size : sun_disc_tan_radius(request.light));
   b.map_size = float(plan.layer_size);
   int grid = 1;
   while (grid * grid < int(plan.views.size())) ++grid;

@@ -125,16 +125,14 @@ TEST(CascadeSeam, AThreeDegreeSunDrawsNoLineAcrossTheFloor) {
 class OrbitSweep : public testing::TestWithParam<std::string> {};
 
 TEST_P(OrbitSweep, EveryBenchSceneHasNoArtifactOverOneTurnOfTheLight) {
-  constexpr int kTimes = 9;
-  constexpr double kTurnSeconds = 18.0;
   // The default size, so the sweep sees what a client sees. All 14 scenes x 9
   // times took 37-51 s on the 2-core development machine (80 s while another
   // build ran), most of it the exact reference of the two area lights (64
   // shadow rays per pixel). 640x360 took 23 s but missed artifacts that
   // 960x540 shows (wide-x40 at 9 s, huge-plane at 4.5 and 9 s).
   constexpr int kWidth = 960, kHeight = 540;
-  for (int k = 0; k < kTimes; ++k) {
-    const double time = kTurnSeconds * k / (kTimes - 1);
+  for (int k = 0; k < kOrbitSweepTimes; ++k) {
+    const double time = orbit_sweep_time(k, kOrbitSweepTimes);
     const RenderRequest r = load_scene_request(
         UMBRA_SCENES_DIR, GetParam(), {{"width", kWidth}, {"height", kHeight}, {"output", "shadow"}, {"time", time}});
     std::ostringstream label;

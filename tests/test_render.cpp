@@ -72,14 +72,16 @@ TEST(GlProgram, EveryKindOfVariantBuildsWithTheBlockLayoutOfCxx) {
   gl::ProgramVariants programs("scene.vert", "scene.frag", 4);
   std::vector<DisplayVariant> variants;
   for (ShadowFilter filter : {ShadowFilter::Hard, ShadowFilter::Pcf, ShadowFilter::Pcss})
-    for (bool perspective : {false, true}) {
-      DisplayVariant v;
-      v.filter = filter;
-      v.perspective = perspective;
-      v.view_count = perspective ? 1 : 4;
-      v.pcf_radius = filter == ShadowFilter::Pcf ? 8 : 0;
-      variants.push_back(v);
-    }
+    for (bool perspective : {false, true})
+      for (bool bias_auto : {true, false}) {
+        DisplayVariant v;
+        v.filter = filter;
+        v.perspective = perspective;
+        v.view_count = perspective ? 1 : 4;
+        v.pcf_radius = filter == ShadowFilter::Pcf ? 8 : 0;
+        v.bias_auto = bias_auto;
+        variants.push_back(v);
+      }
   DisplayVariant cube;
   cube.perspective = cube.cube = true;
   cube.view_count = kMaxViews;

@@ -54,13 +54,21 @@ const Program& ProgramVariants::get(const std::string& defines) {
     kept_.splice(kept_.begin(), kept_, it);
     return kept_.front().second;
   }
-  kept_.emplace_front(defines, build_program(vertex_file_, fragment_file_, glsl_prelude(defines)));
-  if (kept_.size() > capacity_) kept_.pop_back();
+  Program built = build_program(vertex_file_, fragment_file_, glsl_prelude(defines));
+  // Room first, so the program returned is never the one evicted.
+  while (!kept_.empty() && kept_.size() >= capacity_) kept_.pop_back();
+  kept_.emplace_front(defines, std::move(built));
   return kept_.front().second;
 }
 
 void check_block_layout(const Program& program) {
-  if (glGetUniformBlockIndex(program.id(), "FrameBlock") == GL_INVALID_INDEX) return;  // not used
+  const GLuint block = glGetUniformBlockIndex(program.id(), "FrameBlock");
+  if (block == GL_INVALID_INDEX) return;  // not used
+  GLint size = 0;
+  glGetActiveUniformBlockiv(program.id(), block, GL_UNIFORM_BLOCK_DATA_SIZE, &size);
+  if (size <= 0 || std::size_t(size) > sizeof(FrameBlock))
+    throw std::runtime_error("FrameBlock is " + std::to_string(size) + " bytes in GL, " +
+                             std::to_string(sizeof(FrameBlock)) + " in C++");
   std::size_t count = 0;
   const BlockMember* members = frame_block_members(count);
   for (std::size_t i = 0; i < count; ++i) {

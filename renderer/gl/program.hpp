@@ -4,9 +4,6 @@
 #include <list>
 #include <string>
 #include <utility>
-#include <list>
-#include <string>
-#include <utility>
 #include <string_view>
 
 #include "objects.hpp"
