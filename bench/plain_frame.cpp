@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstddef>
-#include <cstring>
 #include <stdexcept>
 
 #include <glm/ext/matrix_clip_space.hpp>
@@ -284,16 +283,7 @@ Image PlainFrameRenderer::read_pixels(int channels) const {
   glNamedFramebufferReadBuffer(display_framebuffer_.id(), GL_COLOR_ATTACHMENT0);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
   glReadPixels(0, 0, width_, height_, channels == 1 ? GL_RED : GL_RGB, GL_UNSIGNED_BYTE, image.pixels.data());
-  // GL's row 0 is the bottom; images start at the top.
-  const std::size_t stride = std::size_t(width_) * channels;
-  std::vector<std::uint8_t> swap(stride);
-  for (int y = 0; y < height_ / 2; ++y) {
-    std::uint8_t* a = image.row(y);
-    std::uint8_t* b = image.row(height_ - 1 - y);
-    std::memcpy(swap.data(), a, stride);
-    std::memcpy(a, b, stride);
-    std::memcpy(b, swap.data(), stride);
-  }
+  image.flip_rows();
   return image;
 }
 

@@ -1,6 +1,7 @@
 // Pixels and timings handed from the renderer to whoever encodes them.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -29,6 +30,20 @@ struct Image {
   std::uint8_t* row(int y) { return pixels.data() + std::size_t(y) * row_bytes(); }
   const std::uint8_t* row(int y) const { return pixels.data() + std::size_t(y) * row_bytes(); }
   const std::uint8_t* at(int x, int y) const { return row(y) + std::size_t(x) * bytes_per_pixel(); }
+
+  /// Turns the rows upside down: GL reads row 0 at the bottom, images start
+  /// at the top.
+  void flip_rows() {
+    const std::size_t stride = row_bytes();
+    std::vector<std::uint8_t> swap(stride);
+    for (int y = 0; y < height / 2; ++y) {
+      std::uint8_t* a = row(y);
+      std::uint8_t* b = row(height - 1 - y);
+      std::copy(a, a + stride, swap.data());
+      std::copy(b, b + stride, a);
+      std::copy(swap.data(), swap.data() + stride, b);
+    }
+  }
 };
 
 /// Milliseconds spent in each stage of one frame (0 for a stage not run).

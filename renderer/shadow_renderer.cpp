@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstddef>
-#include <cstring>
 #include <stdexcept>
 
 #include <glm/ext/matrix_transform.hpp>
@@ -270,16 +269,7 @@ Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int
   // 16 bits: GL writes host-order uint16_t samples, which is what Image holds.
   const GLenum type = bit_depth == 16 ? GL_UNSIGNED_SHORT : GL_UNSIGNED_BYTE;
   glReadPixels(0, 0, width, height, channels == 1 ? GL_RED : GL_RGB, type, image.pixels.data());
-  // GL's row 0 is the bottom; images start at the top.
-  const std::size_t stride = image.row_bytes();
-  std::vector<std::uint8_t> swap(stride);
-  for (int y = 0; y < height / 2; ++y) {
-    std::uint8_t* a = image.row(y);
-    std::uint8_t* b = image.row(height - 1 - y);
-    std::memcpy(swap.data(), a, stride);
-    std::memcpy(a, b, stride);
-    std::memcpy(b, swap.data(), stride);
-  }
+  image.flip_rows();
   return image;
 }
 

@@ -16,6 +16,7 @@
 
 #include "png.hpp"
 #include "ray_cast.hpp"
+#include "render_support.hpp"
 #include "render_service.hpp"
 #include "request_parser.hpp"
 #include "scene_files.hpp"
@@ -23,17 +24,6 @@
 
 namespace umbra {
 namespace {
-
-RenderService& service() {
-  static std::unique_ptr<RenderService> instance = std::make_unique<RenderService>();
-  return *instance;
-}
-
-RenderRequest request(const std::string& body) {
-  ParsedRequest p = parse_render_request(body);
-  EXPECT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
-  return *p.request;
-}
 
 struct Measured {
   ShadowError error;

@@ -1,0 +1,28 @@
+// What the GL tests share: one render service for the whole test binary
+// (one GL thread and context, however many files use it), and requests
+// parsed from API bodies as a client would send them.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+
+#include "render_service.hpp"
+#include "request_parser.hpp"
+
+namespace umbra {
+
+inline RenderService& service() {
+  static std::unique_ptr<RenderService> instance = std::make_unique<RenderService>();
+  return *instance;
+}
+
+/// The body parsed as the server would; a test fails if it is not valid.
+inline RenderRequest request(const std::string& body) {
+  ParsedRequest p = parse_render_request(body);
+  EXPECT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  return *p.request;
+}
+
+}  // namespace umbra
