@@ -43,6 +43,17 @@ CameraMatrices camera_matrices(const Camera& camera, int width, int height) {
   return m;
 }
 
+glm::dmat4 reversed_depth_projection(const Camera& camera, int width, int height) {
+  // glm::perspective's x, y and w; z_clip = n (f - d) / (f - n) for a point
+  // at depth d, so z_clip / w = n (f - d) / (d (f - n)): 1 at d = n, 0 at d = f.
+  glm::dmat4 p = glm::perspective(glm::radians(camera.fov_y_deg), double(width) / double(height),
+                                  camera.near_plane, camera.far_plane);
+  const double n = camera.near_plane, f = camera.far_plane;
+  p[2][2] = n / (f - n);
+  p[3][2] = f * n / (f - n);
+  return p;
+}
+
 int filter_reach_texels(const ShadowSettings& shadow) {
   switch (shadow.filter) {
     case ShadowFilter::Hard: return 1;

@@ -39,6 +39,15 @@ struct CameraMatrices {
 };
 CameraMatrices camera_matrices(const Camera& camera, int width, int height);
 
+/// The camera's projection with reversed depth for a clip volume of z in
+/// [0, w] (glClipControl's GL_ZERO_TO_ONE): window depth 1 at the near
+/// plane, 0 at the far plane. With a floating-point depth buffer this keeps
+/// depth distinct at any ratio of far to near (near 1e-9, far 1e9), where
+/// the usual mapping rounds everything past a few near distances to 1 and
+/// draws nothing. Only the main pass draws with it; the light math keeps
+/// camera_matrices' conventional projection.
+glm::dmat4 reversed_depth_projection(const Camera& camera, int width, int height);
+
 /// One view of the light, rendered into one layer of the shadow map array.
 struct ShadowView {
   glm::dmat4 view{1.0};

@@ -78,7 +78,8 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   const auto relative = [&](const glm::dmat4& m) { return glm::mat4(m * from_origin); };
   FrameBlock b;
   const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
-  b.camera_view_projection = relative(camera.projection * camera.view);
+  b.camera_view_projection = relative(reversed_depth_projection(request.camera, request.width, request.height) *
+                                      camera.view);
   b.camera_position = glm::vec4(glm::vec3(request.camera.position - origin), 1.0f);
   b.light_position = glm::vec4(glm::vec3(plan.position - origin), 1.0f);
   b.light_direction = glm::vec4(glm::vec3(plan.direction), 0.0f);

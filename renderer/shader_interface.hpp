@@ -46,7 +46,8 @@ inline constexpr int kPcssFilterSamples = 32;
 // UMBRA_FRAME_BLOCK(MEMBER, ARRAY) lists them: MEMBER(type, name),
 // ARRAY(type, name, count).
 #define UMBRA_FRAME_BLOCK(MEMBER, ARRAY)                                                            \
-  /* The camera: origin-relative view-projection, and its position. */                            \
+  /* The camera: origin-relative view-projection (reversed depth, see */                         \
+  /* reversed_depth_projection), and its position. */                                             \
   MEMBER(mat4, camera_view_projection)                                                             \
   MEMBER(vec4, camera_position)                                                                    \
   /* The light: position (a point light's), unit direction of travel */                           \

@@ -232,8 +232,17 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
     glClearColor(1.0f, 1.0f, 1.0f, 1.0f);  // no geometry: nothing blocks the light
   else
     glClearColor(0.11f, 0.12f, 0.14f, 1.0f);
+  // Reversed depth (reversed_depth_projection): near is 1, far 0, so the
+  // nearest surface has the greatest depth. Only this pass; the shadow pass
+  // keeps GL's conventional clip volume and depth test.
+  glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+  glClearDepth(0.0);
+  glDepthFunc(GL_GREATER);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
   draw_scene(CullMode::None);
+  glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
+  glClearDepth(1.0);
+  glDepthFunc(GL_LESS);
 }
 
 void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size, int bits) {

@@ -41,6 +41,23 @@ std::string printable(const std::string& text) {
   return out;
 }
 
+// A client's own text as an error quotes it: printable, and cut after
+// RequestLimits::kMaxQuotedBytes so that a megabyte string does not come
+// back as a megabyte error.
+std::string quote_text(const std::string& text) {
+  if (text.size() <= RequestLimits::kMaxQuotedBytes) return "\"" + printable(text) + "\"";
+  return "\"" + printable(text.substr(0, RequestLimits::kMaxQuotedBytes)) + "\"... (" + std::to_string(text.size()) +
+         " bytes)";
+}
+
+// A field path or message built from a client's keys: the same cut, so the
+// answer stays small whatever the body held.
+std::string shortened(const std::string& text) {
+  constexpr std::size_t kMaxBytes = 4 * RequestLimits::kMaxQuotedBytes;
+  if (text.size() <= kMaxBytes) return text;
+  return printable(text.substr(0, kMaxBytes)) + "... (" + std::to_string(text.size()) + " bytes)";
+}
+
 std::string join(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
 std::string index(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
 
@@ -67,7 +84,7 @@ class LocatingBuilder : public nlohmann::json_sax<json> {
 
   bool key(string_t& k) override {
     json& object = *frames_.back().value;
-    if (object.contains(k)) return fail("duplicate key \"" + k + "\"", join(frames_.back().path, k));
+    if (object.contains(k)) return fail("duplicate key " + quote_text(k), join(frames_.back().path, k));
     frames_.back().key = k;
     return true;
   }
@@ -215,7 +232,7 @@ std::size_t read_choice(const json& j, const std::string& path, std::initializer
     if (s == c) return i;
     ++i;
   }
-  reject(path, "must be one of " + list + ", got \"" + s + "\"");
+  reject(path, "must be one of " + list + ", got " + quote_text(s));
 }
 
 glm::dvec3 read_vec3(const json& j, const std::string& path, double lo, double hi) {
@@ -236,7 +253,7 @@ glm::dvec3 read_color(const json& j, const std::string& path) {
     const std::string& s = j.get_ref<const std::string&>();
     const bool shaped = s.size() == 7 && s[0] == '#' &&
                         std::all_of(s.begin() + 1, s.end(), [](char c) { return std::isxdigit((unsigned char)c); });
-    if (!shaped) reject(path, "must be \"#rrggbb\" or [r, g, b], got \"" + s + "\"");
+    if (!shaped) reject(path, "must be \"#rrggbb\" or [r, g, b], got " + quote_text(s));
     glm::dvec3 c;
     for (int i = 0; i < 3; ++i) c[i] = std::stoi(s.substr(1 + 2 * i, 2), nullptr, 16) / 255.0;
     return c;
@@ -332,7 +349,7 @@ Scene read_scene(const json* j, const BuiltinScene*& builtin, std::set<std::stri
     if (builtin == nullptr) {
       std::string list;
       for (const auto& s : builtin_scenes()) list += std::string(list.empty() ? "" : ", ") + "\"" + s.name + "\"";
-      reject("scene", "unknown scene \"" + name + "\" (built-in scenes: " + list + ")");
+      reject("scene", "unknown scene " + quote_text(name) + " (built-in scenes: " + list + ")");
     }
     scene.name = builtin->name;
     scene.objects = builtin->objects;
@@ -356,7 +373,8 @@ void read_camera(const json* j, Camera& c, std::set<std::string>& sent) {
   if (auto v = r.get("position")) c.position = read_position(*v, r.path("position"));
   if (auto v = r.get("target")) c.target = read_position(*v, r.path("target"));
   if (auto v = r.get("up")) c.up = read_vec3(*v, r.path("up"), -RequestLimits::kMaxCoordinate, RequestLimits::kMaxCoordinate);
-  if (auto v = r.get("fov_y_deg")) c.fov_y_deg = read_number(*v, r.path("fov_y_deg"), 0.0, 180.0, true, true);
+  if (auto v = r.get("fov_y_deg"))
+    c.fov_y_deg = read_number(*v, r.path("fov_y_deg"), RequestLimits::kMinFovDeg, 180.0, false, true);
   if (auto v = r.get("near")) c.near_plane = read_number(*v, r.path("near"), 0.0, RequestLimits::kMaxExtent, true);
   if (auto v = r.get("far")) c.far_plane = read_number(*v, r.path("far"), 0.0, 1e9, true);
 }
@@ -373,7 +391,8 @@ void read_light(const json* j, Light& l, std::set<std::string>& sent) {
     l.projection = read_choice(*v, r.path("projection"), {"orthographic", "perspective"}) == 0
                        ? LightProjection::Orthographic
                        : LightProjection::Perspective;
-  if (auto v = r.get("fov_y_deg")) l.fov_y_deg = read_number(*v, r.path("fov_y_deg"), 0.0, 180.0, true, true);
+  if (auto v = r.get("fov_y_deg"))
+    l.fov_y_deg = read_number(*v, r.path("fov_y_deg"), RequestLimits::kMinFovDeg, 180.0, false, true);
   if (auto v = r.get("size")) {
     const bool perspective = l.projection == LightProjection::Perspective;
     l.size = read_number(*v, r.path("size"), 0.0,
@@ -545,7 +564,7 @@ ParsedRequest parse_render_request(std::string_view body, Route route) {
     const bool parsed = json::sax_parse(body.begin(), body.end(), &builder, json::input_format_t::json, true);
     if (!parsed || builder.rejection()) {
       const Rejection r = builder.rejection().value_or(Rejection{"", "malformed JSON"});
-      result.error = {r.message, r.field};
+      result.error = {shortened(r.message), shortened(r.field)};
       return result;
     }
   } else {

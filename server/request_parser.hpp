@@ -43,6 +43,13 @@ struct RequestLimits {
   static constexpr double kMaxTime = 1e9;           ///< |time|, seconds
   static constexpr double kMaxOrbitSpeed = 1e6;     ///< |orbit_deg_per_s|
   static constexpr double kMaxLightAngularSize = 90.0;
+  /// Narrowest field of view, degrees (camera and light): below it a
+  /// projection's scale (1 / tan(fov / 2)) leaves float range and the frame
+  /// would come back empty.
+  static constexpr double kMinFovDeg = 1e-3;
+  /// Longest piece of a client's own text (a string value, a key) that an
+  /// error message quotes back, bytes; the rest is cut and counted.
+  static constexpr std::size_t kMaxQuotedBytes = 64;
 };
 
 /// Where the body was posted. POST /api/depth always renders the depth map

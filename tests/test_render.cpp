@@ -136,6 +136,34 @@ TEST(Renderer, BackgroundIsWhiteInTheShadowOutput) {
   EXPECT_EQ(result.image.pixels[0], 255);  // top left: sky
 }
 
+TEST(Renderer, AnyRatioOfFarToNearDrawsWhatTheExactReferenceSees) {
+  // A conventional depth mapping rounds everything past a few near
+  // distances to 1 and draws nothing at near 1e-9; the main pass's reversed
+  // depth keeps them apart. Pixels with geometry must match the exact
+  // reference's, and the shadow term must still be right.
+  for (const char* camera : {R"("near": 1e-9)", R"("near": 1e-6, "far": 1e6)", R"("near": 0.1)"}) {
+    const RenderRequest r =
+        request(std::string(R"({"width": 240, "height": 136, "output": "color", "camera": {)") + camera + "}}");
+    const RenderResult frame = render(r);
+    const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+    std::size_t drawn = 0, seen = 0;
+    for (int y = 0; y < r.height; ++y)
+      for (int x = 0; x < r.width; ++x) {
+        const std::uint8_t* p = frame.image.at(x, y);
+        // The background is the clear colour (0.11, 0.12, 0.14).
+        drawn += !(p[0] == 28 && p[1] == 31 && p[2] == 36);
+        seen += exact[std::size_t(y) * r.width + x].geometry;
+      }
+    EXPECT_GT(seen, std::size_t(r.width) * r.height / 2) << camera;
+    EXPECT_NEAR(double(drawn), double(seen), 0.01 * seen) << camera;
+    RenderRequest shadow = r;
+    shadow.output = Output::Shadow;
+    const ShadowError e = measure_shadow_error(render(shadow).image, exact);
+    EXPECT_LT(e.wrong, 0.005) << camera;
+    EXPECT_EQ(e.artifacts, 0.0) << camera;
+  }
+}
+
 TEST(Renderer, NoShadowsMeansNoDarkPixelOnTheFloor) {
   const RenderRequest r = request(R"({"width": 240, "height": 136, "output": "shadow", "shadow": {"enabled": false}})");
   const RenderResult result = render(r);

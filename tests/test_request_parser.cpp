@@ -167,6 +167,11 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{R"({"width": 15})", "width"}, BadInput{R"({"height": 4097})", "height"},
         BadInput{R"({"width": 100.5})", "width"}, BadInput{R"({"camera": {"fov_y_deg": 180}})", "camera.fov_y_deg"},
         BadInput{R"({"camera": {"fov_y_deg": 0}})", "camera.fov_y_deg"},
+        // Narrower than RequestLimits::kMinFovDeg the projection leaves
+        // float range and the frame would come back empty.
+        BadInput{R"({"camera": {"fov_y_deg": 1e-38}})", "camera.fov_y_deg"},
+        BadInput{R"({"camera": {"fov_y_deg": 0.0009}})", "camera.fov_y_deg"},
+        BadInput{R"({"light": {"fov_y_deg": 1e-20}})", "light.fov_y_deg"},
         BadInput{R"({"light": {"fov_y_deg": 450}})", "light.fov_y_deg"},
         BadInput{R"({"camera": {"near": 0}})", "camera.near"}, BadInput{R"({"camera": {"near": 5, "far": 2}})", "camera.far"},
         BadInput{R"({"light": {"color": [1, 1.5, 1]}})", "light.color[1]"},
@@ -300,6 +305,32 @@ TEST(RequestParser, InvalidUtf8IsRejectedWithAPrintableMessage) {
     ASSERT_FALSE(p.ok()) << body;
     for (unsigned char c : p.error.message) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << p.error.message;
     for (unsigned char c : p.error.field) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << p.error.field;
+  }
+}
+
+}  // namespace
+}  // namespace umbra
+
+namespace umbra {
+namespace {
+
+TEST(RequestParser, TheNarrowestFieldOfViewIsAccepted) {
+  const ParsedRequest p = parse_render_request(R"({"camera": {"fov_y_deg": 0.001}, "light": {"fov_y_deg": 0.001}})");
+  ASSERT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  EXPECT_DOUBLE_EQ(p.request->camera.fov_y_deg, RequestLimits::kMinFovDeg);
+}
+
+TEST(RequestParser, AHugeStringOrKeyIsQuotedBackCutShort) {
+  const std::string huge(1 << 20, 'x');
+  for (const std::string& body : {R"({"output": ")" + huge + R"("})", R"({"light": {"color": ")" + huge + R"("}})",
+                                  R"({"scene": ")" + huge + R"("})", R"({")" + huge + R"(": 1})"}) {
+    const ParsedRequest p = parse_render_request(body);
+    ASSERT_FALSE(p.ok());
+    EXPECT_LT(p.error.message.size() + p.error.field.size(), 1200u) << p.error.message.substr(0, 200);
+    // It says how much was cut, and still quotes the beginning.
+    EXPECT_NE((p.error.message + p.error.field).find("1048576 bytes"), std::string::npos)
+        << p.error.message.substr(0, 300) << " | " << p.error.field.substr(0, 300);
+    EXPECT_NE((p.error.message + p.error.field).find("xxxxxxxx"), std::string::npos);
   }
 }
 
