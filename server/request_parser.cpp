@@ -575,7 +575,7 @@ ParsedRequest parse_render_request(std::string_view body, Route route) {
     result.request = read_request(root, route, sent);
     result.unused_fields = unused_fields(*result.request, sent);
   } catch (const Rejection& r) {
-    result.error = {r.message, r.field};
+    result.error = {shortened(r.message), shortened(r.field)};
   }
   return result;
 }
