@@ -32,6 +32,7 @@ struct RenderService::Impl {
       jobs.push_back(std::move(job));
     }
     wake.notify_one();
+    reaper_wake.notify_one();
     return result;
   }
 
@@ -66,7 +67,8 @@ struct RenderService::Impl {
   }
 
   mutable std::mutex mutex;
-  std::condition_variable wake;
+  std::condition_variable wake;         // the GL thread: a job arrived, or stop
+  std::condition_variable reaper_wake;  // the reaper: a job arrived, or stop
   std::deque<Job> jobs;
   bool stopping = false;
   std::atomic<std::size_t> in_flight{0};
@@ -75,6 +77,31 @@ struct RenderService::Impl {
   std::atomic<std::uint64_t> scene_uploads{0};
   RendererInfo info;
   std::thread thread;
+  std::thread reaper;
+
+  // Answers each job that has waited past the deadline as soon as it has,
+  // while the GL thread may still be busy with a long one before it: the GL
+  // thread alone would only find it when its turn came, and the client would
+  // wait for the long job first. Jobs wait in order, so the first one is
+  // always the next to expire.
+  void reap() {
+    std::unique_lock<std::mutex> lock(mutex);
+    while (!stopping) {
+      const auto now = std::chrono::steady_clock::now();
+      while (!jobs.empty() && now - jobs.front().queued > limits.deadline) {
+        Job job = std::move(jobs.front());
+        jobs.pop_front();
+        // Counters first, then the answer (as on the GL thread).
+        expired_count.fetch_add(1);
+        if (job.holds_place) in_flight.fetch_sub(1);
+        job.promise.set_exception(std::make_exception_ptr(DeadlineExceeded()));
+      }
+      if (jobs.empty())
+        reaper_wake.wait(lock, [this] { return stopping || !jobs.empty(); });
+      else
+        reaper_wake.wait_until(lock, jobs.front().queued + limits.deadline + std::chrono::milliseconds(1));
+    }
+  }
 
   // The GL thread: context, renderer and every GL call live and die here.
   void run(std::promise<void>& ready) {
@@ -130,6 +157,7 @@ RenderService::RenderService(ServiceLimits limits) : impl_(std::make_unique<Impl
     impl_->thread.join();
     throw;
   }
+  impl_->reaper = std::thread([this] { impl_->reap(); });
 }
 
 RenderService::~RenderService() {
@@ -138,7 +166,9 @@ RenderService::~RenderService() {
     impl_->stopping = true;
   }
   impl_->wake.notify_all();
+  impl_->reaper_wake.notify_all();
   impl_->thread.join();
+  impl_->reaper.join();
   // Ray casts run on their own threads and give their place back when they
   // end: wait for them, since they hold a pointer to impl_.
   while (impl_->in_flight.load() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));

@@ -397,6 +397,28 @@ TEST(RenderService, AJobThatWaitedPastItsDeadlineIsDroppedUnrendered) {
   EXPECT_EQ(own.queue_depth(), 0u);
 }
 
+TEST(RenderService, AJobIsAnsweredAtItsDeadlineNotWhenTheJobBeforeItEnds) {
+  ServiceLimits limits;
+  limits.deadline = std::chrono::milliseconds(200);
+  RenderService own(limits);
+  // ~2 s on llvmpipe: far longer than the deadline and the wait below.
+  auto slow = own.submit(request(R"({"width": 4096, "height": 4096, "output": "shadow", "shadow": {"pcf_radius": 8}})"));
+  auto late = own.submit(request(R"({"width": 32, "height": 32})"));
+  const bool answered = late.wait_for(std::chrono::milliseconds(600)) == std::future_status::ready;
+  const bool slow_still_running = slow.wait_for(std::chrono::seconds(0)) != std::future_status::ready;
+  if (!slow_still_running && !answered) {
+    late.wait();
+    GTEST_SKIP() << "the slow render ended within 600 ms here: too fast to tell the deadline from its end";
+  }
+  EXPECT_TRUE(answered) << "the late job got no answer 600 ms after a 200 ms deadline";
+  EXPECT_TRUE(slow_still_running) << "the slow render ended before the late job's answer: the test proves nothing";
+  EXPECT_THROW(late.get(), DeadlineExceeded);
+  EXPECT_EQ(slow.get().image.width, 4096);
+  EXPECT_EQ(own.expired(), 1u);
+  EXPECT_EQ(own.frames_rendered(), 1u);
+  EXPECT_EQ(own.queue_depth(), 0u);
+}
+
 TEST(RenderService, AFullQueueRefusesAtOnceAndCountsIt) {
   ServiceLimits limits;
   limits.queue_capacity = 2;
