@@ -32,6 +32,87 @@ void send_error(httplib::Response& res, int status, const std::string& message, 
                   "application/json");
 }
 
+// For a request whose framing cannot be trusted (RFC 9112 §6.3: the server
+// must answer 400 and close), so that no byte after its headers is ever read
+// as the next request. cpp-httplib 0.11 gives a handler no way to close the
+// connection; a content provider that reports failure once it has written
+// the whole body makes it close after the response. The body is send_error's.
+void send_error_and_close(httplib::Response& res, int status, const std::string& message, const std::string& field) {
+  send_error(res, status, message, field);
+  auto body = std::make_shared<std::string>(std::move(res.body));
+  res.body.clear();
+  res.headers.erase("Content-Type");  // set again below, once
+  res.set_header("Connection", "close");
+  res.set_content_provider(body->size(), "application/json",
+                           [body](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+                             sink.write(body->data() + offset, length);
+                             return false;  // written whole: now close
+                           });
+}
+
+bool starts_with_ci(const std::string& s, const char* prefix) {
+  const std::size_t n = std::char_traits<char>::length(prefix);
+  if (s.size() < n) return false;
+  for (std::size_t i = 0; i < n; ++i)
+    if (std::tolower(static_cast<unsigned char>(s[i])) != std::tolower(static_cast<unsigned char>(prefix[i])))
+      return false;
+  return true;
+}
+
+// RFC 9112 §6.3: a Content-Length must be a non-empty string of digits, and
+// several must agree; Transfer-Encoding (whose final coding must be chunked,
+// the only one cpp-httplib reads) excludes Content-Length. Anything else
+// leaves the body's length unknown. cpp-httplib would read "0x10" as 0 and
+// "-1" as 2^64 - 1 (waiting for that body), and take the first of several.
+// Empty: the framing is sound; else the error, naming the header.
+std::string framing_error(const httplib::Request& req) {
+  const std::size_t lengths = req.get_header_value_count("Content-Length");
+  const std::size_t codings = req.get_header_value_count("Transfer-Encoding");
+  if (lengths > 0 && codings > 0) return "Content-Length and Transfer-Encoding together";
+  const std::string coding = req.get_header_value("Transfer-Encoding");
+  if (codings > 1 || (codings == 1 && !(coding.size() == 7 && starts_with_ci(coding, "chunked"))))
+    return "Transfer-Encoding other than chunked";
+  for (std::size_t i = 0; i < lengths; ++i) {
+    const std::string value = req.get_header_value("Content-Length", i);
+    if (value.empty() || value.find_first_not_of("0123456789") != std::string::npos)
+      return "Content-Length is not a decimal number of bytes";
+    if (value != req.get_header_value("Content-Length", 0)) return "several different Content-Length values";
+  }
+  return "";
+}
+
+// RFC 9112 §6.3: a request with neither Content-Length nor Transfer-Encoding
+// has no body. cpp-httplib would read one until the client closes (or its
+// read timeout), so such a request is not given to it to read.
+bool has_body(const httplib::Request& req) {
+  return req.has_header("Content-Length") || req.has_header("Transfer-Encoding");
+}
+
+// Reads a body only to throw it away, so that the connection can serve its
+// next request. multipart/form-data goes through cpp-httplib's own parser
+// (the plain reader would call an empty callback there); the 1 MiB limit
+// applies either way. False: cpp-httplib has set the status (413 or 400).
+bool discard_body(const httplib::Request& req, const httplib::ContentReader& content_reader) {
+  if (!has_body(req)) return true;
+  const auto ignore = [](const char*, std::size_t) { return true; };
+  if (req.is_multipart_form_data())
+    return content_reader([](const httplib::MultipartFormData&) { return true; }, ignore);
+  return content_reader(ignore);
+}
+
+// cpp-httplib answers any Range itself (206 and a slice; several ranges
+// each repeat the headers, so thousands of them multiply the response). An
+// API answer is always whole: a render is made for this request, there is
+// nothing to resume. A static file may take one range (a resumed download);
+// several are ignored, which RFC 9110 §14.2 allows, and the file is sent
+// whole, never larger than it is. The handler's Request is const, but
+// cpp-httplib's own object is not, and it reads the ranges only later.
+void ignore_unsafe_ranges(httplib::Request& req) {
+  const bool api = req.path.rfind("/api/", 0) == 0 || req.path == "/api";
+  const bool file_read = req.method == "GET" || req.method == "HEAD";
+  if (api || !file_read || req.ranges.size() > 1) req.ranges.clear();
+}
+
 json vec3_json(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
 
 // Same form as a custom scene's object in a request body.
@@ -199,12 +280,18 @@ void HttpApi::install_routes() {
                  "");
       return httplib::Server::HandlerResponse::Handled;
     }
+    const std::string framing = framing_error(req);
+    if (!framing.empty()) {
+      send_error_and_close(res, 400, "malformed request framing: " + framing, "");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    ignore_unsafe_ranges(const_cast<httplib::Request&>(req));
     return httplib::Server::HandlerResponse::Unhandled;
   });
   // Errors raised inside cpp-httplib itself (413, 400 on a bad request line,
   // unmatched routes) get the same JSON form as ours; ours already have a body.
   http.set_error_handler(httplib::Server::HandlerWithResponse([](const httplib::Request&, httplib::Response& res) {
-    if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+    if (!res.body.empty() || res.content_provider_) return httplib::Server::HandlerResponse::Unhandled;
     switch (res.status) {
       case 404: send_error(res, 404, "no such path", ""); break;
       case 413: send_error(res, 413, "request body larger than 1 MiB", ""); break;
@@ -214,6 +301,11 @@ void HttpApi::install_routes() {
     }
     return httplib::Server::HandlerResponse::Handled;
   }));
+  // cpp-httplib adds Keep-Alive to every response it does not close itself;
+  // one that send_error_and_close closes says only "Connection: close".
+  http.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
+    if (res.get_header_value("Connection") == "close") res.headers.erase("Keep-Alive");
+  });
   http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr error) {
     std::string what = "internal error";
     try {
@@ -319,14 +411,23 @@ void HttpApi::install_routes() {
     }
     res.set_content(std::move(png), "image/png");
   };
-  // The body is read through a content reader, whatever its Content-Type:
-  // cpp-httplib would otherwise parse a body sent as
-  // application/x-www-form-urlencoded (curl -d's default) as a form and
-  // refuse it above 8 KiB. The 1 MiB limit still applies.
+  // The body is read through a content reader, whatever its Content-Type
+  // (none, text/plain, JSON alike): cpp-httplib would otherwise parse a body
+  // sent as application/x-www-form-urlencoded (curl -d's default) as a form
+  // and refuse it above 8 KiB. The 1 MiB limit still applies. multipart/*
+  // (curl -F) is a set of parts, not one JSON document: 415.
   const auto read_then_render = [render](const httplib::Request& req, httplib::Response& res,
                                         const httplib::ContentReader& content_reader, bool depth_route) {
-    std::string body;
-    const bool whole = content_reader([&body](const char* data, std::size_t length) {
+    if (starts_with_ci(req.get_header_value("Content-Type"), "multipart/")) {
+      const std::string type = req.get_header_value("Content-Type");
+      if (discard_body(req, content_reader))
+        send_error(res, 415, "unsupported Content-Type " + type.substr(0, type.find(';')) +
+                                 "; send the JSON body as it is (application/json, or any type but multipart/*)",
+                   "");
+      return;  // else cpp-httplib's 413 or 400, written by the error handler
+    }
+    std::string body;  // none at all reads as {}, all defaults, like an empty one
+    const bool whole = !has_body(req) || content_reader([&body](const char* data, std::size_t length) {
       body.append(data, length);
       return true;
     });
@@ -361,11 +462,18 @@ void HttpApi::install_routes() {
       res.set_header("Allow", allow);
       send_error(res, 405, "method " + req.method + " not allowed here; use " + allow, "");
     };
+    // With a content reader, so that a request without a body is not waited
+    // on (cpp-httplib would read one until the client closes); a body there
+    // is is read and dropped, so that the connection stays usable.
+    const auto not_allowed_with_body = [not_allowed](const httplib::Request& req, httplib::Response& res,
+                                                     const httplib::ContentReader& content_reader) {
+      if (discard_body(req, content_reader)) not_allowed(req, res);
+    };
     if (allow != "GET") http.Get(route.path, not_allowed);
-    if (allow != "POST") http.Post(route.path, not_allowed);
-    http.Put(route.path, not_allowed);
-    http.Delete(route.path, not_allowed);
-    http.Patch(route.path, not_allowed);
+    if (allow != "POST") http.Post(route.path, not_allowed_with_body);
+    http.Put(route.path, not_allowed_with_body);
+    http.Delete(route.path, not_allowed_with_body);
+    http.Patch(route.path, not_allowed_with_body);
   }
 
   // Static files last, so that every API route (and its 405) is matched first.
