@@ -1,6 +1,8 @@
 #include "ray_cast.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <mutex>
 #include <cmath>
 #include <limits>
 #include <thread>
@@ -288,7 +290,7 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
   return visibility(RayScene(request.scene), request, light_position, point, normal);
 }
 
-std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
+std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request, const std::function<bool()>& stop_requested) {
   const int width = request.width, height = request.height;
   std::vector<ExactPixel> pixels(std::size_t(width) * height);
   const CameraMatrices camera = camera_matrices(request.camera, width, height);
@@ -296,8 +298,15 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
   const glm::dvec3 light_position = orbit_light_position(request.light, request.time);
   const RayScene rays(request.scene);
 
+  std::atomic<bool> stopped{false};
+  std::mutex asking;  // stop_requested need not be thread-safe
   const auto rows = [&](int first, int step) {
     for (int y = first; y < height; y += step) {
+      if (stop_requested) {
+        std::lock_guard<std::mutex> lock(asking);
+        if (stopped || stop_requested()) stopped = true;
+      }
+      if (stopped) return;
       for (int x = 0; x < width; ++x) {
         // Pixel centre, row 0 at the top.
         const double nx = (x + 0.5) / width * 2.0 - 1.0;
@@ -325,6 +334,7 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request) {
   for (int i = 1; i < threads; ++i) pool.emplace_back(rows, i, threads);
   rows(0, threads);
   for (auto& t : pool) t.join();
+  if (stopped) throw CastStopped();
   return pixels;
 }
 

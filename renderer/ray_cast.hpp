@@ -3,7 +3,9 @@
 // No GL and no shadow map, so it is what the GL output is judged against.
 #pragma once
 
+#include <functional>
 #include <optional>
+#include <stdexcept>
 
 #include <glm/vec3.hpp>
 
@@ -74,9 +76,18 @@ struct ExactPixel {
   glm::vec3 normal{0.0f};
 };
 
+/// A cast ended early because its caller asked it to (see cast_exact_pixels).
+struct CastStopped : std::runtime_error {
+  CastStopped() : std::runtime_error("the ray cast was stopped") {}
+};
+
 /// Every pixel of the request's camera view (width x height, row 0 at the
-/// top), using all hardware threads.
-std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request);
+/// top), using all hardware threads. `stop_requested`, if given, is asked
+/// between rows (from those threads): once it answers true the cast ends
+/// and throws CastStopped, so a client that has left does not keep cores
+/// busy for minutes.
+std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request,
+                                          const std::function<bool()>& stop_requested = nullptr);
 
 /// The "exact" output: round(255 * v) per pixel, 255 where no geometry.
 Image exact_image(const std::vector<ExactPixel>& pixels, int width, int height);

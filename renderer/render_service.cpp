@@ -210,7 +210,15 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
     else if (client_gone && client_gone())
       shadow = rendered.get();
     const auto start = std::chrono::steady_clock::now();
-    const std::vector<ExactPixel> pixels = cast_exact_pixels(request);
+    // A client that leaves while its rays are cast stops the cast: an area
+    // light at 4096^2 is minutes of CPU for nobody otherwise.
+    std::vector<ExactPixel> pixels;
+    try {
+      pixels = cast_exact_pixels(request, client_gone);
+    } catch (const CastStopped&) {
+      impl->abandoned_count.fetch_add(1);
+      throw ClientGone();
+    }
     const Image exact = exact_image(pixels, request.width, request.height);
     const double cast_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     RenderResult result;

@@ -419,6 +419,20 @@ TEST(RenderService, AJobIsAnsweredAtItsDeadlineNotWhenTheJobBeforeItEnds) {
   EXPECT_EQ(own.queue_depth(), 0u);
 }
 
+TEST(RenderService, ARayCastStopsWhenItsClientLeaves) {
+  RenderService own;
+  // An area light at 1024^2: 64 shadow rays a pixel, many seconds of CPU.
+  const RenderRequest exact =
+      request(R"({"width": 1024, "height": 1024, "output": "exact", "light": {"size": 5}})");
+  const auto start = std::chrono::steady_clock::now();
+  auto cast = own.submit(exact, [start] { return std::chrono::steady_clock::now() - start > std::chrono::milliseconds(200); });
+  ASSERT_EQ(cast.wait_for(std::chrono::seconds(3)), std::future_status::ready)
+      << "the cast went on for 3 s after its client left";
+  EXPECT_THROW(cast.get(), ClientGone);
+  EXPECT_EQ(own.abandoned(), 1u);
+  EXPECT_EQ(own.queue_depth(), 0u);
+}
+
 TEST(RenderService, AFullQueueRefusesAtOnceAndCountsIt) {
   ServiceLimits limits;
   limits.queue_capacity = 2;
