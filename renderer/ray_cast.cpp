@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <atomic>
-#include <mutex>
 #include <cmath>
 #include <limits>
+#include <mutex>
 #include <thread>
 
 #include <glm/geometric.hpp>

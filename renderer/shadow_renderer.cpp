@@ -1,12 +1,8 @@
 #include "shadow_renderer.hpp"
 
 #include <chrono>
-#include <cmath>
 #include <cstddef>
 #include <stdexcept>
-
-#include <glm/ext/matrix_transform.hpp>
-#include <glm/gtc/type_ptr.hpp>
 
 #include "gl/program.hpp"
 #include "shader_interface.hpp"

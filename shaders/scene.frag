@@ -56,6 +56,22 @@ vec4 clip_in_view(int i, vec3 eye) {
 #endif
 }
 
+// The same in the view `v` was chosen for. Every perspective view is
+// glm::perspective with aspect 1, so it is rebuilt from near, far and
+// tan_half rather than selected among the views' matrices per pixel.
+vec4 clip_in_chosen_view(View v, vec3 eye) {
+#if LIGHT_PERSPECTIVE
+  float depth = -eye.z;
+  float z = (v.far + v.near) / (v.far - v.near) * depth - 2.0 * v.far * v.near / (v.far - v.near);
+  return vec4(eye.xy / v.tan_half, z, depth);
+#else
+  vec4 clip = clip_in_view(0, eye);
+  for (int i = 1; i < VIEW_COUNT; ++i)
+    if (v.layer == i) clip = clip_in_view(i, eye);
+  return clip;
+#endif
+}
+
 bool holds(vec4 clip, out vec3 ndc) {
   ndc = clip.xyz / clip.w;
   return clip.w > 0.0 && all(lessThanEqual(abs(ndc), vec3(1.0)));  // w <= 0: behind a point light
@@ -93,10 +109,7 @@ bool choose_view(vec3 p, out View v) {
   v.rotation = mat3(view);
   v.eye = v.rotation * p + view[3].xyz;
   set_view_constants(v);
-  // gluPerspective's clip coordinates, w = depth.
-  float depth = -v.eye.z;
-  float z = (v.far + v.near) / (v.far - v.near) * depth - 2.0 * v.far * v.near / (v.far - v.near);
-  return holds(vec4(v.eye.xy / v.tan_half, z, depth), v.ndc);
+  return holds(clip_in_chosen_view(v, v.eye), v.ndc);
 }
 #else
 // The first view whose map holds the point with the filter's reach
@@ -189,10 +202,7 @@ bool make_receiver(View v, vec3 geometric_normal, float n_dot_l, out Receiver r)
   float texel_world = max(v.texel.x, v.texel.y);
 #endif
   vec3 moved = v.eye + v.rotation * geometric_normal * (u.bias_normal_offset * texel_world);
-  vec4 clip = clip_in_view(0, moved);
-  for (int i = 1; i < VIEW_COUNT; ++i)
-    if (v.layer == i) clip = clip_in_view(i, moved);
-  if (!holds(clip, ndc)) return false;
+  if (!holds(clip_in_chosen_view(v, moved), ndc)) return false;
 #endif
   r.texel = (ndc.xy * 0.5 + 0.5) * u.map_size;
 #if BIAS_AUTO
