@@ -5,10 +5,8 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
-#include <sstream>
 #include <utility>
 
-#include <httplib.h>
 #include <nlohmann/json.hpp>
 #include <sys/stat.h>
 
@@ -25,93 +23,18 @@ namespace {
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-void send_error(httplib::Response& res, int status, const std::string& message, const std::string& field) {
+void send_error(HttpResponse& res, int status, const std::string& message, const std::string& field) {
   res.status = status;
   // Replace, not throw, should a message ever carry invalid UTF-8.
   res.set_content(json{{"error", message}, {"field", field}}.dump(-1, ' ', false, json::error_handler_t::replace),
                   "application/json");
 }
 
-// For a request whose framing cannot be trusted (RFC 9112 §6.3: the server
-// must answer 400 and close), so that no byte after its headers is ever read
-// as the next request. cpp-httplib 0.11 gives a handler no way to close the
-// connection; a content provider that reports failure once it has written
-// the whole body makes it close after the response. The body is send_error's.
-void send_error_and_close(httplib::Response& res, int status, const std::string& message, const std::string& field) {
-  send_error(res, status, message, field);
-  auto body = std::make_shared<std::string>(std::move(res.body));
-  res.body.clear();
-  res.headers.erase("Content-Type");  // set again below, once
-  res.set_header("Connection", "close");
-  res.set_content_provider(body->size(), "application/json",
-                           [body](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
-                             sink.write(body->data() + offset, length);
-                             return false;  // written whole: now close
-                           });
-}
-
 bool starts_with_ci(const std::string& s, const char* prefix) {
   const std::size_t n = std::char_traits<char>::length(prefix);
-  if (s.size() < n) return false;
-  for (std::size_t i = 0; i < n; ++i)
-    if (std::tolower(static_cast<unsigned char>(s[i])) != std::tolower(static_cast<unsigned char>(prefix[i])))
-      return false;
-  return true;
+  return s.size() >= n && equal_ci(std::string_view(s).substr(0, n), prefix);
 }
 
-// RFC 9112 §6.3: a Content-Length must be a non-empty string of digits, and
-// several must agree; Transfer-Encoding (whose final coding must be chunked,
-// the only one cpp-httplib reads) excludes Content-Length. Anything else
-// leaves the body's length unknown. cpp-httplib would read "0x10" as 0 and
-// "-1" as 2^64 - 1 (waiting for that body), and take the first of several.
-// Empty: the framing is sound; else the error, naming the header.
-std::string framing_error(const httplib::Request& req) {
-  const std::size_t lengths = req.get_header_value_count("Content-Length");
-  const std::size_t codings = req.get_header_value_count("Transfer-Encoding");
-  if (lengths > 0 && codings > 0) return "Content-Length and Transfer-Encoding together";
-  const std::string coding = req.get_header_value("Transfer-Encoding");
-  if (codings > 1 || (codings == 1 && !(coding.size() == 7 && starts_with_ci(coding, "chunked"))))
-    return "Transfer-Encoding other than chunked";
-  for (std::size_t i = 0; i < lengths; ++i) {
-    const std::string value = req.get_header_value("Content-Length", i);
-    if (value.empty() || value.find_first_not_of("0123456789") != std::string::npos)
-      return "Content-Length is not a decimal number of bytes";
-    if (value != req.get_header_value("Content-Length", 0)) return "several different Content-Length values";
-  }
-  return "";
-}
-
-// RFC 9112 §6.3: a request with neither Content-Length nor Transfer-Encoding
-// has no body. cpp-httplib would read one until the client closes (or its
-// read timeout), so such a request is not given to it to read.
-bool has_body(const httplib::Request& req) {
-  return req.has_header("Content-Length") || req.has_header("Transfer-Encoding");
-}
-
-// Reads a body only to throw it away, so that the connection can serve its
-// next request. multipart/form-data goes through cpp-httplib's own parser
-// (the plain reader would call an empty callback there); the 1 MiB limit
-// applies either way. False: cpp-httplib has set the status (413 or 400).
-bool discard_body(const httplib::Request& req, const httplib::ContentReader& content_reader) {
-  if (!has_body(req)) return true;
-  const auto ignore = [](const char*, std::size_t) { return true; };
-  if (req.is_multipart_form_data())
-    return content_reader([](const httplib::MultipartFormData&) { return true; }, ignore);
-  return content_reader(ignore);
-}
-
-// cpp-httplib answers any Range itself (206 and a slice; several ranges
-// each repeat the headers, so thousands of them multiply the response). An
-// API answer is always whole: a render is made for this request, there is
-// nothing to resume. A static file may take one range (a resumed download);
-// several are ignored, which RFC 9110 §14.2 allows, and the file is sent
-// whole, never larger than it is. The handler's Request is const, but
-// cpp-httplib's own object is not, and it reads the ranges only later.
-void ignore_unsafe_ranges(httplib::Request& req) {
-  const bool api = req.path.rfind("/api/", 0) == 0 || req.path == "/api";
-  const bool file_read = req.method == "GET" || req.method == "HEAD";
-  if (api || !file_read || req.ranges.size() > 1) req.ranges.clear();
-}
 
 json vec3_json(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
 
@@ -149,9 +72,37 @@ std::string server_timing(const FrameTimings& t, double encode_ms, double queue_
   return buffer;
 }
 
-// The time the current request started, per worker thread: cpp-httplib
-// serves one connection per thread, one request at a time.
-thread_local Clock::time_point request_started{};
+
+// One byte range of a file of `size` bytes, from a Range header (RFC 9110
+// §14.1.2): "bytes=a-b", "bytes=a-" or "bytes=-n". Several ranges, other
+// units and malformed values are ignored (the file goes whole, never
+// larger than it is), which §14.2 allows. Unsatisfiable: 416.
+enum class RangeAnswer { Whole, Part, Unsatisfiable };
+
+RangeAnswer byte_range(const std::string& header, std::size_t size, std::size_t& first, std::size_t& last) {
+  if (header.rfind("bytes=", 0) != 0) return RangeAnswer::Whole;
+  const std::string spec = header.substr(6);
+  const std::size_t dash = spec.find('-');
+  if (dash == std::string::npos || spec.find(',') != std::string::npos) return RangeAnswer::Whole;
+  const std::string a = spec.substr(0, dash), b = spec.substr(dash + 1);
+  const auto digits = [](const std::string& t) {
+    return !t.empty() && t.size() <= 18 && t.find_first_not_of("0123456789") == std::string::npos;
+  };
+  if (a.empty()) {  // the last n bytes
+    if (!digits(b)) return RangeAnswer::Whole;
+    const std::size_t n = std::stoull(b);
+    if (n == 0 || size == 0) return RangeAnswer::Unsatisfiable;
+    first = size - std::min(n, size);
+    last = size - 1;
+    return RangeAnswer::Part;
+  }
+  if (!digits(a) || (!b.empty() && !digits(b))) return RangeAnswer::Whole;
+  first = std::stoull(a);
+  last = b.empty() ? size - 1 : std::min<std::size_t>(std::stoull(b), size - 1);
+  if (!b.empty() && std::stoull(b) < first) return RangeAnswer::Whole;
+  if (first >= size) return RangeAnswer::Unsatisfiable;
+  return RangeAnswer::Part;
+}
 
 }  // namespace
 
@@ -171,28 +122,237 @@ bool valid_cors_origin(const std::string& origin) {
   return true;
 }
 
+
+// The route table: what each API path does. A known path with another
+// method is 405; every other GET is a file of the web panel.
+const HttpApi::Route HttpApi::kRoutes[] = {
+    {"GET", "/api/health", &HttpApi::health, false},
+    {"GET", "/api/scenes", &HttpApi::scenes, false},
+    {"POST", "/api/render", &HttpApi::render_color, true},
+    {"POST", "/api/depth", &HttpApi::render_depth, true},
+};
+
 HttpApi::HttpApi(RenderService& renderer, ServerOptions options)
-    : renderer_(renderer), options_(std::move(options)), http_(std::make_unique<httplib::Server>()),
-      started_(Clock::now()) {
-  install_routes();
+    : renderer_(renderer), options_(std::move(options)), started_(Clock::now()) {
+  HttpServerOptions connections = options_.connections;
+  connections.host = options_.host;
+  connections.port = options_.port;
+  connections.limits = HttpLimits{kMaxBodyBytes, kMaxUriBytes, kMaxHeaderCount, kMaxHeaderBytes};
+  // A render's worker waits for the renderer: enough workers for a full
+  // render queue and two encoding PNGs, so that the queue (which answers
+  // 503 at once when full, and at its deadline) is what bounds the waiting.
+  connections.worker_threads = renderer_.limits().queue_capacity + 2;
+  connections.max_waiting_requests = renderer_.limits().queue_capacity;
+  HttpHandlers handlers;
+  handlers.blocks = [this](const HttpRequest& req) { return blocks(req); };
+  handlers.handle = [this](const HttpRequest& req, HttpResponse& res) {
+    handle(req, res);
+    add_cors_headers(res);
+  };
+  handlers.error = [this](int status, const std::string& message) { return error_response(status, message); };
+  if (options_.log_requests)
+    handlers.log = [](const HttpRequest& req, const HttpResponse& res, double ms) {
+      std::fprintf(stderr, "%s %s %d %.1f ms\n", req.method.empty() ? "-" : req.method.c_str(),
+                   req.path.empty() ? "-" : req.path.c_str(), res.status, ms);
+    };
+  http_ = std::make_unique<HttpServer>(std::move(connections), std::move(handlers));
 }
 
 HttpApi::~HttpApi() = default;
 
-bool HttpApi::bind() {
-  if (options_.port == 0) {
-    port_ = http_->bind_to_any_port(options_.host);
-    return port_ > 0;
-  }
-  port_ = options_.port;
-  return http_->bind_to_port(options_.host, options_.port);
-}
+bool HttpApi::bind() { return http_->bind(); }
 
-void HttpApi::serve() { http_->listen_after_bind(); }
+void HttpApi::serve() { http_->serve(); }
 
-bool HttpApi::serving() const { return http_->is_running(); }
+bool HttpApi::serving() const { return http_->serving(); }
 
 void HttpApi::stop() { http_->stop(); }
+
+HttpResponse HttpApi::error_response(int status, const std::string& message) const {
+  HttpResponse res;
+  send_error(res, status, message, "");
+  add_cors_headers(res);
+  return res;
+}
+
+void HttpApi::add_cors_headers(HttpResponse& res) const {
+  if (options_.cors_origin.empty()) return;
+  // Every response, errors included, so a page can read why it failed.
+  res.set_header("Access-Control-Allow-Origin", options_.cors_origin);
+  res.set_header("Vary", "Origin");
+  res.set_header("Access-Control-Expose-Headers",
+                 "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error");
+  res.set_header("Timing-Allow-Origin", options_.cors_origin);
+}
+
+const HttpApi::Route* HttpApi::find_route(const HttpRequest& req, std::string& allow) const {
+  // HEAD is GET without the body (RFC 9110 §9.3.2).
+  const std::string method = req.method == "HEAD" ? "GET" : req.method;
+  allow.clear();
+  for (const Route& route : kRoutes) {
+    if (req.path != route.path) continue;
+    if (method == route.method) return &route;
+    allow += (allow.empty() ? "" : ", ") + std::string(route.method);
+  }
+  return nullptr;
+}
+
+bool HttpApi::blocks(const HttpRequest& req) const {
+  std::string allow;
+  const Route* route = find_route(req, allow);
+  return route && route->blocks;
+}
+
+void HttpApi::handle(const HttpRequest& req, HttpResponse& res) {
+  std::string allow;
+  if (const Route* route = find_route(req, allow)) return (this->*route->handler)(req, res);
+  if (req.method == "OPTIONS" && !options_.cors_origin.empty()) return preflight(req, res);
+  if (!allow.empty()) {
+    res.set_header("Allow", allow);
+    return send_error(res, 405, "method " + req.method + " not allowed here; use " + allow, "");
+  }
+  const bool api = req.path == "/api" || req.path.rfind("/api/", 0) == 0;
+  if (!api && (req.method == "GET" || req.method == "HEAD")) return static_file(req, res);
+  send_error(res, 404, "no such path", "");
+}
+
+// The preflight a browser sends before a cross-origin JSON POST.
+void HttpApi::preflight(const HttpRequest&, HttpResponse& res) {
+  res.status = 204;
+  res.set_header("Access-Control-Allow-Methods", "GET, POST");
+  res.set_header("Access-Control-Allow-Headers", "Content-Type");
+  res.set_header("Access-Control-Max-Age", "600");
+}
+
+void HttpApi::health(const HttpRequest&, HttpResponse& res) {
+  const RendererInfo& info = renderer_.info();
+  const HttpServerStats connections = http_->stats();
+  const double uptime = std::chrono::duration<double>(Clock::now() - started_).count();
+  res.set_content(json{{"status", "ok"},
+                       {"gl_renderer", info.gl_renderer},
+                       {"gl_version", info.gl_version},
+                       {"egl_source", info.egl_source},
+                       {"uptime_s", uptime},
+                       {"frames_rendered", renderer_.frames_rendered()},
+                       {"shadow_cache_hits", renderer_.shadow_cache_hits()},
+                       {"scene_uploads", renderer_.scene_uploads()},
+                       {"queue_depth", renderer_.queue_depth()},
+                       {"queue_capacity", renderer_.limits().queue_capacity},
+                       {"rejected", renderer_.rejected()},
+                       {"expired", renderer_.expired()},
+                       {"abandoned", renderer_.abandoned()},
+                       {"connections_open", connections.connections_open},
+                       {"connections_evicted", connections.connections_evicted},
+                       {"connections_refused", connections.connections_refused},
+                       {"requests_timed_out", connections.requests_timed_out}}
+                      .dump(),
+                  "application/json");
+}
+
+void HttpApi::scenes(const HttpRequest&, HttpResponse& res) {
+  json scenes = json::array();
+  for (const auto& s : builtin_scenes()) {
+    json objects = json::array();
+    for (const auto& o : s.objects) objects.push_back(object_json(o));
+    scenes.push_back({{"name", s.name},
+                      {"description", s.description},
+                      {"objects", objects},
+                      {"camera", {{"position", vec3_json(s.camera_position)}, {"target", vec3_json(s.camera_target)}}},
+                      {"light", {{"position", vec3_json(s.light_position)}, {"target", vec3_json({0, 0, 0})}}}});
+  }
+  res.set_content(json{{"scenes", scenes}}.dump(), "application/json");
+}
+
+void HttpApi::render_color(const HttpRequest& req, HttpResponse& res) { render(req, res, false); }
+
+void HttpApi::render_depth(const HttpRequest& req, HttpResponse& res) { render(req, res, true); }
+
+// The body is taken whatever its Content-Type (none, text/plain, JSON and
+// curl -d's form type alike), except multipart/* (curl -F): a set of parts,
+// not one JSON document.
+void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route) {
+  const std::string type = req.header("Content-Type");
+  if (starts_with_ci(type, "multipart/"))
+    return send_error(res, 415, "unsupported Content-Type " + type.substr(0, type.find(';')) +
+                                    "; send the JSON body as it is (application/json, or any type but multipart/*)",
+                      "");
+  // No body at all reads as {}, all defaults, like an empty one. The
+  // parser sets a depth route's output itself, so that Umbra-Unused-Fields
+  // is judged against the depth map.
+  ParsedRequest parsed = parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render);
+  if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
+  RenderRequest request = std::move(*parsed.request);
+  const auto queued = Clock::now();
+  // Asked just before the job's turn: a client that has gone costs no render.
+  const int socket = req.socket;
+  RenderResult result;
+  try {
+    result = renderer_.submit(std::move(request), [socket] { return peer_closed(socket); }).get();
+  } catch (const ClientGone& e) {
+    // Nobody will read this; the log shows 499 (nginx's "client closed request").
+    return send_error(res, 499, e.what(), "");
+  } catch (const QueueFull& e) {
+    // Refused at once: the client may retry after about one frame.
+    res.set_header("Retry-After", "1");
+    return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().queue_capacity) +
+                                    " requests); retry later", "");
+  } catch (const DeadlineExceeded& e) {
+    res.set_header("Retry-After", "1");
+    return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().deadline.count()) +
+                                    " ms); retry later", "");
+  }
+  const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - queued).count();
+  const FrameTimings& t = result.timings;
+  const double queue_ms = std::max(0.0, total_ms - t.shadow_ms - t.main_ms - t.readback_ms);
+  const auto encode_start = Clock::now();
+  std::string png = encode_png(result.image);
+  const double encode_ms = std::chrono::duration<double, std::milli>(Clock::now() - encode_start).count();
+  res.set_header("Server-Timing", server_timing(t, encode_ms, queue_ms));
+  res.set_header("Cache-Control", "no-store");
+  if (!parsed.unused_fields.empty()) {
+    std::string list;
+    for (const auto& f : parsed.unused_fields) list += (list.empty() ? "" : ", ") + f;
+    res.set_header("Umbra-Unused-Fields", list);
+  }
+  if (!result.shadow_views.empty()) res.set_header("Umbra-Shadow-Views", result.shadow_views);
+  if (result.error) {
+    const ShadowError& e = *result.error;
+    // New fields go last, so that clients parsing the first ones keep working.
+    char buffer[256];
+    std::snprintf(buffer, sizeof buffer,
+                  "mae=%.5f, wrong=%.4f%%, false_shadow=%.4f%%, false_light=%.4f%%, pixels=%zu, artifacts=%.4f%%, "
+                  "interior_pixels=%zu",
+                  e.mae, 100.0 * e.wrong, 100.0 * e.false_shadow, 100.0 * e.false_light, e.pixels,
+                  100.0 * e.artifacts, e.interior_pixels);
+    res.set_header("Umbra-Shadow-Error", buffer);
+  }
+  res.set_content(std::move(png), "image/png");
+}
+
+// A file of the web panel; one byte range of it on request (a resumed
+// download). An API answer never takes a range: a render is made for its
+// request, there is nothing to resume.
+void HttpApi::static_file(const HttpRequest& req, HttpResponse& res) {
+  const std::string name = req.path == "/" ? "index.html" : req.path.substr(1);
+  std::string bytes;
+  if (!read_static_file(name, bytes)) return send_error(res, 404, "no such path", "");
+  res.set_header("Accept-Ranges", "bytes");
+  std::size_t first = 0, last = 0;
+  switch (req.has_header("Range") ? byte_range(req.header("Range"), bytes.size(), first, last) : RangeAnswer::Whole) {
+    case RangeAnswer::Whole:
+      break;
+    case RangeAnswer::Unsatisfiable:
+      res.set_header("Content-Range", "bytes */" + std::to_string(bytes.size()));
+      return send_error(res, 416, "range not satisfiable: the file has " + std::to_string(bytes.size()) + " bytes", "");
+    case RangeAnswer::Part:
+      res.status = 206;
+      res.set_header("Content-Range", "bytes " + std::to_string(first) + "-" + std::to_string(last) + "/" +
+                                          std::to_string(bytes.size()));
+      bytes = bytes.substr(first, last - first + 1);
+      break;
+  }
+  res.set_content(std::move(bytes), content_type_for(name));
+}
 
 bool HttpApi::read_static_file(const std::string& name, std::string& bytes) const {
   if (options_.web_dir.empty()) {
@@ -205,7 +365,7 @@ bool HttpApi::read_static_file(const std::string& name, std::string& bytes) cons
     return false;
   }
   // A folder: the file's real path (every "..", "//" and symlink resolved;
-  // cpp-httplib has already decoded %2e%2e into "..") must lie inside the
+  // the server has already decoded %2e%2e into "..") must lie inside the
   // folder's real path, and be a regular file.
   if (name.find('\0') != std::string::npos) return false;
   char* root = realpath(options_.web_dir.c_str(), nullptr);
@@ -222,267 +382,6 @@ bool HttpApi::read_static_file(const std::string& name, std::string& bytes) cons
   if (!in) return false;
   bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   return bool(in) || in.eof();
-}
-
-void HttpApi::install_routes() {
-  httplib::Server& http = *http_;
-  http.set_payload_max_length(kMaxBodyBytes);
-  // One worker per connection (cpp-httplib's model): enough for a full
-  // render queue plus a few for health checks and the panel's files, so
-  // that the render queue, not a hidden backlog of accepted connections,
-  // is what bounds the waiting.
-  const std::size_t workers = std::max<std::size_t>(8, renderer_.limits().queue_capacity + 4);
-  http.new_task_queue = [workers] { return new httplib::ThreadPool(workers); };
-  // An animation loop reuses its connection; an idle one is closed after
-  // 2 s, which is also the longest it can hold up a graceful stop.
-  // A response goes out as headers, then body: with Nagle's algorithm the
-  // body would wait for the client's delayed ACK of the headers (~40 ms).
-  http.set_tcp_nodelay(true);
-  http.set_keep_alive_max_count(1000);
-  http.set_keep_alive_timeout(2);
-  http.set_read_timeout(10, 0);
-  http.set_write_timeout(10, 0);
-  // cpp-httplib's default also sets SO_REUSEPORT, which lets a second server
-  // start on a port that is already serving and silently take half of its
-  // connections. SO_REUSEADDR alone still allows a quick restart.
-  http.set_socket_options([](socket_t sock) {
-    int yes = 1;
-    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
-  });
-
-  if (!options_.cors_origin.empty()) {
-    // Every response, errors included, so a page can read why it failed.
-    http.set_default_headers({{"Access-Control-Allow-Origin", options_.cors_origin},
-                              {"Vary", "Origin"},
-                              {"Access-Control-Expose-Headers",
-                               "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error"},
-                              {"Timing-Allow-Origin", options_.cors_origin}});
-    // The preflight a browser sends before a cross-origin JSON POST.
-    http.Options(R"(/.*)", [](const httplib::Request&, httplib::Response& res) {
-      res.status = 204;
-      res.set_header("Access-Control-Allow-Methods", "GET, POST");
-      res.set_header("Access-Control-Allow-Headers", "Content-Type");
-      res.set_header("Access-Control-Max-Age", "600");
-    });
-  }
-  http.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
-    request_started = Clock::now();
-    if (req.target.size() > kMaxUriBytes) {
-      send_error(res, 414, "request URI longer than " + std::to_string(kMaxUriBytes) + " bytes", "");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    std::size_t header_bytes = 0;
-    for (const auto& [name, value] : req.headers) header_bytes += name.size() + value.size();
-    if (req.headers.size() > kMaxHeaderCount || header_bytes > kMaxHeaderBytes) {
-      send_error(res, 431,
-                 "request headers too large (at most " + std::to_string(kMaxHeaderCount) + " fields and " +
-                     std::to_string(kMaxHeaderBytes) + " bytes)",
-                 "");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    const std::string framing = framing_error(req);
-    if (!framing.empty()) {
-      send_error_and_close(res, 400, "malformed request framing: " + framing, "");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    ignore_unsafe_ranges(const_cast<httplib::Request&>(req));
-    return httplib::Server::HandlerResponse::Unhandled;
-  });
-  // Errors raised inside cpp-httplib itself (413, 400 on a bad request line,
-  // unmatched routes) get the same JSON form as ours; ours already have a body.
-  http.set_error_handler(httplib::Server::HandlerWithResponse([](const httplib::Request&, httplib::Response& res) {
-    if (!res.body.empty() || res.content_provider_) return httplib::Server::HandlerResponse::Unhandled;
-    switch (res.status) {
-      case 404: send_error(res, 404, "no such path", ""); break;
-      case 413: send_error(res, 413, "request body larger than 1 MiB", ""); break;
-      case 414: send_error(res, 414, "request URI too long", ""); break;
-      case 431: send_error(res, 431, "request headers too large", ""); break;
-      default: send_error(res, res.status, "malformed HTTP request", ""); break;
-    }
-    return httplib::Server::HandlerResponse::Handled;
-  }));
-  // cpp-httplib adds Keep-Alive to every response it does not close itself;
-  // one that send_error_and_close closes says only "Connection: close".
-  http.set_post_routing_handler([](const httplib::Request&, httplib::Response& res) {
-    if (res.get_header_value("Connection") == "close") res.headers.erase("Keep-Alive");
-  });
-  http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr error) {
-    std::string what = "internal error";
-    try {
-      if (error) std::rethrow_exception(error);
-    } catch (const std::exception& e) {
-      what = std::string("internal error: ") + e.what();
-    } catch (...) {
-    }
-    send_error(res, 500, what, "");
-  });
-  if (options_.log_requests) {
-    http.set_logger([](const httplib::Request& req, const httplib::Response& res) {
-      const bool timed = request_started != Clock::time_point{};
-      const double ms = timed ? std::chrono::duration<double, std::milli>(Clock::now() - request_started).count() : 0.0;
-      std::fprintf(stderr, "%s %s %d %.1f ms\n", req.method.c_str(), req.path.c_str(), res.status, ms);
-      request_started = Clock::time_point{};
-    });
-  }
-
-  http.Get("/api/health", [this](const httplib::Request&, httplib::Response& res) {
-    const RendererInfo& info = renderer_.info();
-    const double uptime = std::chrono::duration<double>(Clock::now() - started_).count();
-    res.set_content(json{{"status", "ok"},
-                         {"gl_renderer", info.gl_renderer},
-                         {"gl_version", info.gl_version},
-                         {"egl_source", info.egl_source},
-                         {"uptime_s", uptime},
-                         {"frames_rendered", renderer_.frames_rendered()},
-                         {"shadow_cache_hits", renderer_.shadow_cache_hits()},
-                         {"scene_uploads", renderer_.scene_uploads()},
-                         {"queue_depth", renderer_.queue_depth()},
-                         {"queue_capacity", renderer_.limits().queue_capacity},
-                         {"rejected", renderer_.rejected()},
-                         {"expired", renderer_.expired()},
-                         {"abandoned", renderer_.abandoned()}}
-                        .dump(),
-                    "application/json");
-  });
-
-  http.Get("/api/scenes", [](const httplib::Request&, httplib::Response& res) {
-    json scenes = json::array();
-    for (const auto& s : builtin_scenes()) {
-      json objects = json::array();
-      for (const auto& o : s.objects) objects.push_back(object_json(o));
-      scenes.push_back({{"name", s.name},
-                        {"description", s.description},
-                        {"objects", objects},
-                        {"camera", {{"position", vec3_json(s.camera_position)}, {"target", vec3_json(s.camera_target)}}},
-                        {"light", {{"position", vec3_json(s.light_position)}, {"target", vec3_json({0, 0, 0})}}}});
-    }
-    res.set_content(json{{"scenes", scenes}}.dump(), "application/json");
-  });
-
-  const auto render = [this](const httplib::Request& req, httplib::Response& res, const std::string& body,
-                             bool depth_route) {
-    // The parser sets a depth route's output itself, so that Umbra-Unused-Fields is judged against the depth map.
-    ParsedRequest parsed = parse_render_request(body, depth_route ? Route::Depth : Route::Render);
-    if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
-    RenderRequest request = std::move(*parsed.request);
-    const auto queued = Clock::now();
-    // Asked just before the job's turn: a client that has gone costs no render.
-    const int socket = find_client_socket(req.remote_addr, req.remote_port, req.local_port);
-    RenderResult result;
-    try {
-      result = renderer_.submit(std::move(request), [socket] { return peer_closed(socket); }).get();
-    } catch (const ClientGone& e) {
-      // Nobody will read this; the log shows 499 (nginx's "client closed request").
-      return send_error(res, 499, e.what(), "");
-    } catch (const QueueFull& e) {
-      // Refused at once: the client may retry after about one frame.
-      res.set_header("Retry-After", "1");
-      return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().queue_capacity) +
-                                      " requests); retry later", "");
-    } catch (const DeadlineExceeded& e) {
-      res.set_header("Retry-After", "1");
-      return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().deadline.count()) +
-                                      " ms); retry later", "");
-    }
-    const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - queued).count();
-    const FrameTimings& t = result.timings;
-    const double queue_ms = std::max(0.0, total_ms - t.shadow_ms - t.main_ms - t.readback_ms);
-    const auto encode_start = Clock::now();
-    std::string png = encode_png(result.image);
-    const double encode_ms = std::chrono::duration<double, std::milli>(Clock::now() - encode_start).count();
-    res.set_header("Server-Timing", server_timing(t, encode_ms, queue_ms));
-    res.set_header("Cache-Control", "no-store");
-    if (!parsed.unused_fields.empty()) {
-      std::string list;
-      for (const auto& f : parsed.unused_fields) list += (list.empty() ? "" : ", ") + f;
-      res.set_header("Umbra-Unused-Fields", list);
-    }
-    if (!result.shadow_views.empty()) res.set_header("Umbra-Shadow-Views", result.shadow_views);
-    if (result.error) {
-      const ShadowError& e = *result.error;
-      // New fields go last, so that clients parsing the first ones keep working.
-      char buffer[256];
-      std::snprintf(buffer, sizeof buffer,
-                    "mae=%.5f, wrong=%.4f%%, false_shadow=%.4f%%, false_light=%.4f%%, pixels=%zu, artifacts=%.4f%%, "
-                    "interior_pixels=%zu",
-                    e.mae, 100.0 * e.wrong, 100.0 * e.false_shadow, 100.0 * e.false_light, e.pixels,
-                    100.0 * e.artifacts, e.interior_pixels);
-      res.set_header("Umbra-Shadow-Error", buffer);
-    }
-    res.set_content(std::move(png), "image/png");
-  };
-  // The body is read through a content reader, whatever its Content-Type
-  // (none, text/plain, JSON alike): cpp-httplib would otherwise parse a body
-  // sent as application/x-www-form-urlencoded (curl -d's default) as a form
-  // and refuse it above 8 KiB. The 1 MiB limit still applies. multipart/*
-  // (curl -F) is a set of parts, not one JSON document: 415.
-  const auto read_then_render = [render](const httplib::Request& req, httplib::Response& res,
-                                        const httplib::ContentReader& content_reader, bool depth_route) {
-    if (starts_with_ci(req.get_header_value("Content-Type"), "multipart/")) {
-      const std::string type = req.get_header_value("Content-Type");
-      if (discard_body(req, content_reader))
-        send_error(res, 415, "unsupported Content-Type " + type.substr(0, type.find(';')) +
-                                 "; send the JSON body as it is (application/json, or any type but multipart/*)",
-                   "");
-      return;  // else cpp-httplib's 413 or 400, written by the error handler
-    }
-    std::string body;  // none at all reads as {}, all defaults, like an empty one
-    const bool whole = !has_body(req) || content_reader([&body](const char* data, std::size_t length) {
-      body.append(data, length);
-      return true;
-    });
-    // Never render from part of a body. Too large: cpp-httplib has set 413,
-    // and the error handler above writes its JSON. Else the connection
-    // failed mid-way.
-    if (!whole) {
-      if (res.status != 413) send_error(res, 400, "the request body could not be read whole", "");
-      return;
-    }
-    render(req, res, body, depth_route);
-  };
-  http.Post("/api/render", [read_then_render](const httplib::Request& req, httplib::Response& res,
-                                              const httplib::ContentReader& content_reader) {
-    read_then_render(req, res, content_reader, false);
-  });
-  http.Post("/api/depth", [read_then_render](const httplib::Request& req, httplib::Response& res,
-                                             const httplib::ContentReader& content_reader) {
-    read_then_render(req, res, content_reader, true);
-  });
-
-  // A known path with the wrong method is 405, not 404.
-  struct Route {
-    const char* path;
-    const char* allow;
-  };
-  static const Route routes[] = {{"/api/health", "GET"}, {"/api/scenes", "GET"}, {"/api/render", "POST"},
-                                 {"/api/depth", "POST"}};
-  for (const Route& route : routes) {
-    const std::string allow = route.allow;
-    const auto not_allowed = [allow](const httplib::Request& req, httplib::Response& res) {
-      res.set_header("Allow", allow);
-      send_error(res, 405, "method " + req.method + " not allowed here; use " + allow, "");
-    };
-    // With a content reader, so that a request without a body is not waited
-    // on (cpp-httplib would read one until the client closes); a body there
-    // is is read and dropped, so that the connection stays usable.
-    const auto not_allowed_with_body = [not_allowed](const httplib::Request& req, httplib::Response& res,
-                                                     const httplib::ContentReader& content_reader) {
-      if (discard_body(req, content_reader)) not_allowed(req, res);
-    };
-    if (allow != "GET") http.Get(route.path, not_allowed);
-    if (allow != "POST") http.Post(route.path, not_allowed_with_body);
-    http.Put(route.path, not_allowed_with_body);
-    http.Delete(route.path, not_allowed_with_body);
-    http.Patch(route.path, not_allowed_with_body);
-  }
-
-  // Static files last, so that every API route (and its 405) is matched first.
-  http.Get(R"(/.*)", [this](const httplib::Request& req, httplib::Response& res) {
-    const std::string name = req.path == "/" ? "index.html" : req.path.substr(1);
-    std::string bytes;
-    if (!read_static_file(name, bytes)) return send_error(res, 404, "no such path", "");
-    res.set_content(std::move(bytes), content_type_for(name).c_str());
-  });
 }
 
 }  // namespace umbra

@@ -9,9 +9,7 @@
 
 #include "render_service.hpp"
 
-namespace httplib {
-class Server;
-}
+#include "http_server.hpp"
 
 namespace umbra {
 
@@ -24,6 +22,9 @@ struct ServerOptions {
   /// read responses. Else the one origin (e.g. "https://app.example", or
   /// "*") whose pages may call the API; see valid_cors_origin().
   std::string cors_origin;
+  /// Connections, timeouts and workers (http_server.hpp). HttpApi sizes
+  /// the workers to the render queue itself.
+  HttpServerOptions connections;
 };
 
 /// "*", or scheme://host[:port] with scheme http or https and nothing after.
@@ -32,8 +33,7 @@ bool valid_cors_origin(const std::string& origin);
 class HttpApi {
  public:
   // Explicit limits on what a request may be; above them it is refused
-  // before any work. (cpp-httplib itself answers 414 above 8 KiB of
-  // request line and 400 for one header line longer than 8 KiB.)
+  // before any work, as soon as the byte that passes one arrives.
   static constexpr std::size_t kMaxBodyBytes = 1 << 20;     ///< 413 above this
   static constexpr std::size_t kMaxUriBytes = 4096;         ///< 414 above this
   static constexpr std::size_t kMaxHeaderCount = 100;       ///< 431 above this many header fields
@@ -45,25 +45,48 @@ class HttpApi {
   /// Binds the socket; false (with errno set) if the address is unusable.
   bool bind();
   /// The bound port (after bind()).
-  int port() const { return port_; }
+  int port() const { return http_->port(); }
   /// Serves until stop(); call after bind().
   void serve();
   /// True once serve() is accepting connections (and until it returns).
   bool serving() const;
-  /// Stops serve(). A stop() before serve() has started is lost, so a
-  /// caller that runs serve() on another thread waits for serving() first.
+  /// Stops serve(): idle connections and requests still arriving are
+  /// closed at once, requests already read are answered. Thread-safe.
   void stop();
 
  private:
-  void install_routes();
+  using Handler = void (HttpApi::*)(const HttpRequest&, HttpResponse&);
+  struct Route {
+    const char* method;
+    const char* path;
+    Handler handler;
+    bool blocks;  ///< waits for the renderer: runs on a worker thread
+  };
+  static const Route kRoutes[];
+
+  // Routes.
+  void health(const HttpRequest& req, HttpResponse& res);
+  void scenes(const HttpRequest& req, HttpResponse& res);
+  void render_color(const HttpRequest& req, HttpResponse& res);
+  void render_depth(const HttpRequest& req, HttpResponse& res);
+  void static_file(const HttpRequest& req, HttpResponse& res);
+  void preflight(const HttpRequest& req, HttpResponse& res);
+
+  void render(const HttpRequest& req, HttpResponse& res, bool depth_route);
+  /// The route for `req`'s method and path, or null (with `allow` set to
+  /// the path's methods, if the path is a route's).
+  const Route* find_route(const HttpRequest& req, std::string& allow) const;
+  void handle(const HttpRequest& req, HttpResponse& res);
+  bool blocks(const HttpRequest& req) const;
+  HttpResponse error_response(int status, const std::string& message) const;
+  void add_cors_headers(HttpResponse& res) const;
   /// The panel's file `name` (a path relative to the web folder): false if
   /// there is none, or if it lies outside the folder.
   bool read_static_file(const std::string& name, std::string& bytes) const;
 
   RenderService& renderer_;
   ServerOptions options_;
-  std::unique_ptr<httplib::Server> http_;
-  int port_ = 0;
+  std::unique_ptr<HttpServer> http_;
   std::chrono::steady_clock::time_point started_;
 };
 
