@@ -237,7 +237,7 @@ void RequestReader::feed(std::string& input) {
         parse_header_line(line, false);
       continue;
     }
-    read_body(input);
+    if (!read_body(input)) return;
   }
 }
 
@@ -357,9 +357,16 @@ void RequestReader::end_of_head() {
   }
 }
 
-void RequestReader::read_body(std::string& input) {
+// Reads what it can of the body; false when it needs more input than
+// there is (true: progress, or the state changed).
+bool RequestReader::read_body(std::string& input) {
   std::string& body = request_.body;
   std::string line;
+  const auto refuse = [this](int status, std::string message) {
+    fail(status, std::move(message));
+    return true;
+  };
+  const auto too_large = [&] { return refuse(413, "request body larger than " + size_text(limits_.max_body_bytes)); };
   switch (body_step_) {
     case BodyStep::Fixed:
     case BodyStep::ChunkData: {
@@ -367,46 +374,51 @@ void RequestReader::read_body(std::string& input) {
       body.append(input, 0, n);
       input.erase(0, n);
       remaining_ -= n;
-      if (remaining_ > 0) return;
-      if (body_step_ == BodyStep::Fixed) return complete();
-      body_step_ = BodyStep::ChunkDataEnd;
-      return;
+      if (remaining_ > 0) return false;
+      if (body_step_ == BodyStep::Fixed)
+        complete();
+      else
+        body_step_ = BodyStep::ChunkDataEnd;
+      return true;
     }
     case BodyStep::ChunkDataEnd: {
       // Exactly CRLF (or LF) after a chunk's data.
       const bool crlf = input.front() == '\r';
-      if (crlf && input.size() < 2) return;  // the LF is still to come
-      if (input[crlf ? 1 : 0] != '\n') return fail(400, "malformed chunked body: chunk data longer than its size");
+      if (crlf && input.size() < 2) return false;  // the LF is still to come
+      if (input[crlf ? 1 : 0] != '\n') return refuse(400, "malformed chunked body: chunk data longer than its size");
       input.erase(0, crlf ? 2 : 1);
       body_step_ = BodyStep::ChunkSize;
-      return;
+      return true;
     }
     case BodyStep::ChunkSize: {
-      if (!take_line(input, line, kMaxChunkLineBytes, 400, "a chunk-size line")) return;
+      if (!take_line(input, line, kMaxChunkLineBytes, 400, "a chunk-size line")) return state_ == State::Failed;
       std::size_t i = 0;
       std::uint64_t size = 0;
       for (; i < line.size() && hex_value(line[i]) >= 0; ++i) {
-        if (i >= 15) return fail(413, "request body larger than " + size_text(limits_.max_body_bytes));
+        if (i >= 15) return too_large();  // 16 hex digits: past any body, and near 64 bits
         size = size * 16 + std::uint64_t(hex_value(line[i]));
       }
-      if (i == 0) return fail(400, "malformed chunked body: no chunk size");
+      if (i == 0) return refuse(400, "malformed chunked body: no chunk size");
       const std::string_view rest = trim_ows(std::string_view(line).substr(i));
-      if (!rest.empty() && rest.front() != ';') return fail(400, "malformed chunked body: junk after a chunk size");
-      if (size > limits_.max_body_bytes - body.size())
-        return fail(413, "request body larger than " + size_text(limits_.max_body_bytes));
+      if (!rest.empty() && rest.front() != ';') return refuse(400, "malformed chunked body: junk after a chunk size");
+      if (size > limits_.max_body_bytes - body.size()) return too_large();
       if (size == 0) {
         body_step_ = BodyStep::Trailer;
       } else {
         body_step_ = BodyStep::ChunkData;
         remaining_ = std::size_t(size);
       }
-      return;
+      return true;
     }
     case BodyStep::Trailer:
-      if (!take_line(input, line, limits_.max_header_bytes, 431, "a trailer line")) return;
-      if (line.empty()) return complete();
-      return parse_header_line(line, true);
+      if (!take_line(input, line, limits_.max_header_bytes, 431, "a trailer line")) return state_ == State::Failed;
+      if (line.empty())
+        complete();
+      else
+        parse_header_line(line, true);
+      return true;
   }
+  return false;
 }
 
 }  // namespace umbra

@@ -105,7 +105,7 @@ class RequestReader {
   void parse_request_line(const std::string& line);
   void parse_header_line(const std::string& line, bool trailer);
   void end_of_head();
-  void read_body(std::string& input);
+  bool read_body(std::string& input);
   void fail(int status, std::string message);
   void complete() { state_ = State::Complete; }
 
