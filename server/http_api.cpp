@@ -382,7 +382,8 @@ void HttpApi::install_routes() {
     } catch (const DeadlineExceeded& e) {
       res.set_header("Retry-After", "1");
       return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().deadline.count()) +
-                                      " ms); retry later", "");    } catch (const RequestTooCostly& e) {
+                                      " ms); retry later", "");
+    } catch (const RequestTooCostly& e) {
       // Valid by the API, but more work than this server takes per request.
       return send_error(res, 422, e.what(), e.field);
     } catch (const RunTimeExceeded& e) {
