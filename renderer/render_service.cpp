@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <deque>
 #include <mutex>
@@ -10,6 +11,7 @@
 
 #include "gl/egl_context.hpp"
 #include "ray_cast.hpp"
+#include "request_cost.hpp"
 #include "shadow_error.hpp"
 #include "shadow_renderer.hpp"
 
@@ -53,6 +55,34 @@ struct RenderService::Impl {
   std::atomic<std::uint64_t> rejected_count{0};
   std::atomic<std::uint64_t> expired_count{0};
   std::atomic<std::uint64_t> abandoned_count{0};
+  std::atomic<std::uint64_t> too_costly_count{0};
+  std::atomic<std::uint64_t> overran_count{0};
+
+  // Throws RequestTooCostly if `cost` is over the budget; else returns.
+  void check_budget(const RequestCost& cost) {
+    const auto mib = [](double bytes) { return std::to_string(std::llround(bytes / double(1 << 20))); };
+    const double budget_ms = double(limits.max_request_cost.count());
+    if (cost.total_ms > budget_ms) {
+      const CostPart& part = cost.dominant();
+      too_costly_count.fetch_add(1);
+      throw RequestTooCostly("the request would take about " + std::to_string(std::llround(cost.total_ms)) +
+                                 " ms to render, over the budget of " + std::to_string(limits.max_request_cost.count()) +
+                                 " ms a request; most of it is " + part.name + " (about " +
+                                 std::to_string(std::llround(part.ms)) + " ms): " + part.advice,
+                             part.field);
+    }
+    if (cost.peak_bytes > limits.max_request_bytes) {
+      // The shadow map's layers, or the images: whichever is the larger share.
+      const double map_bytes = cost.factors.shadow_texels * sizeof(float);
+      const bool map = map_bytes > 0.5 * double(cost.peak_bytes);
+      too_costly_count.fetch_add(1);
+      throw RequestTooCostly("the request would need about " + mib(double(cost.peak_bytes)) +
+                                 " MiB of memory at once, over the budget of " +
+                                 mib(double(limits.max_request_bytes)) + " MiB a request; " +
+                                 (map ? "lower shadow.map_size or shadow.cascades" : "lower width and height"),
+                             map ? "shadow.map_size" : "width");
+    }
+  }
 
   // Throws if the job should not run: its client left, or it waited too long.
   void check_still_wanted(std::chrono::steady_clock::time_point queued, const ClientGoneCheck& client_gone) {
@@ -175,8 +205,13 @@ RenderService::~RenderService() {
 }
 
 std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGoneCheck client_gone) {
+  // Before anything is queued: a GL frame cannot be stopped once it is
+  // drawing, so refusing what would take too long is what bounds the time
+  // one request holds the GL thread.
+  const RequestCost cost = estimate_cost(request);
+  impl_->check_budget(cost);
   if (request.output == Output::Exact || request.output == Output::Error)
-    return submit_reference(std::move(request), std::move(client_gone));
+    return submit_reference(std::move(request), std::move(client_gone), cost.dominant().field);
   impl_->reserve();
   return impl_->enqueue(std::move(request), true, std::move(client_gone));
 }
@@ -184,7 +219,8 @@ std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGon
 // The exact reference needs no GL: it is ray cast on its own thread so the GL
 // thread keeps rendering. "error" also needs the GL "shadow" output. The
 // ray cast holds a place in the queue too, so that CPU work is bounded.
-std::future<RenderResult> RenderService::submit_reference(RenderRequest request, ClientGoneCheck client_gone) {
+std::future<RenderResult> RenderService::submit_reference(RenderRequest request, ClientGoneCheck client_gone,
+                                                         std::string dominant_field) {
   impl_->reserve();
   std::future<RenderResult> rendered;
   if (request.output == Output::Error) {
@@ -195,7 +231,8 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
   Impl* impl = impl_.get();
   const auto queued = std::chrono::steady_clock::now();
   return std::async(std::launch::async, [impl, queued, request = std::move(request), rendered = std::move(rendered),
-                                         client_gone = std::move(client_gone)]() mutable {
+                                         client_gone = std::move(client_gone),
+                                         dominant_field = std::move(dominant_field)]() mutable {
     // Gives the place back however the cast ends.
     struct Release {
       Impl* impl;
@@ -211,11 +248,28 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
       shadow = rendered.get();
     const auto start = std::chrono::steady_clock::now();
     // A client that leaves while its rays are cast stops the cast: an area
-    // light at 4096^2 is minutes of CPU for nobody otherwise.
+    // light at 4096^2 is minutes of CPU for nobody otherwise. So does a cast
+    // that runs past max_run_time for a client that stays: the estimate
+    // admitted it, but a busy machine or a scene the estimate misjudged must
+    // not hold the cores without bound.
+    const auto run_until = start + impl->limits.max_run_time;
+    bool overran = false;
+    const auto stop = [&client_gone, &overran, run_until] {
+      if (client_gone && client_gone()) return true;
+      overran = std::chrono::steady_clock::now() > run_until;
+      return overran;
+    };
     std::vector<ExactPixel> pixels;
     try {
-      pixels = cast_exact_pixels(request, client_gone);
+      pixels = cast_exact_pixels(request, stop);
     } catch (const CastStopped&) {
+      if (overran) {
+        impl->overran_count.fetch_add(1);
+        throw RunTimeExceeded("the ray cast ran past the limit of " +
+                                  std::to_string(impl->limits.max_run_time.count()) +
+                                  " ms a request and was stopped; lower width and height, light.size or the objects",
+                              dominant_field);
+      }
       impl->abandoned_count.fetch_add(1);
       throw ClientGone();
     }
@@ -243,6 +297,8 @@ std::uint64_t RenderService::rejected() const { return impl_->rejected_count.loa
 std::uint64_t RenderService::scene_uploads() const { return impl_->scene_uploads.load(); }
 std::uint64_t RenderService::abandoned() const { return impl_->abandoned_count.load(); }
 std::uint64_t RenderService::expired() const { return impl_->expired_count.load(); }
+std::uint64_t RenderService::too_costly() const { return impl_->too_costly_count.load(); }
+std::uint64_t RenderService::overran() const { return impl_->overran_count.load(); }
 const ServiceLimits& RenderService::limits() const { return impl_->limits; }
 
 }  // namespace umbra

@@ -10,6 +10,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "render_result.hpp"
 #include "request.hpp"
@@ -30,6 +31,23 @@ struct ServiceLimits {
   std::size_t queue_capacity = 16;
   /// Longest a job may wait for its turn, milliseconds, > 0. Default 10 s.
   std::chrono::milliseconds deadline{10000};
+  /// Most work one request may be estimated to take (renderer/request_cost.hpp:
+  /// milliseconds of this 2-core llvmpipe machine, GL thread and ray cast
+  /// together), > 0. More is refused before it is queued (RequestTooCostly).
+  /// Default 4 s: the heaviest requests the tests and benchmarks make (a
+  /// 4096^2 "shadow" with pcf_radius 8, about 3.2 s estimated) pass, the
+  /// 142 s one of issue 11 (about 45 s estimated) does not. A GL frame
+  /// cannot be stopped once drawing, so this is what bounds its time.
+  std::chrono::milliseconds max_request_cost{4000};
+  /// Most memory one request may be estimated to need at its peak, bytes,
+  /// > 0. More is refused before it is queued. Default 2 GiB (the largest
+  /// map the API allows, 4 layers of 8192^2 32-bit depth, is 1 GiB).
+  std::uint64_t max_request_bytes = std::uint64_t(2) << 30;
+  /// Longest a ray cast ("exact", "error") may run once started,
+  /// milliseconds, > 0; checked between rows, so it ends within a row of
+  /// it (RunTimeExceeded). Default 8 s, twice the cost budget: room for an
+  /// estimate that was low or a machine that is busy.
+  std::chrono::milliseconds max_run_time{8000};
 };
 
 /// submit() refused the job: the queue holds queue_capacity jobs already.
@@ -40,6 +58,22 @@ struct QueueFull : std::runtime_error {
 /// dropped unrendered.
 struct ClientGone : std::runtime_error {
   ClientGone() : std::runtime_error("the client disconnected before its turn") {}
+};
+/// submit() refused the job before queueing it: its estimated time or peak
+/// memory (renderer/request_cost.hpp) exceeds ServiceLimits' budget. The
+/// message names the part that dominates, the estimate and the budget.
+struct RequestTooCostly : std::runtime_error {
+  RequestTooCostly(const std::string& message, std::string field)
+      : std::runtime_error(message), field(std::move(field)) {}
+  /// The JSON field whose lowering helps most, e.g. "shadow.map_size".
+  std::string field;
+};
+/// A ray cast ran past ServiceLimits::max_run_time and was stopped.
+struct RunTimeExceeded : std::runtime_error {
+  RunTimeExceeded(const std::string& message, std::string field)
+      : std::runtime_error(message), field(std::move(field)) {}
+  /// The JSON field whose lowering helps most (the estimate's dominant part).
+  std::string field;
 };
 /// The job waited longer than the deadline and was dropped unrendered.
 struct DeadlineExceeded : std::runtime_error {
@@ -57,9 +91,10 @@ class RenderService {
   RenderService(const RenderService&) = delete;
   RenderService& operator=(const RenderService&) = delete;
 
-  /// Queues a render; throws QueueFull at once if the queue is full. The
-  /// future holds the result, DeadlineExceeded if the job waited too long,
-  /// or the exception the renderer threw. `request` must be valid (see server/request_parser.hpp).
+  /// Queues a render; throws RequestTooCostly at once if its estimate is
+  /// over the budget, QueueFull if the queue is full. The future holds the
+  /// result, DeadlineExceeded if the job waited too long, RunTimeExceeded if
+  /// its ray cast ran too long, or the exception the renderer threw. `request` must be valid (see server/request_parser.hpp).
   /// "exact" is ray cast on the CPU off the GL thread (its time is reported
   /// as `main`); "error" renders "shadow" on the GL thread, then compares.
   ///
@@ -83,10 +118,15 @@ class RenderService {
   std::uint64_t expired() const;
   /// Jobs dropped because their client disconnected before their turn.
   std::uint64_t abandoned() const;
+  /// Requests refused by the cost budget, and ray casts stopped at
+  /// max_run_time, since start.
+  std::uint64_t too_costly() const;
+  std::uint64_t overran() const;
   const ServiceLimits& limits() const;
 
  private:
-  std::future<RenderResult> submit_reference(RenderRequest request, ClientGoneCheck client_gone);
+  std::future<RenderResult> submit_reference(RenderRequest request, ClientGoneCheck client_gone,
+                                             std::string dominant_field);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;

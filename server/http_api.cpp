@@ -241,6 +241,8 @@ void HttpApi::health(const HttpRequest&, HttpResponse& res) {
                        {"rejected", renderer_.rejected()},
                        {"expired", renderer_.expired()},
                        {"abandoned", renderer_.abandoned()},
+                       {"too_costly", renderer_.too_costly()},
+                       {"overran", renderer_.overran()},
                        {"connections_open", connections.connections_open},
                        {"connections_evicted", connections.connections_evicted},
                        {"connections_refused", connections.connections_refused},
@@ -300,6 +302,11 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
     res.set_header("Retry-After", "1");
     return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().deadline.count()) +
                                     " ms); retry later", "");
+  } catch (const RequestTooCostly& e) {
+    // Valid by the API, but more work than this server takes per request.
+    return send_error(res, 422, e.what(), e.field);
+  } catch (const RunTimeExceeded& e) {
+    return send_error(res, 503, e.what(), e.field);
   }
   const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - queued).count();
   const FrameTimings& t = result.timings;

@@ -1,7 +1,7 @@
 // umbra-server: the headless shadow-mapping render service.
 //
 //   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
-//                [--cors ORIGIN] [--quiet]
+//                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--cors ORIGIN] [--quiet]
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -25,13 +25,21 @@ namespace {
 
 void usage(std::FILE* out) {
   std::fprintf(out,
-               "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N] [--cors ORIGIN]\n"
-               "                    [--quiet]\n"
+               "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
+               "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--cors ORIGIN] [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
                "  --web DIR       serve the web panel from DIR instead of the copy built in\n"
                "  --queue N       renders waiting or running at most, 1..4096; more get 503 (default 16)\n"
                "  --deadline-ms N a render that waited longer gets 503 unrendered, 1..3600000 (default 10000)\n"
+               "  --max-request-ms N\n"
+               "                  a request estimated to take longer (ms of this 2-core llvmpipe machine) gets 422\n"
+               "                  unrendered, naming what to lower, 1..3600000 (default 4000)\n"
+               "  --max-request-mib N\n"
+               "                  a request estimated to need more memory at its peak (MiB) gets 422, 1..1048576\n"
+               "                  (default 2048)\n"
+               "  --max-run-ms N  an exact or error ray cast running longer is stopped with 503, 1..3600000\n"
+               "                  (default 8000)\n"
                "  --cors ORIGIN   let web pages from ORIGIN (or \"*\": any) call the API; default: none\n"
                "  --quiet         no per-request log lines\n"
                "SIGINT or SIGTERM: stop accepting, answer the requests in flight, exit 0 (a second one exits at once).\n");
@@ -70,6 +78,14 @@ int main(int argc, char** argv) {
       limits.queue_capacity = std::size_t(integer_flag("--queue", value("--queue"), 1, 4096));
     } else if (arg == "--deadline-ms") {
       limits.deadline = std::chrono::milliseconds(integer_flag("--deadline-ms", value("--deadline-ms"), 1, 3600000));
+    } else if (arg == "--max-request-ms") {
+      limits.max_request_cost =
+          std::chrono::milliseconds(integer_flag("--max-request-ms", value("--max-request-ms"), 1, 3600000));
+    } else if (arg == "--max-request-mib") {
+      limits.max_request_bytes =
+          std::uint64_t(integer_flag("--max-request-mib", value("--max-request-mib"), 1, 1048576)) << 20;
+    } else if (arg == "--max-run-ms") {
+      limits.max_run_time = std::chrono::milliseconds(integer_flag("--max-run-ms", value("--max-run-ms"), 1, 3600000));
     } else if (arg == "--cors") {
       options.cors_origin = value("--cors");
       if (!umbra::valid_cors_origin(options.cors_origin)) {

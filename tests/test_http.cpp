@@ -500,6 +500,33 @@ TEST(Http, TheLargestRequestTheApiAllowsIsRenderedWhole) {
   EXPECT_EQ(client().Get("/api/health")->status, 200);
 }
 
+TEST(Http, ARequestOverTheCostBudgetIs422AtOnceNamingWhatToLower) {
+  // Issue 11's 109 KB request: 999 overlapping spheres, map 8192, 4
+  // cascades, PCF radius 8, 4096^2. It held the GL thread for 142 s.
+  json objects = json::array();
+  for (int i = 0; i < 999; ++i)
+    objects.push_back({{"type", "sphere"},
+                       {"center", {(i * 37 % 10) * 0.4 - 2.0, (i * 53 % 10) * 0.4 - 2.0, (i * 71 % 10) * 0.4 - 2.0}},
+                       {"radius", 1.0}});
+  const json body = {{"width", 4096}, {"height", 4096}, {"scene", {{"objects", objects}}},
+                     {"shadow", {{"map_size", 8192}, {"cascades", 4}, {"pcf_radius", 8}}}};
+  const std::uint64_t frames_before = ServerEnvironment::renderer->frames_rendered();
+  const auto start = std::chrono::steady_clock::now();
+  auto res = client().Post("/api/render", body.dump(), "application/json");
+  const double waited_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  expect_json_error(res, 422, "shadow.map_size");
+  EXPECT_LT(waited_ms, 1000.0);
+  const std::string message = json::parse(res->body)["error"];
+  EXPECT_NE(message.find("shadow-map fill"), std::string::npos) << message;
+  EXPECT_NE(message.find("budget of 4000 ms"), std::string::npos) << message;
+  EXPECT_EQ(ServerEnvironment::renderer->frames_rendered(), frames_before);
+  // The same scene within the budget renders.
+  const json small = {{"width", 64}, {"height", 64}, {"scene", {{"objects", objects}}}, {"shadow", {{"map_size", 256}}}};
+  res = client().Post("/api/render", small.dump(), "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200) << res->body;
+}
+
 TEST(Http, ABodyOver8KiBIsTakenWhateverItsContentType) {
   // curl -d sends application/x-www-form-urlencoded; cpp-httplib alone
   // would refuse such a body above 8 KiB (413) and parse it as a form.

@@ -433,6 +433,71 @@ TEST(RenderService, ARayCastStopsWhenItsClientLeaves) {
   EXPECT_EQ(own.queue_depth(), 0u);
 }
 
+// 999 unit spheres packed into a 4 x 4 x 4 box: issue 11's 109 KB request.
+std::string overlapping_spheres_body(const std::string& settings) {
+  std::string objects;
+  for (int i = 0; i < 999; ++i)
+    objects += std::string(i ? "," : "") + R"({"type": "sphere", "radius": 1, "center": [)" +
+               std::to_string((i * 37 % 10) * 0.4 - 2.0) + "," + std::to_string((i * 53 % 10) * 0.4 - 2.0) + "," +
+               std::to_string((i * 71 % 10) * 0.4 - 2.0) + "]}";
+  return R"({"scene": {"objects": [)" + objects + "]}, " + settings + "}";
+}
+
+TEST(RenderService, ARequestOverTheCostBudgetIsRefusedBeforeItIsQueued) {
+  RenderService own;
+  // Held the GL thread for 142 s before there was a budget.
+  const RenderRequest hostile = request(overlapping_spheres_body(
+      R"("width": 4096, "height": 4096, "shadow": {"map_size": 8192, "cascades": 4, "pcf_radius": 8})"));
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    own.submit(hostile).get();
+    ADD_FAILURE() << "rendered";
+  } catch (const RequestTooCostly& e) {
+    EXPECT_EQ(e.field, "shadow.map_size");
+    EXPECT_NE(std::string(e.what()).find("4000 ms"), std::string::npos) << e.what();
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
+  // An exact render at 4096^2 with 1000 objects: minutes of CPU before.
+  EXPECT_THROW(own.submit(request(overlapping_spheres_body(R"("width": 4096, "height": 4096, "output": "exact")"))),
+               RequestTooCostly);
+  EXPECT_EQ(own.too_costly(), 2u);
+  EXPECT_EQ(own.frames_rendered(), 0u);
+  EXPECT_EQ(own.queue_depth(), 0u);
+  // A budget of its own admits what the default refuses.
+  ServiceLimits generous;
+  generous.max_request_cost = std::chrono::milliseconds(60000);
+  RenderService other(generous);
+  EXPECT_EQ(other.submit(request(R"({"width": 2048, "height": 2048, "output": "exact", "light": {"size": 1},
+                                     "camera": {"position": [0, 3, 6], "target": [0, 100, 0]}})")).get().image.width,
+            2048);
+  EXPECT_EQ(other.too_costly(), 0u);
+}
+
+TEST(RenderService, ARayCastStopsAtTheRunTimeLimit) {
+  ServiceLimits limits;
+  limits.max_run_time = std::chrono::milliseconds(300);
+  limits.max_request_cost = std::chrono::milliseconds(600000);  // admitted, so that it runs
+  RenderService own(limits);
+  // An area light at 2048^2: 64 shadow rays a pixel, several seconds of CPU
+  // here; a row of it is a few milliseconds.
+  const auto start = std::chrono::steady_clock::now();
+  auto cast = own.submit(request(R"({"width": 2048, "height": 2048, "output": "exact", "light": {"size": 5}})"));
+  // Generous: a loaded machine may be slow to notice, but not by seconds.
+  ASSERT_EQ(cast.wait_for(std::chrono::milliseconds(2500)), std::future_status::ready)
+      << "the cast went on for 2.5 s past a 300 ms limit";
+  EXPECT_GE(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(300));
+  try {
+    cast.get();
+    ADD_FAILURE() << "finished within 300 ms: the machine is faster than this test assumes";
+  } catch (const RunTimeExceeded& e) {
+    EXPECT_NE(std::string(e.what()).find("300 ms"), std::string::npos) << e.what();
+    EXPECT_EQ(e.field, "light.size");
+  }
+  EXPECT_EQ(own.overran(), 1u);
+  EXPECT_EQ(own.abandoned(), 0u);
+  EXPECT_EQ(own.queue_depth(), 0u);
+}
+
 TEST(RenderService, AFullQueueRefusesAtOnceAndCountsIt) {
   ServiceLimits limits;
   limits.queue_capacity = 2;

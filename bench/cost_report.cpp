@@ -1,0 +1,51 @@
+// umbra-cost-report: what the server's cost estimate (renderer/request_cost)
+// makes of request bodies, one JSON line per file: the factors, each part's
+// milliseconds, the total and the peak bytes. Used to calibrate the
+// constants in request_cost.cpp against Server-Timing of the same bodies.
+//
+//   umbra-cost-report body.json...
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "request_cost.hpp"
+#include "request_parser.hpp"
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: umbra-cost-report body.json...\n");
+    return 2;
+  }
+  int status = 0;
+  for (int i = 1; i < argc; ++i) {
+    std::ifstream in(argv[i], std::ios::binary);
+    const std::string body((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const umbra::ParsedRequest parsed = umbra::parse_render_request(body);
+    if (!parsed.ok()) {
+      std::fprintf(stderr, "%s: %s (%s)\n", argv[i], parsed.error.message.c_str(), parsed.error.field.c_str());
+      status = 1;
+      continue;
+    }
+    const umbra::RequestCost cost = umbra::estimate_cost(*parsed.request);
+    const umbra::CostFactors& f = cost.factors;
+    nlohmann::json line = {{"file", argv[i]},
+                           {"triangles", f.triangles},
+                           {"draws", f.draws},
+                           {"shadow_texel_layers", f.shadow_texel_layers},
+                           {"shadow_texels", f.shadow_texels},
+                           {"pixels", f.pixels},
+                           {"gathers_per_pixel", f.gathers_per_pixel},
+                           {"pixel_layers", f.pixel_layers},
+                           {"camera_rays", f.camera_rays},
+                           {"shadow_rays", f.shadow_rays},
+                           {"objects_per_ray", f.objects_per_ray},
+                           {"total_ms", cost.total_ms},
+                           {"peak_bytes", cost.peak_bytes}};
+    for (const auto& part : cost.parts) line["ms"][part.name] = part.ms;
+    std::printf("%s\n", line.dump().c_str());
+  }
+  return status;
+}

@@ -1,0 +1,183 @@
+// The cost estimate: counts that match what the renderer does, monotonic in
+// every factor, and a default budget that refuses issue 11's hostile
+// requests while admitting every built-in scene and the heavy cases that
+// the tests and benchmarks make.
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <string>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <nlohmann/json.hpp>
+
+#include "render_service.hpp"
+#include "request_cost.hpp"
+#include "request_parser.hpp"
+#include "scene.hpp"
+#include "scene_files.hpp"
+
+namespace umbra {
+namespace {
+
+using json = nlohmann::json;
+
+RenderRequest request(const json& body) {
+  const ParsedRequest parsed = parse_render_request(body.dump());
+  EXPECT_TRUE(parsed.ok()) << parsed.error.message << " (" << parsed.error.field << ")";
+  return parsed.ok() ? *parsed.request : RenderRequest{};
+}
+
+double total_ms(const json& body) { return estimate_cost(request(body)).total_ms; }
+
+// `count` unit spheres packed into a 4 x 4 x 4 box, overlapping heavily:
+// issue 11's 109 KB request has 999 of them.
+json overlapping_spheres(int count) {
+  json objects = json::array();
+  for (int i = 0; i < count; ++i)
+    objects.push_back({{"type", "sphere"},
+                       {"center", {(i * 37 % 10) * 0.4 - 2.0, (i * 53 % 10) * 0.4 - 2.0, (i * 71 % 10) * 0.4 - 2.0}},
+                       {"radius", 1.0}});
+  return {{"objects", objects}};
+}
+
+// Objects spread over a 60 x 60 floor, as in bench/requests/exact-1000-objects.json.
+json spread_objects(int count) {
+  json objects = json::array({{{"type", "plane"}, {"center", {0, 0, 0}}, {"size", {60, 60}}}});
+  for (int i = 1; i < count; ++i) {
+    const json center = {(i % 32) * 1.8 - 29.0, 0.5, (i / 32) * 1.8 - 27.0};
+    if (i % 2)
+      objects.push_back({{"type", "sphere"}, {"center", center}, {"radius", 0.45}});
+    else
+      objects.push_back({{"type", "box"}, {"center", center}, {"size", {0.8, 1, 0.8}}});
+  }
+  return {{"objects", objects}};
+}
+
+// The one that held the GL thread for 142 s.
+const json kHostile = {{"width", 4096},
+                       {"height", 4096},
+                       {"scene", overlapping_spheres(999)},
+                       {"shadow", {{"map_size", 8192}, {"cascades", 4}, {"pcf_radius", 8}}}};
+
+TEST(RequestCost, TrianglesAreTheMeshesTessellateMakes) {
+  const RenderRequest r = request({{"scene", spread_objects(40)}});
+  EXPECT_EQ(scene_triangles(r.scene), tessellate(r.scene).indices.size() / 3);
+  const RenderRequest builtin = request(json::object());
+  EXPECT_EQ(scene_triangles(builtin.scene), tessellate(builtin.scene).indices.size() / 3);
+}
+
+TEST(RequestCost, DepthComplexityCountsOverlappingBounds) {
+  const glm::dmat4 ortho = glm::ortho(-1.0, 1.0, -1.0, 1.0, -10.0, 10.0);
+  Scene scene;
+  SceneObject box;
+  box.type = SceneObject::Type::Box;
+  box.size = {2.0, 2.0, 2.0};  // fills the view exactly
+  scene.objects = {box};
+  EXPECT_NEAR(depth_complexity(scene, ortho), 1.0, 1e-9);
+  scene.objects.push_back(box);
+  EXPECT_NEAR(depth_complexity(scene, ortho), 2.0, 1e-9);
+  SceneObject quarter = box;
+  quarter.size = {1.0, 1.0, 1.0};
+  quarter.center = {0.5, 0.5, 0.0};
+  scene.objects.push_back(quarter);
+  EXPECT_NEAR(depth_complexity(scene, ortho), 2.25, 1e-9);
+  SceneObject outside = box;
+  outside.center = {5.0, 0.0, 0.0};
+  scene.objects.push_back(outside);
+  EXPECT_NEAR(depth_complexity(scene, ortho), 2.25, 1e-9);
+  // Bounds around a perspective eye count as the whole view.
+  Scene around;
+  around.objects = {box};
+  const glm::dmat4 eye = glm::perspective(1.0, 1.0, 0.1, 10.0);
+  EXPECT_NEAR(depth_complexity(around, eye), 1.0, 1e-9);
+}
+
+// Raising any one factor never lowers the estimate, and raises it.
+TEST(RequestCost, GrowsWithEveryFactor) {
+  const auto grows = [](const char* what, const std::function<json(int)>& body, std::initializer_list<int> steps) {
+    double last = -1.0;
+    for (int step : steps) {
+      const double ms = total_ms(body(step));
+      EXPECT_GT(ms, last) << what << " " << step;
+      last = ms;
+    }
+  };
+  grows("width", [](int w) { return json{{"width", w}}; }, {16, 256, 1024, 4096});
+  grows("height", [](int h) { return json{{"height", h}}; }, {16, 256, 1024, 4096});
+  grows("pcf_radius", [](int r) { return json{{"shadow", {{"pcf_radius", r}}}}; }, {0, 1, 4, 8});
+  grows("map_size", [](int m) { return json{{"shadow", {{"map_size", m}}}}; }, {64, 1024, 4096, 8192});
+  grows("cascades", [](int c) { return json{{"shadow", {{"cascades", c}}}}; }, {1, 2, 3, 4});
+  grows("objects", [](int n) { return json{{"scene", spread_objects(n)}}; }, {2, 10, 100, 1000});
+  grows("overlap", [](int n) { return json{{"scene", overlapping_spheres(n)}}; }, {1, 10, 100, 999});
+  grows("exact width", [](int w) { return json{{"width", w}, {"output", "exact"}}; }, {16, 256, 1024, 4096});
+  grows("exact objects", [](int n) { return json{{"output", "exact"}, {"scene", spread_objects(n)}}; },
+        {2, 10, 100, 1000});
+  grows("exact overlap", [](int n) { return json{{"output", "exact"}, {"scene", overlapping_spheres(n)}}; },
+        {1, 10, 100, 999});
+  // An area light casts 64 shadow rays a pixel instead of one.
+  EXPECT_GT(total_ms({{"output", "exact"}, {"light", {{"size", 2}}}}), 10.0 * total_ms({{"output", "exact"}}));
+  // "error" is a "shadow" frame and an "exact" cast.
+  EXPECT_GT(total_ms({{"output", "error"}}), total_ms({{"output", "exact"}}));
+  EXPECT_GT(total_ms({{"output", "error"}}), total_ms({{"output", "shadow"}}));
+  EXPECT_GT(estimate_cost(request({{"width", 4096}, {"height", 4096}})).peak_bytes,
+            estimate_cost(request(json::object())).peak_bytes);
+  EXPECT_GT(estimate_cost(request({{"shadow", {{"map_size", 8192}}}})).peak_bytes,
+            estimate_cost(request(json::object())).peak_bytes);
+}
+
+TEST(RequestCost, IssueElevensHeavyRequestsAreOverTheDefaultBudget) {
+  const ServiceLimits limits;
+  const RequestCost hostile = estimate_cost(request(kHostile));
+  EXPECT_GT(hostile.total_ms, 4.0 * double(limits.max_request_cost.count()));
+  EXPECT_EQ(hostile.dominant().field, "shadow.map_size");
+  const RequestCost exact = estimate_cost(
+      request({{"width", 4096}, {"height", 4096}, {"output", "exact"}, {"scene", spread_objects(1000)}}));
+  EXPECT_GT(exact.total_ms, double(limits.max_request_cost.count()));
+  EXPECT_EQ(exact.dominant().name, "ray cast");
+  EXPECT_EQ(exact.dominant().field, "width");
+  const RequestCost area = estimate_cost(request({{"width", 4096}, {"height", 4096}, {"output", "error"},
+                                                  {"light", {{"size", 3}}}, {"scene", overlapping_spheres(999)}}));
+  EXPECT_GT(area.total_ms, 10.0 * double(limits.max_request_cost.count()));
+  EXPECT_EQ(area.dominant().field, "light.size");
+}
+
+void expect_within_default_budget(const RenderRequest& r, const std::string& what) {
+  const ServiceLimits limits;
+  const RequestCost cost = estimate_cost(r);
+  EXPECT_LE(cost.total_ms, double(limits.max_request_cost.count())) << what << ": " << cost.dominant().name;
+  EXPECT_LE(cost.peak_bytes, limits.max_request_bytes) << what;
+}
+
+TEST(RequestCost, EveryBuiltinSceneAtTheDefaultsIsWithinTheDefaultBudget) {
+  ASSERT_FALSE(builtin_scenes().empty());
+  for (const BuiltinScene& scene : builtin_scenes())
+    for (const char* output : {"color", "depth", "shadow", "exact", "error"})
+      for (const char* projection : {"orthographic", "perspective"})
+        expect_within_default_budget(
+            request({{"scene", scene.name}, {"output", output}, {"light", {{"projection", projection}}}}),
+            scene.name + " " + output + " " + projection);
+}
+
+TEST(RequestCost, EveryBenchSceneAtTheDefaultsIsWithinTheDefaultBudget) {
+  for (const std::string& name : scene_file_names(UMBRA_SCENES_DIR))
+    for (const char* output : {"color", "depth", "shadow", "exact", "error"})
+      expect_within_default_budget(load_scene_request(UMBRA_SCENES_DIR, name, {{"output", output}}), name + " " + output);
+}
+
+// The heaviest requests the tests and benchmarks make on purpose: a budget
+// that refused them would refuse reasonable work.
+TEST(RequestCost, TheHeavyRequestsOfTheTestsAreWithinTheDefaultBudget) {
+  expect_within_default_budget(
+      request({{"width", 4096}, {"height", 4096}, {"output", "shadow"}, {"shadow", {{"pcf_radius", 8}}}}),
+      "4096^2 pcf 8");
+  expect_within_default_budget(request({{"width", 4096}, {"height", 4096}, {"shadow", {{"map_size", 8192}}}}),
+                               "the largest the API allows");
+  expect_within_default_budget(request({{"width", 1024}, {"height", 1024}, {"output", "exact"}, {"light", {{"size", 5}}}}),
+                               "1024^2 area light exact");
+  expect_within_default_budget(request({{"width", 480}, {"height", 270}, {"output", "exact"}, {"scene", spread_objects(1000)}}),
+                               "bench/requests/exact-1000-objects.json");
+  expect_within_default_budget(request({{"scene", spread_objects(1000)}}), "1000 objects at the defaults");
+}
+
+}  // namespace
+}  // namespace umbra
