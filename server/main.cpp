@@ -1,7 +1,8 @@
 // umbra-server: the headless shadow-mapping render service.
 //
 //   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
-//                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--cors ORIGIN] [--quiet]
+//                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000]
+//                [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--quiet]
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -26,7 +27,8 @@ namespace {
 void usage(std::FILE* out) {
   std::fprintf(out,
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
-               "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--cors ORIGIN] [--quiet]\n"
+               "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N]\n"
+               "                    [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
                "  --web DIR       serve the web panel from DIR instead of the copy built in\n"
@@ -40,9 +42,16 @@ void usage(std::FILE* out) {
                "                  (default 2048)\n"
                "  --max-run-ms N  an exact or error ray cast running longer is stopped with 503, 1..3600000\n"
                "                  (default 8000)\n"
+               "  --max-connections N\n"
+               "                  connections open at once, 1..65536; past it a new one replaces the longest idle\n"
+               "                  (or slowest-sending) one, or gets 503 if all are busy (default 256)\n"
+               "  --request-timeout-ms N\n"
+               "                  a request not received whole (headers and body) this long after its first byte\n"
+               "                  gets 408 and the connection closes, 1..3600000 (default 10000)\n"
                "  --cors ORIGIN   let web pages from ORIGIN (or \"*\": any) call the API; default: none\n"
                "  --quiet         no per-request log lines\n"
-               "SIGINT or SIGTERM: stop accepting, answer the requests in flight, exit 0 (a second one exits at once).\n");
+               "SIGINT or SIGTERM: stop accepting, close idle connections and requests still arriving, answer the requests\n"
+               "already received, exit 0 (a second one exits at once).\n");
 }
 
 }  // namespace
@@ -95,6 +104,12 @@ int main(int argc, char** argv) {
       }
     } else if (arg == "--web") {
       options.web_dir = value("--web");
+    } else if (arg == "--max-connections") {
+      options.connections.max_connections =
+          std::size_t(integer_flag("--max-connections", value("--max-connections"), 1, 65536));
+    } else if (arg == "--request-timeout-ms") {
+      options.connections.request_timeout =
+          std::chrono::milliseconds(integer_flag("--request-timeout-ms", value("--request-timeout-ms"), 1, 3600000));
     } else if (arg == "--quiet") {
       options.log_requests = false;
     } else if (arg == "--help" || arg == "-h") {
@@ -136,9 +151,10 @@ int main(int argc, char** argv) {
                    std::strerror(errno));
       return 1;
     }
-    // First signal: stop accepting; requests in flight finish and are
-    // answered, then the render queue drains and main returns 0. A second
-    // signal while draining exits at once.
+    // First signal: stop accepting and close idle connections and requests
+    // still arriving; requests already received are answered, then the
+    // render queue drains and main returns 0. A second signal while
+    // draining exits at once.
     std::atomic<bool> served{false};
     std::thread signal_waiter([&] {
       int signal = 0;
@@ -146,11 +162,11 @@ int main(int argc, char** argv) {
       if (served.load()) return;  // woken by main below, not by a signal
       std::fprintf(stderr, "umbra-server: %s: finishing %zu request(s) in flight, then stopping\n",
                    signal == SIGINT ? "SIGINT" : "SIGTERM", renderer.queue_depth());
-      // A stop() before serve() has started is lost: repeat it until
-      // serve() returns, watching for a second signal meanwhile.
+      // A stop() before serve() has started holds: serve() then returns at
+      // once. Meanwhile, watch for a second signal.
+      api.stop();
       const timespec poll{0, 10 * 1000 * 1000};
       for (;;) {
-        api.stop();
         const int again = sigtimedwait(&stop_signals, nullptr, &poll);
         if (served.load()) return;
         if (again > 0) {

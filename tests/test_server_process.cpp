@@ -6,6 +6,12 @@
 #include <csignal>
 #include <cstdlib>
 #include <thread>
+#include <vector>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <httplib.h>
 #include <nlohmann/json.hpp>
@@ -72,7 +78,44 @@ TEST(GracefulStop, AnIdleServerStopsAtOnceAndAnIdleKeepAliveClientDoesNotHoldItL
   server.send_signal(SIGTERM);
   EXPECT_EQ(server.wait(), 0) << server.log();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
-  EXPECT_LT(seconds, 10.0) << "an idle keep-alive connection is closed after 2 s";
+  EXPECT_LT(seconds, 2.0) << "an idle keep-alive connection is closed at once";
+}
+
+// Issue 11 found a stop waiting 57 s for three clients sending a byte now
+// and then. Connections still sending their request, and idle ones, are
+// closed at once; the README promises 2 s.
+TEST(GracefulStop, TricklingAndIdleClientsDoNotHoldItUp) {
+  ServerProcess server = start();
+  const auto connect_to_server = [&] {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(std::uint16_t(server.port()));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+    return fd;
+  };
+  std::atomic<bool> done{false};
+  std::vector<std::thread> tricklers;
+  std::vector<int> sockets;
+  for (int i = 0; i < 6; ++i) sockets.push_back(connect_to_server());
+  for (int i = 0; i < 3; ++i)  // the other three stay idle
+    tricklers.emplace_back([&, fd = sockets[i]] {
+      const std::string head = "POST /api/render HTTP/1.1\r\nHost: x\r\nX-Slow: " + std::string(1000, 'a');
+      for (std::size_t k = 0; k < head.size() && !done; ++k) {
+        if (send(fd, head.data() + k, 1, MSG_NOSIGNAL) != 1) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      }
+    });
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const auto start_time = std::chrono::steady_clock::now();
+  server.send_signal(SIGTERM);
+  EXPECT_EQ(server.wait(), 0) << server.log();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+  EXPECT_LT(seconds, 2.0) << server.log();
+  done = true;
+  for (std::thread& t : tricklers) t.join();
+  for (int fd : sockets) close(fd);
 }
 
 // The n-th request of a fixed mix: every output, sizes, map sizes, scenes
