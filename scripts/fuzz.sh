@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Fuzzes the request parser with libFuzzer for a bounded time.
+# Fuzzes the request parser and the HTTP reader with libFuzzer for a
+# bounded time (two thirds of it the parser, one third the HTTP reader).
 #   scripts/fuzz.sh [SECONDS]   (default 60)
 # Seeds: fuzz/corpus and bench/scenes. New inputs go to build-fuzz/corpus;
 # a crash is written to fuzz/crashes/ and fails the run: add it to
@@ -10,10 +11,17 @@ seconds="${1:-60}"
 bash scripts/install-deps.sh --fuzz
 cmake -S . -B build-fuzz -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DUMBRA_FUZZ=ON -DUMBRA_BUILD_TESTS=OFF >/dev/null
-cmake --build build-fuzz -j"$(nproc)" --target fuzz_request_parser
+cmake --build build-fuzz -j"$(nproc)" --target fuzz_request_parser fuzz_http_reader
 mkdir -p build-fuzz/corpus fuzz/crashes
 # -max_len: bodies up to 64 KiB (the server takes 1 MiB, but nothing in the
 # grammar needs more to be reached); -timeout: a slow input is a finding too.
+parser_seconds=$(( seconds * 2 / 3 > 0 ? seconds * 2 / 3 : 1 ))
+http_seconds=$(( seconds - parser_seconds > 0 ? seconds - parser_seconds : 1 ))
 build-fuzz/fuzz/fuzz_request_parser build-fuzz/corpus fuzz/corpus bench/scenes \
-  -dict=fuzz/request.dict -max_total_time="$seconds" -max_len=65536 -timeout=5 -rss_limit_mb=2048 \
+  -dict=fuzz/request.dict -max_total_time="$parser_seconds" -max_len=65536 -timeout=5 -rss_limit_mb=2048 \
+  -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
+# The HTTP reader: inputs up to 4 KiB (its limits are set small inside).
+mkdir -p build-fuzz/corpus-http
+build-fuzz/fuzz/fuzz_http_reader build-fuzz/corpus-http fuzz/corpus-http \
+  -max_total_time="$http_seconds" -max_len=4096 -timeout=5 -rss_limit_mb=2048 \
   -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
