@@ -1,7 +1,8 @@
 // umbra-server: the headless shadow-mapping render service.
 //
 //   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
-//                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--cors ORIGIN] [--quiet]
+//                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--memory-mib 2048]
+//                [--cors ORIGIN] [--quiet]
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -26,7 +27,8 @@ namespace {
 void usage(std::FILE* out) {
   std::fprintf(out,
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
-               "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--cors ORIGIN] [--quiet]\n"
+               "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--memory-mib N]\n"
+               "                    [--cors ORIGIN] [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
                "  --web DIR       serve the web panel from DIR instead of the copy built in\n"
@@ -40,6 +42,8 @@ void usage(std::FILE* out) {
                "                  (default 2048)\n"
                "  --max-run-ms N  an exact or error ray cast running longer is stopped with 503, 1..3600000\n"
                "                  (default 8000)\n"
+               "  --memory-mib N  memory budget of the renderer (MiB): caches are released to fit each request and\n"
+               "                  after 1.5 s idle; a request needing more alone gets 422, 64..1048576 (default 2048)\n"
                "  --cors ORIGIN   let web pages from ORIGIN (or \"*\": any) call the API; default: none\n"
                "  --quiet         no per-request log lines\n"
                "SIGINT or SIGTERM: stop accepting, answer the requests in flight, exit 0 (a second one exits at once).\n");
@@ -86,6 +90,8 @@ int main(int argc, char** argv) {
           std::uint64_t(integer_flag("--max-request-mib", value("--max-request-mib"), 1, 1048576)) << 20;
     } else if (arg == "--max-run-ms") {
       limits.max_run_time = std::chrono::milliseconds(integer_flag("--max-run-ms", value("--max-run-ms"), 1, 3600000));
+    } else if (arg == "--memory-mib") {
+      limits.memory_budget_bytes = std::uint64_t(integer_flag("--memory-mib", value("--memory-mib"), 64, 1048576)) << 20;
     } else if (arg == "--cors") {
       options.cors_origin = value("--cors");
       if (!umbra::valid_cors_origin(options.cors_origin)) {
