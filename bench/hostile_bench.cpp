@@ -7,7 +7,8 @@
 // probes GET /api/health on a fresh connection every 50 ms for --seconds
 // (a probe that takes over 5 s counts as failed), while sampling the
 // server's resident memory. Then measures a graceful stop (SIGTERM) with
-// three trickling and three idle clients. Writes bench/results/hostile.md.
+// three trickling and three idle clients (killed if not exited within
+// 30 s). Writes bench/results/hostile.md.
 //
 //   umbra-hostile-bench [--seconds 5] [--out FILE] [--server PATH]
 //
@@ -286,8 +287,16 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(milliseconds(1500));
     const auto start = Clock::now();
     server.send_signal(SIGTERM);
+    // A server that does not stop within 30 s is killed and reported so.
+    std::atomic<bool> exited{false};
+    std::thread killer([&] {
+      while (!exited && ms_since(start) < 30000) std::this_thread::sleep_for(milliseconds(10));
+      if (!exited) server.send_signal(SIGKILL);
+    });
     stop_status = server.wait();
     stop_ms = ms_since(start);
+    exited = true;
+    killer.join();
     std::fprintf(stderr, "SIGTERM with 3 trickling + 3 idle clients: exit %d after %.0f ms\n", stop_status, stop_ms);
   }
 
@@ -306,10 +315,15 @@ int main(int argc, char** argv) {
                   r.probes, r.failed, r.p50, r.p99, r.max, r.rss_before_mib, r.rss_peak_mib, r.rss_after_mib);
     md << line;
   }
-  std::snprintf(line, sizeof line,
-                "\nGraceful stop: SIGTERM with 3 clients trickling headers and 3 idle connections: exit status %d "
-                "after %.0f ms.\n",
-                stop_status, stop_ms);
+  if (stop_status == 128 + SIGKILL)
+    std::snprintf(line, sizeof line,
+                  "\nGraceful stop: SIGTERM with 3 clients trickling headers and 3 idle connections: had not exited "
+                  "after 30 s; killed.\n");
+  else
+    std::snprintf(line, sizeof line,
+                  "\nGraceful stop: SIGTERM with 3 clients trickling headers and 3 idle connections: exit status %d "
+                  "after %.0f ms.\n",
+                  stop_status, stop_ms);
   md << line;
   std::ofstream(out) << md.str();
   std::fprintf(stderr, "wrote %s\n", out.c_str());

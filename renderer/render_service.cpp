@@ -9,6 +9,8 @@
 #include <optional>
 #include <thread>
 
+#include <malloc.h>
+
 #include "gl/egl_context.hpp"
 #include "ray_cast.hpp"
 #include "request_cost.hpp"
@@ -17,6 +19,25 @@
 
 namespace umbra {
 
+namespace {
+
+// How long the GL thread waits without work before it releases what it
+// keeps beyond kIdleShare of the budget: long enough that a client's next
+// request of a burst still finds its scene and map, short enough that a
+// burst's gigabytes do not stay resident for the idle hours after it.
+constexpr std::chrono::milliseconds kIdleRelease{1500};
+// Kept while idle: 1/32 of the budget (64 MiB by default) holds the default
+// frame's map and framebuffers and small scenes, not a 4096^2 frame's
+// 128 MiB or a 1000-sphere scene's 280 MB.
+constexpr std::uint64_t kIdleShare = 32;
+// Cached scenes keep at most a third of the budget: two 1000-sphere scenes by
+// default, leaving the rest to one request at its largest.
+constexpr std::uint64_t kSceneShare = 3;
+
+std::uint64_t minus_or_zero(std::uint64_t a, std::uint64_t b) { return a > b ? a - b : 0; }
+
+}  // namespace
+
 struct RenderService::Impl {
   struct Job {
     RenderRequest request;
@@ -24,10 +45,14 @@ struct RenderService::Impl {
     std::chrono::steady_clock::time_point queued;
     bool holds_place = true;  // false: part of a job that holds one already
     ClientGoneCheck client_gone;
+    // Estimated peak bytes the GL thread must make room for (0 when a ray
+    // cast's reservation covers it, see reserved_bytes).
+    std::uint64_t peak_bytes = 0;
   };
 
-  std::future<RenderResult> enqueue(RenderRequest request, bool holds_place, ClientGoneCheck client_gone) {
-    Job job{std::move(request), {}, std::chrono::steady_clock::now(), holds_place, std::move(client_gone)};
+  std::future<RenderResult> enqueue(RenderRequest request, bool holds_place, ClientGoneCheck client_gone,
+                                    std::uint64_t peak_bytes) {
+    Job job{std::move(request), {}, std::chrono::steady_clock::now(), holds_place, std::move(client_gone), peak_bytes};
     std::future<RenderResult> result = job.promise.get_future();
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -71,14 +96,19 @@ struct RenderService::Impl {
                                  std::to_string(std::llround(part.ms)) + " ms): " + part.advice,
                              part.field);
     }
-    if (cost.peak_bytes > limits.max_request_bytes) {
+    // The memory budget bounds the whole renderer, so one request's peak
+    // too; what is cached is released to make room, never refused for.
+    const bool budget_binds = limits.memory_budget_bytes < limits.max_request_bytes;
+    const std::uint64_t allowed = budget_binds ? limits.memory_budget_bytes : limits.max_request_bytes;
+    if (cost.peak_bytes > allowed) {
       // The shadow map's layers, or the images: whichever is the larger share.
       const double map_bytes = cost.factors.shadow_texels * sizeof(float);
       const bool map = map_bytes > 0.5 * double(cost.peak_bytes);
       too_costly_count.fetch_add(1);
       throw RequestTooCostly("the request would need about " + mib(double(cost.peak_bytes)) +
-                                 " MiB of memory at once, over the budget of " +
-                                 mib(double(limits.max_request_bytes)) + " MiB a request; " +
+                                 " MiB of memory at once, over the " +
+                                 (budget_binds ? "renderer's memory budget of " : "budget of ") +
+                                 mib(double(allowed)) + (budget_binds ? " MiB; " : " MiB a request; ") +
                                  (map ? "lower shadow.map_size or shadow.cascades" : "lower width and height"),
                              map ? "shadow.map_size" : "width");
     }
@@ -105,6 +135,11 @@ struct RenderService::Impl {
   std::atomic<std::uint64_t> frames{0};
   std::atomic<std::uint64_t> shadow_reuses{0};
   std::atomic<std::uint64_t> scene_uploads{0};
+  // Estimated peak bytes of the ray casts running ("exact", "error"): the
+  // GL thread leaves them room in the budget.
+  std::atomic<std::uint64_t> reserved_bytes{0};
+  std::atomic<std::uint64_t> cached{0};  // ShadowRenderer::cached_bytes after the last job or release
+  bool idle_release_due = false;  // guarded by mutex: work was done since the last idle release
   RendererInfo info;
   std::thread thread;
   std::thread reaper;
@@ -133,13 +168,34 @@ struct RenderService::Impl {
     }
   }
 
+  // On the GL thread, once it has had no work for kIdleRelease: the big
+  // resources a burst left go, then the free pages of every thread's malloc
+  // arena (frames' images and PNGs, llvmpipe's scratch, ray casts' records)
+  // go back to the system, so that resident memory follows the work, not
+  // the history.
+  void release_when_idle(ShadowRenderer& renderer) {
+    cached.store(renderer.release_cached(limits.memory_budget_bytes / kIdleShare));
+    malloc_trim(0);
+  }
+
+  // Called when a ray cast ends: its memory is freed in its own thread's
+  // arena, which the GL thread's idle release trims too.
+  void ray_cast_ended(std::uint64_t peak_bytes) {
+    reserved_bytes.fetch_sub(peak_bytes);
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      idle_release_due = true;
+    }
+    wake.notify_one();
+  }
+
   // The GL thread: context, renderer and every GL call live and die here.
   void run(std::promise<void>& ready) {
     std::optional<gl::EglContext> context;
     std::optional<ShadowRenderer> renderer;
     try {
       context.emplace();
-      renderer.emplace();
+      renderer.emplace(limits.memory_budget_bytes / kSceneShare);
       info = {renderer->gl_renderer(), renderer->gl_version(), context->source()};
     } catch (...) {
       ready.set_exception(std::current_exception());
@@ -150,15 +206,31 @@ struct RenderService::Impl {
       Job job;
       {
         std::unique_lock<std::mutex> lock(mutex);
-        wake.wait(lock, [this] { return stopping || !jobs.empty(); });
+        while (!stopping && jobs.empty()) {
+          if (!idle_release_due) {
+            wake.wait(lock);
+          } else if (wake.wait_for(lock, kIdleRelease) == std::cv_status::timeout && jobs.empty() && !stopping) {
+            // Idle for kIdleRelease (a wake-up from a job or a finished ray
+            // cast starts the wait again).
+            idle_release_due = false;
+            lock.unlock();
+            release_when_idle(*renderer);
+            lock.lock();
+          }
+        }
         if (jobs.empty()) return;  // stopping, and nothing left to do
         job = std::move(jobs.front());
         jobs.pop_front();
+        idle_release_due = true;
       }
       std::optional<RenderResult> result;
       std::exception_ptr error;
       try {
         check_still_wanted(job.queued, job.client_gone);
+        // Room for this frame's peak and the ray casts running beside it:
+        // what is kept goes first, so the request is not refused for it.
+        renderer->release_cached(
+            minus_or_zero(limits.memory_budget_bytes, job.peak_bytes + reserved_bytes.load()));
         result = renderer->render(job.request);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);
@@ -166,6 +238,7 @@ struct RenderService::Impl {
       } catch (...) {
         error = std::current_exception();
       }
+      cached.store(renderer->cached_bytes());
       // Counters first, then the answer: whoever holds the answer sees the
       // place already given back.
       if (job.holds_place) in_flight.fetch_sub(1);
@@ -211,33 +284,40 @@ std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGon
   const RequestCost cost = estimate_cost(request);
   impl_->check_budget(cost);
   if (request.output == Output::Exact || request.output == Output::Error)
-    return submit_reference(std::move(request), std::move(client_gone), cost.dominant().field);
+    return submit_reference(std::move(request), std::move(client_gone), cost.dominant().field, cost.peak_bytes);
   impl_->reserve();
-  return impl_->enqueue(std::move(request), true, std::move(client_gone));
+  return impl_->enqueue(std::move(request), true, std::move(client_gone), cost.peak_bytes);
 }
 
 // The exact reference needs no GL: it is ray cast on its own thread so the GL
 // thread keeps rendering. "error" also needs the GL "shadow" output. The
 // ray cast holds a place in the queue too, so that CPU work is bounded.
 std::future<RenderResult> RenderService::submit_reference(RenderRequest request, ClientGoneCheck client_gone,
-                                                         std::string dominant_field) {
+                                                         std::string dominant_field, std::uint64_t peak_bytes) {
   impl_->reserve();
+  // The whole request's peak, "error"'s GL frame included, is reserved
+  // until the cast ends; its GL job then needs no room of its own.
+  impl_->reserved_bytes.fetch_add(peak_bytes);
   std::future<RenderResult> rendered;
   if (request.output == Output::Error) {
     RenderRequest shadow = request;
     shadow.output = Output::Shadow;
-    rendered = impl_->enqueue(std::move(shadow), false, client_gone);
+    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0);
   }
   Impl* impl = impl_.get();
   const auto queued = std::chrono::steady_clock::now();
   return std::async(std::launch::async, [impl, queued, request = std::move(request), rendered = std::move(rendered),
                                          client_gone = std::move(client_gone),
-                                         dominant_field = std::move(dominant_field)]() mutable {
-    // Gives the place back however the cast ends.
+                                         dominant_field = std::move(dominant_field), peak_bytes]() mutable {
+    // Gives the place and the reserved bytes back however the cast ends.
     struct Release {
       Impl* impl;
-      ~Release() { impl->in_flight.fetch_sub(1); }
-    } release{impl};
+      std::uint64_t peak_bytes;
+      ~Release() {
+        impl->ray_cast_ended(peak_bytes);
+        impl->in_flight.fetch_sub(1);
+      }
+    } release{impl, peak_bytes};
     // "error": its GL job checks the client and the deadline (and counts
     // them). If the client has already left, wait for that job's verdict
     // rather than cast rays for nobody.
@@ -299,6 +379,7 @@ std::uint64_t RenderService::abandoned() const { return impl_->abandoned_count.l
 std::uint64_t RenderService::expired() const { return impl_->expired_count.load(); }
 std::uint64_t RenderService::too_costly() const { return impl_->too_costly_count.load(); }
 std::uint64_t RenderService::overran() const { return impl_->overran_count.load(); }
+std::uint64_t RenderService::cached_bytes() const { return impl_->cached.load(); }
 const ServiceLimits& RenderService::limits() const { return impl_->limits; }
 
 }  // namespace umbra

@@ -48,6 +48,18 @@ struct ServiceLimits {
   /// it (RunTimeExceeded). Default 8 s, twice the cost budget: room for an
   /// estimate that was low or a machine that is busy.
   std::chrono::milliseconds max_run_time{8000};
+  /// Memory the renderer may hold, bytes, >= 64 MiB: what it keeps between
+  /// requests (uploaded scenes, the shadow map, framebuffers: see
+  /// ShadowRenderer::cached_bytes) plus the estimated peak of the requests
+  /// running (renderer/request_cost.hpp). Before a frame, what is kept is
+  /// released, least recently used first, until the frame fits; a request
+  /// is refused (RequestTooCostly) only if its own peak exceeds the budget.
+  /// Cached scenes keep at most a third of it; after 1.5 s without work the
+  /// renderer keeps at most 1/32 of it and returns free heap pages to the
+  /// system. Default 2 GiB: one 24 GiB, 2-core machine runs this beside
+  /// other services; it holds the largest request the API allows (a 1 GiB
+  /// map), or two cached 1000-sphere scenes (280 MB each) and a 4096^2 frame.
+  std::uint64_t memory_budget_bytes = std::uint64_t(2) << 30;
 };
 
 /// submit() refused the job: the queue holds queue_capacity jobs already.
@@ -108,7 +120,8 @@ class RenderService {
   /// Frames that reused the shadow map of an earlier frame (no shadow pass).
   std::uint64_t shadow_cache_hits() const;
   /// Scenes whose meshes were uploaded: the renderer keeps the last 8
-  /// distinct scenes, so a scene seen recently costs no upload.
+  /// distinct scenes (within a third of the memory budget), so a scene seen
+  /// recently costs no upload.
   std::uint64_t scene_uploads() const;
   /// Jobs waiting or being rendered.
   std::size_t queue_depth() const;
@@ -122,11 +135,14 @@ class RenderService {
   /// max_run_time, since start.
   std::uint64_t too_costly() const;
   std::uint64_t overran() const;
+  /// Bytes the GL thread keeps between requests (ShadowRenderer::cached_bytes),
+  /// as of its last job or idle release.
+  std::uint64_t cached_bytes() const;
   const ServiceLimits& limits() const;
 
  private:
   std::future<RenderResult> submit_reference(RenderRequest request, ClientGoneCheck client_gone,
-                                             std::string dominant_field);
+                                             std::string dominant_field, std::uint64_t peak_bytes);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;

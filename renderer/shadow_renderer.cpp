@@ -34,7 +34,7 @@ std::string scene_key(const Scene& scene) {
 
 }  // namespace
 
-ShadowRenderer::ShadowRenderer() {
+ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_bytes_(scene_cache_bytes) {
   shadow_.program = gl::build_program("shadow_depth.vert", "shadow_depth.frag", glsl_prelude(""));
   shadow_.layer = gl::uniform_location(shadow_.program, "u_layer");
   // Built now, so that a GLSL error shows at start-up: the default frame's
@@ -46,6 +46,12 @@ ShadowRenderer::ShadowRenderer() {
   glNamedBufferStorage(frame_block_.id(), sizeof(FrameBlock), nullptr, GL_DYNAMIC_STORAGE_BIT);
   glBindBufferBase(GL_UNIFORM_BUFFER, 0, frame_block_.id());
   empty_vertex_array_ = gl::create_vertex_array();
+  unbind_depth_ = gl::create_texture(GL_TEXTURE_2D);
+  glTextureStorage2D(unbind_depth_.id(), 1, GL_DEPTH_COMPONENT32F, 1, 1);
+  unbind_framebuffer_ = gl::create_framebuffer();
+  glNamedFramebufferTexture(unbind_framebuffer_.id(), GL_DEPTH_ATTACHMENT, unbind_depth_.id(), 0);
+  glNamedFramebufferDrawBuffer(unbind_framebuffer_.id(), GL_NONE);
+  glNamedFramebufferReadBuffer(unbind_framebuffer_.id(), GL_NONE);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
 }
@@ -60,25 +66,18 @@ std::string ShadowRenderer::gl_version() const {
 
 bool ShadowRenderer::use_scene(const Scene& scene) {
   std::string key = scene_key(scene);
-  for (auto it = scenes_.begin(); it != scenes_.end(); ++it) {
-    if (it->key != key) continue;
-    if (it != scenes_.begin()) {
-      SceneGeometry found = std::move(*it);
-      scenes_.erase(it);
-      scenes_.push_front(std::move(found));
-    }
-    return false;
-  }
+  if (scenes_.find(key)) return false;
   Mesh mesh = tessellate(scene);
   SceneGeometry g;
   g.vertices = gl::create_buffer();
   g.indices = gl::create_buffer();
   g.vertex_array = gl::create_vertex_array();
   // glNamedBufferStorage needs a non-zero size; an empty scene draws nothing.
-  glNamedBufferStorage(g.vertices.id(), GLsizeiptr(std::max<std::size_t>(1, mesh.vertices.size()) * sizeof(Vertex)),
+  const std::size_t vertex_count = std::max<std::size_t>(1, mesh.vertices.size());
+  const std::size_t index_count = std::max<std::size_t>(1, mesh.indices.size());
+  glNamedBufferStorage(g.vertices.id(), GLsizeiptr(vertex_count * sizeof(Vertex)),
                        mesh.vertices.empty() ? nullptr : mesh.vertices.data(), 0);
-  glNamedBufferStorage(g.indices.id(),
-                       GLsizeiptr(std::max<std::size_t>(1, mesh.indices.size()) * sizeof(std::uint32_t)),
+  glNamedBufferStorage(g.indices.id(), GLsizeiptr(index_count * sizeof(std::uint32_t)),
                        mesh.indices.empty() ? nullptr : mesh.indices.data(), 0);
   const GLuint vao = g.vertex_array.id();
   glVertexArrayVertexBuffer(vao, 0, g.vertices.id(), 0, sizeof(Vertex));
@@ -94,10 +93,65 @@ bool ShadowRenderer::use_scene(const Scene& scene) {
   mesh.indices.clear();
   mesh.indices.shrink_to_fit();
   g.mesh = std::move(mesh);
-  g.key = std::move(key);
-  scenes_.push_front(std::move(g));
-  if (scenes_.size() > kCachedScenes) scenes_.pop_back();
+  const std::uint64_t bytes = std::uint64_t(vertex_count) * sizeof(Vertex) + std::uint64_t(index_count) * sizeof(std::uint32_t);
+  scenes_.insert(std::move(key), std::move(g), bytes);
+  scenes_.evict_to(scene_cache_bytes_, kCachedScenes, 1);
   return true;
+}
+
+std::uint64_t ShadowRenderer::shadow_map_bytes() const {
+  return std::uint64_t(shadow_.size) * std::uint64_t(shadow_.size) * std::uint64_t(shadow_.layers) * sizeof(float);
+}
+
+std::uint64_t ShadowRenderer::display_bytes() const {
+  return std::uint64_t(display_.width) * std::uint64_t(display_.height) * (4 + 4);  // RGBA8 + 32F depth
+}
+
+std::uint64_t ShadowRenderer::depth_preview_bytes() const {
+  return std::uint64_t(preview_.size) * std::uint64_t(preview_.size) * std::uint64_t(preview_.bits / 8);
+}
+
+std::uint64_t ShadowRenderer::cached_bytes() const {
+  return scenes_.bytes() + shadow_map_bytes() + display_bytes() + depth_preview_bytes();
+}
+
+std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
+  if (cached_bytes() <= max_bytes) return cached_bytes();
+  const std::uint64_t others = shadow_map_bytes() + display_bytes() + depth_preview_bytes();
+  scenes_.evict_to(max_bytes > others ? max_bytes - others : 0, kCachedScenes, 1);
+  if (cached_bytes() > max_bytes) {
+    preview_.framebuffer.reset();
+    preview_.grey.reset();
+    preview_.size = preview_.bits = 0;
+  }
+  if (cached_bytes() > max_bytes) {
+    shadow_.framebuffer.reset();
+    shadow_.depth_map.reset();
+    shadow_.size = shadow_.layers = 0;
+    shadow_.holds_plan = false;
+    shadow_.scene_key.clear();
+  }
+  if (cached_bytes() > max_bytes) {
+    display_.framebuffer.reset();
+    display_.color.reset();
+    display_.depth.reset();
+    display_.width = display_.height = 0;
+  }
+  scenes_.evict_to(max_bytes, kCachedScenes, 0);
+  unbind_released();
+  return cached_bytes();
+}
+
+void ShadowRenderer::unbind_released() {
+  glBindTextureUnit(0, 0);
+  glBindFramebuffer(GL_FRAMEBUFFER, unbind_framebuffer_.id());
+  glViewport(0, 0, 1, 1);
+  glUseProgram(shadow_.program.id());
+  glProgramUniform1i(shadow_.program.id(), shadow_.layer, 0);
+  glBindVertexArray(empty_vertex_array_.id());
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  // Deleted objects are freed once the GL has finished with them.
+  glFinish();
 }
 
 void ShadowRenderer::resize_shadow_map(int size, int layers) {
@@ -209,12 +263,12 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   }
   shadow_.holds_plan = true;
   shadow_.plan = light;
-  shadow_.scene_key = scene().key;
+  shadow_.scene_key = current_scene_key();
   shadow_.cull = request.shadow.cull;
 }
 
 bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const {
-  return shadow_.holds_plan && shadow_.scene_key == scene().key && shadow_.cull == request.shadow.cull &&
+  return shadow_.holds_plan && shadow_.scene_key == current_scene_key() && shadow_.cull == request.shadow.cull &&
          plan_covers(shadow_.plan, light);
 }
 

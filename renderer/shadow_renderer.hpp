@@ -2,9 +2,11 @@
 // lights the scene from the camera with that texture, then read-back.
 #pragma once
 
-#include <deque>
+#include <cstdint>
+#include <limits>
 #include <string>
 
+#include "byte_bounded_lru.hpp"
 #include "gl/objects.hpp"
 #include "gl/program.hpp"
 #include "render_result.hpp"
@@ -20,11 +22,23 @@ namespace umbra {
 class ShadowRenderer {
  public:
   /// Compiles the shaders; throws std::runtime_error with the GLSL log.
-  ShadowRenderer();
+  /// Uploaded scenes are kept while they hold at most `scene_cache_bytes`
+  /// together (the scene being drawn is always kept).
+  explicit ShadowRenderer(std::uint64_t scene_cache_bytes = std::numeric_limits<std::uint64_t>::max());
 
   /// Renders `request` and reads the chosen output back. `request` must be
   /// valid (as the request parser guarantees).
   RenderResult render(const RenderRequest& request);
+
+  /// Bytes of GL memory kept between requests: cached scenes' buffers, the
+  /// shadow map, the display framebuffer, the depth preview (as allocated:
+  /// llvmpipe holds each in ordinary process memory).
+  std::uint64_t cached_bytes() const;
+  /// Releases what is kept until at most `max_bytes` is: scenes other than
+  /// the last one drawn (least recently used first), then the depth
+  /// preview, the shadow map, the display framebuffer, and last the last
+  /// scene. Returns cached_bytes() after.
+  std::uint64_t release_cached(std::uint64_t max_bytes);
 
   std::string gl_renderer() const;
   std::string gl_version() const;
@@ -36,7 +50,6 @@ class ShadowRenderer {
     gl::Buffer vertices;
     gl::Buffer indices;
     Mesh mesh;           // CPU copy: origin and index ranges (vertices cleared)
-    std::string key;     // content of the scene it was built from
   };
   // Depth-only framebuffer seen from the light, one array layer per view.
   struct ShadowPass {
@@ -76,11 +89,21 @@ class ShadowRenderer {
   /// Makes `scene` the current one (scenes_.front()), uploading it unless a
   /// scene with the same content is cached; true if it was uploaded.
   bool use_scene(const Scene& scene);
-  SceneGeometry& scene() { return scenes_.front(); }
-  const SceneGeometry& scene() const { return scenes_.front(); }
+  SceneGeometry& scene() { return scenes_.front().value; }
+  const SceneGeometry& scene() const { return scenes_.front().value; }
+  /// Content of the current scene (see scene_key in the .cpp).
+  const std::string& current_scene_key() const { return scenes_.front().key; }
+  std::uint64_t shadow_map_bytes() const;
+  std::uint64_t display_bytes() const;
+  std::uint64_t depth_preview_bytes() const;
   void resize_shadow_map(int size, int layers);
   void resize_display(int width, int height);
   void resize_depth_preview(int size, int bits);
+  /// One draw of nothing that matters into unbind_framebuffer_, with no
+  /// vertex buffer and no texture: Mesa drops its references to the
+  /// buffers, textures and framebuffers of the last frame, so that those
+  /// released are freed now, not at the next request.
+  void unbind_released();
   void draw_scene(CullMode closed_mesh_cull);
   void upload_frame_block(const RenderRequest& request, const ShadowPlan& light);
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light);
@@ -89,15 +112,22 @@ class ShadowRenderer {
   void run_depth_preview(const ShadowPlan& light, int image_size, int bits);
   Image read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth = 8);
 
-  // The last few distinct scenes, most recently used first, so that
-  // clients alternating between scenes do not re-upload them.
+  // The last few distinct scenes, keyed by content, most recently used
+  // first, so that clients alternating between scenes do not re-upload them;
+  // at most kCachedScenes and scene_cache_bytes_ (a 1000-sphere scene is
+  // about 280 MB).
   static constexpr std::size_t kCachedScenes = 8;
-  std::deque<SceneGeometry> scenes_;
+  std::uint64_t scene_cache_bytes_;
+  ByteBoundedLru<SceneGeometry> scenes_;
   ShadowPass shadow_;
   DisplayPass display_;
   DepthPreviewPass preview_;
   gl::Buffer frame_block_;  // FrameBlock, binding 0: every pass reads it
   gl::VertexArray empty_vertex_array_;  // for the full-screen triangle
+  // A 1x1 depth-only target for unbind_released(): what the last frame drew
+  // with is bound in Mesa's state until another draw replaces it.
+  gl::Texture unbind_depth_;
+  gl::Framebuffer unbind_framebuffer_;
 };
 
 }  // namespace umbra

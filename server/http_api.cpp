@@ -243,6 +243,7 @@ void HttpApi::health(const HttpRequest&, HttpResponse& res) {
                        {"abandoned", renderer_.abandoned()},
                        {"too_costly", renderer_.too_costly()},
                        {"overran", renderer_.overran()},
+                       {"cached_bytes", renderer_.cached_bytes()},
                        {"connections_open", connections.connections_open},
                        {"connections_evicted", connections.connections_evicted},
                        {"connections_refused", connections.connections_refused},

@@ -1,7 +1,7 @@
 // umbra-server: the headless shadow-mapping render service.
 //
 //   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
-//                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000]
+//                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--memory-mib 2048]
 //                [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--quiet]
 #include <atomic>
 #include <chrono>
@@ -27,7 +27,7 @@ namespace {
 void usage(std::FILE* out) {
   std::fprintf(out,
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
-               "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N]\n"
+               "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--memory-mib N]\n"
                "                    [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
@@ -42,6 +42,8 @@ void usage(std::FILE* out) {
                "                  (default 2048)\n"
                "  --max-run-ms N  an exact or error ray cast running longer is stopped with 503, 1..3600000\n"
                "                  (default 8000)\n"
+               "  --memory-mib N  memory budget of the renderer (MiB): caches are released to fit each request and\n"
+               "                  after 1.5 s idle; a request needing more alone gets 422, 64..1048576 (default 2048)\n"
                "  --max-connections N\n"
                "                  connections open at once, 1..65536; past it a new one replaces the longest idle\n"
                "                  (or slowest-sending) one, or gets 503 if all are busy (default 256)\n"
@@ -95,6 +97,8 @@ int main(int argc, char** argv) {
           std::uint64_t(integer_flag("--max-request-mib", value("--max-request-mib"), 1, 1048576)) << 20;
     } else if (arg == "--max-run-ms") {
       limits.max_run_time = std::chrono::milliseconds(integer_flag("--max-run-ms", value("--max-run-ms"), 1, 3600000));
+    } else if (arg == "--memory-mib") {
+      limits.memory_budget_bytes = std::uint64_t(integer_flag("--memory-mib", value("--memory-mib"), 64, 1048576)) << 20;
     } else if (arg == "--cors") {
       options.cors_origin = value("--cors");
       if (!umbra::valid_cors_origin(options.cors_origin)) {

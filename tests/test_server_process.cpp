@@ -206,5 +206,60 @@ TEST(Memory, FiveThousandMixedRequestsHoldResidentMemorySteady) {
   EXPECT_EQ(server.wait(), 0);
 }
 
+// A scene of 999 spheres in a grid (about 280 MB of mesh once uploaded);
+// `variant` shifts them a little, so each variant is a distinct scene.
+json thousand_spheres(int variant) {
+  json objects = json::array({{{"type", "plane"}, {"center", {0, 0, 0}}, {"size", {60, 60}}}});
+  for (int i = 0; i < 999; ++i)
+    objects.push_back({{"type", "sphere"},
+                       {"center", {-29.0 + 1.8 * (i % 32) + 0.01 * variant, 0.5, -27.0 + 1.8 * (i / 32)}},
+                       {"radius", 0.45}});
+  return {{"objects", objects}};
+}
+
+// Issue 11 item 2: a few heavy requests used to leave gigabytes resident
+// for good (cached scenes, a 4096^2 frame's framebuffers, an 8192^2 map and
+// preview). Measured on the 2-core reference machine after this mix: 1.29 GB
+// idle before the memory budget, 0.20 GB after (baseline 0.10 GB; peak
+// 1.3-1.4 GB either way); the margin leaves room for compiled shader
+// variants and a noisy machine, and is far below one cached scene.
+TEST(Memory, ResidentMemoryReturnsNearBaselineOnceIdleAfterAHeavyMix) {
+#ifdef UMBRA_SANITIZED
+  GTEST_SKIP() << "AddressSanitizer holds freed memory in quarantine by design: resident memory is measured in the "
+                  "normal build";
+#endif
+  constexpr long kMarginKib = 150 * 1024;
+  ServerProcess server = start();
+  httplib::Client c = client(server);
+  const auto render = [&](const json& body) {
+    auto res = c.Post("/api/render", body.dump(), "application/json");
+    EXPECT_TRUE(res && res->status == 200) << (res ? std::to_string(res->status) + " " + res->body : "no answer")
+                                           << "\n" << body.dump().substr(0, 200);
+  };
+  // Warm-up: the default frame's variants and buffers, as a client's first
+  // requests make them. More than a second idle lets the server settle.
+  for (int n = 0; n < 10; ++n) render({{"width", 320}, {"height", 180}, {"time", 0.1 * n}});
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  const long baseline = server.resident_kib();
+  ASSERT_GT(baseline, 0);
+
+  for (int variant = 0; variant < 3; ++variant)
+    render({{"width", 640}, {"height", 360}, {"scene", thousand_spheres(variant)}});
+  render({{"width", 4096}, {"height", 4096}, {"output", "shadow"}});
+  render({{"width", 4096}, {"height", 4096}, {"output", "color"}, {"time", 1.0}});
+  render({{"width", 256}, {"height", 256}, {"shadow", {{"map_size", 8192}}}});
+  render({{"width", 256}, {"height", 256}, {"output", "depth"}, {"shadow", {{"map_size", 8192}}}});
+  render({{"width", 480}, {"height", 270}, {"output", "exact"}, {"scene", thousand_spheres(3)}});
+  const long busy = server.resident_kib();
+  // The renderer releases what it keeps after 1.5 s without work.
+  std::this_thread::sleep_for(std::chrono::seconds(4));
+  const long idle = server.resident_kib();
+  std::printf("resident memory: %ld KiB baseline, %ld KiB after the heavy mix, %ld KiB idle after it\n", baseline,
+              busy, idle);
+  EXPECT_LE(idle, baseline + kMarginKib);
+  server.send_signal(SIGTERM);
+  EXPECT_EQ(server.wait(), 0);
+}
+
 }  // namespace
 }  // namespace umbra::testing
