@@ -137,7 +137,10 @@ HttpApi::HttpApi(RenderService& renderer, ServerOptions options)
   HttpServerOptions connections = options_.connections;
   connections.host = options_.host;
   connections.port = options_.port;
-  connections.limits = HttpLimits{kMaxBodyBytes, kMaxUriBytes, kMaxHeaderCount, kMaxHeaderBytes};
+  connections.limits.max_body_bytes = kMaxBodyBytes;
+  connections.limits.max_target_bytes = kMaxUriBytes;
+  connections.limits.max_header_count = kMaxHeaderCount;
+  connections.limits.max_header_bytes = kMaxHeaderBytes;
   // A render's worker waits for the renderer: enough workers for a full
   // render queue and two encoding PNGs, so that the queue (which answers
   // 503 at once when full, and at its deadline) is what bounds the waiting.

@@ -339,8 +339,8 @@ void RequestReader::end_of_head() {
     too_long = digits > 18;  // more than 10^18 bytes: far past any limit, and past 64 bits
     if (!too_long) length = std::stoull(value);
   }
-  if (too_long || length > limits_.max_body_bytes)
-    return fail(413, "request body larger than " + size_text(limits_.max_body_bytes));
+  body_limit_ = limits_.body_limit_for ? limits_.body_limit_for(r) : limits_.max_body_bytes;
+  if (too_long || length > body_limit_) return fail(413, "request body larger than " + size_text(body_limit_));
   const bool body_follows = codings > 0 || length > 0;
   const std::string expect = r.header("Expect");
   if (r.has_header("Expect")) {
@@ -366,7 +366,7 @@ bool RequestReader::read_body(std::string& input) {
     fail(status, std::move(message));
     return true;
   };
-  const auto too_large = [&] { return refuse(413, "request body larger than " + size_text(limits_.max_body_bytes)); };
+  const auto too_large = [&] { return refuse(413, "request body larger than " + size_text(body_limit_)); };
   switch (body_step_) {
     case BodyStep::Fixed:
     case BodyStep::ChunkData: {
@@ -401,7 +401,7 @@ bool RequestReader::read_body(std::string& input) {
       if (i == 0) return refuse(400, "malformed chunked body: no chunk size");
       const std::string_view rest = trim_ows(std::string_view(line).substr(i));
       if (!rest.empty() && rest.front() != ';') return refuse(400, "malformed chunked body: junk after a chunk size");
-      if (size > limits_.max_body_bytes - body.size()) return too_large();
+      if (size > body_limit_ - body.size()) return too_large();
       if (size == 0) {
         body_step_ = BodyStep::Trailer;
       } else {

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -15,8 +16,13 @@
 
 namespace umbra {
 
+struct HttpRequest;
+
 struct HttpLimits {
   std::size_t max_body_bytes = 1 << 20;     ///< decoded body; 413 above. Default 1 MiB
+  /// If set, the body limit of one request, judged from its head (e.g. a
+  /// larger one for an upload route); max_body_bytes otherwise.
+  std::function<std::size_t(const HttpRequest& head)> body_limit_for;
   std::size_t max_target_bytes = 4096;      ///< request-target; 414 above. Default 4 KiB
   std::size_t max_header_count = 100;       ///< header fields (trailers included); 431 above
   std::size_t max_header_bytes = 32 << 10;  ///< bytes of names and values; 431 above. Default 32 KiB
@@ -117,6 +123,7 @@ class RequestReader {
   std::size_t field_count_ = 0;   ///< header and trailer fields so far
   BodyStep body_step_ = BodyStep::Fixed;
   std::size_t remaining_ = 0;     ///< of a Content-Length body, or of the current chunk
+  std::size_t body_limit_ = 0;    ///< of this request (HttpLimits::body_limit_for)
   bool wants_continue_ = false;
   int error_status_ = 0;
   std::string error_message_;

@@ -106,6 +106,21 @@ TEST(HttpMessage, AContentLengthPastTheLimitIsRefusedBeforeItsBody) {
   EXPECT_EQ(reader.state(), State::Body);
 }
 
+TEST(HttpMessage, ARouteMayHaveABodyLimitOfItsOwn) {
+  HttpLimits limits;
+  limits.max_body_bytes = 10;
+  limits.body_limit_for = [](const HttpRequest& head) { return head.path == "/upload" ? 100u : 10u; };
+  const std::string body(50, 'x');
+  const auto post = [&](const std::string& path, const std::string& framing) {
+    return "POST " + path + " HTTP/1.1\r\n" + framing + "\r\n";
+  };
+  EXPECT_EQ(refusal(post("/upload", "Content-Length: 50\r\n") + body, limits), 0);
+  EXPECT_EQ(refusal(post("/other", "Content-Length: 50\r\n") + body, limits), 413);
+  EXPECT_EQ(refusal(post("/upload", "Transfer-Encoding: chunked\r\n") + "32\r\n" + body + "\r\n0\r\n\r\n", limits), 0);
+  EXPECT_EQ(refusal(post("/other", "Transfer-Encoding: chunked\r\n") + "32\r\n" + body + "\r\n0\r\n\r\n", limits), 413);
+  EXPECT_EQ(refusal(post("/upload", "Content-Length: 101\r\n"), limits), 413);
+}
+
 TEST(HttpMessage, FramingThatLeavesTheBodyLengthUnknownIs400) {
   for (const char* framing :
        {"Content-Length: 0x10\r\n", "Content-Length: -1\r\n", "Content-Length: +5\r\n", "Content-Length: 5, 5\r\n",
