@@ -78,11 +78,22 @@ struct HttpServer::Impl {
   bool stopping = false;
 
   // Shared with the workers.
+  // A worker takes requests handed to it, then any still waiting, and
+  // sleeps on its own condition. Idle workers form a stack: the one idle
+  // most recently (its stack and malloc arena warm) takes the next request,
+  // so a light load keeps to one or two threads instead of touching every
+  // worker's memory in turn.
+  struct Worker {
+    std::condition_variable wake;
+    bool handed = false;  // `work` holds a request for it
+    Work work;
+    std::thread thread;
+  };
   std::mutex mutex;
-  std::condition_variable work_ready;
+  std::vector<std::unique_ptr<Worker>> workers;
+  std::vector<Worker*> idle_workers;
   std::deque<Work> waiting, done;
   bool workers_quit = false;
-  std::vector<std::thread> workers;
   std::size_t handling_on_workers = 0;  // I/O thread only
 
   mutable std::mutex stats_mutex;
@@ -272,9 +283,10 @@ struct HttpServer::Impl {
       run_handler(request, response);
       return respond(c, request, std::move(response), false);
     }
+    Worker* woken = nullptr;
     {
       std::lock_guard<std::mutex> lock(mutex);
-      if (waiting.size() >= options.max_waiting_requests) {
+      if (idle_workers.empty() && waiting.size() >= options.max_waiting_requests) {
         HttpResponse busy = handlers.error(503, "the server is busy (" + std::to_string(options.worker_threads) +
                                                     " requests running and " +
                                                     std::to_string(options.max_waiting_requests) +
@@ -283,10 +295,18 @@ struct HttpServer::Impl {
         return respond(c, request, std::move(busy), false);
       }
       watch(c, 0);  // no reading meanwhile; the descriptor stays open
-      waiting.push_back(Work{c.fd, c.id, std::move(request), {}});
+      Work work{c.fd, c.id, std::move(request), {}};
+      if (idle_workers.empty()) {
+        waiting.push_back(std::move(work));
+      } else {
+        woken = idle_workers.back();
+        idle_workers.pop_back();
+        woken->work = std::move(work);
+        woken->handed = true;
+      }
     }
     ++handling_on_workers;
-    work_ready.notify_one();
+    if (woken) woken->wake.notify_one();
   }
 
   void run_handler(const HttpRequest& request, HttpResponse& response) {
@@ -299,15 +319,24 @@ struct HttpServer::Impl {
     }
   }
 
-  void worker_loop() {
+  void worker_loop(Worker& self) {
     for (;;) {
       Work work;
       {
         std::unique_lock<std::mutex> lock(mutex);
-        work_ready.wait(lock, [&] { return workers_quit || !waiting.empty(); });
-        if (waiting.empty()) return;
-        work = std::move(waiting.front());
-        waiting.pop_front();
+        if (!self.handed && waiting.empty()) {
+          if (workers_quit) return;
+          idle_workers.push_back(&self);
+          self.wake.wait(lock, [&] { return self.handed || workers_quit; });
+          if (!self.handed) return;
+        }
+        if (self.handed) {
+          work = std::move(self.work);
+          self.handed = false;
+        } else {
+          work = std::move(waiting.front());
+          waiting.pop_front();
+        }
       }
       run_handler(work.request, work.response);
       {
@@ -446,9 +475,10 @@ struct HttpServer::Impl {
     {
       std::lock_guard<std::mutex> lock(mutex);
       workers_quit = false;
+      for (std::size_t i = 0; i < std::max<std::size_t>(1, options.worker_threads); ++i)
+        workers.push_back(std::make_unique<Worker>());
     }
-    for (std::size_t i = 0; i < std::max<std::size_t>(1, options.worker_threads); ++i)
-      workers.emplace_back([this] { worker_loop(); });
+    for (auto& worker : workers) worker->thread = std::thread([this, w = worker.get()] { worker_loop(*w); });
     epoll_event ev{};
     ev.events = EPOLLIN;
     ev.data.fd = listen_fd;
@@ -479,9 +509,10 @@ struct HttpServer::Impl {
       std::lock_guard<std::mutex> lock(mutex);
       workers_quit = true;
     }
-    work_ready.notify_all();
-    for (std::thread& t : workers) t.join();
+    for (auto& worker : workers) worker->wake.notify_one();
+    for (auto& worker : workers) worker->thread.join();
     workers.clear();
+    idle_workers.clear();
     running = false;
   }
 

@@ -144,6 +144,12 @@ int main(int argc, char** argv) {
   sigaddset(&stop_signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
 
+  // glibc gives each thread that allocates its own malloc arena (up to 8 per
+  // core); memory freed in one is reused only there. The workers, the I/O
+  // thread, the GL thread and llvmpipe's threads would each hold freed
+  // pages of frames and PNGs. Two arenas keep resident memory close to
+  // what is in use; the few large allocations per request do not contend.
+  mallopt(M_ARENA_MAX, 2);
   try {
     umbra::RenderService renderer(limits);
     const umbra::RendererInfo& info = renderer.info();
