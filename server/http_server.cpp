@@ -30,6 +30,7 @@ using Clock = std::chrono::steady_clock;
 constexpr std::size_t kReadChunk = 64 << 10;        // bytes read per readiness event
 constexpr std::size_t kAcceptsPerWake = 128;        // so that a flood of connects cannot starve the rest
 constexpr auto kLinger = std::chrono::seconds(1);   // reading after a closing response
+constexpr auto kAcceptPause = std::chrono::milliseconds(100);  // out of descriptors: rest accepting
 
 enum class Phase { Idle, Receiving, Handling, Sending, Lingering };
 
@@ -76,6 +77,7 @@ struct HttpServer::Impl {
   std::unordered_map<int, std::unique_ptr<Connection>> connections;
   std::uint64_t next_id = 1;
   bool stopping = false;
+  Clock::time_point accepting_again{};  // set while accepting rests (out of descriptors)
 
   // Shared with the workers.
   // A worker takes requests handed to it, then any still waiting, and
@@ -186,7 +188,13 @@ struct HttpServer::Impl {
   void accept_connections() {
     for (std::size_t i = 0; i < kAcceptsPerWake; ++i) {
       const int fd = accept4(listen_fd, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
-      if (fd < 0) return;  // EAGAIN, or out of descriptors: the backlog keeps it for now
+      if (fd < 0) {
+        // Out of descriptors: the listener stays readable, and a level-
+        // triggered loop would spin on it. Rest it for a moment; the
+        // backlog holds the connections meanwhile.
+        if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM) pause_accepting();
+        return;
+      }
       if (connections.size() >= options.max_connections) {
         const int evict = connection_to_evict();
         if (evict < 0) {
@@ -425,8 +433,22 @@ struct HttpServer::Impl {
 
   // ---- time
 
+  void pause_accepting() {
+    epoll_ctl(epoll_fd, EPOLL_CTL_DEL, listen_fd, nullptr);
+    accepting_again = Clock::now() + kAcceptPause;
+  }
+
+  void resume_accepting(Clock::time_point now) {
+    if (accepting_again == Clock::time_point{} || now < accepting_again || listen_fd < 0) return;
+    accepting_again = Clock::time_point{};
+    epoll_event ev{};
+    ev.events = EPOLLIN;
+    ev.data.fd = listen_fd;
+    epoll_ctl(epoll_fd, EPOLL_CTL_ADD, listen_fd, &ev);
+  }
+
   int next_timeout_ms() const {
-    Clock::time_point next = Clock::time_point::max();
+    Clock::time_point next = accepting_again == Clock::time_point{} ? Clock::time_point::max() : accepting_again;
     for (const auto& [fd, c] : connections)
       if (c->phase != Phase::Handling) next = std::min(next, c->deadline);
     if (next == Clock::time_point::max()) return -1;
@@ -504,6 +526,7 @@ struct HttpServer::Impl {
         }
       }
       expire(Clock::now());
+      resume_accepting(Clock::now());
     }
     {
       std::lock_guard<std::mutex> lock(mutex);

@@ -8,7 +8,13 @@
 #include <thread>
 #include <vector>
 
+#include <fstream>
+#include <iterator>
+#include <sstream>
+
 #include <arpa/inet.h>
+#include <fcntl.h>
+#include <sys/resource.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -116,6 +122,57 @@ TEST(GracefulStop, TricklingAndIdleClientsDoNotHoldItUp) {
   done = true;
   for (std::thread& t : tricklers) t.join();
   for (int fd : sockets) close(fd);
+}
+
+// CPU seconds (user + system) process `pid` has used.
+double cpu_seconds(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::istringstream fields(text.substr(text.rfind(')') + 2));
+  std::string field;
+  double ticks = 0;
+  for (int i = 3; i <= 15 && fields >> field; ++i)
+    if (i == 14 || i == 15) ticks += std::atof(field.c_str());
+  return ticks / double(sysconf(_SC_CLK_TCK));
+}
+
+// Out of file descriptors, accept() fails while the listening socket stays
+// readable: a level-triggered loop would spin on it at full CPU. The server
+// rests accepting instead, and serves again once descriptors are free.
+TEST(Connections, RunningOutOfDescriptorsNeitherSpinsNorStopsTheServer) {
+  rlimit normal{};
+  getrlimit(RLIMIT_NOFILE, &normal);
+  rlimit low = normal;
+  low.rlim_cur = 64;  // the server's own files, GL's and a few dozen sockets
+  setrlimit(RLIMIT_NOFILE, &low);
+  ServerProcess server = start();
+  setrlimit(RLIMIT_NOFILE, &normal);
+  std::vector<int> sockets;
+  for (int i = 0; i < 150; ++i) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(std::uint16_t(server.port()));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    fcntl(fd, F_SETFL, O_NONBLOCK);  // past the backlog a connect would wait
+    connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address);
+    sockets.push_back(fd);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const double cpu_before = cpu_seconds(server.pid());
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  const double cpu_used = cpu_seconds(server.pid()) - cpu_before;
+  // Resting, it uses none; spinning, a core's worth (0.7 s even on this
+  // machine loaded by three other jobs).
+  EXPECT_LT(cpu_used, 0.25) << "the accept loop spins";
+  for (int fd : sockets) close(fd);
+  // The idle ones close after 2 s; then there are descriptors again.
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  auto res = client(server).Get("/api/health");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  server.send_signal(SIGTERM);
+  EXPECT_EQ(server.wait(), 0) << server.log();
 }
 
 // The n-th request of a fixed mix: every output, sizes, map sizes, scenes
