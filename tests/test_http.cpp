@@ -279,9 +279,11 @@ TEST(Http, AClientThatLeftBeforeItsTurnCostsNoRender) {
   const int cast_client = send_raw(ServerEnvironment::api->port(),
                                    post_request("/api/render", R"({"width": 64, "height": 64, "output": "error"})"));
   while (renderer.queue_depth() < 3) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  const bool slow_still_running = renderer.frames_rendered() == frames_before;
   close(gl_client);
   close(cast_client);
+  // Judged after the clients left: the slow render must end after that,
+  // or the next job's turn (and its check) may come while they are there.
+  const bool slow_still_running = renderer.frames_rendered() == frames_before;
   slow.join();
   while (renderer.queue_depth() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   if (!slow_still_running) GTEST_SKIP() << "the slow render finished before the clients left";
