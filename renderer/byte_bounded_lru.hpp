@@ -55,6 +55,12 @@ class ByteBoundedLru {
     return dropped;
   }
 
+  /// Calls f(entry) for each entry, most recently used first, touching none.
+  template <class F>
+  void for_each(F&& f) const {
+    for (const Entry& e : entries_) f(e);
+  }
+
   bool empty() const { return entries_.empty(); }
   std::size_t size() const { return entries_.size(); }
   std::uint64_t bytes() const { return bytes_; }

@@ -14,6 +14,8 @@ PACKAGES=(
   libstb-dev                                          # stb_image: the tests' PNG decoder; stb_image_write: bench
   libpng-dev                                          # libpng: only for umbra-png-bench's comparison
   libgtest-dev                                        # GoogleTest
+  libtinygltf-dev                                     # glTF 2.0 parser (header; renderer/tiny_gltf_impl.cpp compiles it)
+  nettle-dev                                          # SHA-256: the ids of uploaded models
 )
 # Optional groups:
 #   --fuzz     clang and its libFuzzer runtime (scripts/fuzz.sh)

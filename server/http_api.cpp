@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "client_socket.hpp"
+#include "gltf_loader.hpp"
 #include "png.hpp"
 #include "request_parser.hpp"
 #include "scene.hpp"
@@ -50,6 +51,20 @@ json object_json(const SceneObject& o) {
       return {{"type", "sphere"}, {"center", vec3_json(o.center)}, {"radius", o.radius}, {"color", vec3_json(o.color)}};
   }
   return {};
+}
+
+// How GET /api/models and POST /api/models describe one model.
+json model_json(const HeldModel& held) {
+  const TriangleModel& model = *held.model;
+  json j = {{"id", held.id},
+            {"triangles", model.triangle_count()},
+            {"bounds", {{"min", vec3_json(model.bounds.min)}, {"max", vec3_json(model.bounds.max)}}},
+            {"parts", model.parts.size()},
+            {"closed", model.closed},
+            {"bytes", held.bytes}};
+  if (!held.name.empty()) j["name"] = held.name;
+  j["pinned"] = held.pinned;
+  return j;
 }
 
 std::string content_type_for(const std::string& path) {
@@ -130,14 +145,30 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "/api/scenes", &HttpApi::scenes, false},
     {"POST", "/api/render", &HttpApi::render_color, true},
     {"POST", "/api/depth", &HttpApi::render_depth, true},
+    {"GET", "/api/models", &HttpApi::list_models, false},
+    {"POST", "/api/models", &HttpApi::upload_model, true},
+    {"GET", "/api/models/", &HttpApi::get_model, false, true},
 };
 
 HttpApi::HttpApi(RenderService& renderer, ServerOptions options)
-    : renderer_(renderer), options_(std::move(options)), started_(Clock::now()) {
+    : HttpApi(renderer, std::make_shared<ModelStore>(options.models_budget_bytes), options) {}
+
+// Not owned: an aliasing pointer with no control block.
+HttpApi::HttpApi(RenderService& renderer, ModelStore& models, ServerOptions options)
+    : HttpApi(renderer, std::shared_ptr<ModelStore>(std::shared_ptr<ModelStore>(), &models), std::move(options)) {}
+
+HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options)
+    : renderer_(renderer), options_(std::move(options)), models_(std::move(models)), started_(Clock::now()) {
   HttpServerOptions connections = options_.connections;
   connections.host = options_.host;
   connections.port = options_.port;
   connections.limits.max_body_bytes = kMaxBodyBytes;
+  // Only an upload may be larger; judged from the head, so a larger body
+  // anywhere else is still refused at the byte past 1 MiB.
+  const std::size_t max_model_bytes = options_.max_model_bytes;
+  connections.limits.body_limit_for = [max_model_bytes](const HttpRequest& head) {
+    return head.method == "POST" && head.path == "/api/models" ? max_model_bytes : kMaxBodyBytes;
+  };
   connections.limits.max_target_bytes = kMaxUriBytes;
   connections.limits.max_header_count = kMaxHeaderCount;
   connections.limits.max_header_bytes = kMaxHeaderBytes;
@@ -193,7 +224,9 @@ const HttpApi::Route* HttpApi::find_route(const HttpRequest& req, std::string& a
   const std::string method = req.method == "HEAD" ? "GET" : req.method;
   allow.clear();
   for (const Route& route : kRoutes) {
-    if (req.path != route.path) continue;
+    const std::size_t n = std::char_traits<char>::length(route.path);
+    const bool match = route.prefix ? req.path.size() > n && req.path.compare(0, n, route.path) == 0 : req.path == route.path;
+    if (!match) continue;
     if (method == route.method) return &route;
     allow += (allow.empty() ? "" : ", ") + std::string(route.method);
   }
@@ -247,6 +280,8 @@ void HttpApi::health(const HttpRequest&, HttpResponse& res) {
                        {"too_costly", renderer_.too_costly()},
                        {"overran", renderer_.overran()},
                        {"cached_bytes", renderer_.cached_bytes()},
+                       {"models", models_->count()},
+                       {"model_bytes", models_->bytes()},
                        {"connections_open", connections.connections_open},
                        {"connections_evicted", connections.connections_evicted},
                        {"connections_refused", connections.connections_refused},
@@ -338,6 +373,81 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
     res.set_header("Umbra-Shadow-Error", buffer);
   }
   res.set_content(std::move(png), "image/png");
+}
+
+void HttpApi::list_models(const HttpRequest&, HttpResponse& res) {
+  json models = json::array();
+  for (const auto& held : models_->list()) models.push_back(model_json(*held));
+  res.set_content(json{{"models", models},
+                       {"count", models.size()},
+                       {"bytes", models_->bytes()},
+                       {"budget_bytes", models_->max_bytes()}}
+                      .dump(),
+                  "application/json");
+}
+
+void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
+  const std::string key = req.path.substr(std::char_traits<char>::length("/api/models/"));
+  const auto held = models_->find(key);
+  if (!held)
+    return send_error(res, 404,
+                      "no model '" + key.substr(0, 100) +
+                          "' is held; upload it with POST /api/models (GET /api/models lists those held)",
+                      "");
+  res.set_content(model_json(*held).dump(), "application/json");
+}
+
+// A .glb or a self-contained .gltf; its id is the SHA-256 of the body, so
+// the same upload twice is one model (the second answered 200 at once).
+void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
+  const std::string full_type = req.header("Content-Type");
+  std::string type = full_type.substr(0, full_type.find(';'));
+  while (!type.empty() && (type.back() == ' ' || type.back() == '\t')) type.pop_back();
+  LoadOptions options;  // no external folder: nothing outside the body is read
+  if (equal_ci(type, "model/gltf-binary"))
+    options.format = LoadOptions::Format::Binary;
+  else if (equal_ci(type, "model/gltf+json"))
+    options.format = LoadOptions::Format::Json;
+  else
+    return send_error(res, 415,
+                      "unsupported Content-Type " + (type.empty() ? std::string("(none)") : type.substr(0, 100)) +
+                          "; send a .glb as model/gltf-binary or a self-contained .gltf as model/gltf+json",
+                      "");
+  const std::string id = model_id_for(req.body);
+  if (const auto held = models_->find(id)) return res.set_content(model_json(*held).dump(), "application/json");
+  {
+    std::lock_guard<std::mutex> lock(model_loads_mutex_);
+    if (model_loads_ >= kMaxConcurrentModelLoads) {
+      res.set_header("Retry-After", "1");
+      return send_error(res, 503,
+                        "already loading " + std::to_string(kMaxConcurrentModelLoads) + " models; retry later", "");
+    }
+    ++model_loads_;
+  }
+  LoadResult loaded = load_gltf(req.body, options);
+  {
+    std::lock_guard<std::mutex> lock(model_loads_mutex_);
+    --model_loads_;
+  }
+  if (!loaded.ok()) return send_error(res, loaded.status, loaded.error, "");
+  const std::size_t bytes = loaded.model->bytes();
+  const ModelStore::AddResult added = models_->add(id, "", std::move(loaded.model), false);
+  switch (added.outcome) {
+    case ModelStore::Outcome::Added:
+      res.status = 201;
+      res.set_header("Location", "/api/models/" + id);
+      break;
+    case ModelStore::Outcome::AlreadyHeld:  // uploaded meanwhile by another request
+      break;
+    case ModelStore::Outcome::TooLarge:
+    case ModelStore::Outcome::NameTaken:  // uploads have no name: cannot happen
+      return send_error(res, 422,
+                        "the model needs " + std::to_string(bytes >> 20) + " MiB once loaded, more than the " +
+                            std::to_string(models_->max_bytes() >> 20) +
+                            " MiB the server holds for models beside those of --models DIR (--models-budget-mib)",
+                        "");
+  }
+  res.set_content(model_json(*added.held).dump(), "application/json");
 }
 
 // A file of the web panel; one byte range of it on request (a resumed

@@ -5,8 +5,10 @@
 
 #include <chrono>
 #include <memory>
+#include <mutex>
 #include <string>
 
+#include "model_store.hpp"
 #include "render_service.hpp"
 
 #include "http_server.hpp"
@@ -25,6 +27,12 @@ struct ServerOptions {
   /// Connections, timeouts and workers (http_server.hpp). HttpApi sizes
   /// the workers to the render queue itself.
   HttpServerOptions connections;
+  /// Body limit of POST /api/models only (--max-model-mib); every other
+  /// request keeps HttpApi::kMaxBodyBytes. 413 above.
+  std::size_t max_model_bytes = std::size_t(64) << 20;
+  /// Geometry held (--models-budget-mib), for the store HttpApi makes when
+  /// none is given to it.
+  std::uint64_t models_budget_bytes = std::uint64_t(2048) << 20;
 };
 
 /// "*", or scheme://host[:port] with scheme http or https and nothing after.
@@ -39,7 +47,14 @@ class HttpApi {
   static constexpr std::size_t kMaxHeaderCount = 100;       ///< 431 above this many header fields
   static constexpr std::size_t kMaxHeaderBytes = 32 << 10;  ///< 431 above this many bytes of names and values
 
+  /// Models uploaded at most this many at once; more get 503 with
+  /// Retry-After (a load holds several times its body in memory).
+  static constexpr int kMaxConcurrentModelLoads = 2;
+
+  /// With a model store of its own (options.models_budget_bytes).
   HttpApi(RenderService& renderer, ServerOptions options);
+  /// With the server's model store (main.cpp fills it from --models DIR).
+  HttpApi(RenderService& renderer, ModelStore& models, ServerOptions options);
   ~HttpApi();
 
   /// Binds the socket; false (with errno set) if the address is unusable.
@@ -55,12 +70,15 @@ class HttpApi {
   void stop();
 
  private:
+  HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options);
+
   using Handler = void (HttpApi::*)(const HttpRequest&, HttpResponse&);
   struct Route {
     const char* method;
     const char* path;
     Handler handler;
-    bool blocks;  ///< waits for the renderer: runs on a worker thread
+    bool blocks;          ///< waits for the renderer or loads a model: runs on a worker thread
+    bool prefix = false;  ///< `path` and at least one more character: "/api/models/" + id
   };
   static const Route kRoutes[];
 
@@ -71,6 +89,9 @@ class HttpApi {
   void render_depth(const HttpRequest& req, HttpResponse& res);
   void static_file(const HttpRequest& req, HttpResponse& res);
   void preflight(const HttpRequest& req, HttpResponse& res);
+  void list_models(const HttpRequest& req, HttpResponse& res);
+  void upload_model(const HttpRequest& req, HttpResponse& res);
+  void get_model(const HttpRequest& req, HttpResponse& res);
 
   void render(const HttpRequest& req, HttpResponse& res, bool depth_route);
   /// The route for `req`'s method and path, or null (with `allow` set to
@@ -86,6 +107,9 @@ class HttpApi {
 
   RenderService& renderer_;
   ServerOptions options_;
+  std::shared_ptr<ModelStore> models_;  // owned, or the one given (not owned)
+  std::mutex model_loads_mutex_;
+  int model_loads_ = 0;  // uploads being loaded now
   std::unique_ptr<HttpServer> http_;
   std::chrono::steady_clock::time_point started_;
 };

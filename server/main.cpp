@@ -2,7 +2,8 @@
 //
 //   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
 //                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--memory-mib 2048]
-//                [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--quiet]
+//                [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--models DIR]
+//                [--max-model-mib 64] [--models-budget-mib 2048] [--quiet]
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -20,6 +21,7 @@
 #include <sys/stat.h>
 
 #include "http_api.hpp"
+#include "model_store.hpp"
 #include "render_service.hpp"
 
 namespace {
@@ -28,7 +30,8 @@ void usage(std::FILE* out) {
   std::fprintf(out,
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
                "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--memory-mib N]\n"
-               "                    [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--quiet]\n"
+               "                    [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--models DIR]\n"
+               "                    [--max-model-mib N] [--models-budget-mib N] [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
                "  --web DIR       serve the web panel from DIR instead of the copy built in\n"
@@ -51,6 +54,15 @@ void usage(std::FILE* out) {
                "                  a request not received whole (headers and body) this long after its first byte\n"
                "                  gets 408 and the connection closes, 1..3600000 (default 10000)\n"
                "  --cors ORIGIN   let web pages from ORIGIN (or \"*\": any) call the API; default: none\n"
+               "  --models DIR    load every .glb and .gltf in DIR at start, named by file name (\"teapot\" for teapot.glb);\n"
+               "                  their external buffer files are read from inside DIR only. A file that fails is\n"
+               "                  skipped with its reason on stderr. Never dropped from memory (pinned)\n"
+               "  --max-model-mib N\n"
+               "                  largest model upload (POST /api/models body) and --models file, MiB; larger gets 413,\n"
+               "                  1..4095 (default 64). Every other request body stays limited to 1 MiB\n"
+               "  --models-budget-mib N\n"
+               "                  memory for held models' geometry, MiB: uploads beyond it drop the least recently\n"
+               "                  used uploads, 1..1048576 (default 2048)\n"
                "  --quiet         no per-request log lines\n"
                "SIGINT or SIGTERM: stop accepting, close idle connections and requests still arriving, answer the requests\n"
                "already received, exit 0 (a second one exits at once).\n");
@@ -72,6 +84,7 @@ static long integer_flag(const char* flag, const std::string& text, long lo, lon
 int main(int argc, char** argv) {
   umbra::ServerOptions options;
   umbra::ServiceLimits limits;
+  std::string models_dir;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     const auto value = [&](const char* name) -> std::string {
@@ -114,6 +127,13 @@ int main(int argc, char** argv) {
     } else if (arg == "--request-timeout-ms") {
       options.connections.request_timeout =
           std::chrono::milliseconds(integer_flag("--request-timeout-ms", value("--request-timeout-ms"), 1, 3600000));
+    } else if (arg == "--models") {
+      models_dir = value("--models");
+    } else if (arg == "--max-model-mib") {
+      options.max_model_bytes = std::size_t(integer_flag("--max-model-mib", value("--max-model-mib"), 1, 4095)) << 20;
+    } else if (arg == "--models-budget-mib") {
+      options.models_budget_bytes =
+          std::uint64_t(integer_flag("--models-budget-mib", value("--models-budget-mib"), 1, 1048576)) << 20;
     } else if (arg == "--quiet") {
       options.log_requests = false;
     } else if (arg == "--help" || arg == "-h") {
@@ -133,6 +153,22 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "umbra-server: --web: '%s' is not a folder\n", options.web_dir.c_str());
       return 2;
     }
+  }
+
+  umbra::ModelStore models(options.models_budget_bytes);
+  if (!models_dir.empty()) {
+    umbra::FolderLoad loaded;
+    std::string error;
+    if (!umbra::load_model_folder(models_dir, models, options.max_model_bytes, loaded, error)) {
+      std::fprintf(stderr, "umbra-server: --models: %s\n", error.c_str());
+      return 2;
+    }
+    for (const auto& held : loaded.loaded)
+      std::fprintf(stderr, "umbra-server: model '%s' (%s): %zu triangles\n", held->name.c_str(), held->id.c_str(),
+                   held->model->triangle_count());
+    // A broken file costs that model, not the server.
+    for (const std::string& why : loaded.refused)
+      std::fprintf(stderr, "umbra-server: --models: skipped %s\n", why.c_str());
   }
 
   // SIGINT and SIGTERM are blocked here, before any thread starts (threads
@@ -155,7 +191,7 @@ int main(int argc, char** argv) {
     const umbra::RendererInfo& info = renderer.info();
     std::fprintf(stderr, "umbra-server: OpenGL %s on %s (%s)\n", info.gl_version.c_str(), info.gl_renderer.c_str(),
                  info.egl_source.c_str());
-    umbra::HttpApi api(renderer, options);
+    umbra::HttpApi api(renderer, models, options);
     if (!api.bind()) {
       std::fprintf(stderr, "umbra-server: cannot listen on %s:%d: %s\n", options.host.c_str(), options.port,
                    std::strerror(errno));

@@ -20,7 +20,9 @@
 #include <nlohmann/json.hpp>
 #include <stb_image.h>
 
+#include "gltf_builder.hpp"
 #include "http_api.hpp"
+#include "model_store.hpp"
 #include "render_service.hpp"
 
 namespace umbra {
@@ -313,7 +315,12 @@ std::string get_request(const std::string& target) {
 
 // A server of its own on the shared renderer, with other options.
 struct OwnServer {
-  explicit OwnServer(ServerOptions options) : api(*ServerEnvironment::renderer, prepared(std::move(options))) {
+  explicit OwnServer(ServerOptions options) : api(*ServerEnvironment::renderer, prepared(std::move(options))) { start(); }
+  OwnServer(ServerOptions options, ModelStore& models)
+      : api(*ServerEnvironment::renderer, models, prepared(std::move(options))) {
+    start();
+  }
+  void start() {
     EXPECT_TRUE(api.bind());
     thread = std::thread([this] { api.serve(); });
     while (!api.serving()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -819,6 +826,174 @@ TEST(Http, EightParallelClientsFiveRequestsEach) {
   }
   for (auto& t : clients) t.join();
   EXPECT_EQ(ok.load(), 40);
+}
+
+// --- The user's models: POST/GET /api/models --------------------------------
+
+// A cube of edge `size` under a node: a small valid model; each size is
+// a different body, so a different id.
+test::GltfBuilder cube_model(float size) {
+  test::GltfBuilder b;
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  test::unit_cube(positions, indices, size / 2);
+  const int p = b.vec3s(positions);
+  const int i = b.indices_u32(indices);
+  b.scene({b.node({{"mesh", b.mesh(p, i)}})});
+  return b;
+}
+
+// A square grid of n x n vertices: 2 (n - 1)^2 triangles, 12 n^2 + 24 (n - 1)^2 bytes.
+std::string grid_glb(int n) {
+  test::GltfBuilder b;
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  for (int z = 0; z < n; ++z)
+    for (int x = 0; x < n; ++x) positions.push_back({float(x), 0.0f, float(-z)});
+  for (int z = 0; z + 1 < n; ++z)
+    for (int x = 0; x + 1 < n; ++x) {
+      const std::uint32_t a = std::uint32_t(z * n + x), c = a + std::uint32_t(n);
+      indices.insert(indices.end(), {a, a + 1, c + 1, a, c + 1, c});
+    }
+  const int p = b.vec3s(positions);
+  const int i = b.indices_u32(indices);
+  b.scene({b.node({{"mesh", b.mesh(p, i)}})});
+  return b.glb();
+}
+
+TEST(Http, AnUploadedGlbIsHeldListedAndFound) {
+  const std::string glb = cube_model(2.0f).glb();
+  auto res = client().Post("/api/models", glb, "model/gltf-binary");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 201) << res->body;
+  const json created = json::parse(res->body);
+  const std::string id = model_id_for(glb);
+  EXPECT_EQ(created["id"], id);
+  EXPECT_EQ(created["triangles"], 12);
+  EXPECT_EQ(created["bounds"]["min"], json::array({-1.0, -1.0, -1.0}));
+  EXPECT_EQ(created["bounds"]["max"], json::array({1.0, 1.0, 1.0}));
+  EXPECT_EQ(created["closed"], true);
+  EXPECT_EQ(res->get_header_value("Location"), "/api/models/" + id);
+
+  // The same body again: 200, the same answer.
+  res = client().Post("/api/models", glb, "model/gltf-binary");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_EQ(json::parse(res->body), created);
+
+  res = client().Get("/api/models");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200);
+  const json list = json::parse(res->body);
+  bool listed = false;
+  for (const json& m : list["models"]) listed |= m["id"] == id;
+  EXPECT_TRUE(listed) << res->body;
+  EXPECT_GE(list["count"].get<int>(), 1);
+  EXPECT_GT(list["bytes"].get<std::uint64_t>(), 0u);
+
+  res = client().Get("/api/models/" + id);
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_EQ(json::parse(res->body), created);
+
+  const json health = json::parse(client().Get("/api/health")->body);
+  EXPECT_GE(health["models"].get<int>(), 1);
+  EXPECT_GT(health["model_bytes"].get<std::uint64_t>(), 0u);
+}
+
+TEST(Http, ASelfContainedGltfUploads) {
+  auto res = client().Post("/api/models", cube_model(3.0f).gltf(), "model/gltf+json; charset=utf-8");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 201) << res->body;
+}
+
+TEST(Http, ModelErrors) {
+  expect_json_error(client().Get("/api/models/sha256:0000"), 404, "");
+  EXPECT_NE(client().Get("/api/models/nope")->body.find("POST /api/models"), std::string::npos);
+  // The wrong type: 415 naming the accepted ones.
+  auto res = client().Post("/api/models", cube_model(4.0f).glb(), "application/octet-stream");
+  expect_json_error(res, 415, "");
+  EXPECT_NE(res->body.find("model/gltf-binary"), std::string::npos);
+  EXPECT_NE(res->body.find("model/gltf+json"), std::string::npos);
+  // Broken and refused files: the loader's message, whole.
+  res = client().Post("/api/models", "glTF but no more", "model/gltf-binary");
+  expect_json_error(res, 400, "");
+  EXPECT_NE(res->body.find("glTF binary"), std::string::npos) << res->body;
+  test::GltfBuilder lines = cube_model(5.0f);
+  lines.doc["meshes"][0]["primitives"][0]["mode"] = 1;
+  res = client().Post("/api/models", lines.glb(), "model/gltf-binary");
+  expect_json_error(res, 422, "");
+  EXPECT_NE(res->body.find("meshes[0].primitives[0]: mode 1 (LINES) is not triangles"), std::string::npos) << res->body;
+  res = client().Post("/api/models", cube_model(6.0f).gltf_external("/etc/passwd"), "model/gltf+json");
+  expect_json_error(res, 422, "");
+  EXPECT_NE(res->body.find("self-contained"), std::string::npos) << res->body;
+  // Routes: a wrong method on either path is 405 with Allow.
+  res = client().Delete("/api/models/" + model_id_for("x"));
+  expect_json_error(res, 405, "");
+  EXPECT_EQ(res->get_header_value("Allow"), "GET");
+  res = client().Put("/api/models", "{}", "application/json");
+  expect_json_error(res, 405, "");
+  EXPECT_EQ(res->get_header_value("Allow"), "GET, POST");
+  EXPECT_EQ(client().Get("/api/health")->status, 200);
+}
+
+TEST(Http, OnlyModelUploadsMayBeLargerThanOneMebibyte) {
+  ServerOptions options;
+  options.max_model_bytes = std::size_t(4) << 20;
+  OwnServer server(options);
+  httplib::Client c("127.0.0.1", server.api.port());
+  c.set_read_timeout(60, 0);
+  const std::string big = grid_glb(250);  // about 2.2 MB, 124 002 triangles
+  ASSERT_GT(big.size(), std::size_t(2) << 20);
+  auto res = c.Post("/api/models", big, "model/gltf-binary");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 201) << res->body;
+  EXPECT_EQ(json::parse(res->body)["triangles"], 2 * 249 * 249);
+  // The same size to the render route: still 413.
+  const std::string render_body = R"({"scene": ")" + std::string(std::size_t(2) << 20, 'x') + R"("})";
+  expect_json_error(c.Post("/api/render", render_body, "application/json"), 413, "");
+  // Over the model limit: 413 from the head alone, before any body byte.
+  double waited_ms = 0;
+  const std::string answer =
+      timed_exchange(server.api.port(),
+                     "POST /api/models HTTP/1.1\r\nHost: localhost\r\nContent-Type: model/gltf-binary\r\n"
+                     "Content-Length: " + std::to_string((std::size_t(4) << 20) + 1) + "\r\n\r\n",
+                     waited_ms);
+  EXPECT_EQ(status_of(answer), 413) << answer;
+  EXPECT_LT(waited_ms, 1000.0);
+  EXPECT_EQ(c.Get("/api/health")->status, 200);
+}
+
+TEST(Http, ModelsFromAFolderAreListedByName) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::temp_directory_path() / ("umbra-http-models-" + std::to_string(getpid()));
+  fs::remove_all(root);
+  fs::create_directories(root / "models");
+  const test::GltfBuilder b = cube_model(1.0f);
+  std::ofstream(root / "models" / "crate.bin", std::ios::binary) << b.bin;
+  std::ofstream(root / "models" / "crate.gltf") << b.gltf_external("crate.bin");
+  std::ofstream(root / "outside.bin", std::ios::binary) << b.bin;
+  std::ofstream(root / "models" / "escape.gltf") << b.gltf_external("../outside.bin");
+  ModelStore store(std::uint64_t(64) << 20);
+  FolderLoad loaded;
+  std::string error;
+  ASSERT_TRUE(load_model_folder((root / "models").string(), store, 64 << 20, loaded, error)) << error;
+  ASSERT_EQ(loaded.refused.size(), 1u);
+  OwnServer server(ServerOptions{}, store);
+  httplib::Client c("127.0.0.1", server.api.port());
+  auto res = c.Get("/api/models/crate");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  const json crate = json::parse(res->body);
+  EXPECT_EQ(crate["name"], "crate");
+  EXPECT_EQ(crate["pinned"], true);
+  EXPECT_EQ(crate["triangles"], 12);
+  EXPECT_EQ(c.Get("/api/models/" + crate["id"].get<std::string>())->status, 200);
+  const json list = json::parse(c.Get("/api/models")->body);
+  ASSERT_EQ(list["count"], 1);
+  EXPECT_EQ(list["models"][0]["name"], "crate");
+  EXPECT_EQ(c.Get("/api/models/escape")->status, 404);
+  fs::remove_all(root);
 }
 
 }  // namespace

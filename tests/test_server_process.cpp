@@ -1,14 +1,16 @@
 // The real umbra-server binary as a process: signals, exit codes, memory.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <thread>
 #include <vector>
 
-#include <fstream>
 #include <iterator>
 #include <sstream>
 
@@ -173,6 +175,43 @@ TEST(Connections, RunningOutOfDescriptorsNeitherSpinsNorStopsTheServer) {
   EXPECT_EQ(res->status, 200);
   server.send_signal(SIGTERM);
   EXPECT_EQ(server.wait(), 0) << server.log();
+}
+
+// --models DIR: a model with its buffer beside it is loaded and named; one
+// whose buffer lies outside the folder is skipped, said why, and the
+// server starts all the same.
+TEST(Models, AFolderIsLoadedAtStartAndAFileReachingOutsideIsSkippedWithItsReason) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::temp_directory_path() / ("umbra-process-models-" + std::to_string(getpid()));
+  fs::remove_all(root);
+  fs::create_directories(root / "models");
+  const std::string triangle_bin(reinterpret_cast<const char*>(std::array<float, 9>{0, 0, 0, 1, 0, 0, 0, 1, 0}.data()), 36);
+  const auto gltf = [](const std::string& uri) {
+    return json{{"asset", {{"version", "2.0"}}},
+                {"buffers", {{{"uri", uri}, {"byteLength", 36}}}},
+                {"bufferViews", {{{"buffer", 0}, {"byteLength", 36}}}},
+                {"accessors", {{{"bufferView", 0}, {"componentType", 5126}, {"count", 3}, {"type", "VEC3"}}}},
+                {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}}}}}}},
+                {"nodes", {{{"mesh", 0}}}}}
+        .dump();
+  };
+  std::ofstream(root / "models" / "leaf.bin", std::ios::binary) << triangle_bin;
+  std::ofstream(root / "models" / "leaf.gltf") << gltf("leaf.bin");
+  std::ofstream(root / "outside.bin", std::ios::binary) << triangle_bin;
+  std::ofstream(root / "models" / "escape.gltf") << gltf("../outside.bin");
+  {
+    ServerProcess server = start({"--models", (root / "models").string()});
+    auto res = client(server).Get("/api/models/leaf");
+    ASSERT_TRUE(res) << server.log();
+    EXPECT_EQ(res->status, 200) << res->body;
+    EXPECT_EQ(json::parse(res->body)["triangles"], 1);
+    EXPECT_EQ(json::parse(client(server).Get("/api/models")->body)["count"], 1);
+    EXPECT_EQ(client(server).Get("/api/models/escape")->status, 404);
+    EXPECT_NE(server.log().find("skipped escape.gltf: a buffer refers to '"), std::string::npos) << server.log();
+    EXPECT_NE(server.log().find("outside the models folder"), std::string::npos) << server.log();
+    EXPECT_NE(server.log().find("model 'leaf'"), std::string::npos) << server.log();
+  }
+  fs::remove_all(root);
 }
 
 // The n-th request of a fixed mix: every output, sizes, map sizes, scenes

@@ -1,0 +1,59 @@
+// Triangle models: the user's own geometry (glTF meshes, gltf_loader.hpp),
+// held by the ModelStore and, later, drawn and ray-cast like the analytic
+// primitives. Pure CPU code, no GL: unit tested in tests/test_model.cpp.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "scene.hpp"
+
+namespace umbra {
+
+/// The triangles of one base colour. Counter-clockwise triangles face out
+/// (glTF's convention, and tessellate()'s): a loader flips the winding of
+/// mirrored instances so that this holds in model space.
+struct ModelPart {
+  std::vector<glm::vec3> positions;     ///< model space (the glTF scene's root space)
+  std::vector<glm::vec3> normals;       ///< one per position, unit length
+  std::vector<std::uint32_t> indices;   ///< three per triangle, each < positions.size()
+  glm::vec3 base_color{1.0f};           ///< linear RGB in [0, 1] (baseColorFactor)
+
+  std::size_t triangle_count() const { return indices.size() / 3; }
+};
+
+/// A whole model: its parts (one per distinct base colour), bounds, and
+/// whether it is closed, which decides front-face culling in the shadow pass.
+struct TriangleModel {
+  std::vector<ModelPart> parts;
+  Aabb bounds;          ///< of every position; empty for a model without triangles
+  bool closed = false;  ///< see is_closed(): set by finish_model()
+
+  std::size_t triangle_count() const;
+  /// What the model holds in memory (its vectors' capacities and itself):
+  /// what the ModelStore's budget counts.
+  std::size_t bytes() const;
+};
+
+/// True when the triangles form closed, consistently wound surfaces: every
+/// edge is shared by exactly two triangles that run along it in opposite
+/// directions. Vertices are welded by exact position (glTF splits vertices
+/// at hard edges and colour seams), across parts. Triangles with two equal
+/// welded corners are ignored (they have no area and cast no shadow). An
+/// empty model is not closed. Time O(n log n), memory about 16 bytes per
+/// triangle corner.
+bool is_closed(const std::vector<ModelPart>& parts);
+
+/// Area-weighted vertex normals of one indexed triangle list: each
+/// triangle adds its unnormalized cross product (twice its area) to its
+/// three corners. A vertex that only degenerate triangles touch gets +Y.
+std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& positions,
+                                             const std::vector<std::uint32_t>& indices);
+
+/// Sets bounds and closed from the parts, and trims spare capacity.
+void finish_model(TriangleModel& model);
+
+}  // namespace umbra

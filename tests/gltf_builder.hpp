@@ -1,0 +1,146 @@
+// Builds small glTF 2.0 files in code, as .gltf (JSON, the buffer as a
+// data: URI) or .glb: the loader's tests and the fuzz seed corpus
+// (tests/make_gltf_corpus.cpp) use it. Each call appends to buffer 0.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+#include <nlohmann/json.hpp>
+
+namespace umbra::test {
+
+inline std::string base64(const std::string& bytes) {
+  static const char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  std::size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const std::uint32_t v = std::uint32_t(std::uint8_t(bytes[i])) << 16 | std::uint32_t(std::uint8_t(bytes[i + 1])) << 8 |
+                            std::uint8_t(bytes[i + 2]);
+    for (int s = 18; s >= 0; s -= 6) out += kAlphabet[(v >> s) & 63];
+  }
+  if (i + 1 == bytes.size()) {
+    const std::uint32_t v = std::uint32_t(std::uint8_t(bytes[i])) << 16;
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += "==";
+  } else if (i + 2 == bytes.size()) {
+    const std::uint32_t v = std::uint32_t(std::uint8_t(bytes[i])) << 16 | std::uint32_t(std::uint8_t(bytes[i + 1])) << 8;
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += kAlphabet[(v >> 6) & 63];
+    out += '=';
+  }
+  return out;
+}
+
+struct GltfBuilder {
+  nlohmann::json doc = {{"asset", {{"version", "2.0"}}}};
+  std::string bin;  ///< buffer 0
+
+  static constexpr int kByte = 5121, kShort = 5123, kInt = 5125, kFloat = 5126;
+
+  int push(const char* array, nlohmann::json value) {
+    doc[array].push_back(std::move(value));
+    return int(doc[array].size()) - 1;
+  }
+
+  /// A buffer view over `bytes` appended to buffer 0 (4-byte aligned).
+  int view(const std::string& bytes, int stride = 0) {
+    while (bin.size() % 4) bin += '\0';
+    nlohmann::json v = {{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", bytes.size()}};
+    if (stride) v["byteStride"] = stride;
+    bin += bytes;
+    return push("bufferViews", v);
+  }
+  int accessor(int view_index, int component_type, std::size_t count, const char* type, std::size_t offset = 0) {
+    nlohmann::json a = {{"bufferView", view_index}, {"componentType", component_type}, {"count", count}, {"type", type}};
+    if (offset) a["byteOffset"] = offset;
+    return push("accessors", a);
+  }
+  template <class T>
+  static std::string bytes_of(const std::vector<T>& values) {
+    std::string s(values.size() * sizeof(T), '\0');
+    if (!values.empty()) std::memcpy(s.data(), values.data(), s.size());
+    return s;
+  }
+  int vec3s(const std::vector<glm::vec3>& values) {
+    return accessor(view(bytes_of(values)), kFloat, values.size(), "VEC3");
+  }
+  int indices_u8(const std::vector<std::uint8_t>& v) { return accessor(view(bytes_of(v)), kByte, v.size(), "SCALAR"); }
+  int indices_u16(const std::vector<std::uint16_t>& v) { return accessor(view(bytes_of(v)), kShort, v.size(), "SCALAR"); }
+  int indices_u32(const std::vector<std::uint32_t>& v) { return accessor(view(bytes_of(v)), kInt, v.size(), "SCALAR"); }
+
+  /// A mesh of one primitive; `indices` < 0: not indexed, `normals` < 0: none.
+  int mesh(int positions, int indices = -1, int normals = -1, int material = -1, int mode = 4) {
+    nlohmann::json primitive = {{"attributes", {{"POSITION", positions}}}};
+    if (normals >= 0) primitive["attributes"]["NORMAL"] = normals;
+    if (indices >= 0) primitive["indices"] = indices;
+    if (material >= 0) primitive["material"] = material;
+    if (mode != 4) primitive["mode"] = mode;
+    return push("meshes", {{"primitives", nlohmann::json::array({primitive})}});
+  }
+  int material(const glm::vec3& color) {
+    return push("materials", {{"pbrMetallicRoughness", {{"baseColorFactor", {color.r, color.g, color.b, 1.0}}}}});
+  }
+  int node(nlohmann::json node) { return push("nodes", std::move(node)); }
+  /// A scene of the given root nodes, made the default.
+  void scene(const std::vector<int>& roots) {
+    doc["scenes"] = nlohmann::json::array({{{"nodes", roots}}});
+    doc["scene"] = 0;
+  }
+
+  nlohmann::json with_buffer(const std::string& uri_or_empty) const {
+    nlohmann::json d = doc;
+    if (!bin.empty() || d.contains("bufferViews")) {
+      nlohmann::json buffer = {{"byteLength", bin.size()}};
+      if (!uri_or_empty.empty()) buffer["uri"] = uri_or_empty;
+      d["buffers"] = nlohmann::json::array({buffer});
+    }
+    return d;
+  }
+  /// A self-contained .gltf: the buffer as a data: URI.
+  std::string gltf() const {
+    return with_buffer("data:application/octet-stream;base64," + base64(bin)).dump();
+  }
+  /// A .gltf whose buffer is the external file `uri`.
+  std::string gltf_external(const std::string& uri) const { return with_buffer(uri).dump(); }
+  /// A .glb: JSON chunk, then the buffer as the BIN chunk.
+  std::string glb() const {
+    std::string json = with_buffer("").dump();
+    while (json.size() % 4) json += ' ';
+    std::string body = bin;
+    while (body.size() % 4) body += '\0';
+    std::string out = "glTF";
+    const auto u32 = [&](std::uint32_t v) { out.append(reinterpret_cast<const char*>(&v), 4); };
+    const bool has_bin = !bin.empty();
+    u32(2);
+    u32(std::uint32_t(12 + 8 + json.size() + (has_bin ? 8 + body.size() : 0)));
+    u32(std::uint32_t(json.size()));
+    u32(0x4E4F534A);
+    out += json;
+    if (has_bin) {
+      u32(std::uint32_t(body.size()));
+      u32(0x004E4942);
+      out += body;
+    }
+    return out;
+  }
+};
+
+/// The 8 corners and 12 counter-clockwise (outward) triangles of the box
+/// [-h, h]^3, corners shared (a welded cube).
+inline void unit_cube(std::vector<glm::vec3>& positions, std::vector<std::uint32_t>& indices, float h = 0.5f) {
+  positions = {{-h, -h, -h}, {h, -h, -h}, {h, h, -h}, {-h, h, -h}, {-h, -h, h}, {h, -h, h}, {h, h, h}, {-h, h, h}};
+  indices = {0, 3, 2, 0, 2, 1,   // -z
+             4, 5, 6, 4, 6, 7,   // +z
+             0, 1, 5, 0, 5, 4,   // -y
+             3, 7, 6, 3, 6, 2,   // +y
+             0, 4, 7, 0, 7, 3,   // -x
+             1, 2, 6, 1, 6, 5};  // +x
+}
+
+}  // namespace umbra::test

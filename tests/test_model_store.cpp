@@ -1,0 +1,151 @@
+// The model store: ids, names, the byte budget (uploads dropped least
+// recently used first, folder models pinned), and loading a --models folder.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "gltf_builder.hpp"
+#include "gltf_loader.hpp"
+#include "model_store.hpp"
+
+namespace umbra {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(ModelStore, IdsAreSha256OfTheBody) {
+  // FIPS 180-2, appendix B.
+  EXPECT_EQ(model_id_for("abc"), "sha256:ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_EQ(model_id_for(""), "sha256:e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  EXPECT_EQ(model_id_for("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq"),
+            "sha256:248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+  EXPECT_EQ(model_id_for(std::string(1000000, 'a')),
+            "sha256:cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+}
+
+// A model of `triangles` separate triangles.
+std::shared_ptr<TriangleModel> model_of(std::size_t triangles) {
+  auto model = std::make_shared<TriangleModel>();
+  model->parts.emplace_back();
+  for (std::size_t t = 0; t < triangles; ++t) {
+    const float x = float(t);
+    for (const glm::vec3& p : {glm::vec3(x, 0, 0), glm::vec3(x + 1, 0, 0), glm::vec3(x, 1, 0)}) {
+      model->parts[0].indices.push_back(std::uint32_t(model->parts[0].positions.size()));
+      model->parts[0].positions.push_back(p);
+      model->parts[0].normals.push_back({0, 0, 1});
+    }
+  }
+  finish_model(*model);
+  return model;
+}
+
+TEST(ModelStore, AddFindAndAddAgain) {
+  ModelStore store(1 << 20);
+  const auto first = store.add("sha256:a", "", model_of(2), false);
+  ASSERT_EQ(first.outcome, ModelStore::Outcome::Added);
+  const auto again = store.add("sha256:a", "", model_of(2), false);
+  EXPECT_EQ(again.outcome, ModelStore::Outcome::AlreadyHeld);
+  EXPECT_EQ(again.held, first.held);
+  EXPECT_EQ(store.find("sha256:a"), first.held);
+  EXPECT_EQ(store.find("sha256:b"), nullptr);
+  EXPECT_EQ(store.count(), 1u);
+  EXPECT_EQ(store.bytes(), first.held->bytes);
+}
+
+TEST(ModelStore, UploadsLeaveLeastRecentlyUsedFirstAndPinnedOnesStay) {
+  const std::uint64_t each = model_of(100)->bytes();
+  ModelStore store(3 * each + each / 2);  // room for three
+  ASSERT_EQ(store.add("sha256:pinned", "teapot", model_of(100), true).outcome, ModelStore::Outcome::Added);
+  store.add("sha256:1", "", model_of(100), false);
+  store.add("sha256:2", "", model_of(100), false);
+  ASSERT_NE(store.find("sha256:1"), nullptr);  // 1 is now more recent than 2
+  store.add("sha256:3", "", model_of(100), false);
+  EXPECT_EQ(store.find("sha256:2"), nullptr);
+  EXPECT_NE(store.find("sha256:1"), nullptr);
+  EXPECT_NE(store.find("sha256:3"), nullptr);
+  EXPECT_NE(store.find("teapot"), nullptr);
+  EXPECT_NE(store.find("sha256:pinned"), nullptr);
+  EXPECT_EQ(store.count(), 3u);
+  EXPECT_LE(store.bytes(), store.max_bytes());
+  const auto listed = store.list();
+  ASSERT_EQ(listed.size(), 3u);
+  EXPECT_EQ(listed[0]->name, "teapot");
+  EXPECT_TRUE(listed[0]->pinned);
+}
+
+TEST(ModelStore, AModelLargerThanTheRoomLeftIsRefusedAndDropsNothing) {
+  const std::uint64_t small = model_of(10)->bytes();
+  ModelStore store(small * 3);
+  store.add("sha256:pinned", "floor", model_of(10), true);
+  store.add("sha256:1", "", model_of(10), false);
+  EXPECT_EQ(store.add("sha256:big", "", model_of(1000), false).outcome, ModelStore::Outcome::TooLarge);
+  EXPECT_NE(store.find("sha256:1"), nullptr);
+  EXPECT_EQ(store.add("sha256:other", "floor", model_of(10), true).outcome, ModelStore::Outcome::NameTaken);
+}
+
+TEST(ModelStore, CountIsBoundedToo) {
+  ModelStore store(1 << 30, 2);
+  store.add("sha256:1", "", model_of(1), false);
+  store.add("sha256:2", "", model_of(1), false);
+  store.add("sha256:3", "", model_of(1), false);
+  EXPECT_EQ(store.count(), 2u);
+  EXPECT_EQ(store.find("sha256:1"), nullptr);
+}
+
+TEST(ModelStore, ConcurrentUploadsAndLookupsStayWithinBudget) {
+  const std::uint64_t each = model_of(20)->bytes();
+  ModelStore store(each * 5);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&store, t] {
+      for (int i = 0; i < 200; ++i) {
+        const std::string id = "sha256:" + std::to_string(t) + "-" + std::to_string(i % 17);
+        store.add(id, "", model_of(20), false);
+        store.find(id);
+        store.list();
+      }
+    });
+  for (auto& thread : threads) thread.join();
+  EXPECT_LE(store.bytes(), store.max_bytes());
+  EXPECT_LE(store.count(), 5u);
+}
+
+TEST(ModelStore, AFolderLoadsByNameAndRefusesWhatLeavesIt) {
+  const fs::path root = fs::temp_directory_path() / ("umbra-models-" + std::to_string(::getpid()));
+  fs::create_directories(root / "models");
+  test::GltfBuilder b;
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  test::unit_cube(positions, indices);
+  b.scene({b.node({{"mesh", b.mesh(b.vec3s(positions), b.indices_u32(indices))}})});
+  std::ofstream(root / "models" / "cube.bin", std::ios::binary) << b.bin;
+  std::ofstream(root / "models" / "crate.gltf") << b.gltf_external("cube.bin");
+  std::ofstream(root / "models" / "box.GLB", std::ios::binary) << b.glb();
+  std::ofstream(root / "outside.bin", std::ios::binary) << b.bin;
+  std::ofstream(root / "models" / "escape.gltf") << b.gltf_external("../outside.bin");
+  std::ofstream(root / "models" / "broken.glb") << "glTF nope";
+  std::ofstream(root / "models" / "notes.txt") << "not a model";
+
+  ModelStore store(1 << 30);
+  FolderLoad result;
+  std::string error;
+  ASSERT_TRUE(load_model_folder((root / "models").string(), store, 64 << 20, result, error)) << error;
+  ASSERT_EQ(result.loaded.size(), 2u);
+  EXPECT_EQ(result.loaded[0]->name, "box");
+  EXPECT_EQ(result.loaded[1]->name, "crate");
+  EXPECT_EQ(result.loaded[0]->id, model_id_for(b.glb()));
+  EXPECT_EQ(store.find("crate")->model->triangle_count(), 12u);
+  ASSERT_EQ(result.refused.size(), 2u);
+  EXPECT_NE(result.refused[0].find("broken.glb: "), std::string::npos) << result.refused[0];
+  EXPECT_NE(result.refused[1].find("escape.gltf: "), std::string::npos) << result.refused[1];
+  EXPECT_NE(result.refused[1].find("outside the models folder"), std::string::npos) << result.refused[1];
+
+  FolderLoad none;
+  EXPECT_FALSE(load_model_folder((root / "absent").string(), store, 64 << 20, none, error));
+  fs::remove_all(root);
+}
+
+}  // namespace
+}  // namespace umbra
