@@ -350,6 +350,11 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
                                   " ms a request and was stopped; lower width and height, light.size or the objects",
                               dominant_field);
       }
+      // "error": its GL half is still queued. It checks the client itself
+      // when its turn comes, and counts it: wait for that verdict, so that
+      // the client is counted once, and so that the check runs while the
+      // connection (whose socket client_gone asks) is still this client's.
+      if (request.output == Output::Error && !shadow) (void)rendered.get();
       impl->abandoned_count.fetch_add(1);
       throw ClientGone();
     }

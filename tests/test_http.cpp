@@ -37,7 +37,7 @@ class ServerEnvironment : public testing::Environment {
     renderer = std::make_unique<RenderService>();
     ServerOptions options;
     options.port = 0;
-    options.log_requests = false;
+    options.log_requests = std::getenv("UMBRA_TEST_LOG") != nullptr;  // the server log, when debugging a test
     api = std::make_unique<HttpApi>(*renderer, options);
     ASSERT_TRUE(api->bind());
     thread = std::thread([] { api->serve(); });
