@@ -285,7 +285,8 @@ void HttpApi::health(const HttpRequest&, HttpResponse& res) {
                        {"connections_open", connections.connections_open},
                        {"connections_evicted", connections.connections_evicted},
                        {"connections_refused", connections.connections_refused},
-                       {"requests_timed_out", connections.requests_timed_out}}
+                       {"requests_timed_out", connections.requests_timed_out},
+                       {"bodies_refused", connections.bodies_refused}}
                       .dump(),
                   "application/json");
 }

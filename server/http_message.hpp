@@ -96,6 +96,9 @@ class RequestReader {
   bool wants_continue() const { return wants_continue_; }
   void continue_sent() { wants_continue_ = false; }
 
+  /// The body limit of the request being read (once its head is read).
+  std::size_t body_limit() const { return body_limit_; }
+
   const HttpRequest& request() const { return request_; }
   HttpRequest take_request();  ///< then reset() for the next one
   void reset();

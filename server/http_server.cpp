@@ -45,6 +45,8 @@ struct Connection {
   std::string out;             // to send
   std::size_t sent = 0;
   bool close_after_send = false;
+  bool body_deadline_set = false;  // the deadline allows for this request's body
+  std::size_t counted_body = 0;    // bytes of its body counted in Impl::buffered_body_bytes
   std::uint32_t events = 0;    // registered with epoll; 0: not registered
 
   explicit Connection(const HttpLimits& limits) : reader(limits) {}
@@ -78,6 +80,7 @@ struct HttpServer::Impl {
   std::uint64_t next_id = 1;
   bool stopping = false;
   Clock::time_point accepting_again{};  // set while accepting rests (out of descriptors)
+  std::size_t buffered_body_bytes = 0;  // request bodies held, all connections (max_buffered_body_bytes)
 
   // Shared with the workers.
   // A worker takes requests handed to it, then any still waiting, and
@@ -145,9 +148,24 @@ struct HttpServer::Impl {
     auto it = connections.find(fd);
     if (it == connections.end()) return;
     watch(*it->second, 0);
+    release_body(*it->second);
     ::close(fd);
     connections.erase(it);
     count([](HttpServerStats& s) { --s.connections_open; });
+  }
+
+  void release_body(Connection& c) {
+    buffered_body_bytes -= c.counted_body;
+    c.counted_body = 0;
+  }
+
+  // Counts what the request being read holds of its body; false if that
+  // takes all connections' bodies past max_buffered_body_bytes.
+  bool count_body(Connection& c) {
+    const std::size_t size = c.reader.request().body.size();
+    buffered_body_bytes += size - c.counted_body;
+    c.counted_body = size;
+    return buffered_body_bytes <= options.max_buffered_body_bytes;
   }
 
   void become_idle(Connection& c) {
@@ -258,7 +276,14 @@ struct HttpServer::Impl {
             c.phase = Phase::Receiving;
             c.started = Clock::now();
             c.deadline = c.started + options.request_timeout;
+            c.body_deadline_set = false;
           }
+          if (c.reader.state() == RequestReader::State::Body && !c.body_deadline_set) {
+            c.body_deadline_set = true;
+            c.deadline += std::chrono::milliseconds(std::uint64_t(c.reader.body_limit()) * 1000 /
+                                                    std::max<std::size_t>(1, options.min_body_rate));
+          }
+          if (!count_body(c)) return refuse_body(c);
           if (c.reader.wants_continue()) {
             c.reader.continue_sent();
             c.out += "HTTP/1.1 100 Continue\r\n\r\n";
@@ -274,6 +299,7 @@ struct HttpServer::Impl {
         }
         case RequestReader::State::Complete: {
           if (c.phase == Phase::Idle) c.started = Clock::now();
+          if (!count_body(c)) return refuse_body(c);
           HttpRequest request = c.reader.take_request();
           request.socket = c.fd;
           dispatch(c, std::move(request));
@@ -282,6 +308,19 @@ struct HttpServer::Impl {
         }
       }
     }
+  }
+
+  void refuse_body(Connection& c) {
+    count([](HttpServerStats& s) { ++s.bodies_refused; });
+    HttpRequest partial;
+    partial.method = c.reader.request().method;
+    partial.path = c.reader.request().path;
+    release_body(c);
+    HttpResponse busy = handlers.error(
+        503, "the server holds " + std::to_string(options.max_buffered_body_bytes >> 20) +
+                 " MiB of request bodies already; retry later");
+    busy.set_header("Retry-After", "1");
+    respond(c, partial, std::move(busy), true);
   }
 
   void dispatch(Connection& c, HttpRequest request) {
@@ -372,6 +411,7 @@ struct HttpServer::Impl {
 
   void respond(Connection& c, const HttpRequest& request, HttpResponse response, bool close) {
     close = close || response.close || !request.keep_alive || stopping;
+    release_body(c);  // answered: the body is no longer held
     if (handlers.log)
       handlers.log(request, response, std::chrono::duration<double, std::milli>(Clock::now() - c.started).count());
     const int keep_alive_s = int(std::chrono::duration_cast<std::chrono::seconds>(options.idle_timeout).count());

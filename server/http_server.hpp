@@ -10,7 +10,8 @@
 // and every phase of it has a total deadline:
 //
 //   idle      no byte of a request yet              idle_timeout, then closed
-//   receiving request line, headers, body           request_timeout from its first byte, then 408
+//   receiving request line, headers, body           request_timeout from its first byte (plus the
+//                                                   largest body's time at min_body_rate), then 408
 //   handling  the handler runs                      the handler's own bounds (render queue, cost budget)
 //   sending   the response goes out                 write_timeout, then closed
 //   lingering after a closing response              1 s of reading (and dropping) what the client still
@@ -40,7 +41,17 @@ struct HttpServerOptions {
   /// Pending connections the kernel holds before accept. Default 1024.
   int listen_backlog = 1024;
   std::chrono::milliseconds idle_timeout{2000};      ///< before a request's first byte. Default 2 s
-  std::chrono::milliseconds request_timeout{10000};  ///< first byte to last of one request. Default 10 s
+  /// First byte to last of one request, plus the time its largest allowed
+  /// body takes at min_body_rate (so a route that takes big bodies allows
+  /// for them). Default 10 s.
+  std::chrono::milliseconds request_timeout{10000};
+  /// Slowest body upload allowed for, bytes/s. Default 1 MiB/s: a 1 MiB
+  /// render body adds 1 s, a 64 MiB model 64 s.
+  std::size_t min_body_rate = 1 << 20;
+  /// Request bodies held at once, all connections together (while read and
+  /// until answered). Past it a request is answered 503 and its connection
+  /// closed. Default 256 MiB.
+  std::size_t max_buffered_body_bytes = 256u << 20;
   std::chrono::milliseconds write_timeout{10000};    ///< to send one response. Default 10 s
   /// Threads for handlers that may block, 1... Default 4.
   std::size_t worker_threads = 4;
@@ -68,6 +79,7 @@ struct HttpServerStats {
   std::uint64_t connections_evicted = 0;  ///< closed to make room for a new one
   std::uint64_t connections_refused = 0;  ///< answered 503 at the connection cap
   std::uint64_t requests_timed_out = 0;   ///< answered 408
+  std::uint64_t bodies_refused = 0;       ///< answered 503: max_buffered_body_bytes held already
 };
 
 class HttpServer {

@@ -231,6 +231,57 @@ TEST(HostileClients, ARequestTrickledPastItsTotalDeadlineGets408) {
   EXPECT_EQ(json::parse(exchange(server.port(), kHealth).body)["requests_timed_out"], 1);
 }
 
+// A JSON body of exactly `size` bytes: a small frame, padded with spaces.
+std::string padded_body(std::size_t size) {
+  std::string body = R"({"width": 16, "height": 16})";
+  body.resize(size, ' ');
+  return body;
+}
+
+TEST(HostileClients, TheDeadlineAllowsForTheLargestBodyAtTheSlowestRate) {
+  HttpServerOptions options;
+  options.request_timeout = milliseconds(400);
+  options.min_body_rate = 1000;  // bytes/s: a 1 MiB limit allows ~1000 s more, far beyond this test
+  Server server(options);
+  const std::string body = padded_body(1200);
+  const int fd = connect_to(server.port());
+  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: 1200\r\n\r\n"));
+  // 1200 bytes over ~1.2 s: past request_timeout alone, well within the
+  // time the body is allowed.
+  for (std::size_t at = 0; at < body.size(); at += 100) {
+    std::this_thread::sleep_for(milliseconds(100));
+    ASSERT_TRUE(send_all(fd, body.substr(at, 100)));
+  }
+  const Answer a = AnswerReader(fd).next();
+  EXPECT_EQ(a.status, 200) << a.head << a.body;
+  close(fd);
+}
+
+TEST(HostileClients, BodiesHeldAtOnceAreBounded) {
+  HttpServerOptions options;
+  options.max_buffered_body_bytes = 100000;
+  Server server(options);
+  const std::string body = padded_body(60000);
+  const std::string head = "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: 60000\r\n\r\n";
+  const int first = connect_to(server.port()), second = connect_to(server.port());
+  ASSERT_TRUE(send_all(first, head + body.substr(0, 50000)));
+  std::this_thread::sleep_for(milliseconds(100));
+  ASSERT_TRUE(send_all(second, head + body.substr(0, 55000)));
+  const Answer refused = AnswerReader(second).next();
+  EXPECT_EQ(refused.status, 503) << refused.body;
+  EXPECT_NE(refused.head.find("Retry-After: 1"), std::string::npos);
+  EXPECT_TRUE(closed_by_server(second, milliseconds(3000)));
+  close(second);
+  // The first goes on, and what the second held is free again.
+  ASSERT_TRUE(send_all(first, body.substr(50000)));
+  EXPECT_EQ(AnswerReader(first).next().status, 200);
+  close(first);
+  const json health = json::parse(exchange(server.port(), kHealth).body);
+  EXPECT_EQ(health["bodies_refused"], 1);
+  const Answer again = exchange(server.port(), head + body);
+  EXPECT_EQ(again.status, 200);
+}
+
 TEST(HostileClients, IdleAndTricklingClientsDoNotSilenceHealth) {
   Server server;
   std::vector<int> idle;
