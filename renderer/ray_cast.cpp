@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <string>
 #include <thread>
 
 #include <glm/geometric.hpp>
@@ -78,6 +79,8 @@ double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec
       normal = glm::normalize(origin + t * dir - o.center);
       return t;
     }
+    case SceneObject::Type::Mesh:
+      break;  // RayScene refuses scenes with meshes (first_object_not_ray_cast)
   }
   return kInf;
 }
@@ -183,7 +186,18 @@ double visibility(const RayScene& rays, const RenderRequest& request, const glm:
 
 }  // namespace
 
+int first_object_not_ray_cast(const Scene& scene) {
+  for (std::size_t i = 0; i < scene.objects.size(); ++i)
+    if (scene.objects[i].type == SceneObject::Type::Mesh) return int(i);
+  return -1;
+}
+
 RayScene::RayScene(const Scene& scene) : scene_(scene) {
+  // Casting through a mesh as if it were not there would give a wrong
+  // reference that looks right: refuse instead.
+  if (const int i = first_object_not_ray_cast(scene); i >= 0)
+    throw std::invalid_argument("the exact reference does not cover meshes yet (scene.objects[" +
+                                std::to_string(i) + "])");
   const std::size_t n = scene.objects.size();
   std::vector<Aabb> bounds(n);
   std::vector<glm::dvec3> centers(n);

@@ -23,12 +23,19 @@ struct RayHit {
   int object = -1;         ///< index into scene.objects
 };
 
+/// The index of the first object the ray cast cannot intersect (a mesh:
+/// meshes come with Embree in a later phase), or -1 when it covers the
+/// whole scene. Requests for "exact" or "error" on such a scene are refused
+/// (RenderService::submit) rather than answered without the mesh.
+int first_object_not_ray_cast(const Scene& scene);
+
 /// The scene's objects in a bounding-volume hierarchy over their bounds, so
 /// a ray is tested against the few objects near it instead of all of them.
 /// It answers exactly as testing every object in order would: the nearest
 /// hit, the lowest object index among equally near ones.
 class RayScene {
  public:
+  /// Throws std::invalid_argument if first_object_not_ray_cast(scene) >= 0.
   explicit RayScene(const Scene& scene);
   /// First hit of origin + t * direction (unit) with t in (t_min, t_max).
   std::optional<RayHit> cast(const glm::dvec3& origin, const glm::dvec3& direction, double t_min, double t_max) const;

@@ -281,9 +281,16 @@ std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGon
   // Before anything is queued: a GL frame cannot be stopped once it is
   // drawing, so refusing what would take too long is what bounds the time
   // one request holds the GL thread.
+  const bool ray_cast = request.output == Output::Exact || request.output == Output::Error;
+  if (ray_cast && first_object_not_ray_cast(request.scene) >= 0)
+    throw RequestNotSupported(std::string("the exact reference does not cover meshes yet: output \"") +
+                                  to_string(request.output) +
+                                  "\" needs a scene of planes, boxes and spheres (\"color\", \"depth\" and "
+                                  "\"shadow\" draw meshes)",
+                              "output");
   const RequestCost cost = estimate_cost(request);
   impl_->check_budget(cost);
-  if (request.output == Output::Exact || request.output == Output::Error)
+  if (ray_cast)
     return submit_reference(std::move(request), std::move(client_gone), cost.dominant().field, cost.peak_bytes);
   impl_->reserve();
   return impl_->enqueue(std::move(request), true, std::move(client_gone), cost.peak_bytes);

@@ -6,6 +6,7 @@
 // parser enforces them, so the renderer may rely on them.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,11 +14,15 @@
 
 namespace umbra {
 
-/// One primitive of a scene, in world units.
+struct TriangleModel;  // model.hpp
+
+/// One object of a scene, in world units: an analytic primitive or an
+/// instance of a triangle model (mesh_instance.hpp).
 struct SceneObject {
-  enum class Type { Plane, Box, Sphere };
+  enum class Type { Plane, Box, Sphere, Mesh };
   Type type = Type::Box;
-  /// Centre of the primitive.
+  /// Centre of the primitive; a mesh's position (where its model-space
+  /// origin goes).
   glm::dvec3 center{0.0};
   /// Plane: (sx, 0, sz), a horizontal rectangle facing +Y. Box: (sx, sy, sz),
   /// full edge lengths. Sphere: unused. Every used component > 0.
@@ -27,8 +32,20 @@ struct SceneObject {
   /// Box rotation about its own vertical axis, degrees, counter-clockwise seen
   /// from +Y (right-handed). Boxes only.
   double rotation_y_deg = 0.0;
-  /// Linear RGB albedo, each in [0, 1].
+  /// Linear RGB albedo, each in [0, 1]. A mesh uses it only when
+  /// `mesh_color_override` is set; otherwise its parts' base colours.
   glm::dvec3 color{0.8};
+
+  // Meshes only. World = translate(center) * Rz * Ry * Rx * scale(mesh_scale)
+  // * model space: rotations right-handed, applied X, then Y, then Z.
+  /// The model, shared with the store (never null for a mesh).
+  std::shared_ptr<const TriangleModel> model;
+  /// The store's id of `model` ("sha256:..."): what identifies its geometry.
+  std::string model_id;
+  glm::dvec3 rotation_deg{0.0};
+  /// Each component > 0.
+  glm::dvec3 mesh_scale{1.0};
+  bool mesh_color_override = false;
 };
 
 struct Scene {
@@ -120,7 +137,8 @@ struct ShadowSettings {
   int pcf_radius = 1;
   DepthBias bias{};
   /// Faces culled in the shadow pass, applied to closed meshes (boxes,
-  /// spheres). Open meshes (planes) are always drawn two-sided there, since
+  /// spheres, closed models). Open meshes (planes, models that are not
+  /// closed: TriangleModel::closed) are always drawn two-sided there, since
   /// culling either side of a one-sided plane would drop it as a caster.
   CullMode cull = CullMode::Front;
   FrustumFit fit = FrustumFit::Scene;

@@ -6,6 +6,7 @@
 #include <glm/vec4.hpp>
 
 #include "light_math.hpp"
+#include "mesh_instance.hpp"
 #include "ray_cast.hpp"
 #include "scene.hpp"
 #include "shader_interface.hpp"
@@ -52,6 +53,7 @@ std::uint64_t scene_vertices(const Scene& scene) {
   for (const auto& o : scene.objects)
     n += o.type == SceneObject::Type::Sphere ? kSphereVertices
          : o.type == SceneObject::Type::Box  ? kBoxVertices
+         : o.type == SceneObject::Type::Mesh ? mesh_vertex_count(o)
                                              : kPlaneVertices;
   return n;
 }
@@ -73,6 +75,7 @@ std::uint64_t scene_triangles(const Scene& scene) {
   for (const auto& o : scene.objects)
     n += o.type == SceneObject::Type::Sphere ? kSphereTriangles
          : o.type == SceneObject::Type::Box  ? kBoxTriangles
+         : o.type == SceneObject::Type::Mesh ? mesh_triangle_count(o)
                                              : kPlaneTriangles;
   return n;
 }
@@ -157,7 +160,8 @@ RequestCost estimate_cost(const RenderRequest& request) {
   const bool area_light = request.light.size > 0.0;
   cost.parts = {
       {"scene triangles", triangles * (kMsPerUploadedTriangle + kMsPerDrawnTriangle * f.draws), "scene.objects",
-       "use fewer objects (a sphere is " + std::to_string(kSphereTriangles) + " triangles), or fewer shadow.cascades"},
+       "use fewer objects (a sphere is " + std::to_string(kSphereTriangles) +
+           " triangles) or smaller models, or fewer shadow.cascades"},
       {"shadow-map fill", f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel,
        "shadow.map_size", "lower shadow.map_size or shadow.cascades, or spread overlapping objects apart"},
       {"pixels", f.pixels * kMsPerPixel + f.pixel_layers * kMsPerPixelLayer,

@@ -6,6 +6,8 @@
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
+#include "mesh_instance.hpp"
+
 namespace umbra {
 
 glm::dvec3 rotate_y(const glm::dvec3& v, double degrees) {
@@ -75,6 +77,9 @@ Aabb object_bounds(const SceneObject& o) {
     case SceneObject::Type::Sphere:
       b.extend(o.center - glm::dvec3(o.radius));
       b.extend(o.center + glm::dvec3(o.radius));
+      break;
+    case SceneObject::Type::Mesh:
+      b = mesh_bounds(o);
       break;
   }
   return b;
@@ -210,10 +215,16 @@ Mesh tessellate(const Scene& scene) {
   for (const auto& o : scene.objects) {
     if (o.type == SceneObject::Type::Box) builder.box(o);
     if (o.type == SceneObject::Type::Sphere) builder.sphere(o);
+    if (o.type == SceneObject::Type::Mesh && mesh_is_closed(o)) append_mesh_instance(o, mesh);
   }
   mesh.closed_index_count = std::uint32_t(mesh.indices.size());
-  for (const auto& o : scene.objects)
+  // Open surfaces (planes, open meshes: a terrain, a leaf) are never culled
+  // in the shadow pass: culling either side would drop the side that faces
+  // the light as a caster.
+  for (const auto& o : scene.objects) {
     if (o.type == SceneObject::Type::Plane) builder.plane(o);
+    if (o.type == SceneObject::Type::Mesh && !mesh_is_closed(o)) append_mesh_instance(o, mesh);
+  }
   mesh.open_index_count = std::uint32_t(mesh.indices.size()) - mesh.closed_index_count;
   return mesh;
 }

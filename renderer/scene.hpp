@@ -66,8 +66,9 @@ struct Vertex {
   float color[3];
 };
 
-/// The whole scene as one vertex/index buffer. Closed meshes (boxes, spheres)
-/// come first, then open ones (planes), so each pass can cull them apart.
+/// The whole scene as one vertex/index buffer. Closed meshes (boxes, spheres,
+/// closed models) come first, then open ones (planes, open models), so each
+/// pass can cull them apart.
 /// Positions are stored relative to `origin` (the bounds' centre, in double)
 /// so a scene far from the world origin keeps float precision.
 struct Mesh {

@@ -28,6 +28,14 @@ std::string scene_key(const Scene& scene) {
     for (int i = 0; i < 3; ++i) put(o.center[i]), put(o.size[i]), put(o.color[i]);
     put(o.radius);
     put(o.rotation_y_deg);
+    if (o.type == SceneObject::Type::Mesh) {
+      // The id names the model's geometry (a hash of its file); its length
+      // first, so that no two (id, numbers) sequences give the same bytes.
+      put(double(o.model_id.size()));
+      key += o.model_id;
+      for (int i = 0; i < 3; ++i) put(o.rotation_deg[i]), put(o.mesh_scale[i]);
+      put(o.mesh_color_override ? 1.0 : 0.0);
+    }
   }
   return key;
 }
@@ -226,7 +234,8 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull) {
     glDrawElements(GL_TRIANGLES, GLsizei(mesh.closed_index_count), GL_UNSIGNED_INT, nullptr);
   }
   if (mesh.open_index_count > 0) {
-    // A plane has one side: culling it would drop it from the pass entirely.
+    // A plane or an open model has one side: culling it could drop it from
+    // the pass entirely.
     glDisable(GL_CULL_FACE);
     glDrawElements(GL_TRIANGLES, GLsizei(mesh.open_index_count), GL_UNSIGNED_INT,
                    reinterpret_cast<const void*>(std::size_t(mesh.closed_index_count) * sizeof(std::uint32_t)));

@@ -49,6 +49,12 @@ json object_json(const SceneObject& o) {
               {"rotation_y_deg", o.rotation_y_deg}, {"color", vec3_json(o.color)}};
     case SceneObject::Type::Sphere:
       return {{"type", "sphere"}, {"center", vec3_json(o.center)}, {"radius", o.radius}, {"color", vec3_json(o.color)}};
+    case SceneObject::Type::Mesh: {
+      json j = {{"type", "mesh"}, {"model", o.model_id}, {"position", vec3_json(o.center)},
+                {"rotation_deg", vec3_json(o.rotation_deg)}, {"scale", vec3_json(o.mesh_scale)}};
+      if (o.mesh_color_override) j["color"] = vec3_json(o.color);
+      return j;
+    }
   }
   return {};
 }
@@ -321,7 +327,13 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   // No body at all reads as {}, all defaults, like an empty one. The
   // parser sets a depth route's output itself, so that Umbra-Unused-Fields
   // is judged against the depth map.
-  ParsedRequest parsed = parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render);
+  const ModelLookup find_model = [this](const std::string& id_or_name) -> std::optional<FoundModel> {
+    const auto held = models_->find(id_or_name);
+    if (!held) return std::nullopt;
+    return FoundModel{held->id, held->model};
+  };
+  ParsedRequest parsed =
+      parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, find_model);
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
   const auto queued = Clock::now();
@@ -344,6 +356,8 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
                                     " ms); retry later", "");
   } catch (const RequestTooCostly& e) {
     // Valid by the API, but more work than this server takes per request.
+    return send_error(res, 422, e.what(), e.field);
+  } catch (const RequestNotSupported& e) {
     return send_error(res, 422, e.what(), e.field);
   } catch (const RunTimeExceeded& e) {
     return send_error(res, 503, e.what(), e.field);

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "light_math.hpp"
+#include "mesh_instance.hpp"
 #include "scene.hpp"
 
 namespace umbra {
@@ -300,12 +301,56 @@ class ObjectReader {
 // ---------------------------------------------------------------------------
 // The request, section by section.
 
-SceneObject read_object(const json& j, const std::string& path, std::set<std::string>& sent) {
+// A mesh object: an instance of a model the server holds.
+void read_mesh(const json& j, const std::string& path, std::set<std::string>& sent, const ModelLookup& find_model,
+               SceneObject& o) {
+  o.type = SceneObject::Type::Mesh;
+  ObjectReader r(j, path, {"type", "model", "position", "rotation_deg", "scale", "color"}, sent);
+  const char* kHowToUpload =
+      "upload it with POST /api/models (a .glb or .gltf body) and name it by the \"id\" that returns, "
+      "or by its file name if the server loaded it with --models DIR";
+  const json* model = r.get("model");
+  if (model == nullptr) reject(r.path("model"), std::string("is required: a model's id or name; ") + kHowToUpload);
+  if (!model->is_string())
+    reject(r.path("model"), std::string("must be a string (a model's id or name), not ") + type_name(*model));
+  const std::string& key = model->get_ref<const std::string&>();
+  std::optional<FoundModel> found = find_model ? find_model(key) : std::nullopt;
+  if (!found || !found->model)
+    reject(r.path("model"), "unknown model " + quote_text(key) + ": " + kHowToUpload);
+  o.model = std::move(found->model);
+  o.model_id = std::move(found->id);
+  if (auto v = r.get("position")) o.center = read_position(*v, r.path("position"));
+  if (auto v = r.get("rotation_deg")) o.rotation_deg = read_vec3(*v, r.path("rotation_deg"), -36000.0, 36000.0);
+  if (auto v = r.get("scale")) {
+    if (v->is_number())
+      o.mesh_scale = glm::dvec3(read_extent(*v, r.path("scale")));
+    else if (v->is_array())
+      o.mesh_scale = read_vec3(*v, r.path("scale"), RequestLimits::kMinExtent, RequestLimits::kMaxExtent);
+    else
+      reject(r.path("scale"), std::string("must be a number or an array of 3 numbers, not ") + type_name(*v));
+  }
+  if (auto v = r.get("color")) {
+    o.color = read_color(*v, r.path("color"));
+    o.mesh_color_override = true;
+  }
+  // The placed model must stay where float precision holds, like any position.
+  const Aabb bounds = mesh_bounds(o);
+  if (!bounds.empty()) {
+    const glm::dvec3 far_corner = glm::max(glm::abs(bounds.min), glm::abs(bounds.max));
+    const double reach = std::max({far_corner.x, far_corner.y, far_corner.z});
+    if (reach > RequestLimits::kMaxCoordinate)
+      reject(path, "the model placed with this position, rotation_deg and scale reaches coordinate " +
+                       format_number(reach) + ", beyond the limit " + format_number(RequestLimits::kMaxCoordinate));
+  }
+}
+
+SceneObject read_object(const json& j, const std::string& path, std::set<std::string>& sent,
+                        const ModelLookup& find_model) {
   if (!j.is_object()) reject(path, std::string("must be an object, not ") + type_name(j));
   const auto type_it = j.find("type");
-  if (type_it == j.end()) reject(join(path, "type"), "is required: \"plane\", \"box\" or \"sphere\"");
+  if (type_it == j.end()) reject(join(path, "type"), "is required: \"plane\", \"box\", \"sphere\" or \"mesh\"");
   SceneObject o;
-  switch (read_choice(*type_it, join(path, "type"), {"plane", "box", "sphere"})) {
+  switch (read_choice(*type_it, join(path, "type"), {"plane", "box", "sphere", "mesh"})) {
     case 0: {
       o.type = SceneObject::Type::Plane;
       ObjectReader r(j, path, {"type", "center", "size", "color"}, sent);
@@ -327,6 +372,9 @@ SceneObject read_object(const json& j, const std::string& path, std::set<std::st
       if (auto v = r.get("color")) o.color = read_color(*v, r.path("color"));
       break;
     }
+    case 3:
+      read_mesh(j, path, sent, find_model, o);
+      break;
     default: {
       o.type = SceneObject::Type::Sphere;
       ObjectReader r(j, path, {"type", "center", "radius", "color"}, sent);
@@ -340,7 +388,8 @@ SceneObject read_object(const json& j, const std::string& path, std::set<std::st
 }
 
 // Returns the scene and, for a built-in one, its own camera and light.
-Scene read_scene(const json* j, const BuiltinScene*& builtin, std::set<std::string>& sent) {
+Scene read_scene(const json* j, const BuiltinScene*& builtin, std::set<std::string>& sent,
+                 const ModelLookup& find_model) {
   Scene scene;
   builtin = nullptr;
   if (j == nullptr || j->is_string()) {
@@ -363,7 +412,7 @@ Scene read_scene(const json* j, const BuiltinScene*& builtin, std::set<std::stri
     reject("scene.objects", "at most " + std::to_string(RequestLimits::kMaxObjects) + " objects, got " +
                                 std::to_string(objects->size()));
   for (std::size_t i = 0; i < objects->size(); ++i)
-    scene.objects.push_back(read_object((*objects)[i], index("scene.objects", i), sent));
+    scene.objects.push_back(read_object((*objects)[i], index("scene.objects", i), sent, find_model));
   return scene;
 }
 
@@ -512,12 +561,12 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   return unused;
 }
 
-RenderRequest read_request(const json& root, Route route, std::set<std::string>& sent) {
+RenderRequest read_request(const json& root, Route route, std::set<std::string>& sent, const ModelLookup& find_model) {
   ObjectReader r(root, "", {"width", "height", "scene", "camera", "light", "time", "shadow", "output", "depth_bits"},
                  sent);
   RenderRequest q;
   const BuiltinScene* builtin = nullptr;
-  q.scene = read_scene(r.get("scene"), builtin, sent);
+  q.scene = read_scene(r.get("scene"), builtin, sent, find_model);
   // Defaults that depend on the scene: a built-in scene's own camera and
   // light, or ones derived from a custom scene's bounds.
   if (builtin != nullptr) {
@@ -554,7 +603,7 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
 
 }  // namespace
 
-ParsedRequest parse_render_request(std::string_view body, Route route) {
+ParsedRequest parse_render_request(std::string_view body, Route route, const ModelLookup& find_model) {
   ParsedRequest result;
   json root;
   LocatingBuilder builder(root);
@@ -572,7 +621,7 @@ ParsedRequest parse_render_request(std::string_view body, Route route) {
   }
   std::set<std::string> sent;
   try {
-    result.request = read_request(root, route, sent);
+    result.request = read_request(root, route, sent, find_model);
     result.unused_fields = unused_fields(*result.request, sent);
   } catch (const Rejection& r) {
     result.error = {shortened(r.message), shortened(r.field)};

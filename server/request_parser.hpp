@@ -5,6 +5,8 @@
 // out-of-range or non-finite numbers, degenerate inputs, unknown scenes.
 #pragma once
 
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -58,6 +60,17 @@ struct RequestLimits {
 /// the output that is really drawn.
 enum class Route { Render, Depth };
 
-ParsedRequest parse_render_request(std::string_view body, Route route = Route::Render);
+/// A model that a mesh object names, as the server holds it.
+struct FoundModel {
+  std::string id;  ///< "sha256:...", whatever name found it
+  std::shared_ptr<const TriangleModel> model;
+};
+/// Finds a model by id or name (ModelStore::find); nullopt if none is held.
+using ModelLookup = std::function<std::optional<FoundModel>(const std::string& id_or_name)>;
+
+/// `find_model` resolves mesh objects' "model"; without one, every mesh
+/// object is refused as naming an unknown model.
+ParsedRequest parse_render_request(std::string_view body, Route route = Route::Render,
+                                   const ModelLookup& find_model = {});
 
 }  // namespace umbra

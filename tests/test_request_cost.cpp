@@ -10,6 +10,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 
+#include "model_support.hpp"
 #include "render_service.hpp"
 #include "request_cost.hpp"
 #include "request_parser.hpp"
@@ -64,6 +65,50 @@ TEST(RequestCost, TrianglesAreTheMeshesTessellateMakes) {
   EXPECT_EQ(scene_triangles(r.scene), tessellate(r.scene).indices.size() / 3);
   const RenderRequest builtin = request(json::object());
   EXPECT_EQ(scene_triangles(builtin.scene), tessellate(builtin.scene).indices.size() / 3);
+}
+
+// A square grid of n x n vertices facing +Y: 2 (n - 1)^2 triangles.
+std::shared_ptr<const TriangleModel> grid_model(int n) {
+  ModelPart part;
+  for (int z = 0; z < n; ++z)
+    for (int x = 0; x < n; ++x) part.positions.push_back({float(x) / float(n), 0.0f, -float(z) / float(n)});
+  part.normals.assign(part.positions.size(), glm::vec3(0, 1, 0));
+  for (int z = 0; z + 1 < n; ++z)
+    for (int x = 0; x + 1 < n; ++x) {
+      const std::uint32_t a = std::uint32_t(z * n + x), c = a + std::uint32_t(n);
+      part.indices.insert(part.indices.end(), {a, a + 1, c + 1, a, c + 1, c});
+    }
+  auto model = std::make_shared<TriangleModel>();
+  model->parts.push_back(std::move(part));
+  finish_model(*model);
+  return model;
+}
+
+RenderRequest mesh_request(int instances, const ModelLookup& models) {
+  json objects = json::array({{{"type", "box"}}});
+  for (int i = 0; i < instances; ++i)
+    objects.push_back({{"type", "mesh"}, {"model", "grid"}, {"position", {i % 10, 1.0, i / 10}}});
+  const ParsedRequest parsed = parse_render_request(json{{"scene", {{"objects", objects}}}}.dump(), Route::Render, models);
+  EXPECT_TRUE(parsed.ok()) << parsed.error.message << " (" << parsed.error.field << ")";
+  return parsed.ok() ? *parsed.request : RenderRequest{};
+}
+
+TEST(RequestCost, MeshTrianglesCountOncePerInstance) {
+  const ModelLookup models = test::lookup_of({{"grid", grid_model(11)}});  // 200 triangles
+  for (int instances : {1, 3}) {
+    const RenderRequest r = mesh_request(instances, models);
+    EXPECT_EQ(scene_triangles(r.scene), 12u + 200u * std::uint64_t(instances));
+    EXPECT_EQ(scene_triangles(r.scene), tessellate(r.scene).indices.size() / 3);
+  }
+}
+
+TEST(RequestCost, AHugeMeshIsOverTheDefaultBudgetAndNamesTheObjects) {
+  const ServiceLimits limits;
+  const ModelLookup models = test::lookup_of({{"grid", grid_model(317)}});  // 200 032 triangles
+  EXPECT_LE(estimate_cost(mesh_request(1, models)).total_ms, double(limits.max_request_cost.count()));
+  const RequestCost many = estimate_cost(mesh_request(100, models));  // 20 M triangles
+  EXPECT_GT(many.total_ms, double(limits.max_request_cost.count()));
+  EXPECT_EQ(many.dominant().field, "scene.objects");
 }
 
 TEST(RequestCost, DepthComplexityCountsOverlappingBounds) {

@@ -3,6 +3,8 @@
 
 #include <string>
 
+#include "mesh_instance.hpp"
+#include "model_support.hpp"
 #include "request_parser.hpp"
 #include "scene.hpp"
 
@@ -108,6 +110,93 @@ TEST(RequestParser, CustomSceneWithEveryObjectType) {
   EXPECT_TRUE(q.scene.name.empty());
   // The default camera looks at the custom scene's centre.
   EXPECT_NE(q.camera.position, q.camera.target);
+}
+
+// --- Mesh objects --------------------------------------------------------
+
+const char* const kBoxId = "sha256:0b0x";
+
+ModelLookup box_lookup() {
+  return test::lookup_of({{kBoxId, test::box_model({0.5f, 0.5f, 0.5f})}}, {{"crate", kBoxId}});
+}
+
+ParsedRequest parse_with_box(const std::string& objects) {
+  return parse_render_request(R"({"scene": {"objects": [)" + objects + "]}}", Route::Render, box_lookup());
+}
+
+TEST(RequestParser, MeshObjectsNameTheirModelByIdOrNameAndMixWithPrimitives) {
+  const ParsedRequest p = parse_with_box(R"(
+      {"type": "plane"},
+      {"type": "mesh", "model": "sha256:0b0x", "position": [1, 2, 3], "rotation_deg": [90, 30, -10], "scale": 2},
+      {"type": "mesh", "model": "crate", "scale": [1, 2, 3], "color": [0.1, 0.2, 0.3]})");
+  ASSERT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  const Scene& scene = p.request->scene;
+  ASSERT_EQ(scene.objects.size(), 3u);
+  const SceneObject& a = scene.objects[1];
+  const SceneObject& b = scene.objects[2];
+  EXPECT_EQ(a.type, SceneObject::Type::Mesh);
+  EXPECT_EQ(a.model_id, kBoxId);
+  EXPECT_EQ(b.model_id, kBoxId) << "a name resolves to the model's id";
+  EXPECT_EQ(a.model, b.model) << "instances share one model";
+  EXPECT_EQ(a.center, glm::dvec3(1, 2, 3));
+  EXPECT_EQ(a.rotation_deg, glm::dvec3(90, 30, -10));
+  EXPECT_EQ(a.mesh_scale, glm::dvec3(2.0));
+  EXPECT_FALSE(a.mesh_color_override);
+  EXPECT_EQ(b.center, glm::dvec3(0.0));
+  EXPECT_EQ(b.rotation_deg, glm::dvec3(0.0));
+  EXPECT_EQ(b.mesh_scale, glm::dvec3(1, 2, 3));
+  EXPECT_TRUE(b.mesh_color_override);
+  EXPECT_EQ(b.color, glm::dvec3(0.1, 0.2, 0.3));
+}
+
+TEST(RequestParser, AMeshWithoutAModelLookupOrWithAnUnknownModelSaysHowToUploadOne) {
+  for (const ParsedRequest& p :
+       {parse_render_request(R"({"scene": {"objects": [{"type": "mesh", "model": "sha256:0b0x"}]}})"),
+        parse_with_box(R"({"type": "box"}, {"type": "mesh", "model": "teapot"})")}) {
+    ASSERT_FALSE(p.ok());
+    EXPECT_NE(p.error.message.find("POST /api/models"), std::string::npos) << p.error.message;
+    EXPECT_NE(p.error.message.find("unknown model"), std::string::npos) << p.error.message;
+  }
+  EXPECT_EQ(parse_render_request(R"({"scene": {"objects": [{"type": "mesh", "model": "sha256:0b0x"}]}})").error.field,
+            "scene.objects[0].model");
+  EXPECT_EQ(parse_with_box(R"({"type": "box"}, {"type": "mesh", "model": "teapot"})").error.field,
+            "scene.objects[1].model");
+}
+
+TEST(RequestParser, BadMeshFieldsAreRejectedByName) {
+  const std::pair<const char*, const char*> cases[] = {
+      {R"({"type": "mesh"})", "scene.objects[0].model"},
+      {R"({"type": "mesh", "model": 7})", "scene.objects[0].model"},
+      {R"({"type": "mesh", "model": "crate", "scale": 0})", "scene.objects[0].scale"},
+      {R"({"type": "mesh", "model": "crate", "scale": -1})", "scene.objects[0].scale"},
+      {R"({"type": "mesh", "model": "crate", "scale": 2e6})", "scene.objects[0].scale"},
+      {R"({"type": "mesh", "model": "crate", "scale": [1, 0, 1]})", "scene.objects[0].scale[1]"},
+      {R"({"type": "mesh", "model": "crate", "scale": [1, 1]})", "scene.objects[0].scale"},
+      {R"({"type": "mesh", "model": "crate", "scale": "big"})", "scene.objects[0].scale"},
+      {R"({"type": "mesh", "model": "crate", "position": [0, 2e6, 0]})", "scene.objects[0].position[1]"},
+      {R"({"type": "mesh", "model": "crate", "rotation_deg": [0, 40000, 0]})", "scene.objects[0].rotation_deg[1]"},
+      {R"({"type": "mesh", "model": "crate", "rotation_deg": 30})", "scene.objects[0].rotation_deg"},
+      {R"({"type": "mesh", "model": "crate", "color": [2, 0, 0]})", "scene.objects[0].color[0]"},
+      {R"({"type": "mesh", "model": "crate", "center": [0, 0, 0]})", "scene.objects[0].center"},
+      // Each number within its range, but the placed model's corner is not:
+      // 1e6 - 1 + 0.5 * 4 > 1e6.
+      {R"({"type": "mesh", "model": "crate", "position": [999999, 0, 0], "scale": 4})", "scene.objects[0]"},
+  };
+  for (const auto& [object, field] : cases) {
+    const ParsedRequest p = parse_with_box(object);
+    ASSERT_FALSE(p.ok()) << object;
+    EXPECT_EQ(p.error.field, field) << object << " -> " << p.error.message;
+  }
+  // At the limit exactly, it is accepted: 1e6 - 2 + 0.5 * 4 = 1e6.
+  EXPECT_TRUE(parse_with_box(R"({"type": "mesh", "model": "crate", "position": [999998, 0, 0], "scale": 4})").ok());
+}
+
+TEST(RequestParser, AMeshsBoundsShapeTheDefaultView) {
+  const ParsedRequest near_origin = parse_with_box(R"({"type": "mesh", "model": "crate"})");
+  const ParsedRequest far_away = parse_with_box(R"({"type": "mesh", "model": "crate", "position": [100, 0, 0]})");
+  ASSERT_TRUE(near_origin.ok() && far_away.ok());
+  EXPECT_EQ(near_origin.request->camera.target, glm::dvec3(0.0));
+  EXPECT_EQ(far_away.request->camera.target, glm::dvec3(100, 0, 0));
 }
 
 TEST(RequestParser, AreaLightWithoutFilterUsesPcss) {

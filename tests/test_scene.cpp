@@ -3,6 +3,8 @@
 
 #include <glm/geometric.hpp>
 
+#include "mesh_instance.hpp"
+#include "model_support.hpp"
 #include "scene.hpp"
 
 namespace umbra {
@@ -75,6 +77,89 @@ TEST(Scene, VerticesAreStoredRelativeToTheBoundsCentre) {
   const Mesh mesh = tessellate(scene);
   EXPECT_EQ(mesh.origin, box.center);
   for (const Vertex& v : mesh.vertices) EXPECT_LE(std::abs(v.position[0]), 500.0f);
+}
+
+SceneObject mesh_object(std::shared_ptr<const TriangleModel> model, const std::string& id) {
+  SceneObject o;
+  o.type = SceneObject::Type::Mesh;
+  o.model = std::move(model);
+  o.model_id = id;
+  return o;
+}
+
+glm::dvec3 world_position(const Mesh& mesh, std::uint32_t index) {
+  const Vertex& v = mesh.vertices[mesh.indices[index]];
+  return glm::dvec3(v.position[0], v.position[1], v.position[2]) + mesh.origin;
+}
+
+TEST(Scene, AMeshIsPlacedScaleThenRotateXThenYThenZThenTranslate) {
+  SceneObject o = mesh_object(test::box_model({0.5f, 0.5f, 0.5f}), "box");
+  o.center = {10, 20, 30};
+  o.mesh_scale = {2, 4, 6};
+  o.rotation_deg = {90, 90, 0};
+  // The model's +Y (scaled to 4) turns to +Z under X's 90 degrees, then to
+  // +X under Y's: a point (0, 0.5, 0) lands at (2, 0, 0) + position.
+  const glm::dmat4 m = mesh_transform(o);
+  const glm::dvec3 p(m * glm::dvec4(0, 0.5, 0, 1));
+  EXPECT_NEAR(p.x, 12, 1e-12);
+  EXPECT_NEAR(p.y, 20, 1e-12);
+  EXPECT_NEAR(p.z, 30, 1e-12);
+  // Its bounds: the transformed corners, x half 2 (from y), y half 3 (from
+  // z), z half 1 (from x).
+  const Aabb b = object_bounds(o);
+  EXPECT_NEAR(b.min.x, 8, 1e-12);
+  EXPECT_NEAR(b.max.y, 23, 1e-12);
+  EXPECT_NEAR(b.max.z, 31, 1e-12);
+}
+
+TEST(Scene, ClosedMeshesJoinTheCulledSectionAndOpenOnesThePlanes) {
+  Scene scene;
+  SceneObject closed = mesh_object(test::box_model({0.5f, 0.5f, 0.5f}), "closed");
+  SceneObject open = mesh_object(test::box_model({0.5f, 0.5f, 0.5f}, false), "open");
+  ASSERT_TRUE(closed.model->closed);
+  ASSERT_FALSE(open.model->closed);
+  open.center = {3, 0, 0};
+  scene.objects = {open, closed};
+  const Mesh mesh = tessellate(scene);
+  EXPECT_EQ(mesh.closed_index_count, 36u);
+  EXPECT_EQ(mesh.open_index_count, 30u);
+  for (std::uint32_t i = 0; i < mesh.closed_index_count; ++i) EXPECT_LT(world_position(mesh, i).x, 1.0);
+  for (std::uint32_t i = mesh.closed_index_count; i < mesh.indices.size(); ++i) EXPECT_GT(world_position(mesh, i).x, 2.0);
+}
+
+TEST(Scene, AMirroringOrNonUniformTransformKeepsMeshesWoundOutwardWithTrueNormals) {
+  for (const glm::dvec3 scale : {glm::dvec3(1, 1, 1), glm::dvec3(3, 0.5, 1), glm::dvec3(-1, 1, 1), glm::dvec3(2, -3, -0.5)}) {
+    SceneObject o = mesh_object(test::box_model({0.5f, 0.5f, 0.5f}), "box");
+    o.center = {1, 2, 3};
+    o.rotation_deg = {20, 30, 40};
+    o.mesh_scale = scale;  // negative only here: the API takes scale > 0
+    Scene scene;
+    scene.objects = {o};
+    const Mesh mesh = tessellate(scene);
+    ASSERT_EQ(mesh.indices.size(), 36u);
+    for (std::uint32_t i = 0; i < 36; i += 3) {
+      const glm::dvec3 a = world_position(mesh, i), b = world_position(mesh, i + 1), c = world_position(mesh, i + 2);
+      const glm::dvec3 face_normal = glm::normalize(glm::cross(b - a, c - a));
+      const glm::dvec3 centroid = (a + b + c) / 3.0;
+      EXPECT_GT(glm::dot(face_normal, centroid - o.center), 0.0) << "scale " << scale.x << " triangle " << i / 3;
+      const Vertex& v = mesh.vertices[mesh.indices[i]];
+      const glm::dvec3 n(v.normal[0], v.normal[1], v.normal[2]);
+      EXPECT_NEAR(glm::length(n), 1.0, 1e-6);
+      // A flat face's vertex normal is its geometric normal, however the
+      // transform stretches it: what the inverse transpose gives.
+      EXPECT_GT(glm::dot(n, face_normal), 1.0 - 1e-5) << "scale " << scale.x << " triangle " << i / 3;
+    }
+  }
+}
+
+TEST(Scene, AMeshTakesItsPartsColoursUnlessTheObjectGivesOne) {
+  SceneObject o = mesh_object(test::box_model({0.5f, 0.5f, 0.5f}, true, {0.25f, 0.5f, 1.0f}), "box");
+  Scene scene;
+  scene.objects = {o};
+  EXPECT_FLOAT_EQ(tessellate(scene).vertices[0].color[0], 0.25f);
+  scene.objects[0].mesh_color_override = true;
+  scene.objects[0].color = {0.75, 0.0, 0.0};
+  EXPECT_FLOAT_EQ(tessellate(scene).vertices[0].color[0], 0.75f);
 }
 
 TEST(Scene, CustomSceneDefaultViewSeesItsCentre) {

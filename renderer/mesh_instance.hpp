@@ -1,0 +1,42 @@
+// Mesh objects: instances of a TriangleModel placed in a scene (position,
+// rotation, scale, optional colour). Everything the renderer needs to know
+// about that kind of object lives here: its transform, its bounds, its
+// triangle counts and its triangles in tessellate()'s Mesh. Pure CPU code,
+// no GL: unit tested in tests/test_scene.cpp.
+#pragma once
+
+#include <cstdint>
+
+#include <glm/mat3x3.hpp>
+#include <glm/mat4x4.hpp>
+
+#include "request.hpp"
+#include "scene.hpp"
+
+namespace umbra {
+
+/// Model space -> world space of a mesh object: translate(center) * Rz * Ry
+/// * Rx * scale(mesh_scale), each rotation right-handed in degrees (the X
+/// rotation applies first, as the API documents).
+glm::dmat4 mesh_transform(const SceneObject& mesh);
+
+/// The world bounds of a mesh object: the 8 transformed corners of its
+/// model's bounds (not tight under rotation, but never too small, which is
+/// what frustum fitting needs). Empty for a model without triangles.
+Aabb mesh_bounds(const SceneObject& mesh);
+
+/// Whether the model's surface is closed (TriangleModel::closed): only then
+/// may the shadow pass cull its faces.
+bool mesh_is_closed(const SceneObject& mesh);
+
+std::uint64_t mesh_triangle_count(const SceneObject& mesh);
+std::uint64_t mesh_vertex_count(const SceneObject& mesh);
+
+/// Appends the instance's triangles to `out` (positions relative to
+/// out.origin): normals by the inverse transpose, and the winding reversed
+/// under a mirroring transform (negative determinant) so that
+/// counter-clockwise still faces out. Indices only: the caller accounts for
+/// them in closed_index_count / open_index_count.
+void append_mesh_instance(const SceneObject& mesh, Mesh& out);
+
+}  // namespace umbra
