@@ -18,9 +18,10 @@ inline RenderService& service() {
   return *instance;
 }
 
-/// The body parsed as the server would; a test fails if it is not valid.
-inline RenderRequest request(const std::string& body) {
-  ParsedRequest p = parse_render_request(body);
+/// The body parsed as the server would (mesh objects resolved by
+/// `find_model`); a test fails if it is not valid.
+inline RenderRequest request(const std::string& body, const ModelLookup& find_model = {}) {
+  ParsedRequest p = parse_render_request(body, Route::Render, find_model);
   EXPECT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
   return *p.request;
 }
