@@ -6,6 +6,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "model_support.hpp"
 #include "ray_cast.hpp"
 #include "scene.hpp"
 
@@ -164,6 +165,18 @@ TEST(RayScene, AnswersExactlyAsTestingEveryObject) {
       EXPECT_EQ(rays.occluded(origin, dir, reach), best.object >= 0 && best.t < reach) << "trial " << trial;
     }
   }
+}
+
+TEST(RayCast, AScenesMeshesAreRefusedNotMissed) {
+  Scene scene;
+  scene.objects.resize(3);
+  scene.objects[0].type = SceneObject::Type::Plane;
+  EXPECT_EQ(first_object_not_ray_cast(scene), -1);
+  scene.objects[2].type = SceneObject::Type::Mesh;
+  scene.objects[2].model = test::box_model({0.5f, 0.5f, 0.5f});
+  scene.objects[2].model_id = "box";
+  EXPECT_EQ(first_object_not_ray_cast(scene), 2);
+  EXPECT_THROW(RayScene{scene}, std::invalid_argument);
 }
 
 }  // namespace
