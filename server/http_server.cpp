@@ -292,10 +292,8 @@ struct HttpServer::Impl {
           return;
         case RequestReader::State::Failed: {
           if (c.phase == Phase::Idle) c.started = Clock::now();
-          HttpRequest partial;
-          partial.method = c.reader.request().method;
-          partial.path = c.reader.request().path;
-          return respond(c, partial, handlers.error(c.reader.error_status(), c.reader.error_message()), true);
+          return respond(c, partial_request(c), handlers.error(c.reader.error_status(), c.reader.error_message()),
+                         true);
         }
         case RequestReader::State::Complete: {
           if (c.phase == Phase::Idle) c.started = Clock::now();
@@ -310,11 +308,18 @@ struct HttpServer::Impl {
     }
   }
 
-  void refuse_body(Connection& c) {
-    count([](HttpServerStats& s) { ++s.bodies_refused; });
+  // What the log and respond() need of a request refused before it was
+  // read whole: its method and path, where they were read.
+  static HttpRequest partial_request(const Connection& c) {
     HttpRequest partial;
     partial.method = c.reader.request().method;
     partial.path = c.reader.request().path;
+    return partial;
+  }
+
+  void refuse_body(Connection& c) {
+    count([](HttpServerStats& s) { ++s.bodies_refused; });
+    const HttpRequest partial = partial_request(c);
     release_body(c);
     HttpResponse busy = handlers.error(
         503, "the server holds " + std::to_string(options.max_buffered_body_bytes >> 20) +
@@ -506,9 +511,7 @@ struct HttpServer::Impl {
       Connection& c = *it->second;
       if (c.phase == Phase::Receiving) {
         count([](HttpServerStats& s) { ++s.requests_timed_out; });
-        HttpRequest partial;
-        partial.method = c.reader.request().method;
-        partial.path = c.reader.request().path;
+        const HttpRequest partial = partial_request(c);
         const auto limit = std::chrono::duration<double>(options.request_timeout).count();
         char text[96];
         std::snprintf(text, sizeof text, "the request was not received whole within %g s", limit);
