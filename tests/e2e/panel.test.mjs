@@ -183,8 +183,17 @@ try {
   await step(page, "pause-stops-the-requests", async () => {
     await page.click("#play");
     assert.equal(await page.$eval("#play", (b) => b.getAttribute("aria-pressed")), "false");
-    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
-    const sent = await page.evaluate(() => window.__umbra.sent);
+    // A frame's depth request follows its render request once the render
+    // has arrived, so "nothing in flight" can fall between the two: wait
+    // until nothing has been sent for a moment as well.
+    let sent = -1;
+    for (;;) {
+      await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
+      const now = await page.evaluate(() => window.__umbra.sent);
+      if (now === sent) break;
+      sent = now;
+      await page.waitForTimeout(300);
+    }
     const time = await page.$eval("#time", (i) => i.value);
     await page.waitForTimeout(1500);
     assert.equal(await page.evaluate(() => window.__umbra.sent), sent, "no request after pausing");
