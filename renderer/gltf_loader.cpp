@@ -23,6 +23,8 @@
 #include <sys/stat.h>
 #include <tiny_gltf.h>
 
+#include "folder_file.hpp"
+
 namespace umbra {
 
 namespace {
@@ -125,27 +127,10 @@ struct FileAccess {
   std::string refused;  ///< the first external file asked for and refused, and why
 };
 
-// The real path of `path` if it lies inside the folder and is a regular file.
-bool inside_folder(const std::string& folder, const std::string& path, std::string& real) {
-  if (folder.empty() || path.find('\0') != std::string::npos) return false;
-  char* root = realpath(folder.c_str(), nullptr);
-  char* file = realpath(path.c_str(), nullptr);
-  const std::string root_path = root ? root : "", file_path = file ? file : "";
-  std::free(root);
-  std::free(file);
-  if (root_path.empty() || file_path.size() <= root_path.size() + 1 ||
-      file_path.compare(0, root_path.size() + 1, root_path + "/") != 0)
-    return false;
-  struct stat info {};
-  if (stat(file_path.c_str(), &info) != 0 || !S_ISREG(info.st_mode)) return false;
-  real = file_path;
-  return true;
-}
-
 bool file_exists(const std::string& path, void* user) {
   auto& access = *static_cast<FileAccess*>(user);
   std::string real;
-  if (inside_folder(access.options->external_folder, path, real)) return true;
+  if (file_inside_folder(access.options->external_folder, path, real)) return true;
   if (access.refused.empty())
     access.refused = access.options->external_folder.empty()
                          ? "refers to the external file '" + short_message(path) +
@@ -159,7 +144,7 @@ std::string expand_file_path(const std::string& path, void*) { return path; }  /
 bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* user) {
   auto& access = *static_cast<FileAccess*>(user);
   std::string real;
-  if (!inside_folder(access.options->external_folder, path, real)) {
+  if (!file_inside_folder(access.options->external_folder, path, real)) {
     if (err) *err = "outside the models folder";
     return false;
   }

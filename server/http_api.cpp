@@ -8,9 +8,9 @@
 #include <utility>
 
 #include <nlohmann/json.hpp>
-#include <sys/stat.h>
 
 #include "client_socket.hpp"
+#include "folder_file.hpp"
 #include "gltf_loader.hpp"
 #include "png.hpp"
 #include "request_parser.hpp"
@@ -500,20 +500,10 @@ bool HttpApi::read_static_file(const std::string& name, std::string& bytes) cons
     }
     return false;
   }
-  // A folder: the file's real path (every "..", "//" and symlink resolved;
-  // the server has already decoded %2e%2e into "..") must lie inside the
-  // folder's real path, and be a regular file.
-  if (name.find('\0') != std::string::npos) return false;
-  char* root = realpath(options_.web_dir.c_str(), nullptr);
-  char* file = realpath((options_.web_dir + "/" + name).c_str(), nullptr);
-  const std::string root_path = root ? root : "", file_path = file ? file : "";
-  std::free(root);
-  std::free(file);
-  if (root_path.empty() || file_path.size() <= root_path.size() + 1 ||
-      file_path.compare(0, root_path.size() + 1, root_path + "/") != 0)
-    return false;
-  struct stat info {};
-  if (stat(file_path.c_str(), &info) != 0 || !S_ISREG(info.st_mode)) return false;
+  // A folder: only a regular file inside it (the server has already
+  // decoded %2e%2e into "..", which the check resolves).
+  std::string file_path;
+  if (!file_inside_folder(options_.web_dir, options_.web_dir + "/" + name, file_path)) return false;
   std::ifstream in(file_path, std::ios::binary);
   if (!in) return false;
   bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
