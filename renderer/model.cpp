@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include <glm/geometric.hpp>
+#include <nettle/sha2.h>
 
 namespace umbra {
 
@@ -113,6 +114,36 @@ void finish_model(TriangleModel& model) {
   }
   model.parts.shrink_to_fit();
   model.closed = is_closed(model.parts);
+}
+
+std::string model_id_for(std::string_view bytes) {
+  sha256_ctx context;
+  sha256_init(&context);
+  // nettle takes a size_t length: the whole body in one call.
+  sha256_update(&context, bytes.size(), reinterpret_cast<const std::uint8_t*>(bytes.data()));
+  std::uint8_t digest[SHA256_DIGEST_SIZE];
+  sha256_digest(&context, sizeof digest, digest);
+  static const char kHex[] = "0123456789abcdef";
+  std::string id = "sha256:";
+  for (std::uint8_t b : digest) {
+    id += kHex[b >> 4];
+    id += kHex[b & 15];
+  }
+  return id;
+}
+
+std::string model_geometry_id(const TriangleModel& model) {
+  std::string bytes;
+  const auto append = [&](const void* data, std::size_t size) {
+    bytes.append(static_cast<const char*>(data), size);
+  };
+  for (const ModelPart& part : model.parts) {
+    append(part.positions.data(), part.positions.size() * sizeof(glm::vec3));
+    append(part.normals.data(), part.normals.size() * sizeof(glm::vec3));
+    append(part.indices.data(), part.indices.size() * sizeof(std::uint32_t));
+    append(&part.base_color, sizeof part.base_color);
+  }
+  return model_id_for(bytes);
 }
 
 }  // namespace umbra

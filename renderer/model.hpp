@@ -5,6 +5,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -55,5 +57,14 @@ std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& posit
 
 /// Sets bounds and closed from the parts, and trims spare capacity.
 void finish_model(TriangleModel& model);
+
+/// "sha256:" and the 64 lowercase hex digits of SHA-256(bytes): the id of
+/// an uploaded or folder model (the hash of its file).
+std::string model_id_for(std::string_view bytes);
+
+/// model_id_for() of the model's geometry (each part's positions,
+/// normals, indices and base colour, as stored): the id of a model that
+/// has no file, such as the built-in ones.
+std::string model_geometry_id(const TriangleModel& model);
 
 }  // namespace umbra

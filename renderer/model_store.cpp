@@ -8,27 +8,10 @@
 #include <iterator>
 #include <utility>
 
-#include <nettle/sha2.h>
-
+#include "builtin_models.hpp"
 #include "gltf_loader.hpp"
 
 namespace umbra {
-
-std::string model_id_for(std::string_view bytes) {
-  sha256_ctx context;
-  sha256_init(&context);
-  // nettle takes a size_t length: the whole body in one call.
-  sha256_update(&context, bytes.size(), reinterpret_cast<const std::uint8_t*>(bytes.data()));
-  std::uint8_t digest[SHA256_DIGEST_SIZE];
-  sha256_digest(&context, sizeof digest, digest);
-  static const char kHex[] = "0123456789abcdef";
-  std::string id = "sha256:";
-  for (std::uint8_t b : digest) {
-    id += kHex[b >> 4];
-    id += kHex[b & 15];
-  }
-  return id;
-}
 
 ModelStore::ModelStore(std::uint64_t max_bytes, std::size_t max_models) : max_bytes_(max_bytes), max_models_(max_models) {}
 
@@ -169,6 +152,19 @@ bool load_model_folder(const std::string& folder, ModelStore& store, std::size_t
     }
   }
   return true;
+}
+
+void hold_builtin_models(ModelStore& store, std::vector<std::string>& not_held) {
+  for (const BuiltinModel& builtin : builtin_models()) {
+    ModelStore::AddResult added = store.add(builtin.id, builtin.name, builtin.model, true);
+    if (added.outcome == ModelStore::Outcome::NameTaken) {
+      // Still listed, by id alone: the operator's own model has the name.
+      added = store.add(builtin.id, "", builtin.model, true);
+      not_held.push_back("built-in model " + builtin.name + ": the name is taken by a --models file; it is listed by id");
+    }
+    if (added.outcome == ModelStore::Outcome::TooLarge)
+      not_held.push_back("built-in model " + builtin.name + ": over --models-budget-mib; not listed");
+  }
 }
 
 }  // namespace umbra

@@ -21,9 +21,6 @@
 
 namespace umbra {
 
-/// "sha256:" and the 64 lowercase hex digits of SHA-256(bytes).
-std::string model_id_for(std::string_view bytes);
-
 /// What the store holds of one model. Shared: a render that found it keeps
 /// it alive even if the store drops it meanwhile.
 struct HeldModel {
@@ -72,6 +69,13 @@ class ModelStore {
   std::uint64_t pinned_bytes_ = 0;
   ByteBoundedLru<std::shared_ptr<const HeldModel>> uploads_;  // keyed by id
 };
+
+/// Holds the built-in models (builtin_models.hpp), pinned under their
+/// names, after a --models folder has been loaded: a folder's model of the
+/// same name keeps that name (the built-in one stays reachable by its id),
+/// and is reported in `not_held`, one line each, as is a built-in model
+/// over the budget.
+void hold_builtin_models(ModelStore& store, std::vector<std::string>& not_held);
 
 /// The result of loading a --models folder.
 struct FolderLoad {

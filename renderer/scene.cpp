@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
+#include "builtin_models.hpp"
 #include "mesh_instance.hpp"
 
 namespace umbra {
@@ -53,6 +54,18 @@ SceneObject box(glm::dvec3 center, glm::dvec3 size, double rotation_y_deg, glm::
   o.size = size;
   o.rotation_y_deg = rotation_y_deg;
   o.color = color;
+  return o;
+}
+
+SceneObject mesh(const std::string& builtin_model, glm::dvec3 position, glm::dvec3 rotation_deg, double scale) {
+  const BuiltinModel* m = find_builtin_model(builtin_model);
+  SceneObject o;
+  o.type = SceneObject::Type::Mesh;
+  o.model = m->model;
+  o.model_id = m->id;
+  o.center = position;
+  o.rotation_deg = rotation_deg;
+  o.mesh_scale = glm::dvec3(scale);
   return o;
 }
 
@@ -110,6 +123,21 @@ const std::vector<BuiltinScene>& builtin_scenes() {
         box({0.6, -0.2, 1.6}, {0.6, 0.6, 0.6}, 65.0, {0.4, 0.75, 0.35})},
        {3.5, 4.0, 6.5},
        {0.3, -0.2, 0.6},
+       {-2.0, 4.0, -1.0}},
+      // A real model: the spout, handle and lid shadow the pot itself, and
+      // its surface is open, so the shadow pass draws both sides.
+      {"teapot",
+       "The Utah teapot (102,400 triangles) on a 50 x 50 floor.",
+       {plane({0.0, -0.5, 0.0}, 50.0, 50.0, kFloorColor), mesh("teapot", {0.0, -0.5, 0.0}, {0.0, -30.0, 0.0}, 0.5)},
+       {-2.5, 3.0, 4.8},
+       {0.4, 0.3, 0.3},
+       {-2.0, 4.0, -1.0}},
+      // A closed model that shadows itself along the whole of its length.
+      {"torus-knot",
+       "A closed torus knot (16,384 triangles) hovering over a 50 x 50 floor.",
+       {plane({0.0, -0.5, 0.0}, 50.0, 50.0, kFloorColor), mesh("torus-knot", {0.0, 0.75, 0.0}, {25.0, 0.0, 0.0}, 1.0)},
+       {3.6, 3.2, 5.0},
+       {0.0, 0.3, 0.0},
        {-2.0, 4.0, -1.0}},
   };
   return scenes;

@@ -170,6 +170,9 @@ int main(int argc, char** argv) {
     for (const std::string& why : loaded.refused)
       std::fprintf(stderr, "umbra-server: --models: skipped %s\n", why.c_str());
   }
+  std::vector<std::string> builtins_not_held;
+  umbra::hold_builtin_models(models, builtins_not_held);
+  for (const std::string& why : builtins_not_held) std::fprintf(stderr, "umbra-server: %s\n", why.c_str());
 
   // SIGINT and SIGTERM are blocked here, before any thread starts (threads
   // inherit the mask), and taken by one thread with sigwait: it may then do

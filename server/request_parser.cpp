@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
+#include "builtin_models.hpp"
 #include "light_math.hpp"
 #include "mesh_instance.hpp"
 #include "scene.hpp"
@@ -306,15 +307,21 @@ void read_mesh(const json& j, const std::string& path, std::set<std::string>& se
                SceneObject& o) {
   o.type = SceneObject::Type::Mesh;
   ObjectReader r(j, path, {"type", "model", "position", "rotation_deg", "scale", "color"}, sent);
-  const char* kHowToUpload =
+  std::string builtins;
+  for (const BuiltinModel& m : builtin_models()) builtins += (builtins.empty() ? "" : ", ") + quote_text(m.name);
+  const std::string kHowToUpload =
       "upload it with POST /api/models (a .glb or .gltf body) and name it by the \"id\" that returns, "
-      "or by its file name if the server loaded it with --models DIR";
+      "or by its file name if the server loaded it with --models DIR, or name a built-in model (" + builtins + ")";
   const json* model = r.get("model");
-  if (model == nullptr) reject(r.path("model"), std::string("is required: a model's id or name; ") + kHowToUpload);
+  if (model == nullptr) reject(r.path("model"), "is required: a model's id or name; " + kHowToUpload);
   if (!model->is_string())
     reject(r.path("model"), std::string("must be a string (a model's id or name), not ") + type_name(*model));
   const std::string& key = model->get_ref<const std::string&>();
   std::optional<FoundModel> found = find_model ? find_model(key) : std::nullopt;
+  // The built-in models, when the server's store does not answer for that
+  // name (a --models folder may hold its own "teapot"; then that one wins).
+  if (!found || !found->model)
+    if (const BuiltinModel* builtin = find_builtin_model(key)) found = FoundModel{builtin->id, builtin->model};
   if (!found || !found->model)
     reject(r.path("model"), "unknown model " + quote_text(key) + ": " + kHowToUpload);
   o.model = std::move(found->model);

@@ -68,8 +68,9 @@ struct FoundModel {
 /// Finds a model by id or name (ModelStore::find); nullopt if none is held.
 using ModelLookup = std::function<std::optional<FoundModel>(const std::string& id_or_name)>;
 
-/// `find_model` resolves mesh objects' "model"; without one, every mesh
-/// object is refused as naming an unknown model.
+/// `find_model` resolves mesh objects' "model"; a name or id it does not
+/// know is looked up among the built-in models (builtin_models.hpp), and
+/// refused as an unknown model if it is not one of them either.
 ParsedRequest parse_render_request(std::string_view body, Route route = Route::Render,
                                    const ModelLookup& find_model = {});
 

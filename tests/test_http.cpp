@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 #include <stb_image.h>
 
+#include "builtin_models.hpp"
 #include "gltf_builder.hpp"
 #include "gltf_loader.hpp"
 #include "http_api.hpp"
@@ -105,13 +106,18 @@ TEST(Http, ScenesListsTheBuiltInsInCustomSceneForm) {
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 200);
   const json j = json::parse(res->body);
-  ASSERT_EQ(j["scenes"].size(), 2u);
+  ASSERT_EQ(j["scenes"].size(), 4u);
   EXPECT_EQ(j["scenes"][0]["name"], "cube-on-plane");
-  // The object list is usable as a custom scene as it is.
-  const json body = {{"width", 64}, {"height", 64}, {"scene", {{"objects", j["scenes"][1]["objects"]}}}};
-  auto render = client().Post("/api/render", body.dump(), "application/json");
-  ASSERT_TRUE(render);
-  EXPECT_EQ(render->status, 200) << render->body;
+  EXPECT_EQ(j["scenes"][2]["name"], "teapot");
+  // Each object list is usable as a custom scene as it is: the built-in
+  // models' meshes name them by id.
+  for (const json& scene : j["scenes"]) {
+    const json body = {{"width", 64}, {"height", 64}, {"scene", {{"objects", scene["objects"]}}}};
+    auto render = client().Post("/api/render", body.dump(), "application/json");
+    ASSERT_TRUE(render);
+    EXPECT_EQ(render->status, 200) << scene["name"] << ": " << render->body;
+  }
+  EXPECT_EQ(j["scenes"][2]["objects"][1]["model"], find_builtin_model("teapot")->id);
 }
 
 TEST(Http, RenderReturnsAPngFrameWithServerTiming) {
@@ -1031,7 +1037,7 @@ TEST(Http, AMeshObjectRendersAnUploadedModelByIdAndAFolderModelByName) {
       EXPECT_EQ(d.height, 48);
     }
   }
-  auto res = c.Post("/api/render", mesh_scene_body("teapot", "color"), "application/json");
+  auto res = c.Post("/api/render", mesh_scene_body("kettle", "color"), "application/json");
   expect_json_error(res, 400, "scene.objects[0].model");
   EXPECT_NE(res->body.find("POST /api/models"), std::string::npos) << res->body;
   // The exact reference cannot see meshes yet: refused, not answered without them.

@@ -3,6 +3,7 @@
 
 #include <string>
 
+#include "builtin_models.hpp"
 #include "mesh_instance.hpp"
 #include "model_support.hpp"
 #include "request_parser.hpp"
@@ -152,15 +153,40 @@ TEST(RequestParser, MeshObjectsNameTheirModelByIdOrNameAndMixWithPrimitives) {
 TEST(RequestParser, AMeshWithoutAModelLookupOrWithAnUnknownModelSaysHowToUploadOne) {
   for (const ParsedRequest& p :
        {parse_render_request(R"({"scene": {"objects": [{"type": "mesh", "model": "sha256:0b0x"}]}})"),
-        parse_with_box(R"({"type": "box"}, {"type": "mesh", "model": "teapot"})")}) {
+        parse_with_box(R"({"type": "box"}, {"type": "mesh", "model": "kettle"})")}) {
     ASSERT_FALSE(p.ok());
     EXPECT_NE(p.error.message.find("POST /api/models"), std::string::npos) << p.error.message;
     EXPECT_NE(p.error.message.find("unknown model"), std::string::npos) << p.error.message;
   }
   EXPECT_EQ(parse_render_request(R"({"scene": {"objects": [{"type": "mesh", "model": "sha256:0b0x"}]}})").error.field,
             "scene.objects[0].model");
-  EXPECT_EQ(parse_with_box(R"({"type": "box"}, {"type": "mesh", "model": "teapot"})").error.field,
+  EXPECT_EQ(parse_with_box(R"({"type": "box"}, {"type": "mesh", "model": "kettle"})").error.field,
             "scene.objects[1].model");
+  // The message lists the built-in models too.
+  EXPECT_NE(parse_with_box(R"({"type": "mesh", "model": "kettle"})").error.message.find("\"torus-knot\""),
+            std::string::npos);
+}
+
+TEST(RequestParser, BuiltInModelsAreFoundWithoutAStoreAndAStoresOwnModelOfTheNameWins) {
+  const ParsedRequest p =
+      parse_render_request(R"({"scene": {"objects": [{"type": "mesh", "model": "teapot", "scale": 0.5}]}})");
+  ASSERT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  EXPECT_EQ(p.request->scene.objects[0].model, find_builtin_model("teapot")->model);
+  EXPECT_EQ(p.request->scene.objects[0].model_id, find_builtin_model("teapot")->id);
+  const ParsedRequest own = parse_render_request(R"({"scene": {"objects": [{"type": "mesh", "model": "teapot"}]}})",
+                                                 Route::Render,
+                                                 test::lookup_of({{kBoxId, test::box_model({1, 1, 1})}}, {{"teapot", kBoxId}}));
+  ASSERT_TRUE(own.ok());
+  EXPECT_EQ(own.request->scene.objects[0].model_id, kBoxId);
+}
+
+TEST(RequestParser, TheTeapotAndTorusKnotScenesHoldTheirBuiltInModels) {
+  for (const char* name : {"teapot", "torus-knot"}) {
+    const RenderRequest q = parse_ok(std::string(R"({"scene": ")") + name + R"("})");
+    ASSERT_EQ(q.scene.objects.size(), 2u);
+    EXPECT_EQ(q.scene.objects[1].type, SceneObject::Type::Mesh);
+    EXPECT_EQ(q.scene.objects[1].model, find_builtin_model(name)->model);
+  }
 }
 
 TEST(RequestParser, BadMeshFieldsAreRejectedByName) {

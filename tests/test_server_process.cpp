@@ -205,7 +205,10 @@ TEST(Models, AFolderIsLoadedAtStartAndAFileReachingOutsideIsSkippedWithItsReason
     ASSERT_TRUE(res) << server.log();
     EXPECT_EQ(res->status, 200) << res->body;
     EXPECT_EQ(json::parse(res->body)["triangles"], 1);
-    EXPECT_EQ(json::parse(client(server).Get("/api/models")->body)["count"], 1);
+    // The leaf and the two built-in models (teapot, torus-knot).
+    const json listed = json::parse(client(server).Get("/api/models")->body);
+    EXPECT_EQ(listed["count"], 3);
+    EXPECT_EQ(listed["models"][0]["name"], "leaf");
     EXPECT_EQ(client(server).Get("/api/models/escape")->status, 404);
     EXPECT_NE(server.log().find("skipped escape.gltf: a buffer refers to '"), std::string::npos) << server.log();
     EXPECT_NE(server.log().find("outside the models folder"), std::string::npos) << server.log();
