@@ -100,6 +100,7 @@ EglContext::EglContext() {
     throw std::runtime_error("EGL is not usable: no client extensions (is libEGL / Mesa installed?)");
 
   std::vector<Candidate> hardware, software;
+  std::string failures;  // "\n  source: why" for each way that gave no context
   const auto get_platform_display =
       reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
   if (get_platform_display != nullptr && has_extension(client_extensions, "EGL_EXT_device_enumeration") &&
@@ -109,7 +110,11 @@ EglContext::EglContext() {
         reinterpret_cast<PFNEGLQUERYDEVICESTRINGEXTPROC>(eglGetProcAddress("eglQueryDeviceStringEXT"));
     EGLDeviceEXT devices[16];
     EGLint count = 0;
-    if (query_devices != nullptr && query_device_string != nullptr && query_devices(16, devices, &count)) {
+    if (query_devices == nullptr || query_device_string == nullptr || !query_devices(16, devices, &count))
+      failures += "\n  EGL devices: eglQueryDevicesEXT failed";
+    else if (count == 0)
+      failures += "\n  EGL devices: none enumerated";
+    else {
       for (EGLint i = 0; i < count; ++i) {
         const char* device_extensions = query_device_string(devices[i], EGL_EXTENSIONS);
         const bool is_software = has_extension(device_extensions, "EGL_MESA_device_software");
@@ -119,6 +124,8 @@ EglContext::EglContext() {
         (is_software ? software : hardware).push_back({display, source});
       }
     }
+  } else {
+    failures += "\n  EGL devices: the client lacks EGL_EXT_device_enumeration or EGL_EXT_platform_device";
   }
   std::vector<Candidate> candidates = hardware;
   if (get_platform_display != nullptr && has_extension(client_extensions, "EGL_MESA_platform_surfaceless")) {
@@ -131,14 +138,15 @@ EglContext::EglContext() {
         "EGL offers neither device enumeration (EGL_EXT_platform_device) nor Mesa's surfaceless platform "
         "(EGL_MESA_platform_surfaceless): no headless display to render on");
 
-  std::string failures;
   for (const Candidate& candidate : candidates) {
     std::string why;
     EGLContext context = try_create_context(candidate.display, why);
     if (context != EGL_NO_CONTEXT) {
       display_ = candidate.display;
       context_ = context;
-      source_ = candidate.source;
+      // The ones tried before it and why they failed: an operator who
+      // expected the GPU learns here why it is not used.
+      source_ = candidate.source + (failures.empty() ? "" : "; passed over:" + failures);
       return;
     }
     failures += "\n  " + candidate.source + ": " + why;
