@@ -168,9 +168,11 @@ function controls() {
   return Array.from($("controls").elements).filter((e) => e.name);
 }
 
+// A select's default is its option marked selected in the page, else its
+// first option (which the browser selects without marking it).
 function isDefault(e) {
   if (e.type === "checkbox") return e.checked === e.defaultChecked;
-  if (e.tagName === "SELECT") return Array.from(e.options).every((o) => o.selected === o.defaultSelected);
+  if (e.tagName === "SELECT") return e.selectedIndex === Math.max(0, Array.from(e.options).findIndex((o) => o.defaultSelected));
   return e.value === e.defaultValue;
 }
 
