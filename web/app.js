@@ -4,7 +4,7 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const state = { inFlight: false, dirty: false, playing: false, lastTick: 0, frameUrl: null, depthUrl: null };
+const state = { inFlight: false, dirty: false, playing: false, lastTick: 0, frameUrl: null, depthUrl: null, errorSource: null };
 
 function number(id) {
   const value = Number($(id).value);
@@ -38,10 +38,11 @@ function buildRequest() {
       if (!perspective) shadow.ortho_half_size = number("half");
     }
   }
+  const model = chosenModel();
   return {
     width: 960,
     height: 540,
-    scene: $("scene").value,
+    ...(model ? modelView(model) : { scene: $("scene").value }),
     light,
     time: number("time"),
     shadow,
@@ -49,15 +50,21 @@ function buildRequest() {
   };
 }
 
-function showError(message) {
+// The error box says what failed last: a render or an upload. A frame that
+// arrives clears only a render's error, so that a refused upload stays
+// readable while frames keep coming (playing).
+function showError(message, source = "render") {
   const box = $("error");
   box.textContent = message;
   box.hidden = false;
+  state.errorSource = source;
 }
 
-function clearError() {
+function clearError(source = "render") {
+  if (state.errorSource !== source) return;
   $("error").hidden = true;
   $("error").textContent = "";
+  state.errorSource = null;
 }
 
 async function post(path, body) {
@@ -180,7 +187,10 @@ function saveToUrl() {
   const params = new URLSearchParams();
   for (const e of controls()) {
     if (isDefault(e)) continue;
-    params.set(e.name, e.type === "checkbox" ? (e.checked ? "1" : "0") : e.value);
+    const value = e.type === "checkbox" ? (e.checked ? "1" : "0") : e.value;
+    // A model is chosen in the scene list but named by its own parameter.
+    if (e.id === "scene" && value.startsWith(MODEL_PREFIX)) params.set("model", value.slice(MODEL_PREFIX.length));
+    else params.set(e.name, value);
   }
   const query = params.toString();
   history.replaceState(null, "", query ? `?${query}` : location.pathname);
@@ -191,8 +201,17 @@ function saveToUrl() {
 function loadFromUrl() {
   const params = new URLSearchParams(location.search);
   const skipped = [];
+  const model = params.get("model");
+  if (model) {
+    // A model the server does not list is chosen all the same: the render
+    // then shows the server's own message (upload it first), not a blank.
+    $("scene").value = modelChoice(model) || addUnlistedModel(model);
+    if (params.has("scene")) skipped.push("scene");
+  } else if (model !== null) {
+    skipped.push("model");
+  }
   for (const e of controls()) {
-    if (!params.has(e.name)) continue;
+    if (!params.has(e.name) || (e.id === "scene" && model)) continue;
     const value = params.get(e.name);
     if (e.type === "checkbox") {
       if (value === "1" || value === "0") e.checked = value === "1";
@@ -208,10 +227,236 @@ function loadFromUrl() {
       else skipped.push(e.name);
     }
   }
-  const known = new Set(controls().map((e) => e.name));
+  const known = new Set(controls().map((e) => e.name).concat("model"));
   for (const name of params.keys()) if (!known.has(name)) skipped.push(name);
   $("notice").textContent = skipped.length
     ? `Ignored from the address: ${skipped.join(", ")} (not a setting, or a value it cannot take).` : "";
+}
+
+// --- Scenes and models ----------------------------------------------------------
+// The scene list holds the server's built-in scenes and, in a "Models"
+// group, every model it holds (uploads, --models files, built-in models).
+// A model option's value is MODEL_PREFIX + its name, or its id if it has
+// none; choosing one renders it on a floor (modelView).
+
+const MODEL_PREFIX = "model:";
+const models = new Map();  // option value -> the model as GET /api/models lists it, plus its key
+const upload = { busy: null };  // the file name being uploaded, if any
+
+// The largest side of a model as placed: about the built-in teapot's (3.2).
+// Scaling every model to it keeps the light controls meaningful for any
+// model: a point light at (-2, 4, -1), the fixed frustum's near, far and
+// half-size are in the same units as for the built-in scenes.
+const MODEL_SIZE = 3;
+const FLOOR_SIZE = 4 * MODEL_SIZE;  // wide enough to catch the shadow of a tall model under a low light
+const CAMERA_DIRECTION = normalize([0.45, 0.55, 1.0]);  // the server's own for a custom scene
+
+function normalize(v) {
+  const length = Math.hypot(...v);
+  return v.map((x) => x / length);
+}
+
+// Six significant digits: a readable request (and curl command), and far
+// finer than a pixel.
+function round(x) {
+  return Number(x.toPrecision(6));
+}
+
+async function getJson(path) {
+  try {
+    const response = await fetch(path);
+    return response.ok ? await response.json() : null;
+  } catch (_) {
+    return null;
+  }
+}
+
+// Without the lists (an older or unreachable server) the page's own two
+// scenes stay, and the first frame reports what is wrong.
+async function loadChoices() {
+  const [scenes, held] = await Promise.all([getJson("/api/scenes"), getJson("/api/models")]);
+  if (scenes && Array.isArray(scenes.scenes) && scenes.scenes.length) fillScenes(scenes.scenes);
+  if (held && Array.isArray(held.models)) for (const model of held.models) addModel(model);
+}
+
+// Replaces the scene options (not the models); the first is the default.
+function fillScenes(scenes) {
+  const select = $("scene");
+  for (const option of Array.from(select.options)) if (!option.value.startsWith(MODEL_PREFIX)) option.remove();
+  scenes.forEach((scene, i) => {
+    const option = new Option(scene.name, scene.name, i === 0, i === 0);
+    option.title = scene.description || "";
+    select.insertBefore(option, select.querySelector("optgroup"));
+  });
+}
+
+function modelGroup() {
+  let group = $("scene").querySelector("optgroup");
+  if (!group) {
+    group = document.createElement("optgroup");
+    group.label = "Models";
+    $("scene").append(group);
+  }
+  return group;
+}
+
+function modelOption(value) {
+  return Array.from($("scene").options).find((o) => o.value === value) || modelGroup().appendChild(new Option("", value));
+}
+
+// Adds (or updates) a held model's option and returns its value.
+function addModel(model, fileName) {
+  const key = model.name || model.id;
+  const value = MODEL_PREFIX + key;
+  models.set(value, { ...model, key });
+  const shown = model.name || fileName || rememberedFileNames()[model.id] || `${model.id.slice(0, 19)}…`;
+  const option = modelOption(value);
+  option.textContent = `model: ${shown} (${model.triangles.toLocaleString("en")} triangles)`;
+  option.title = `${model.id}, ${model.closed ? "closed" : "open"}`;
+  return value;
+}
+
+function addUnlistedModel(key) {
+  const value = MODEL_PREFIX + key;
+  modelOption(value).textContent = `model: ${key} (not listed by the server)`;
+  return value;
+}
+
+// The option for a model named by its name or its id, if listed.
+function modelChoice(key) {
+  for (const [value, model] of models) if (model.key === key || model.id === key) return value;
+  return null;
+}
+
+function chosenModel() {
+  const value = $("scene").value;
+  if (!value.startsWith(MODEL_PREFIX)) return null;
+  return models.get(value) || { key: value.slice(MODEL_PREFIX.length) };
+}
+
+// The scene and camera for a model: scaled to MODEL_SIZE, standing centred
+// on a floor at y = 0, the camera framing the model (the server's default
+// camera frames the whole floor, which leaves the model small).
+function modelView(model) {
+  if (!model.bounds) return { scene: { objects: [{ type: "mesh", model: model.key }] } };  // not listed: the server says why
+  const { min, max } = model.bounds;
+  const extent = [0, 1, 2].map((i) => max[i] - min[i]);
+  const largest = Math.max(...extent);
+  const scale = largest > 0 ? Math.min(Math.max(MODEL_SIZE / largest, 1e-6), 1e6) : 1;
+  const position = [-0.5 * (min[0] + max[0]) * scale, -min[1] * scale, -0.5 * (min[2] + max[2]) * scale];
+  const target = [0, 0.5 * extent[1] * scale, 0];
+  const distance = 3.2 * Math.max(0.5 * Math.hypot(...extent) * scale, 0.5);
+  return {
+    scene: {
+      objects: [
+        { type: "plane", center: [0, 0, 0], size: [FLOOR_SIZE, FLOOR_SIZE] },
+        { type: "mesh", model: model.key, position: position.map(round), scale: round(scale) },
+      ],
+    },
+    camera: { position: target.map((t, i) => round(t + CAMERA_DIRECTION[i] * distance)), target: target.map(round) },
+  };
+}
+
+// Uploads have no name on the server: this browser remembers the file
+// each came from, to show it again after a reload.
+const FILE_NAMES_KEY = "umbra.modelFileNames";
+
+function rememberedFileNames() {
+  try {
+    return JSON.parse(localStorage.getItem(FILE_NAMES_KEY)) || {};
+  } catch (_) {
+    return {};
+  }
+}
+
+function rememberFileName(id, fileName) {
+  try {
+    localStorage.setItem(FILE_NAMES_KEY, JSON.stringify({ ...rememberedFileNames(), [id]: fileName }));
+  } catch (_) { /* storage off: the list shows the id */ }
+}
+
+function contentTypeFor(fileName) {
+  return /\.gltf$/i.test(fileName) ? "model/gltf+json" : "model/gltf-binary";
+}
+
+// POST /api/models through XMLHttpRequest: fetch cannot report how much
+// of a large body has been sent.
+function sendModel(file, onProgress) {
+  return new Promise((resolve, reject) => {
+    const xhr = new XMLHttpRequest();
+    xhr.open("POST", "/api/models");
+    xhr.setRequestHeader("Content-Type", contentTypeFor(file.name));
+    xhr.upload.addEventListener("progress", (e) => { if (e.lengthComputable) onProgress(e.loaded / e.total); });
+    xhr.addEventListener("load", () => {
+      let json = null;
+      try {
+        json = JSON.parse(xhr.responseText);
+      } catch (_) { /* not JSON */ }
+      resolve({ status: xhr.status, statusText: xhr.statusText, json });
+    });
+    xhr.addEventListener("error", () =>
+      reject(new Error(`${file.name} was not uploaded: the connection failed or the server closed it. Is umbra-server running?`)));
+    xhr.send(file);
+  });
+}
+
+function mebibytes(bytes) {
+  return bytes < 1 << 20 ? `${Math.ceil(bytes / 1024)} KiB` : `${(bytes / (1 << 20)).toFixed(1)} MiB`;
+}
+
+// Uploads one file and, once the server holds it, chooses it. One upload
+// at a time: the server loads at most two, and one shows progress clearly.
+async function uploadModel(file) {
+  const status = $("model-status");
+  if (upload.busy) {
+    status.textContent = `Still uploading ${upload.busy}; try ${file.name} when it is done.`;
+    return;
+  }
+  upload.busy = file.name;
+  clearError("upload");
+  status.textContent = `Uploading ${file.name} (${mebibytes(file.size)})…`;
+  try {
+    const answer = await sendModel(file, (sent) => {
+      status.textContent = sent < 1 ? `Uploading ${file.name}: ${Math.floor(100 * sent)} %` : `Loading ${file.name} on the server…`;
+    });
+    const model = answer.json;
+    if ((answer.status !== 200 && answer.status !== 201) || !model || !model.id) {
+      const detail = model && model.error ? model.error : `${answer.status} ${answer.statusText}`;
+      throw new Error(`${file.name} was not loaded (${answer.status}): ${detail}`);
+    }
+    rememberFileName(model.id, file.name);
+    $("scene").value = addModel(model, file.name);
+    status.textContent = `${file.name}: ${model.triangles.toLocaleString("en")} triangles, ` +
+      (model.closed ? "closed" : "open (drawn two-sided in the shadow pass)") + (answer.status === 200 ? ", already held." : ".");
+    requestFrame();
+  } catch (e) {
+    status.textContent = `${file.name}: not loaded.`;
+    showError(e.message, "upload");
+  } finally {
+    upload.busy = null;
+    $("model-file").value = "";  // the same file can be chosen again
+  }
+}
+
+// A file dropped anywhere on the page is uploaded; without this the
+// browser would open it in place of the panel.
+function hasFiles(e) {
+  return e.dataTransfer && Array.from(e.dataTransfer.types).includes("Files");
+}
+
+function dragOver(e) {
+  if (!hasFiles(e)) return;
+  e.preventDefault();
+  e.dataTransfer.dropEffect = "copy";
+  document.body.classList.add("dropping");
+}
+
+function drop(e) {
+  if (!hasFiles(e)) return;
+  e.preventDefault();
+  document.body.classList.remove("dropping");
+  const file = e.dataTransfer.files[0];
+  if (file) uploadModel(file);
 }
 
 // --- Copy as curl --------------------------------------------------------------
@@ -234,10 +479,29 @@ async function copyCurl() {
   }
 }
 
-$("controls").addEventListener("input", () => { syncFixedSettings(); requestFrame(); });
+// The controls come from the server's lists, and the address names a
+// choice among them: fill the lists before reading the address.
+async function start() {
+  await loadChoices();
+  loadFromUrl();
+  syncFixedSettings();
+  requestFrame();
+}
+
+$("controls").addEventListener("input", (e) => {
+  if (e.target.id === "model-file") return;  // its "change" uploads; the frame follows the answer
+  clearError("upload");
+  syncFixedSettings();
+  requestFrame();
+});
 $("controls").addEventListener("submit", (e) => e.preventDefault());
 $("play").addEventListener("click", togglePlay);
 $("copy-curl").addEventListener("click", copyCurl);
-loadFromUrl();
-syncFixedSettings();
-requestFrame();
+$("model-file").addEventListener("change", () => {
+  const file = $("model-file").files[0];
+  if (file) uploadModel(file);
+});
+document.addEventListener("dragover", dragOver);
+document.addEventListener("dragleave", (e) => { if (e.relatedTarget === null) document.body.classList.remove("dropping"); });
+document.addEventListener("drop", drop);
+start();
