@@ -7,6 +7,7 @@
 // Exits non-zero, naming the step, at the first failed check.
 import assert from "node:assert/strict";
 import { spawn } from "node:child_process";
+import { createHash } from "node:crypto";
 import fs from "node:fs";
 import path from "node:path";
 import { chromium } from "playwright-core";
@@ -97,6 +98,105 @@ async function waitForNewImages(page, before) {
 
 async function currentSources(page) {
   return page.evaluate(() => ({ frame: document.getElementById("frame").src, depth: document.getElementById("depth").src }));
+}
+
+// --- A model to upload ------------------------------------------------------
+
+// A .glb holding one 2 x 1 x 1 box as 12 triangles (or, with mode 1, the
+// same indices as LINES, which the server refuses): little-endian header
+// "glTF" v2, a JSON chunk padded with spaces, a BIN chunk padded with zeros.
+function boxGlb(mode = 4) {
+  const min = [-1, 0, -0.5], max = [1, 1, 0.5];
+  const corners = [];
+  for (let i = 0; i < 8; i += 1) corners.push([i & 4 ? max[0] : min[0], i & 2 ? max[1] : min[1], i & 1 ? max[2] : min[2]]);
+  // Each face as two triangles wound counter-clockwise seen from outside:
+  // flipped wherever the normal points inwards.
+  const faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
+  const indices = [];
+  for (const [a, b, c, d] of faces) {
+    for (const t of [[a, b, c], [a, c, d]]) {
+      const [p, q, r] = t.map((i) => corners[i]);
+      const u = q.map((v, k) => v - p[k]), w = r.map((v, k) => v - p[k]);
+      const normal = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+      const centre = [p, q, r].reduce((sum, v) => sum.map((x, k) => x + v[k] / 3), [0, 0, 0]);
+      const outwards = normal.reduce((dot, x, k) => dot + x * centre[k], 0) - normal[1] * 0.5 > 0;  // box centre (0, 0.5, 0)
+      indices.push(...(outwards ? t : [t[0], t[2], t[1]]));
+    }
+  }
+  const positions = Buffer.from(new Float32Array(corners.flat()).buffer);
+  const indexBytes = Buffer.from(new Uint16Array(indices).buffer);
+  const bin = pad(Buffer.concat([positions, indexBytes]), 0);
+  const json = {
+    asset: { version: "2.0" },
+    scene: 0,
+    scenes: [{ nodes: [0] }],
+    nodes: [{ mesh: 0 }],
+    meshes: [{ primitives: [{ attributes: { POSITION: 0 }, indices: 1, mode }] }],
+    accessors: [
+      { bufferView: 0, componentType: 5126, count: 8, type: "VEC3", min, max },
+      { bufferView: 1, componentType: 5123, count: indices.length, type: "SCALAR" },
+    ],
+    bufferViews: [
+      { buffer: 0, byteOffset: 0, byteLength: positions.length, target: 34962 },
+      { buffer: 0, byteOffset: positions.length, byteLength: indexBytes.length, target: 34963 },
+    ],
+    buffers: [{ byteLength: positions.length + indexBytes.length }],
+  };
+  const text = pad(Buffer.from(JSON.stringify(json)), 0x20);
+  const header = Buffer.alloc(12);
+  header.write("glTF", 0, "ascii");
+  header.writeUInt32LE(2, 4);
+  header.writeUInt32LE(12 + 8 + text.length + 8 + bin.length, 8);
+  return Buffer.concat([header, chunkHeader(text.length, "JSON"), text, chunkHeader(bin.length, "BIN\0"), bin]);
+}
+
+function pad(buffer, byte) {
+  return Buffer.concat([buffer, Buffer.alloc((4 - (buffer.length % 4)) % 4, byte)]);
+}
+
+function chunkHeader(length, type) {
+  const header = Buffer.alloc(8);
+  header.writeUInt32LE(length, 0);
+  header.write(type, 4, "latin1");
+  return header;
+}
+
+// Chooses a file in the panel's file input.
+async function chooseFile(page, name, buffer) {
+  await page.setInputFiles("#model-file", { name, mimeType: "application/octet-stream", buffer });
+}
+
+// Drops a file on the page as a person would drag it from a file manager.
+async function dropFile(page, name, bytes) {
+  await page.evaluate(([name, bytes]) => {
+    const data = new DataTransfer();
+    data.items.add(new File([new Uint8Array(bytes)], name));
+    for (const type of ["dragover", "drop"]) {
+      document.body.dispatchEvent(new DragEvent(type, { dataTransfer: data, bubbles: true, cancelable: true }));
+    }
+  }, [name, Array.from(bytes)]);
+}
+
+// Runs the panel's "Copy as curl" command (as curl would) and checks that
+// it returns the very PNG the panel shows.
+async function checkCurlGivesTheFrame(page, port) {
+  await page.click("#copy-curl");
+  const command = await page.$eval("#curl", (pre) => pre.textContent);
+  const match = command.match(/^curl -X POST '([^']+)' -H 'Content-Type: application\/json' -d '(.*)' -o \S+$/);
+  assert.ok(match, `a curl command: ${command}`);
+  assert.equal(match[1], `http://127.0.0.1:${port}/api/render`);
+  const body = JSON.parse(match[2].replace(/'\\''/g, "'"));
+  assert.deepEqual(body, JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)));
+  // Sent as it is, it gives the very PNG the panel shows.
+  const response = await fetch(match[1], { method: "POST", headers: { "Content-Type": "application/json" }, body: match[2] });
+  assert.equal(response.status, 200);
+  const curlBytes = Buffer.from(await response.arrayBuffer());
+  const panelBytes = Buffer.from(await page.evaluate(async () => {
+    const blob = await (await fetch(document.getElementById("frame").src)).arrayBuffer();
+    return Array.from(new Uint8Array(blob));
+  }));
+  assert.ok(curlBytes.equals(panelBytes), "same PNG bytes as the panel's frame");
+  return command;
 }
 
 let stepNumber = 0;
@@ -230,24 +330,9 @@ try {
   });
 
   await step(page, "copy-as-curl-is-the-exact-request", async () => {
-    await page.click("#copy-curl");
-    const command = await page.$eval("#curl", (pre) => pre.textContent);
+    const command = await checkCurlGivesTheFrame(page, port);
     assert.equal(await page.$eval("#copy-status", (s) => s.textContent), "Copied to the clipboard.");
     assert.equal(await page.evaluate(() => navigator.clipboard.readText()), command, "the clipboard holds it");
-    const match = command.match(/^curl -X POST '([^']+)' -H 'Content-Type: application\/json' -d '(.*)' -o \S+$/);
-    assert.ok(match, `a curl command: ${command}`);
-    assert.equal(match[1], `http://127.0.0.1:${port}/api/render`);
-    const body = JSON.parse(match[2].replace(/'\\''/g, "'"));
-    assert.deepEqual(body, JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)));
-    // Sent as it is, it gives the very PNG the panel shows.
-    const response = await fetch(match[1], { method: "POST", headers: { "Content-Type": "application/json" }, body: match[2] });
-    assert.equal(response.status, 200);
-    const curlBytes = Buffer.from(await response.arrayBuffer());
-    const panelBytes = Buffer.from(await page.evaluate(async () => {
-      const blob = await (await fetch(document.getElementById("frame").src)).arrayBuffer();
-      return Array.from(new Uint8Array(blob));
-    }));
-    assert.ok(curlBytes.equals(panelBytes), "same PNG bytes as the panel's frame");
   });
 
   await step(page, "keyboard-and-labels", async () => {
@@ -263,6 +348,86 @@ try {
     await page.keyboard.press("Space");
     assert.equal(await page.$eval("#play", (b) => b.getAttribute("aria-pressed")), "false");
     await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
+  });
+
+  await step(page, "scene-list-is-the-servers", async () => {
+    const listed = (await (await fetch(`http://127.0.0.1:${port}/api/scenes`)).json()).scenes.map((s) => s.name);
+    assert.deepEqual(listed, ["cube-on-plane", "three-cubes", "teapot", "torus-knot"]);
+    const offered = await page.$$eval("#scene > option", (options) => options.map((o) => o.value));
+    assert.deepEqual(offered, listed, "the scene list holds the server's scenes");
+    const models = await page.$$eval("#scene optgroup[label=Models] option", (options) => options.map((o) => o.value));
+    assert.ok(models.includes("model:teapot") && models.includes("model:torus-knot"), `built-in models offered: ${models}`);
+    const before = await currentSources(page);
+    await page.selectOption("#scene", "teapot");
+    await waitForNewImages(page, before);
+    assert.equal(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).scene, "teapot");
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    assert.equal(new URL(page.url()).searchParams.get("scene"), "teapot");
+  });
+
+  const box = boxGlb();
+  const boxId = "sha256:" + createHash("sha256").update(box).digest("hex");
+  let boxFrame;
+  await step(page, "upload-a-glb-and-render-it", async () => {
+    const teapot = await imageStats(page, "frame");
+    const before = await currentSources(page);
+    await chooseFile(page, "box.glb", box);
+    await page.waitForFunction((value) => document.getElementById("scene").value === value, `model:${boxId}`,
+                               { timeout: 60000 });
+    await waitForNewImages(page, before);
+    const option = await page.$eval("#scene", (s) => s.selectedOptions[0].textContent);
+    assert.equal(option, "model: box.glb (12 triangles)");
+    assert.match(await page.$eval("#model-status", (p) => p.textContent), /box\.glb: 12 triangles, closed/);
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    // The model on a floor, nothing the server reports as unused.
+    const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.deepEqual(body.scene.objects.map((o) => o.type), ["plane", "mesh"]);
+    assert.equal(body.scene.objects[1].model, boxId);
+    assert.doesNotMatch(await page.$eval("#timing", (p) => p.textContent), /unused/);
+    assert.equal(new URL(page.url()).searchParams.get("model"), boxId);
+    assert.ok(!new URL(page.url()).searchParams.has("scene"), "a model replaces the scene in the link");
+    boxFrame = await imageStats(page, "frame");
+    assert.notEqual(boxFrame.digest, teapot.digest, "the frame changed");
+    await checkCurlGivesTheFrame(page, port);
+  });
+
+  await step(page, "refused-uploads-show-the-servers-message", async () => {
+    const frameSrc = await page.$eval("#frame", (img) => img.src);
+    await chooseFile(page, "broken.glb", Buffer.from("not a glb"));
+    await page.waitForFunction(() => !document.getElementById("error").hidden, null, { timeout: 60000 });
+    assert.match(await page.$eval("#error", (e) => e.textContent),
+                 /^broken\.glb was not loaded \(400\): not a glTF binary \(\.glb\): it does not start with "glTF"/);
+    assert.match(await page.$eval("#model-status", (p) => p.textContent), /broken\.glb: not loaded/);
+    // Dropped on the page: valid glTF, but lines, not triangles (422).
+    await dropFile(page, "lines.glb", boxGlb(1));
+    await page.waitForFunction(() => /lines\.glb/.test(document.getElementById("error").textContent), null,
+                               { timeout: 60000 });
+    assert.match(await page.$eval("#error", (e) => e.textContent),
+                 /^lines\.glb was not loaded \(422\): meshes\[0\]\.primitives\[0\]: mode 1 \(LINES\) is not triangles/);
+    // The box stays chosen and shown.
+    assert.equal(await page.$eval("#scene", (s) => s.value), `model:${boxId}`);
+    assert.equal(await page.$eval("#frame", (img) => img.src), frameSrc);
+  });
+
+  await step(page, "model-link-chooses-the-model", async () => {
+    const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    const other = await page.context().newPage();
+    await other.addInitScript(countRequests);
+    await other.goto(page.url());
+    await waitForNewImages(other, { frame: "", depth: "" });
+    assert.equal(await other.$eval("#scene", (s) => s.value), `model:${boxId}`);
+    assert.equal(await other.$eval("#scene", (s) => s.selectedOptions[0].textContent), "model: box.glb (12 triangles)");
+    assert.deepEqual(JSON.parse(await other.evaluate(() => window.__umbra.lastRenderBody)), body);
+    assert.equal((await imageStats(other, "frame")).digest, boxFrame.digest, "the same frame");
+    await other.screenshot({ path: path.join(artifacts, "model-link-opened.png"), fullPage: true });
+    await other.close();
+    // A model the server does not hold: its 400, naming the field.
+    const gone = await page.context().newPage();
+    await gone.goto(`http://127.0.0.1:${port}/?model=sha256:${"0".repeat(64)}`);
+    await gone.waitForFunction(() => !document.getElementById("error").hidden, null, { timeout: 60000 });
+    assert.match(await gone.$eval("#error", (e) => e.textContent), /\(400\): scene\.objects\[0\]\.model: unknown model/);
+    await gone.screenshot({ path: path.join(artifacts, "model-link-unknown.png"), fullPage: true });
+    await gone.close();
   });
 
   await step(page, "server-error-is-a-readable-message", async () => {
