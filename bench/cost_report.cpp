@@ -42,6 +42,8 @@ int main(int argc, char** argv) {
                            {"camera_rays", f.camera_rays},
                            {"shadow_rays", f.shadow_rays},
                            {"objects_per_ray", f.objects_per_ray},
+                           {"meshes_per_ray", f.meshes_per_ray},
+                           {"bvh_triangles", f.bvh_triangles},
                            {"total_ms", cost.total_ms},
                            {"peak_bytes", cost.peak_bytes}};
     for (const auto& part : cost.parts) line["ms"][part.name] = part.ms;

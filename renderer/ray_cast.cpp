@@ -13,6 +13,7 @@
 #include <glm/trigonometric.hpp>
 
 #include "light_math.hpp"
+#include "mesh_ray_cast.hpp"
 #include "scene.hpp"
 
 namespace umbra {
@@ -80,7 +81,8 @@ double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec
       return t;
     }
     case SceneObject::Type::Mesh:
-      break;  // RayScene refuses scenes with meshes (first_object_not_ray_cast)
+      break;  // RayScene casts meshes through their MeshRays
+
   }
   return kInf;
 }
@@ -145,19 +147,39 @@ glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_positi
                                                           : glm::normalize(light_position - light.target);
 }
 
-// See exact_visibility (ray_cast.hpp); `rays` indexes request.scene.
-double visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
-                  const glm::dvec3& point, const glm::dvec3& normal) {
+// An analytic surface at `point`: its normal is its plane's, and rays leave
+// it a hair off along the normal (1e-9 relative, so at every scale in double).
+RayHit analytic_surface(const glm::dvec3& point, const glm::dvec3& normal) {
+  RayHit s;
+  s.point = point;
+  s.normal = s.geometric_normal = normal;
+  const double lift = 1e-9 * (1.0 + glm::length(point));
+  s.leave_front = point + normal * lift;
+  s.leave_back = point - normal * lift;
+  return s;
+}
+
+// Where a ray from the surface towards `target` starts: off the surface on
+// the side the target is. (For an analytic surface, a target on the back
+// side is never counted: its direction fails N.L > 0.)
+const glm::dvec3& leaving_towards(const RayHit& s, const glm::dvec3& direction) {
+  return glm::dot(s.geometric_normal, direction) >= 0.0 ? s.leave_front : s.leave_back;
+}
+
+}  // namespace
+
+// See ray_cast.hpp; `rays` indexes request.scene.
+double exact_visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
+                        const RayHit& surface) {
   const Light& light = request.light;
   const bool perspective = light.projection == LightProjection::Perspective;
+  const glm::dvec3& point = surface.point;
+  const glm::dvec3& normal = surface.normal;
   const glm::dvec3 to_light_center = direction_to_light(light, light_position, point);
   if (glm::dot(normal, to_light_center) <= 0.0) return 0.0;
-  // Leave the surface by a hair so it does not hit itself; relative to the
-  // point's magnitude, so it holds at every scale.
-  const double lift = 1e-9 * (1.0 + glm::length(point));
-  const glm::dvec3 origin = point + normal * lift;
   if (light.size <= 0.0) {
-    if (!perspective) return rays.occluded(origin, to_light_center, kInf) ? 0.0 : 1.0;
+    if (!perspective) return rays.occluded(leaving_towards(surface, to_light_center), to_light_center, kInf) ? 0.0 : 1.0;
+    const glm::dvec3& origin = leaving_towards(surface, light_position - point);
     const double distance = glm::length(light_position - origin);
     return rays.occluded(origin, (light_position - origin) / distance, distance) ? 0.0 : 1.0;
   }
@@ -170,46 +192,48 @@ double visibility(const RayScene& rays, const RenderRequest& request, const glm:
   for (const glm::dvec2& s : samples) {
     glm::dvec3 dir;
     double t_max = kInf;
+    const glm::dvec3* origin;
     if (perspective) {
       // A spherical light of radius `size` seen from the point is a disc
       // facing it.
       const glm::dvec3 target = light_position + light.size * (s.x * u + s.y * v);
-      t_max = glm::length(target - origin);
-      dir = (target - origin) / t_max;
+      origin = &leaving_towards(surface, target - point);
+      t_max = glm::length(target - *origin);
+      dir = (target - *origin) / t_max;
     } else {
       dir = glm::normalize(to_light_center + spread * (s.x * u + s.y * v));
+      origin = &leaving_towards(surface, dir);
     }
-    if (glm::dot(normal, dir) > 0.0 && !rays.occluded(origin, dir, t_max)) ++seen;
+    if (glm::dot(normal, dir) > 0.0 && !rays.occluded(*origin, dir, t_max)) ++seen;
   }
   return double(seen) / double(samples.size());
 }
 
-}  // namespace
-
-int first_object_not_ray_cast(const Scene& scene) {
-  for (std::size_t i = 0; i < scene.objects.size(); ++i)
-    if (scene.objects[i].type == SceneObject::Type::Mesh) return int(i);
-  return -1;
-}
-
-RayScene::RayScene(const Scene& scene) : scene_(scene) {
-  // Casting through a mesh as if it were not there would give a wrong
-  // reference that looks right: refuse instead.
-  if (const int i = first_object_not_ray_cast(scene); i >= 0)
-    throw std::invalid_argument("the exact reference does not cover meshes yet (scene.objects[" +
-                                std::to_string(i) + "])");
+RayScene::RayScene(const Scene& scene, const std::function<bool()>& stop_requested) : scene_(scene) {
   const std::size_t n = scene.objects.size();
+  meshes_.resize(n);
   std::vector<Aabb> bounds(n);
   std::vector<glm::dvec3> centers(n);
-  order_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    bounds[i] = object_bounds(scene.objects[i]);
+    const SceneObject& o = scene.objects[i];
+    bounds[i] = object_bounds(o);
     centers[i] = bounds[i].center();
-    order_[i] = int(i);
+    // A mesh whose model has no triangles has empty bounds: nothing to hit.
+    if (bounds[i].empty()) continue;
+    if (o.type == SceneObject::Type::Mesh) {
+      try {
+        meshes_[i] = std::make_unique<const MeshRays>(o, model_bvh(o.model, stop_requested));
+      } catch (const BvhBuildStopped&) {
+        throw CastStopped();
+      }
+    }
+    order_.push_back(int(i));
   }
-  nodes_.reserve(2 * n + 1);
-  if (n > 0) build(0, int(n), bounds, centers);
+  nodes_.reserve(2 * order_.size() + 1);
+  if (!order_.empty()) build(0, int(order_.size()), bounds, centers);
 }
+
+RayScene::~RayScene() = default;
 
 // Median split along the widest axis of the objects' centres; leaves of up
 // to four objects.
@@ -263,32 +287,56 @@ std::optional<RayHit> RayScene::cast(const glm::dvec3& origin, const glm::dvec3&
                                      double t_max) const {
   RayHit best;
   best.t = t_max;
+  std::optional<MeshHit> best_mesh;  // when the nearest so far is a mesh's
   // Objects come in tree order, not index order: an equally near hit wins
   // when its index is lower, as it would testing every object in order.
   double reach = t_max;
   traverse(origin, direction, t_min, &reach, [&](int i) {
-    glm::dvec3 normal;
     const double limit = best.object < 0 ? t_max : std::nextafter(best.t, kInf);
-    const double t = intersect(scene_.objects[i], origin, direction, t_min, limit, normal);
+    glm::dvec3 normal;
+    std::optional<MeshHit> mesh_hit;
+    double t = kInf;
+    if (const MeshRays* mesh = meshes_[i].get()) {
+      mesh_hit = mesh->intersect(origin, direction, t_min, limit);
+      if (mesh_hit) t = mesh_hit->t;
+    } else {
+      t = intersect(scene_.objects[i], origin, direction, t_min, limit, normal);
+    }
     if (t < best.t || (t == best.t && best.object >= 0 && i < best.object)) {
       best.t = t;
       best.normal = normal;
       best.object = i;
+      best_mesh = std::move(mesh_hit);
       reach = std::nextafter(best.t, kInf);
     }
     return true;
   });
   if (best.object < 0) return std::nullopt;
-  best.point = origin + best.t * direction;
-  if (glm::dot(best.normal, direction) > 0.0) best.normal = -best.normal;
-  return best;
+  const glm::dvec3 point = origin + best.t * direction;
+  if (best_mesh) {
+    best.point = point;
+    best.normal = best_mesh->shading_normal;
+    best.geometric_normal = best_mesh->geometric_normal;
+    best.leave_front = best_mesh->leave_front;
+    best.leave_back = best_mesh->leave_back;
+    return best;
+  }
+  const glm::dvec3 normal = glm::dot(best.normal, direction) > 0.0 ? -best.normal : best.normal;
+  RayHit hit = analytic_surface(point, normal);
+  hit.t = best.t;
+  hit.object = best.object;
+  return hit;
 }
 
 bool RayScene::occluded(const glm::dvec3& origin, const glm::dvec3& direction, double t_max) const {
   bool hit = false;
   traverse(origin, direction, 0.0, &t_max, [&](int i) {
-    glm::dvec3 unused;
-    hit = intersect(scene_.objects[i], origin, direction, 0.0, t_max, unused) < kInf;
+    if (const MeshRays* mesh = meshes_[i].get()) {
+      hit = mesh->occluded(origin, direction, t_max);
+    } else {
+      glm::dvec3 unused;
+      hit = intersect(scene_.objects[i], origin, direction, 0.0, t_max, unused) < kInf;
+    }
     return !hit;
   });
   return hit;
@@ -301,7 +349,7 @@ std::optional<RayHit> cast_ray(const Scene& scene, const glm::dvec3& origin, con
 
 double exact_visibility(const RenderRequest& request, const glm::dvec3& light_position, const glm::dvec3& point,
                         const glm::dvec3& normal) {
-  return visibility(RayScene(request.scene), request, light_position, point, normal);
+  return exact_visibility(RayScene(request.scene), request, light_position, analytic_surface(point, normal));
 }
 
 std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request, const std::function<bool()>& stop_requested) {
@@ -310,7 +358,7 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request, const st
   const CameraMatrices camera = camera_matrices(request.camera, width, height);
   const glm::dmat4 inverse = glm::inverse(camera.projection * camera.view);
   const glm::dvec3 light_position = orbit_light_position(request.light, request.time);
-  const RayScene rays(request.scene);
+  const RayScene rays(request.scene, stop_requested);
 
   std::atomic<bool> stopped{false};
   std::mutex asking;  // stop_requested need not be thread-safe
@@ -339,7 +387,7 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request, const st
         px.object = hit->object;
         px.normal = glm::vec3(hit->normal);
         px.n_dot_l = glm::dot(hit->normal, direction_to_light(request.light, light_position, hit->point));
-        px.visibility = visibility(rays, request, light_position, hit->point, hit->normal);
+        px.visibility = exact_visibility(rays, request, light_position, *hit);
       }
     }
   };

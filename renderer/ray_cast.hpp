@@ -1,11 +1,15 @@
 // The exact reference: the API's "shadow" quantity computed by casting rays
-// against the analytic primitives (plane, rotated box, sphere) on the CPU.
-// No GL and no shadow map, so it is what the GL output is judged against.
+// on the CPU against the scene as it is: the analytic primitives (plane,
+// rotated box, sphere) in double precision, and mesh objects' triangles
+// through Embree (mesh_ray_cast.hpp). No GL and no shadow map, so it is what
+// the GL output is judged against.
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <stdexcept>
+#include <vector>
 
 #include <glm/vec3.hpp>
 
@@ -15,28 +19,56 @@
 
 namespace umbra {
 
+class MeshRays;  // mesh_ray_cast.hpp
+
 /// Where a ray first meets the scene.
 struct RayHit {
   double t = 0.0;          ///< distance along the (unit) ray direction
   glm::dvec3 point{0.0};
-  glm::dvec3 normal{0.0};  ///< unit, facing the ray's origin
+  /// Unit normal the light is judged by (N.L, facing away from the light).
+  /// Analytic surfaces: the exact normal, facing the ray's origin. Meshes:
+  /// the model's vertex normals interpolated, flipped on a back face, as
+  /// the GL main pass computes the N.L that zeroes its "shadow" output
+  /// (shaders/scene.frag), so that the reference and the render agree on
+  /// which side of a smooth mesh's terminator is dark. It may lean away
+  /// from the ray's origin by up to the angle between facets.
+  glm::dvec3 normal{0.0};
+  /// Unit normal of the surface's own plane (a mesh's triangle), facing
+  /// the ray's origin: what rays leaving the surface must clear. Equal to
+  /// `normal` for analytic surfaces.
+  glm::dvec3 geometric_normal{0.0};
+  /// Where rays that leave the surface start: off it on the
+  /// geometric_normal side (front) or the other (back). Analytic surfaces:
+  /// the point moved by 1e-9 * (1 + |point|) along the normal, a hair at
+  /// every scale in double. Meshes: Wächter and Binder's float offset in the
+  /// model's space (offset_off_surface), since Embree tests in float.
+  glm::dvec3 leave_front{0.0}, leave_back{0.0};
   int object = -1;         ///< index into scene.objects
 };
 
-/// The index of the first object the ray cast cannot intersect (a mesh:
-/// meshes come with Embree in a later phase), or -1 when it covers the
-/// whole scene. Requests for "exact" or "error" on such a scene are refused
-/// (RenderService::submit) rather than answered without the mesh.
-int first_object_not_ray_cast(const Scene& scene);
+/// A cast ended early because its caller asked it to (see cast_exact_pixels).
+struct CastStopped : std::runtime_error {
+  CastStopped() : std::runtime_error("the ray cast was stopped") {}
+};
 
 /// The scene's objects in a bounding-volume hierarchy over their bounds, so
-/// a ray is tested against the few objects near it instead of all of them.
-/// It answers exactly as testing every object in order would: the nearest
-/// hit, the lowest object index among equally near ones.
+/// a ray is tested against the few objects near it instead of all of them;
+/// inside a mesh object's bounds, Embree's BVH of its model (one per model,
+/// cached across requests: model_bvh). It answers exactly as testing every
+/// object in order would: the nearest hit, the lowest object index among
+/// equally near ones. A mesh hit's distance is computed in double against
+/// the plane of the triangle Embree found, as an analytic one is, so
+/// "equally near" means the same for both kinds (a mesh face and an
+/// analytic face in one plane tie when their doubles agree).
 class RayScene {
  public:
-  /// Throws std::invalid_argument if first_object_not_ray_cast(scene) >= 0.
-  explicit RayScene(const Scene& scene);
+  /// Builds (or takes from the cache) the BVH of each mesh object's model.
+  /// `stop_requested`, if given, is asked during those builds: once it
+  /// answers true, CastStopped. Throws EmbreeError if Embree fails.
+  explicit RayScene(const Scene& scene, const std::function<bool()>& stop_requested = nullptr);
+  ~RayScene();
+  RayScene(const RayScene&) = delete;
+  RayScene& operator=(const RayScene&) = delete;
   /// First hit of origin + t * direction (unit) with t in (t_min, t_max).
   std::optional<RayHit> cast(const glm::dvec3& origin, const glm::dvec3& direction, double t_min, double t_max) const;
   /// Whether anything lies on the ray with t in (0, t_max).
@@ -58,19 +90,24 @@ class RayScene {
   const Scene& scene_;
   std::vector<int> order_;
   std::vector<Node> nodes_;
+  // Per object: its mesh rays for a mesh object with triangles, else null.
+  std::vector<std::unique_ptr<const MeshRays>> meshes_;
 };
 
 /// First hit of the ray origin + t * direction (unit) with t in (t_min, t_max).
 std::optional<RayHit> cast_ray(const Scene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
                                double t_min, double t_max);
 
-/// The fraction of the light's direct light that reaches `point` (normal
-/// `normal`, facing the viewer): 0 when the surface faces away from the
-/// light; for light.size > 0 the fraction of a fixed stratified set of 64
-/// points on the light's disc that the point sees. `light_position` is the
-/// light position after orbit.
+/// The fraction of the light's direct light that reaches `point` on an
+/// analytic surface (normal `normal`, facing the viewer): 0 when the
+/// surface faces away from the light; for light.size > 0 the fraction of a
+/// fixed stratified set of 64 points on the light's disc that the point
+/// sees. `light_position` is the light position after orbit.
 double exact_visibility(const RenderRequest& request, const glm::dvec3& light_position, const glm::dvec3& point,
                         const glm::dvec3& normal);
+/// The same for any surface a ray found (its point, normals and offsets).
+double exact_visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
+                        const RayHit& surface);
 
 /// One camera ray per pixel centre, as the rasterizer samples them.
 struct ExactPixel {
@@ -78,21 +115,17 @@ struct ExactPixel {
   int object = -1;
   double n_dot_l = 0.0;   ///< cosine between the surface normal and the light
   double visibility = 1.0;
-  /// Unit surface normal facing the viewer; zero where no geometry. Float:
-  /// it only tells smooth surfaces from creases, never feeds the shadow test.
+  /// Unit surface normal (RayHit::normal: a mesh's interpolated one); zero
+  /// where no geometry. Float: it only tells smooth surfaces from creases,
+  /// never feeds the shadow test.
   glm::vec3 normal{0.0f};
-};
-
-/// A cast ended early because its caller asked it to (see cast_exact_pixels).
-struct CastStopped : std::runtime_error {
-  CastStopped() : std::runtime_error("the ray cast was stopped") {}
 };
 
 /// Every pixel of the request's camera view (width x height, row 0 at the
 /// top), using all hardware threads. `stop_requested`, if given, is asked
-/// between rows (from those threads): once it answers true the cast ends
-/// and throws CastStopped, so a client that has left does not keep cores
-/// busy for minutes.
+/// while mesh BVHs are built and between rows (from those threads): once it
+/// answers true the cast ends and throws CastStopped, so a client that has
+/// left does not keep cores busy for minutes.
 std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request,
                                           const std::function<bool()>& stop_requested = nullptr);
 

@@ -282,12 +282,6 @@ std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGon
   // drawing, so refusing what would take too long is what bounds the time
   // one request holds the GL thread.
   const bool ray_cast = request.output == Output::Exact || request.output == Output::Error;
-  if (ray_cast && first_object_not_ray_cast(request.scene) >= 0)
-    throw RequestNotSupported(std::string("the exact reference does not cover meshes yet: output \"") +
-                                  to_string(request.output) +
-                                  "\" needs a scene of planes, boxes and spheres (\"color\", \"depth\" and "
-                                  "\"shadow\" draw meshes)",
-                              "output");
   const RequestCost cost = estimate_cost(request);
   impl_->check_budget(cost);
   if (ray_cast)

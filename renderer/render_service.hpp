@@ -80,14 +80,6 @@ struct RequestTooCostly : std::runtime_error {
   /// The JSON field whose lowering helps most, e.g. "shadow.map_size".
   std::string field;
 };
-/// submit() refused the job: valid by the API, but asks for something this
-/// server cannot compute yet ("exact" or "error" on a scene with a mesh).
-struct RequestNotSupported : std::runtime_error {
-  RequestNotSupported(const std::string& message, std::string field)
-      : std::runtime_error(message), field(std::move(field)) {}
-  /// The JSON field to change, e.g. "output".
-  std::string field;
-};
 /// A ray cast ran past ServiceLimits::max_run_time and was stopped.
 struct RunTimeExceeded : std::runtime_error {
   RunTimeExceeded(const std::string& message, std::string field)

@@ -40,6 +40,14 @@ constexpr double kMsPerGather = 1.5e-6;            // pcf_radius 8 (81 gathers) 
 constexpr double kMsPerCameraRay = 1.4e-4;         // default scene, 1024^2: 151..160 ms
 constexpr double kMsPerShadowRay = 2.0e-6;         // area light, 512^2, 64 rays a pixel: 452..490 ms
 constexpr double kMsPerRayObjectTest = 1.2e-5;     // 999 overlapping spheres, 256^2: 108..113 ms
+// Meshes in the ray cast (Embree, renderer/mesh_ray_cast), measured with a
+// throwaway program: a UV sphere of 99 k and 998 k triangles over a floor,
+// the BVH built on one thread, "exact" at 640x360 on two, rounded up.
+constexpr double kMsPerBvhTriangle = 6.0e-4;  // build: 99 k in 44..61 ms, 998 k in 473..489 ms
+// A mesh query and its transforms, per ray (two threads): 640x360 "exact"
+// 56..71 ms, with an area light (64 shadow rays a pixel) 835..920 ms.
+constexpr double kMsPerRayMeshTest = 7.0e-5;
+constexpr std::uint64_t kBvhBytesPerTriangle = 90;  // Embree's memory monitor, buffers included: 83..85
 
 // Mesh sizes, as tessellate() builds them (tests check the two agree).
 constexpr std::uint64_t kSphereStacks = 48, kSphereSlices = 96;
@@ -144,6 +152,15 @@ CostFactors cost_factors(const RenderRequest& request) {
     f.camera_rays = image_pixels;
     f.shadow_rays = image_pixels * (request.light.size > 0.0 ? 64.0 : 1.0);
     f.objects_per_ray = std::log2(double(request.scene.objects.size()) + 1.0) + camera_layers;
+    std::vector<const TriangleModel*> models;
+    for (const SceneObject& o : request.scene.objects) {
+      if (o.type != SceneObject::Type::Mesh) continue;
+      f.meshes_per_ray += 1.0;
+      if (std::find(models.begin(), models.end(), o.model.get()) != models.end()) continue;
+      models.push_back(o.model.get());
+      f.bvh_triangles += mesh_triangle_count(o);
+    }
+    f.meshes_per_ray = std::min(f.meshes_per_ray, f.objects_per_ray);
   }
   return f;
 }
@@ -171,11 +188,14 @@ RequestCost estimate_cost(const RenderRequest& request) {
        request.shadow.filter == ShadowFilter::Pcf ? "shadow.pcf_radius" : "width",
        request.shadow.filter == ShadowFilter::Pcf ? "lower shadow.pcf_radius, or width and height"
                                                    : "lower width and height, or use filter \"pcf\""},
-      {"ray cast", f.camera_rays * (kMsPerCameraRay + f.objects_per_ray * kMsPerRayObjectTest) +
-                       f.shadow_rays * (kMsPerShadowRay + f.objects_per_ray * kMsPerRayObjectTest),
+      {"ray cast", (f.camera_rays + f.shadow_rays) *
+                       (f.objects_per_ray * kMsPerRayObjectTest + f.meshes_per_ray * kMsPerRayMeshTest) +
+                       f.camera_rays * kMsPerCameraRay + f.shadow_rays * kMsPerShadowRay,
        area_light ? "light.size" : "width",
        area_light ? "an area light casts 64 shadow rays a pixel: lower width and height, or use light.size 0"
                   : "lower width and height, or use fewer objects"},
+      {"mesh BVH build", double(f.bvh_triangles) * kMsPerBvhTriangle, "scene.objects",
+       "the exact reference builds a BVH of each model's triangles: use smaller models"},
   };
   for (const CostPart& part : cost.parts) cost.total_ms += part.ms;
 
@@ -196,8 +216,10 @@ RequestCost estimate_cost(const RenderRequest& request) {
       bytes += 2 * pixels * 3;  // read-back image and its PNG
     }
   }
-  if (request.output == Output::Exact || request.output == Output::Error)
+  if (request.output == Output::Exact || request.output == Output::Error) {
     bytes += pixels * (sizeof(ExactPixel) + 1 + 3 + 3);  // per-pixel records, exact, error image and PNG
+    bytes += f.bvh_triangles * kBvhBytesPerTriangle;     // the models' BVHs, as if none were cached
+  }
   cost.peak_bytes = bytes;
   return cost;
 }

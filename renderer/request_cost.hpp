@@ -46,6 +46,15 @@ struct CostFactors {
   double camera_rays = 0.0;
   double shadow_rays = 0.0;
   double objects_per_ray = 0.0;
+  /// Of those objects, the mesh objects a ray is tested against (each an
+  /// Embree query, dearer than an analytic test): at most their count,
+  /// at most objects_per_ray.
+  double meshes_per_ray = 0.0;
+  /// Triangles of the distinct models the ray cast builds a BVH for (once
+  /// per model, however many placements; counted even when the BVH is
+  /// cached from an earlier request, so the estimate never depends on what
+  /// ran before).
+  std::uint64_t bvh_triangles = 0;
 };
 
 /// One part of the estimate, the JSON field that lowers it most, and how.
@@ -65,7 +74,7 @@ struct RequestCost {
   double total_ms = 0.0;
   /// Peak memory the request needs at once, bytes: output and read-back
   /// images, framebuffers, the shadow-map layers, the scene's mesh while it
-  /// is uploaded, and the ray cast's per-pixel records.
+  /// is uploaded, and the ray cast's per-pixel records and mesh BVHs.
   std::uint64_t peak_bytes = 0;
 
   /// The part with the most milliseconds.

@@ -357,8 +357,6 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   } catch (const RequestTooCostly& e) {
     // Valid by the API, but more work than this server takes per request.
     return send_error(res, 422, e.what(), e.field);
-  } catch (const RequestNotSupported& e) {
-    return send_error(res, 422, e.what(), e.field);
   } catch (const RunTimeExceeded& e) {
     return send_error(res, 503, e.what(), e.field);
   }

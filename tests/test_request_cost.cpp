@@ -10,6 +10,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 
+#include "gltf_loader.hpp"
 #include "model_support.hpp"
 #include "render_service.hpp"
 #include "request_cost.hpp"
@@ -109,6 +110,63 @@ TEST(RequestCost, AHugeMeshIsOverTheDefaultBudgetAndNamesTheObjects) {
   const RequestCost many = estimate_cost(mesh_request(100, models));  // 20 M triangles
   EXPECT_GT(many.total_ms, double(limits.max_request_cost.count()));
   EXPECT_EQ(many.dominant().field, "scene.objects");
+}
+
+// A model that only the estimate sees (never drawn or ray cast): its
+// triangle count, cheaply (all indices 0), and bounds.
+std::shared_ptr<const TriangleModel> counted_model(std::size_t triangles) {
+  auto model = std::make_shared<TriangleModel>();
+  ModelPart part;
+  part.positions = {glm::vec3(0.0f)};
+  part.normals = {glm::vec3(0, 1, 0)};
+  part.indices.assign(3 * triangles, 0u);
+  model->parts.push_back(std::move(part));
+  model->bounds.extend(glm::dvec3(-1.0));
+  model->bounds.extend(glm::dvec3(1.0));
+  return model;
+}
+
+RenderRequest exact_request(const std::vector<std::shared_ptr<const TriangleModel>>& models) {
+  RenderRequest r;
+  r.output = Output::Exact;
+  for (std::size_t i = 0; i < models.size(); ++i) {
+    SceneObject o;
+    o.type = SceneObject::Type::Mesh;
+    o.model = models[i];
+    o.model_id = "m" + std::to_string(i);
+    o.center = {2.0 * double(i), 0.0, 0.0};
+    r.scene.objects.push_back(o);
+  }
+  return r;
+}
+
+// The exact reference builds one BVH per distinct model (mesh_ray_cast):
+// its time and memory count once per model, not per placement.
+TEST(RequestCost, ExactCountsAMeshBvhOncePerModel) {
+  const auto a = counted_model(100000), b = counted_model(100000);
+  EXPECT_EQ(cost_factors(exact_request({a})).bvh_triangles, 100000u);
+  EXPECT_EQ(cost_factors(exact_request({a, a, a})).bvh_triangles, 100000u);
+  EXPECT_EQ(cost_factors(exact_request({a, b})).bvh_triangles, 200000u);
+  const RequestCost one = estimate_cost(exact_request({a})), two = estimate_cost(exact_request({a, b}));
+  EXPECT_GT(two.peak_bytes - one.peak_bytes, 100000u * 50u) << "tens of bytes a triangle";
+  RenderRequest shadow = exact_request({a});
+  shadow.output = Output::Shadow;
+  EXPECT_EQ(cost_factors(shadow).bvh_triangles, 0u) << "only the ray cast builds one";
+}
+
+// "exact" on the largest models the loader takes: one is within the
+// default budget; two distinct ones are refused before any BVH is built,
+// naming the objects. (A cast that is let run is stopped by its stop
+// callback even during a build: tests/test_ray_cast.cpp.)
+TEST(RequestCost, ExactOnHugeMeshesIsRefusedByTheBvhBuildItWouldNeed) {
+  const ServiceLimits limits;
+  const double budget = double(limits.max_request_cost.count());
+  const auto a = counted_model(kMaxModelTriangles), b = counted_model(kMaxModelTriangles);
+  EXPECT_LE(estimate_cost(exact_request({a})).total_ms, budget);
+  const RequestCost two = estimate_cost(exact_request({a, b}));
+  EXPECT_GT(two.total_ms, budget);
+  EXPECT_EQ(two.dominant().name, "mesh BVH build");
+  EXPECT_EQ(two.dominant().field, "scene.objects");
 }
 
 TEST(RequestCost, DepthComplexityCountsOverlappingBounds) {
