@@ -80,6 +80,15 @@ struct Run {
   double seconds = 0.0;
 };
 
+// "161 %", or "-" for a server this program did not start (--url): its
+// CPU time cannot be read.
+std::string cpu_text(double server_cpu) {
+  if (server_cpu < 0.0) return "-";
+  char text[32];
+  std::snprintf(text, sizeof text, "%.0f %%", 100.0 * server_cpu);
+  return text;
+}
+
 Run drive(const std::string& host, int port, int clients, double seconds, std::atomic<long>& frame_counter,
           pid_t server_pid) {
   Run run;
@@ -191,10 +200,10 @@ int main(int argc, char** argv) {
       encode.push_back(s.encode_ms);
       queue.push_back(s.queue_ms);
     }
-    std::printf("%7d %9zu %8.2f %8.1f %8.1f %8.1f %10.1f %9.1f %9.1f %5d %5d %7.0f%%\n", clients, r.samples.size(),
+    std::printf("%7d %9zu %8.2f %8.1f %8.1f %8.1f %10.1f %9.1f %9.1f %5d %5d %8s\n", clients, r.samples.size(),
                 double(r.samples.size()) / r.seconds, percentile(total, 0.5), percentile(total, 0.99),
                 percentile(total, 1.0), percentile(render, 0.5), percentile(encode, 0.5), percentile(queue, 0.5),
-                r.refused, r.failed, 100.0 * r.server_cpu);
+                r.refused, r.failed, cpu_text(r.server_cpu).c_str());
   }
 
   // The verdicts the issue sets, from this one run.
@@ -243,10 +252,10 @@ int main(int argc, char** argv) {
     std::vector<double> total, render, encode, queue;
     for (const Sample& s : r.samples) total.push_back(s.total_ms), render.push_back(s.render_ms),
         encode.push_back(s.encode_ms), queue.push_back(s.queue_ms);
-    std::snprintf(line, sizeof line, "| %d | %zu | %.2f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %d | %.0f %% |\n",
+    std::snprintf(line, sizeof line, "| %d | %zu | %.2f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %d | %s |\n",
                   r.clients, r.samples.size(), double(r.samples.size()) / r.seconds, percentile(total, 0.5),
                   percentile(total, 0.99), percentile(total, 1.0), percentile(render, 0.5), percentile(encode, 0.5),
-                  percentile(queue, 0.5), r.refused, 100.0 * r.server_cpu);
+                  percentile(queue, 0.5), r.refused, cpu_text(r.server_cpu).c_str());
     file << line;
   }
   file << "\n" << verdicts;

@@ -103,7 +103,11 @@ EglContext::EglContext() {
   std::string failures;  // "\n  source: why" for each way that gave no context
   const auto get_platform_display =
       reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
-  if (get_platform_display != nullptr && has_extension(client_extensions, "EGL_EXT_device_enumeration") &&
+  // EGL_EXT_device_base is EGL_EXT_device_enumeration + _query in one
+  // name; glvnd's libEGL (NVIDIA's driver behind it) lists only that one.
+  const bool enumerates_devices = has_extension(client_extensions, "EGL_EXT_device_enumeration") ||
+                                  has_extension(client_extensions, "EGL_EXT_device_base");
+  if (get_platform_display != nullptr && enumerates_devices &&
       has_extension(client_extensions, "EGL_EXT_platform_device")) {
     const auto query_devices = reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
     const auto query_device_string =
@@ -125,7 +129,7 @@ EglContext::EglContext() {
       }
     }
   } else {
-    failures += "\n  EGL devices: the client lacks EGL_EXT_device_enumeration or EGL_EXT_platform_device";
+    failures += "\n  EGL devices: the client offers no EGL_EXT_device_enumeration (or _base) and EGL_EXT_platform_device";
   }
   std::vector<Candidate> candidates = hardware;
   if (get_platform_display != nullptr && has_extension(client_extensions, "EGL_MESA_platform_surfaceless")) {
