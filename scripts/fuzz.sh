@@ -3,32 +3,31 @@
 # libFuzzer for a bounded time (a third of it each).
 #   scripts/fuzz.sh [SECONDS]   (default 60)
 # Seeds: fuzz/corpus and bench/scenes, fuzz/corpus-http, fuzz/corpus-gltf.
-# New inputs go to build-fuzz/corpus*; a crash is written to fuzz/crashes/
+# New inputs go to build-asan/corpus*; a crash is written to fuzz/crashes/
 # and fails the run: add it as a regression test (tests/test_request_parser.cpp,
 # tests/test_http_message.cpp, tests/test_gltf_loader.cpp), then fix the code.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
-bash scripts/install-deps.sh --fuzz
-cmake -S . -B build-fuzz -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DUMBRA_FUZZ=ON -DUMBRA_BUILD_TESTS=OFF >/dev/null
-cmake --build build-fuzz -j"$(nproc)" --target fuzz_request_parser fuzz_http_reader fuzz_gltf_loader
-mkdir -p build-fuzz/corpus fuzz/crashes
+# The same tree as scripts/sanitize.sh: after it, only the fuzz targets
+# themselves are compiled here.
+bash scripts/asan-build.sh fuzz_request_parser fuzz_http_reader fuzz_gltf_loader
+mkdir -p build-asan/corpus fuzz/crashes
 share=$(( seconds / 3 > 0 ? seconds / 3 : 1 ))
 parser_seconds=$(( seconds - 2 * share > 0 ? seconds - 2 * share : 1 ))
 # -max_len: bodies up to 64 KiB (the server takes 1 MiB, but nothing in the
 # grammar needs more to be reached); -timeout: a slow input is a finding too.
-build-fuzz/fuzz/fuzz_request_parser build-fuzz/corpus fuzz/corpus bench/scenes \
+build-asan/fuzz/fuzz_request_parser build-asan/corpus fuzz/corpus bench/scenes \
   -dict=fuzz/request.dict -max_total_time="$parser_seconds" -max_len=65536 -timeout=5 -rss_limit_mb=2048 \
   -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
 # The HTTP reader: inputs up to 4 KiB (its limits are set small inside).
-mkdir -p build-fuzz/corpus-http
-build-fuzz/fuzz/fuzz_http_reader build-fuzz/corpus-http fuzz/corpus-http \
+mkdir -p build-asan/corpus-http
+build-asan/fuzz/fuzz_http_reader build-asan/corpus-http fuzz/corpus-http \
   -max_total_time="$share" -max_len=4096 -timeout=5 -rss_limit_mb=2048 \
   -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
 # The glTF loader: models up to 16 KiB (room for a few hundred triangles
 # and every structure the loader checks).
-mkdir -p build-fuzz/corpus-gltf
-build-fuzz/fuzz/fuzz_gltf_loader build-fuzz/corpus-gltf fuzz/corpus-gltf \
+mkdir -p build-asan/corpus-gltf
+build-asan/fuzz/fuzz_gltf_loader build-asan/corpus-gltf fuzz/corpus-gltf \
   -dict=fuzz/gltf.dict -max_total_time="$share" -max_len=16384 -timeout=5 -rss_limit_mb=2048 \
   -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25

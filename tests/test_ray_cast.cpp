@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <memory>
 #include <random>
 #include <string>
 
@@ -215,19 +216,22 @@ TEST(RayScene, AnswersExactlyAsTestingEveryObject) {
       scene.objects.push_back(o);
     }
     const RayScene rays(scene);
+    // Brute force: each object on its own, asked in index order (built once
+    // a trial: RayScene keeps a reference to its scene).
+    std::vector<Scene> singles(scene.objects.size());
+    for (std::size_t i = 0; i < scene.objects.size(); ++i) singles[i].objects.push_back(scene.objects[i]);
+    std::vector<std::unique_ptr<RayScene>> single_rays;
+    for (const Scene& one : singles) single_rays.push_back(std::make_unique<RayScene>(one));
     for (int k = 0; k < 2000; ++k) {
       const glm::dvec3 origin(8 * u(random), 4 * u(random), 8 * u(random));
       glm::dvec3 dir(u(random), u(random), u(random));
       if (k % 5 == 0) dir[k % 3] = 0.0;  // axis-parallel rays too
       if (glm::length(dir) < 1e-3) continue;
       dir = glm::normalize(dir);
-      // Brute force: every object in index order.
       RayHit best;
       best.t = 1e9;
-      for (std::size_t i = 0; i < scene.objects.size(); ++i) {
-        Scene one;
-        one.objects.push_back(scene.objects[i]);
-        const auto hit = RayScene(one).cast(origin, dir, 0.0, best.t);
+      for (std::size_t i = 0; i < single_rays.size(); ++i) {
+        const auto hit = single_rays[i]->cast(origin, dir, 0.0, best.t);
         if (hit && hit->t < best.t) best = *hit, best.object = int(i);
       }
       const auto hit = rays.cast(origin, dir, 0.0, 1e9);

@@ -171,7 +171,7 @@ TEST(Connections, RunningOutOfDescriptorsNeitherSpinsNorStopsTheServer) {
   // The idle ones close after 2 s; then there are descriptors again.
   std::this_thread::sleep_for(std::chrono::milliseconds(2500));
   auto res = client(server).Get("/api/health");
-  ASSERT_TRUE(res);
+  ASSERT_TRUE(res) << httplib::to_string(res.error()) << "\n" << server.log();
   EXPECT_EQ(res->status, 200);
   server.send_signal(SIGTERM);
   EXPECT_EQ(server.wait(), 0) << server.log();
