@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace umbra {
@@ -51,6 +52,9 @@ struct FrameTimings {
   double shadow_ms = 0.0;
   double main_ms = 0.0;
   double readback_ms = 0.0;
+  /// The CPU ray cast of the exact reference ("exact", "error"), which runs
+  /// beside the GL passes, not inside any of them; nullopt when none ran.
+  std::optional<double> ray_cast_ms;
 };
 
 }  // namespace umbra

@@ -366,11 +366,10 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
       result = shadow ? std::move(*shadow) : rendered.get();
       result.error = measure_shadow_error(result.image, pixels);
       result.image = error_image(result.image, exact);
-      result.timings.main_ms += cast_ms;
     } else {
-      result.image = exact;
-      result.timings.main_ms = cast_ms;
+      result.image = exact;  // no GL pass ran: shadow, main and read-back stay 0
     }
+    result.timings.ray_cast_ms = cast_ms;
     return result;
   });
 }
