@@ -590,6 +590,16 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
   if (auto v = r.get("width")) q.width = read_integer(*v, "width", 16, 4096);
   if (auto v = r.get("height")) q.height = read_integer(*v, "height", 16, 4096);
   read_camera(r.get("camera"), q.camera, sent);
+  // A custom scene without a camera.far is seen whole: far reaches the far
+  // side of its bounds from wherever the camera stands (the fixed 100 cut
+  // away a 200 x 200 floor, and half of three-cubes' when posted back).
+  if (builtin == nullptr && !sent.count("camera.far")) {
+    const Aabb bounds = scene_bounds(q.scene);
+    if (!bounds.empty()) {
+      const double reach = glm::length(q.camera.position - bounds.center()) + 0.5 * glm::length(bounds.extent());
+      q.camera.far_plane = std::max(q.camera.far_plane, 1.01 * reach);
+    }
+  }
   // The light's projection decides the range of light.size: read it first.
   read_light(r.get("light"), q.light, sent);
   if (auto v = r.get("time")) q.time = read_number(*v, "time", -RequestLimits::kMaxTime, RequestLimits::kMaxTime);

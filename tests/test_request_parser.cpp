@@ -1,7 +1,10 @@
 // The request parser: defaults, and every class of bad input API.md lists.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
+
+#include <glm/geometric.hpp>
 
 #include "builtin_models.hpp"
 #include "mesh_instance.hpp"
@@ -111,6 +114,30 @@ TEST(RequestParser, CustomSceneWithEveryObjectType) {
   EXPECT_TRUE(q.scene.name.empty());
   // The default camera looks at the custom scene's centre.
   EXPECT_NE(q.camera.position, q.camera.target);
+}
+
+TEST(RequestParser, ACustomSceneWithoutCameraFarIsSeenWhole) {
+  // A 200 x 200 floor: the default camera stands 2.8 radii away, beyond the
+  // fixed far of 100, so far must reach the floor's far side.
+  const RenderRequest big = parse_ok(R"({"scene": {"objects": [
+      {"type": "plane", "center": [0, 0, 0], "size": [200, 200]},
+      {"type": "box", "center": [0, 0.5, 0], "size": [1, 1, 1]}]}})");
+  double farthest = 0.0;
+  for (double x : {-100.0, 100.0})
+    for (double z : {-100.0, 100.0}) farthest = std::max(farthest, glm::length(big.camera.position - glm::dvec3(x, 0, z)));
+  EXPECT_GT(big.camera.far_plane, farthest);
+  // The same from a camera the client placed, as long as it left far out.
+  const RenderRequest placed = parse_ok(R"({"scene": {"objects": [{"type": "plane", "size": [200, 200]}]},
+      "camera": {"position": [0, 10, 150], "target": [0, 0, 0]}})");
+  EXPECT_GT(placed.camera.far_plane, glm::length(glm::dvec3(100, -10, -250)));
+  // A far the client gave is kept, and a small scene keeps the default 100.
+  EXPECT_DOUBLE_EQ(parse_ok(R"({"scene": {"objects": [{"type": "plane", "size": [200, 200]}]},
+      "camera": {"far": 50}})").camera.far_plane, 50.0);
+  EXPECT_DOUBLE_EQ(parse_ok(R"({"scene": {"objects": [{"type": "box"}]}})").camera.far_plane, 100.0);
+  // Built-in scenes keep their defaults: three-cubes' floor fits in 100
+  // from its own camera; its objects posted back as a custom scene (whose
+  // default camera stands farther off) are seen whole too.
+  EXPECT_DOUBLE_EQ(parse_ok(R"({"scene": "three-cubes"})").camera.far_plane, 100.0);
 }
 
 // --- Mesh objects --------------------------------------------------------
