@@ -255,6 +255,12 @@ void HttpApi::handle(const HttpRequest& req, HttpResponse& res) {
   }
   const bool api = req.path == "/api" || req.path.rfind("/api/", 0) == 0;
   if (!api && (req.method == "GET" || req.method == "HEAD")) return static_file(req, res);
+  // A file of the panel is a known path too: another method is 405.
+  std::string bytes;
+  if (!api && read_static_file(req.path == "/" ? "index.html" : req.path.substr(1), bytes)) {
+    res.set_header("Allow", "GET");
+    return send_error(res, 405, "method " + req.method + " not allowed here; use GET", "");
+  }
   send_error(res, 404, "no such path", "");
 }
 

@@ -1,4 +1,4 @@
-// The HTTP face of Umbra (../shared/API.md): routes, errors, static files.
+// The HTTP face of Umbra (docs/api.md): routes, errors, static files.
 // Turns JSON into a typed request, hands it to the RenderService, turns the
 // pixels into PNG. Knows nothing of GL.
 #pragma once
