@@ -149,6 +149,7 @@ bool valid_cors_origin(const std::string& origin) {
 const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "/api/health", &HttpApi::health, false},
     {"GET", "/api/scenes", &HttpApi::scenes, false},
+    {"GET", "/api/openapi.json", &HttpApi::openapi_document, false},
     {"POST", "/api/render", &HttpApi::render_color, true},
     {"POST", "/api/depth", &HttpApi::render_depth, true},
     {"GET", "/api/models", &HttpApi::list_models, false},
@@ -315,6 +316,11 @@ void HttpApi::scenes(const HttpRequest&, HttpResponse& res) {
                       {"light", {{"position", vec3_json(s.light_position)}, {"target", vec3_json({0, 0, 0})}}}});
   }
   res.set_content(json{{"scenes", scenes}}.dump(), "application/json");
+}
+
+// docs/openapi.json as the repository holds it, built in (api_document).
+void HttpApi::openapi_document(const HttpRequest&, HttpResponse& res) {
+  res.set_content(std::string(api_document("openapi.json")), "application/json");
 }
 
 void HttpApi::render_color(const HttpRequest& req, HttpResponse& res) { render(req, res, false); }

@@ -85,6 +85,7 @@ class HttpApi {
   // Routes.
   void health(const HttpRequest& req, HttpResponse& res);
   void scenes(const HttpRequest& req, HttpResponse& res);
+  void openapi_document(const HttpRequest& req, HttpResponse& res);
   void render_color(const HttpRequest& req, HttpResponse& res);
   void render_depth(const HttpRequest& req, HttpResponse& res);
   void static_file(const HttpRequest& req, HttpResponse& res);
