@@ -2,7 +2,7 @@
 //
 // This is the boundary between the HTTP server (which builds it from JSON, see
 // server/request_parser.hpp) and the renderer (which draws it). It holds no GL
-// and no JSON. Units and ranges below are the ones ../shared/API.md fixes; the
+// and no JSON. Units and ranges below are the ones docs/api.md fixes; the
 // parser enforces them, so the renderer may rely on them.
 #pragma once
 

@@ -156,6 +156,7 @@ bool valid_cors_origin(const std::string& origin) {
 const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "/api/health", &HttpApi::health, false},
     {"GET", "/api/scenes", &HttpApi::scenes, false},
+    {"GET", "/api/openapi.json", &HttpApi::openapi_document, false},
     {"POST", "/api/render", &HttpApi::render_color, true},
     {"POST", "/api/depth", &HttpApi::render_depth, true},
     {"GET", "/api/models", &HttpApi::list_models, false},
@@ -262,6 +263,12 @@ void HttpApi::handle(const HttpRequest& req, HttpResponse& res) {
   }
   const bool api = req.path == "/api" || req.path.rfind("/api/", 0) == 0;
   if (!api && (req.method == "GET" || req.method == "HEAD")) return static_file(req, res);
+  // A file of the panel is a known path too: another method is 405.
+  std::string bytes;
+  if (!api && read_static_file(req.path == "/" ? "index.html" : req.path.substr(1), bytes)) {
+    res.set_header("Allow", "GET");
+    return send_error(res, 405, "method " + req.method + " not allowed here; use GET", "");
+  }
   send_error(res, 404, "no such path", "");
 }
 
@@ -316,6 +323,11 @@ void HttpApi::scenes(const HttpRequest&, HttpResponse& res) {
                       {"light", {{"position", vec3_json(s.light_position)}, {"target", vec3_json({0, 0, 0})}}}});
   }
   res.set_content(json{{"scenes", scenes}}.dump(), "application/json");
+}
+
+// docs/openapi.json as the repository holds it, built in (api_document).
+void HttpApi::openapi_document(const HttpRequest&, HttpResponse& res) {
+  res.set_content(std::string(api_document("openapi.json")), "application/json");
 }
 
 void HttpApi::render_color(const HttpRequest& req, HttpResponse& res) { render(req, res, false); }

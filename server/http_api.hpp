@@ -1,4 +1,4 @@
-// The HTTP face of Umbra (../shared/API.md): routes, errors, static files.
+// The HTTP face of Umbra (docs/api.md): routes, errors, static files.
 // Turns JSON into a typed request, hands it to the RenderService, turns the
 // pixels into PNG. Knows nothing of GL.
 #pragma once
@@ -85,6 +85,7 @@ class HttpApi {
   // Routes.
   void health(const HttpRequest& req, HttpResponse& res);
   void scenes(const HttpRequest& req, HttpResponse& res);
+  void openapi_document(const HttpRequest& req, HttpResponse& res);
   void render_color(const HttpRequest& req, HttpResponse& res);
   void render_depth(const HttpRequest& req, HttpResponse& res);
   void static_file(const HttpRequest& req, HttpResponse& res);

@@ -568,7 +568,8 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   return unused;
 }
 
-RenderRequest read_request(const json& root, Route route, std::set<std::string>& sent, const ModelLookup& find_model) {
+RenderRequest read_request(const json& root, Route route, std::set<std::string>& sent, const ModelLookup& find_model,
+                           bool& output_overridden) {
   ObjectReader r(root, "", {"width", "height", "scene", "camera", "light", "time", "shadow", "output", "depth_bits"},
                  sent);
   RenderRequest q;
@@ -608,9 +609,12 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
   if (q.light.size > 0.0 && !sent.count("shadow.filter")) q.shadow.filter = ShadowFilter::Pcss;
   if (auto v = r.get("output"))
     q.output = Output(read_choice(*v, "output", {"color", "depth", "shadow", "exact", "error"}));
+  // POST /api/depth takes the same body as /api/render (docs/api.md) and
+  // always draws the depth map: any output /api/render takes is accepted,
+  // and one other than "depth" is reported unused (Umbra-Unused-Fields),
+  // never silently dropped.
   if (route == Route::Depth) {
-    if (q.output != Output::Color && q.output != Output::Depth)
-      reject("output", "/api/depth always returns the depth map; omit output or use \"depth\"");
+    output_overridden = sent.count("output") && q.output != Output::Depth;
     q.output = Output::Depth;
   }
   if (auto v = r.get("depth_bits")) q.depth_bits = read_depth_bits(*v, "depth_bits");
@@ -638,8 +642,13 @@ ParsedRequest parse_render_request(std::string_view body, Route route, const Mod
   }
   std::set<std::string> sent;
   try {
-    result.request = read_request(root, route, sent, find_model);
+    bool output_overridden = false;
+    result.request = read_request(root, route, sent, find_model, output_overridden);
     result.unused_fields = unused_fields(*result.request, sent);
+    if (output_overridden) {
+      result.unused_fields.push_back("output");
+      std::sort(result.unused_fields.begin(), result.unused_fields.end());
+    }
   } catch (const Rejection& r) {
     result.error = {shortened(r.message), shortened(r.field)};
   }

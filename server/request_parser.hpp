@@ -1,7 +1,7 @@
 // JSON body -> typed, validated RenderRequest. Pure: no GL, no HTTP.
 //
 // The one place where the API's defaults are applied and every bad input of
-// ../shared/API.md is rejected: malformed JSON, wrong types, unknown fields,
+// docs/api.md is rejected: malformed JSON, wrong types, unknown fields,
 // out-of-range or non-finite numbers, degenerate inputs, unknown scenes.
 #pragma once
 
@@ -27,15 +27,17 @@ struct ParsedRequest {
   std::optional<RenderRequest> request;  ///< set on success
   RequestError error;                     ///< set on failure
   /// Fields the client sent that cannot affect this output (e.g. shadow.near
-  /// with fit "scene"): accepted, since API.md's own defaults include them,
-  /// but reported back so that nothing is silently ignored.
+  /// with fit "scene"): accepted, since the contract's own default body
+  /// (docs/api.md) includes them, but reported back so that nothing is
+  /// silently ignored. On /api/depth, an `output` other than "depth" is
+  /// listed too.
   std::vector<std::string> unused_fields;
 
   bool ok() const { return request.has_value(); }
 };
 
-/// Limits beyond API.md's, chosen so every accepted request renders in
-/// bounded time and in float precision. Documented in the README.
+/// Limits beyond the original contract's, chosen so every accepted request
+/// renders in bounded time and in float precision. Documented in docs/api.md.
 struct RequestLimits {
   static constexpr std::size_t kMaxObjects = 1000;
   static constexpr int kMaxNesting = 32;            ///< JSON nesting depth
@@ -54,10 +56,11 @@ struct RequestLimits {
   static constexpr std::size_t kMaxQuotedBytes = 64;
 };
 
-/// Where the body was posted. POST /api/depth always renders the depth map
-/// (its body's `output` may only be left out, "color" or "depth"): the
-/// parser needs to know, so that fields are judged used or unused against
-/// the output that is really drawn.
+/// Where the body was posted. POST /api/depth always renders the depth map:
+/// its body's `output` may be any value /api/render takes (the same body,
+/// docs/api.md), and one other than "depth" is reported in `unused_fields`.
+/// The parser needs to know, so that fields are judged used or unused
+/// against the output that is really drawn.
 enum class Route { Render, Depth };
 
 /// A model that a mesh object names, as the server holds it.

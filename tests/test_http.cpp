@@ -182,7 +182,21 @@ TEST(Http, DepthRouteIsTheDepthOutput) {
   const Decoded d = decode_png(res->body);
   EXPECT_EQ(d.width, 128);
   EXPECT_EQ(d.height, 128);
-  expect_json_error(client().Post("/api/depth", R"({"output": "shadow"})", "application/json"), 400, "output");
+  // The same body as /api/render: any output is taken, the depth map drawn,
+  // and an output other than "depth" named as unused.
+  for (const char* output : {"color", "shadow", "exact", "error"}) {
+    const std::string body = std::string(R"({"shadow": {"map_size": 128}, "output": ")") + output + "\"}";
+    auto other = client().Post("/api/depth", body, "application/json");
+    ASSERT_TRUE(other);
+    ASSERT_EQ(other->status, 200) << body << ": " << other->body;
+    EXPECT_EQ(other->body, res->body) << body;
+    EXPECT_EQ(other->get_header_value("Umbra-Unused-Fields"), "output") << body;
+  }
+  auto named = client().Post("/api/depth", R"({"shadow": {"map_size": 128}, "output": "depth"})", "application/json");
+  ASSERT_TRUE(named);
+  EXPECT_EQ(named->status, 200);
+  EXPECT_FALSE(named->has_header("Umbra-Unused-Fields"));
+  expect_json_error(client().Post("/api/depth", R"({"output": "normals"})", "application/json"), 400, "output");
 }
 
 TEST(Http, DepthBits16GivesA16BitGreyPng) {
@@ -513,7 +527,7 @@ TEST(Http, HostileBodiesGetTheRight4xxAndTheServerStaysUp) {
 }
 
 TEST(Http, TheLargestRequestTheApiAllowsIsRenderedWhole) {
-  // API.md allows width and height up to 4096 and map_size up to 8192 each,
+  // docs/api.md allows width and height up to 4096 and map_size up to 8192 each,
   // so all three at once is a valid request, not a hostile one: it is
   // rendered (the map layers are capped at 4 x 8192^2 texels in all).
   auto res = client().Post("/api/render", R"({"width": 4096, "height": 4096, "shadow": {"map_size": 8192}})",
@@ -646,6 +660,13 @@ TEST(Http, UnknownPathIs404AndWrongMethodIs405) {
   expect_json_error(client().Post("/api/health", "{}", "application/json"), 405, "");
   expect_json_error(client().Delete("/api/scenes"), 405, "");
   expect_json_error(client().Put("/api/depth", "{}", "application/json"), 405, "");
+  // The panel's files are known paths too; a path that is no file stays 404.
+  for (const char* path : {"/", "/index.html", "/app.js"}) {
+    auto post = client().Post(path, "{}", "application/json");
+    expect_json_error(post, 405, "");
+    EXPECT_EQ(post->get_header_value("Allow"), "GET") << path;
+  }
+  expect_json_error(client().Post("/no-such-file.html", "{}", "application/json"), 404, "");
 }
 
 TEST(Http, BodyOverOneMebibyteIs413) {

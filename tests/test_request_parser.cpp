@@ -1,4 +1,4 @@
-// The request parser: defaults, and every class of bad input API.md lists.
+// The request parser: defaults, and every class of bad input docs/api.md lists.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -382,12 +382,25 @@ TEST(RequestParser, TheDepthRouteDrawsTheDepthMapAndJudgesUnusedFieldsByIt) {
   EXPECT_EQ(p.request->output, Output::Depth);
   EXPECT_EQ(p.unused_fields, std::vector<std::string>{"light.ambient"});
   EXPECT_TRUE(parse_render_request(R"({"light": {"ambient": 0.5}})").unused_fields.empty());
-  for (const char* body : {R"({"output": "depth"})", R"({"output": "color"})"}) {
+}
+
+TEST(RequestParser, TheDepthRouteTakesAnyOutputAndNamesAnOtherThanDepthUnused) {
+  // The same body as /api/render (docs/api.md): every output it takes is
+  // taken, the depth map is drawn, and an output other than "depth" has had
+  // no effect, which Umbra-Unused-Fields says (nothing is silently ignored).
+  const ParsedRequest depth = parse_render_request(R"({"output": "depth"})", Route::Depth);
+  ASSERT_TRUE(depth.ok());
+  EXPECT_EQ(depth.request->output, Output::Depth);
+  EXPECT_TRUE(depth.unused_fields.empty());
+  for (const char* output : {"color", "shadow", "exact", "error"}) {
+    const std::string body = std::string(R"({"output": ")") + output + R"(", "light": {"ambient": 0.5}})";
     const ParsedRequest q = parse_render_request(body, Route::Depth);
-    ASSERT_TRUE(q.ok()) << body;
+    ASSERT_TRUE(q.ok()) << body << ": " << q.error.field << ": " << q.error.message;
     EXPECT_EQ(q.request->output, Output::Depth) << body;
+    EXPECT_EQ(q.unused_fields, (std::vector<std::string>{"light.ambient", "output"})) << body;
   }
-  const ParsedRequest bad = parse_render_request(R"({"output": "shadow"})", Route::Depth);
+  // A value /api/render refuses is refused here too, naming the field.
+  const ParsedRequest bad = parse_render_request(R"({"output": "normals"})", Route::Depth);
   ASSERT_FALSE(bad.ok());
   EXPECT_EQ(bad.error.field, "output");
 }

@@ -1,0 +1,205 @@
+// docs/openapi.json against the request parser. Every `default` the document
+// states is what parse_render_request gives for a field left out, every
+// default the parser applies is in the document, and every enum the document
+// lists is exactly what the parser takes: a change on either side fails here.
+//
+// The document's path comes from CMake (UMBRA_OPENAPI_JSON): the repository's
+// own file, the one the server embeds and serves at GET /api/openapi.json.
+#include <fstream>
+#include <functional>
+#include <map>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "request_parser.hpp"
+#include "scene.hpp"
+
+namespace umbra {
+namespace {
+
+using json = nlohmann::json;
+
+json load_document() {
+  std::ifstream in(UMBRA_OPENAPI_JSON);
+  EXPECT_TRUE(in) << "cannot read " << UMBRA_OPENAPI_JSON;
+  return json::parse(in);
+}
+
+// Every `default` in a schema, keyed "<Component>.<property>.<property>...":
+// properties are joined by '.', array items add "[]", and the branches of
+// oneOf / anyOf / allOf keep their parent's path. A $ref is not followed:
+// each component is walked under its own name.
+void collect_defaults(const json& schema, const std::string& path, std::map<std::string, json>& out) {
+  if (!schema.is_object()) return;
+  if (schema.contains("default")) {
+    EXPECT_FALSE(out.count(path)) << path << " has two defaults";
+    out[path] = schema["default"];
+  }
+  if (schema.contains("properties"))
+    for (const auto& [name, property] : schema["properties"].items()) collect_defaults(property, path + "." + name, out);
+  if (schema.contains("items")) collect_defaults(schema["items"], path + "[]", out);
+  for (const char* branches : {"oneOf", "anyOf", "allOf"})
+    if (schema.contains(branches))
+      for (const json& branch : schema[branches]) collect_defaults(branch, path, out);
+}
+
+std::map<std::string, json> document_defaults() {
+  std::map<std::string, json> defaults;
+  const json document = load_document();
+  for (const auto& [name, schema] : document["components"]["schemas"].items())
+    collect_defaults(schema, name, defaults);
+  return defaults;
+}
+
+RenderRequest parse_ok(const std::string& body) {
+  const ParsedRequest p = parse_render_request(body);
+  EXPECT_TRUE(p.ok()) << body << ": " << p.error.field << ": " << p.error.message;
+  return p.ok() ? *p.request : RenderRequest{};
+}
+
+json vec(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
+
+const char* name_of(ShadowFilter f) {
+  switch (f) {
+    case ShadowFilter::Hard: return "hard";
+    case ShadowFilter::Pcf: return "pcf";
+    case ShadowFilter::Pcss: return "pcss";
+  }
+  return "?";
+}
+const char* name_of(CullMode c) { return c == CullMode::Front ? "front" : c == CullMode::Back ? "back" : "none"; }
+const char* name_of(FrustumFit f) { return f == FrustumFit::Scene ? "scene" : "fixed"; }
+
+// What the parser gives for every field it defaults, under the document's
+// key for that field. Fields whose default depends on the scene (camera
+// position and target, light position) have none in the document either.
+std::map<std::string, json> parser_defaults() {
+  const RenderRequest q = parse_ok("{}");
+  const Camera& c = q.camera;
+  const Light& l = q.light;
+  const ShadowSettings& s = q.shadow;
+  const DepthBias bias = parse_ok(R"({"shadow": {"bias": {}}})").shadow.bias;
+  const RenderRequest custom = parse_ok(
+      R"({"scene": {"objects": [{"type": "plane"}, {"type": "box"}, {"type": "sphere"}, {"type": "mesh", "model": "teapot"}]}})");
+  const SceneObject plane = custom.scene.objects.at(0), box = custom.scene.objects.at(1),
+                    sphere = custom.scene.objects.at(2), mesh = custom.scene.objects.at(3);
+  const auto scale = [](const glm::dvec3& v) { return v.x == v.y && v.y == v.z ? json(v.x) : vec(v); };
+  return {
+      {"RenderRequest.width", q.width},
+      {"RenderRequest.height", q.height},
+      {"RenderRequest.scene", q.scene.name},
+      {"RenderRequest.time", q.time},
+      {"RenderRequest.output", to_string(q.output)},
+      {"RenderRequest.depth_bits", q.depth_bits},
+      {"Camera.up", vec(c.up)},
+      {"Camera.fov_y_deg", c.fov_y_deg},
+      {"Camera.near", c.near_plane},
+      {"Camera.far", c.far_plane},
+      {"Light.target", vec(l.target)},
+      {"Light.color", vec(l.color)},
+      {"Light.ambient", l.ambient},
+      {"Light.projection", to_string(l.projection)},
+      {"Light.fov_y_deg", l.fov_y_deg},
+      {"Light.size", l.size},
+      {"Light.orbit_deg_per_s", l.orbit_deg_per_s},
+      {"Shadow.enabled", s.enabled},
+      {"Shadow.map_size", s.map_size},
+      {"Shadow.filter", name_of(s.filter)},
+      {"Shadow.pcf_radius", s.pcf_radius},
+      {"Shadow.bias", s.bias.automatic ? json("auto") : json::object()},
+      {"Shadow.cull", name_of(s.cull)},
+      {"Shadow.fit", name_of(s.fit)},
+      {"Shadow.cascades", s.cascades == 0 ? json("auto") : json(s.cascades)},
+      {"Shadow.ortho_half_size", s.ortho_half_size},
+      {"Shadow.near", s.near_plane},
+      {"Shadow.far", s.far_plane},
+      {"BiasObject.constant", bias.constant},
+      {"BiasObject.slope", bias.slope},
+      {"BiasObject.normal_offset", bias.normal_offset},
+      {"PlaneObject.center", vec(plane.center)},
+      {"PlaneObject.size", json::array({plane.size.x, plane.size.z})},
+      {"PlaneObject.color", vec(plane.color)},
+      {"BoxObject.center", vec(box.center)},
+      {"BoxObject.size", vec(box.size)},
+      {"BoxObject.rotation_y_deg", box.rotation_y_deg},
+      {"BoxObject.color", vec(box.color)},
+      {"SphereObject.center", vec(sphere.center)},
+      {"SphereObject.radius", sphere.radius},
+      {"SphereObject.color", vec(sphere.color)},
+      {"MeshObject.position", vec(mesh.center)},
+      {"MeshObject.rotation_deg", vec(mesh.rotation_deg)},
+      {"MeshObject.scale", scale(mesh.mesh_scale)},
+  };
+}
+
+TEST(ApiDocument, EveryDefaultInTheDocumentIsTheParsers) {
+  const std::map<std::string, json> parser = parser_defaults();
+  const std::map<std::string, json> document = document_defaults();
+  ASSERT_FALSE(document.empty());
+  for (const auto& [field, value] : document) {
+    const auto it = parser.find(field);
+    if (it == parser.end()) {
+      ADD_FAILURE() << "docs/openapi.json gives " << field << " the default " << value.dump()
+                    << ", which this test does not read from the parser: add it to parser_defaults()";
+      continue;
+    }
+    // nlohmann compares numbers by value: 1 == 1.0.
+    EXPECT_EQ(value, it->second) << field << ": docs/openapi.json says " << value.dump() << ", the parser gives "
+                                 << it->second.dump();
+  }
+}
+
+TEST(ApiDocument, EveryParserDefaultIsInTheDocument) {
+  const std::map<std::string, json> document = document_defaults();
+  for (const auto& [field, value] : parser_defaults())
+    EXPECT_TRUE(document.count(field)) << field << " defaults to " << value.dump()
+                                       << " in the parser but has no \"default\" in docs/openapi.json";
+}
+
+// The body that sets `property` of `component` to `value`.
+json body_setting(const std::string& component, const std::string& property, const json& value) {
+  if (component == "RenderRequest") return {{property, value}};
+  if (component == "Camera") return {{"camera", {{property, value}}}};
+  if (component == "Light") return {{"light", {{property, value}}}};
+  if (component == "Shadow") return {{"shadow", {{property, value}}}};
+  return nullptr;
+}
+
+TEST(ApiDocument, EveryEnumIsWhatTheParserTakes) {
+  const json document = load_document();
+  int checked = 0;
+  for (const auto& [component, schema] : document["components"]["schemas"].items()) {
+    if (!schema.contains("properties")) continue;
+    for (const auto& [property, p] : schema["properties"].items()) {
+      if (!p.contains("enum") || body_setting(component, property, 0).is_null()) continue;
+      const std::string field = component == "RenderRequest" ? property
+                                : std::string(component == "Camera" ? "camera" : component == "Light" ? "light" : "shadow") +
+                                      "." + property;
+      for (const json& value : p["enum"]) {
+        const std::string body = body_setting(component, property, value).dump();
+        const ParsedRequest ok = parse_render_request(body);
+        EXPECT_TRUE(ok.ok()) << body << ": " << ok.error.message;
+        ++checked;
+      }
+      // A value the document does not list is refused, naming the field.
+      const json other = p["enum"][0].is_string() ? json("not-listed") : json(12);
+      const ParsedRequest refused = parse_render_request(body_setting(component, property, other).dump());
+      EXPECT_FALSE(refused.ok()) << field << " takes " << other.dump() << ", which docs/openapi.json does not list";
+      if (!refused.ok()) {
+        EXPECT_EQ(refused.error.field, field);
+      }
+    }
+  }
+  EXPECT_GE(checked, 15);
+}
+
+TEST(ApiDocument, TheBuiltInSceneNamesAreTheServers) {
+  json names = json::array();
+  for (const BuiltinScene& scene : builtin_scenes()) names.push_back(scene.name);
+  EXPECT_EQ(load_document()["components"]["schemas"]["BuiltinSceneName"]["enum"], names);
+}
+
+}  // namespace
+}  // namespace umbra
