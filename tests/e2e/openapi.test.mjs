@@ -69,7 +69,9 @@ function startServer() {
       if (match) resolve(Number(match[1]));
     });
     exited.then(() => reject(new Error("umbra-server exited before listening:\n" + log)));
-    setTimeout(() => reject(new Error("umbra-server did not listen within 60 s:\n" + log)), 60000);
+    // unref: a pending timer would keep node alive for the full 60 s after
+    // every check has passed.
+    setTimeout(() => reject(new Error("umbra-server did not listen within 60 s:\n" + log)), 60000).unref();
   });
   return { child, port, exited };
 }
