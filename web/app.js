@@ -7,6 +7,7 @@ const $ = (id) => document.getElementById(id);
 const state = {
   inFlight: false, dirty: false, playing: false, lastTick: 0, frameUrl: null, depthUrl: null, errorSource: null,
   camera: null,  // the camera as moved ({position, target}); null: the scene's own
+  frameOutput: "color",  // the output the frame shown is
 };
 
 function number(id) {
@@ -94,6 +95,7 @@ async function post(path, body) {
     timing: response.headers.get("Server-Timing") || "",
     unused: response.headers.get("Umbra-Unused-Fields"),
     views: response.headers.get("Umbra-Shadow-Views"),
+    figures: response.headers.get("Umbra-Shadow-Error"),
   };
 }
 
@@ -137,6 +139,7 @@ async function requestFrame() {
   try {
     const frame = await post("/api/render", body);
     replaceImage($("frame"), frame.blob, "frameUrl");
+    showOutput(body.output, frame.figures);
     // While a newer change waits (a drag), the next frame comes first: the
     // depth map follows once the changes stop.
     if (!state.dirty) {
@@ -180,6 +183,98 @@ function syncFixedSettings() {
   for (const id of ["near", "far", "half"]) $(id).disabled = !fixed;
   $("half").disabled = !fixed || perspective;
   $("cascades").disabled = fixed || perspective;
+}
+
+// --- The error view ---------------------------------------------------------------
+// The error PNG is |v - v_exact| in red (false shadow) or blue (false
+// light): most errors are a few levels out of 255, black to the eye. The
+// panel shows it amplified by the chosen gain on a canvas (the <img> keeps
+// the PNG as sent, for "Copy as curl"), with the server's figures beside it.
+
+const FIGURES = [
+  ["mae", "MAE"],
+  ["wrong", "wrong (> 0.5)"],
+  ["false_shadow", "false shadow"],
+  ["false_light", "false light"],
+  ["artifacts", "artifacts (> 0.1)"],
+  ["pixels", "pixels measured"],
+  ["interior_pixels", "interior pixels"],
+];
+
+// "mae=0.00015, wrong=0.0027%, ..." -> { mae: "0.00015", wrong: "0.0027%", ... }
+function parseFigures(header) {
+  const figures = {};
+  for (const entry of (header || "").split(",")) {
+    const match = entry.trim().match(/^(\w+)=(.+)$/);
+    if (match) figures[match[1]] = match[2];
+  }
+  return figures;
+}
+
+function showFigures(header) {
+  const figures = parseFigures(header);
+  const list = $("error-figures");
+  list.replaceChildren();
+  for (const [key, name] of FIGURES) {
+    if (!(key in figures)) continue;
+    const value = /^\d+$/.test(figures[key]) ? Number(figures[key]).toLocaleString("en") : figures[key].replace("%", " %");
+    list.append(Object.assign(document.createElement("dt"), { textContent: name }),
+                Object.assign(document.createElement("dd"), { textContent: value, id: `figure-${key}` }));
+  }
+  if (!list.children.length) list.append(Object.assign(document.createElement("dd"), { textContent: "The server sent no figures." }));
+}
+
+// Shows the frame as sent, or for "error" the amplified heatmap and its
+// figures.
+function showOutput(output, figures) {
+  const error = output === "error";
+  state.frameOutput = output;
+  $("frame").hidden = error;
+  $("heatmap").hidden = !error;
+  $("error-panel").hidden = !error;
+  if (!error) return;
+  showFigures(figures);
+  $("frame").decode().then(drawHeatmap, () => {});
+}
+
+function drawHeatmap() {
+  if (state.frameOutput !== "error") return;
+  const image = $("frame");
+  const canvas = $("heatmap");
+  const gain = Number($("gain").value);
+  canvas.width = image.naturalWidth;
+  canvas.height = image.naturalHeight;
+  const context = canvas.getContext("2d", { willReadFrequently: true });
+  context.drawImage(image, 0, 0);
+  if (gain !== 1) {
+    const pixels = context.getImageData(0, 0, canvas.width, canvas.height);
+    const data = pixels.data;
+    for (let i = 0; i < data.length; i += 4) {
+      data[i] = Math.min(255, data[i] * gain);
+      data[i + 1] = Math.min(255, data[i + 1] * gain);
+      data[i + 2] = Math.min(255, data[i + 2] * gain);
+    }
+    context.putImageData(pixels, 0, 0);
+  }
+  drawLegend(gain);
+}
+
+// Two ramps, black to red and black to blue, over the error that the gain
+// brings to full brightness.
+function drawLegend(gain) {
+  const canvas = $("legend-bar");
+  const context = canvas.getContext("2d");
+  const half = canvas.height / 2;
+  for (const [row, colour] of [[0, "#ff0000"], [half, "#0000ff"]]) {
+    const ramp = context.createLinearGradient(0, 0, canvas.width, 0);
+    ramp.addColorStop(0, "#000000");
+    ramp.addColorStop(1, colour);
+    context.fillStyle = ramp;
+    context.fillRect(0, row, canvas.width, half);
+  }
+  const full = 1 / gain;
+  $("legend").textContent = `Gain ×${gain}: brightness = ${gain} × |v − v_exact|, full at ${full.toPrecision(2)} or more. ` +
+    "Red: shadowed where exactly lit (false shadow); blue: lit where exactly shadowed (false light); black: no error.";
 }
 
 // --- Camera ---------------------------------------------------------------------
@@ -812,6 +907,11 @@ $("controls").addEventListener("input", (e) => {
 $("controls").addEventListener("submit", (e) => e.preventDefault());
 $("play").addEventListener("click", togglePlay);
 $("reset-camera").addEventListener("click", () => setCamera(null));
+// The gain only changes how the frame is shown: no request.
+$("gain").addEventListener("input", () => {
+  drawHeatmap();
+  saveToUrl();
+});
 $("viewport").addEventListener("pointerdown", pointerDown);
 $("viewport").addEventListener("pointermove", pointerMove);
 $("viewport").addEventListener("pointerup", pointerUp);

@@ -503,6 +503,47 @@ try {
     assert.equal(await page.$eval("#size-note", (p) => p.textContent), "");
   });
 
+  await step(page, "error-view-shows-its-figures-and-an-amplified-heatmap", async () => {
+    const before = await currentSources(page);
+    await page.selectOption("#view", "error");
+    await waitForNewImages(page, before);
+    await page.waitForSelector("#error-panel:not([hidden]) #figure-mae");
+    // The figures are the server's header, as sent for this very request.
+    const body = await page.evaluate(() => window.__umbra.lastRenderBody);
+    const response = await fetch(`http://127.0.0.1:${port}/api/render`, { method: "POST", body });
+    const header = response.headers.get("Umbra-Shadow-Error");
+    const mae = header.match(/mae=([\d.]+)/)[1];
+    assert.equal(await page.$eval("#figure-mae", (d) => d.textContent), mae);
+    for (const key of ["wrong", "false_shadow", "false_light", "artifacts"]) {
+      assert.match(await page.$eval(`#figure-${key}`, (d) => d.textContent), /^[\d.]+ %$/, key);
+    }
+    assert.match(await page.$eval("#figure-pixels", (d) => d.textContent), /^[\d,]+$/);
+    // The heatmap shown is the PNG amplified (x16 by default), the legend says so.
+    assert.ok(await page.$eval("#frame", (i) => i.hidden), "the raw PNG is not what is shown");
+    assert.match(await page.$eval("#legend", (p) => p.textContent), /Gain ×16/);
+    const sums = await page.evaluate(() => {
+      const sum = (canvas) => canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data.reduce((a, b) => a + b, 0);
+      const image = document.getElementById("frame");
+      const raw = Object.assign(document.createElement("canvas"), { width: image.naturalWidth, height: image.naturalHeight });
+      raw.getContext("2d").drawImage(image, 0, 0);
+      return { raw: sum(raw), shown: sum(document.getElementById("heatmap")) };
+    });
+    assert.ok(sums.shown > sums.raw, `the heatmap is brighter than the PNG (${sums.shown} > ${sums.raw})`);
+    await page.screenshot({ path: path.join(artifacts, "error-view.png"), fullPage: true });
+    // The gain is the browser's: changing it sends nothing.
+    const sent = await page.evaluate(() => window.__umbra.sent);
+    await page.selectOption("#gain", "64");
+    assert.match(await page.$eval("#legend", (p) => p.textContent), /Gain ×64/);
+    await sentStaysAt(page, sent, 300);
+    assert.equal(new URL(page.url()).searchParams.get("gain"), "64");
+    await checkCurlGivesTheFrame(page, port);
+    await page.selectOption("#gain", "16");
+    const back = await currentSources(page);
+    await page.selectOption("#view", "color");
+    await waitForNewImages(page, back);
+    assert.ok(await page.$eval("#error-panel", (a) => a.hidden), "the figures go with the error view");
+  });
+
   await step(page, "keyboard-and-labels", async () => {
     const unlabelled = await page.$$eval("#controls input, #controls select, button", (elements) =>
       elements.filter((e) => !(e.labels && e.labels.length) && !e.getAttribute("aria-label") && !e.textContent.trim())
