@@ -28,6 +28,11 @@ function buildRequest() {
     projection: $("projection").value,
   };
   if (number("size") > 0) light.size = number("size");
+  // The API's defaults are left out, so that a request stays as short as
+  // the settings allow.
+  const target = ["ltx", "lty", "ltz"].map(number);
+  if (target.some((x) => x !== 0)) light.target = target;
+  if (number("orbit") !== DEFAULT_ORBIT_DEG_PER_S) light.orbit_deg_per_s = number("orbit");
   const shadow = { enabled };
   if (enabled) {
     if (!perspective && !fixed && $("cascades").value !== "auto") shadow.cascades = Number($("cascades").value);
@@ -135,6 +140,7 @@ async function requestFrame() {
     state.lastTick = now;
   }
   const body = buildRequest();
+  showLightNow(body.light, body.time);
   saveToUrl();
   try {
     const frame = await post("/api/render", body);
@@ -277,6 +283,44 @@ function drawLegend(gain) {
     "Red: shadowed where exactly lit (false shadow); blue: lit where exactly shadowed (false light); black: no error.";
 }
 
+// --- The light ------------------------------------------------------------------
+// light.position is where the light is at time 0; the server turns it
+// about the vertical axis through light.target by time x orbit_deg_per_s
+// degrees, counter-clockwise seen from above. The fields keep the request's
+// position (so that the address and "Copy as curl" give the very frame),
+// and a line under them follows the light along its orbit.
+
+const DEFAULT_ORBIT_DEG_PER_S = 20;
+
+function lightTarget() {
+  return ["ltx", "lty", "ltz"].map(number);
+}
+
+// As the server's orbit_light_position.
+function orbitPosition(position, target, degrees) {
+  const angle = (degrees % 360) * Math.PI / 180;
+  const [x, y, z] = sub(position, target);
+  return add(target, [x * Math.cos(angle) + z * Math.sin(angle), y, -x * Math.sin(angle) + z * Math.cos(angle)]);
+}
+
+function showLightNow(light, time) {
+  const speed = light.orbit_deg_per_s ?? DEFAULT_ORBIT_DEG_PER_S;
+  const turned = (time * speed) % 360;
+  const now = orbitPosition(light.position, light.target || [0, 0, 0], turned);
+  $("light-now").textContent = turned === 0 ? "" :
+    `At t = ${time.toFixed(2)} s: (${now.map((x) => x.toFixed(2)).join(", ")}), turned ${turned.toFixed(1)}°.`;
+}
+
+// Alt-drag on the frame moves the light about its target as the camera
+// orbits its own: across turns it about the vertical axis, up raises it.
+function moveLight(dx, dy, height) {
+  const ids = ["lx", "ly", "lz"];
+  if (ids.some((id) => fieldProblem($(id))) || ["ltx", "lty", "ltz"].some((id) => fieldProblem($(id)))) return;
+  const moved = orbit({ position: ids.map(number), target: lightTarget() }, dx, -dy, height).position;
+  ids.forEach((id, i) => { $(id).value = String(round(moved[i])); });
+  requestFrame();
+}
+
 // --- Camera ---------------------------------------------------------------------
 // The camera orbits, dollies and pans about its target as three.js's
 // OrbitControls do: left-drag orbits, the wheel (or a pinch) dollies, right-
@@ -403,7 +447,7 @@ function pan(camera, dx, dy, height) {
 // Pointer Events cover mouse, pen and touch alike. One pointer orbits (or
 // pans, with the right button or Shift); two pinch to dolly and move
 // together to pan.
-const drag = { pointers: new Map(), pan: false };
+const drag = { pointers: new Map(), pan: false, light: false };
 
 function pointerDown(e) {
   if (!currentCamera() || (e.pointerType === "mouse" && e.button !== 0 && e.button !== 2)) return;
@@ -413,6 +457,7 @@ function pointerDown(e) {
   } catch (_) { /* a synthetic pointer: nothing to capture */ }
   drag.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
   drag.pan = e.button === 2 || e.shiftKey || e.ctrlKey || e.metaKey;
+  drag.light = e.altKey && e.button === 0;
 }
 
 // The centre of the two touch points and their spread.
@@ -429,6 +474,7 @@ function pointerMove(e) {
   if (drag.pointers.size === 1) {
     const dx = e.clientX - last.x, dy = e.clientY - last.y;
     drag.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+    if (drag.light) return moveLight(dx, dy, height);
     camera = drag.pan ? pan(camera, dx, dy, height) : orbit(camera, dx, dy, height);
   } else if (drag.pointers.size === 2) {
     const before = pinch();

@@ -544,6 +544,40 @@ try {
     assert.ok(await page.$eval("#error-panel", (a) => a.hidden), "the figures go with the error view");
   });
 
+  await step(page, "alt-drag-moves-the-light-target-and-orbit-speed", async () => {
+    const start = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    const box = await page.$eval("#viewport", (v) => { const r = v.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; });
+    const before = await currentSources(page);
+    await page.keyboard.down("Alt");
+    await page.mouse.move(box[0] + box[2] / 2, box[1] + box[3] / 2);
+    await page.mouse.down();
+    await page.mouse.move(box[0] + box[2] / 2 + 60, box[1] + box[3] / 2, { steps: 3 });
+    await page.mouse.up();
+    await page.keyboard.up("Alt");
+    await waitForNewImages(page, before);
+    const moved = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.notDeepEqual(moved.light.position, start.light.position, "the light moved");
+    assert.ok(Math.abs(moved.light.position[1] - start.light.position[1]) < 1e-3, "a drag across keeps its height");
+    assert.deepEqual(moved.camera, start.camera, "the camera stayed");
+    const fields = await page.evaluate(() => ["lx", "ly", "lz"].map((id) => Number(document.getElementById(id).value)));
+    assert.deepEqual(fields, moved.light.position, "the fields follow");
+    // Target and orbit speed are sent once they differ from the API's defaults.
+    const again = await currentSources(page);
+    await typeInto(page, "lty", "0.5");
+    await typeInto(page, "orbit", "45");
+    await waitForNewImages(page, again);
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && JSON.parse(window.__umbra.lastRenderBody).light.orbit_deg_per_s === 45);
+    const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.deepEqual(body.light.target, [0, 0.5, 0]);
+    if (body.time !== 0) assert.match(await page.$eval("#light-now", (p) => p.textContent), /^At t = [\d.]+ s: \(/);
+    await checkCurlGivesTheFrame(page, port);
+    // Back to the defaults: neither is sent.
+    await typeInto(page, "lty", "0");
+    await typeInto(page, "orbit", "20");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && !("orbit_deg_per_s" in JSON.parse(window.__umbra.lastRenderBody).light));
+    assert.ok(!("target" in JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light));
+  });
+
   await step(page, "keyboard-and-labels", async () => {
     const unlabelled = await page.$$eval("#controls input, #controls select, button", (elements) =>
       elements.filter((e) => !(e.labels && e.labels.length) && !e.getAttribute("aria-label") && !e.textContent.trim())
