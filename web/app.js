@@ -8,7 +8,10 @@ const state = {
   inFlight: false, dirty: false, playing: false, lastTick: 0, frameUrl: null, depthUrl: null, errorSource: null,
   camera: null,  // the camera as moved ({position, target}); null: the scene's own
   frameOutput: "color",  // the output the frame shown is
+  lastDepth: 0,  // when the depth map last arrived (performance.now())
+  depthStale: false,  // whether the depth map shown is older than the frame
 };
+const DEPTH_INTERVAL_PLAYING_MS = 1000;
 
 function number(id) {
   const value = Number($(id).value);
@@ -52,9 +55,10 @@ function buildRequest() {
   // A built-in scene's own camera is left to the server (a shorter request,
   // the same frame); a model's framing camera is always sent.
   if (state.camera) view.camera = { position: state.camera.position, target: state.camera.target };
+  const [width, height] = $("resolution").value.split("x").map(Number);
   return {
-    width: 960,
-    height: 540,
+    width,
+    height,
     ...view,
     light,
     time: number("time"),
@@ -148,10 +152,15 @@ async function requestFrame() {
     showOutput(body.output, frame.figures);
     // While a newer change waits (a drag), the next frame comes first: the
     // depth map follows once the changes stop.
-    if (!state.dirty) {
+    // While playing, it is drawn at most once a second: it costs a second
+    // render, which would halve the frame rate.
+    const depthDue = !state.playing || performance.now() - state.lastDepth >= DEPTH_INTERVAL_PLAYING_MS;
+    if (!state.dirty && depthDue) {
       const depth = await post("/api/depth", { ...body, output: "depth" });
       replaceImage($("depth"), depth.blob, "depthUrl");
+      state.lastDepth = performance.now();
     }
+    state.depthStale = state.dirty || !depthDue;
     const t = parseTiming(frame.timing);
     const ms = performance.now() - started;
     const fps = state.playing ? ` · ${(1000 / ms).toFixed(1)} frames/s` : "";
@@ -180,6 +189,8 @@ function togglePlay() {
   $("play").textContent = state.playing ? "Pause" : "Play";
   $("play").setAttribute("aria-pressed", String(state.playing));
   if (state.playing) requestFrame();
+  // Paused, the depth map catches up with the last frame.
+  else if (state.depthStale) requestFrame();
 }
 
 function syncFixedSettings() {

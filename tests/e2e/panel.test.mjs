@@ -43,12 +43,13 @@ function startServer() {
 // Counts the panel's requests and how many are in flight at once, by
 // wrapping fetch before the panel's script runs.
 function countRequests() {
-  const counter = { sent: 0, inFlight: 0, maxInFlight: 0, frames: 0, lastRenderBody: null };
+  const counter = { sent: 0, depthSent: 0, inFlight: 0, maxInFlight: 0, frames: 0, lastRenderBody: null };
   window.__umbra = counter;
   const original = window.fetch.bind(window);
   window.fetch = async (...args) => {
     counter.sent += 1;
     if (String(args[0]).endsWith("/api/render")) counter.lastRenderBody = args[1].body;
+    if (String(args[0]).endsWith("/api/depth")) counter.depthSent += 1;
     counter.inFlight += 1;
     counter.maxInFlight = Math.max(counter.maxInFlight, counter.inFlight);
     try {
@@ -210,6 +211,13 @@ async function cameraInUse(page) {
 
 function distance(camera) {
   return Math.hypot(...camera.position.map((x, i) => x - camera.target[i]));
+}
+
+// The frame's box on screen, scrolled into view first (clicking a control
+// further down the form scrolls the page).
+async function viewportBox(page) {
+  await page.$eval("#viewport", (v) => v.scrollIntoView({ block: "nearest" }));
+  return page.$eval("#viewport", (v) => { const r = v.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; });
 }
 
 // Synthetic touch pointers (pointerType "touch") on the frame: what a
@@ -378,7 +386,7 @@ try {
 
   await step(page, "drag-orbits-the-camera", async () => {
     const start = await cameraInUse(page);
-    const box = await page.$eval("#viewport", (v) => { const r = v.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; });
+    const box = await viewportBox(page);
     const before = await currentSources(page);
     await page.mouse.move(box[0] + box[2] / 2, box[1] + box[3] / 2);
     await page.mouse.down();
@@ -409,7 +417,7 @@ try {
 
   await step(page, "wheel-dollies-right-drag-pans", async () => {
     const start = await cameraInUse(page);
-    const box = await page.$eval("#viewport", (v) => { const r = v.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; });
+    const box = await viewportBox(page);
     const centre = [box[0] + box[2] / 2, box[1] + box[3] / 2];
     let before = await currentSources(page);
     await page.mouse.move(...centre);
@@ -546,7 +554,7 @@ try {
 
   await step(page, "alt-drag-moves-the-light-target-and-orbit-speed", async () => {
     const start = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
-    const box = await page.$eval("#viewport", (v) => { const r = v.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; });
+    const box = await viewportBox(page);
     const before = await currentSources(page);
     await page.keyboard.down("Alt");
     await page.mouse.move(box[0] + box[2] / 2, box[1] + box[3] / 2);
@@ -576,6 +584,28 @@ try {
     await typeInto(page, "orbit", "20");
     await page.waitForFunction(() => window.__umbra.inFlight === 0 && !("orbit_deg_per_s" in JSON.parse(window.__umbra.lastRenderBody).light));
     assert.ok(!("target" in JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light));
+  });
+
+  await step(page, "resolution-and-depth-map-at-a-lower-rate-while-playing", async () => {
+    let before = await currentSources(page);
+    await page.selectOption("#resolution", "480x270");
+    await waitForNewImages(page, before);
+    const small = await imageStats(page, "frame");
+    assert.deepEqual([small.width, small.height], [480, 270]);
+    assert.equal(new URL(page.url()).searchParams.get("resolution"), "480x270");
+    const counts0 = await page.evaluate(() => ({ frames: window.__umbra.frames, depth: window.__umbra.depthSent }));
+    await page.click("#play");
+    await page.waitForFunction((n) => window.__umbra.frames >= n + 6, counts0.frames, { timeout: 60000 });
+    await page.click("#play");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
+    const counts1 = await page.evaluate(() => ({ frames: window.__umbra.frames, depth: window.__umbra.depthSent }));
+    assert.ok(counts1.depth - counts0.depth < counts1.frames - counts0.frames,
+              `fewer depth maps (${counts1.depth - counts0.depth}) than frames (${counts1.frames - counts0.frames}) while playing`);
+    // Paused, the depth map is the last frame's.
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && document.getElementById("depth").complete);
+    before = await currentSources(page);
+    await page.selectOption("#resolution", "960x540");
+    await waitForNewImages(page, before);
   });
 
   await step(page, "keyboard-and-labels", async () => {
