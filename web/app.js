@@ -4,7 +4,14 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const state = { inFlight: false, dirty: false, playing: false, lastTick: 0, frameUrl: null, depthUrl: null, errorSource: null };
+const state = {
+  inFlight: false, dirty: false, playing: false, lastTick: 0, frameUrl: null, depthUrl: null, errorSource: null,
+  camera: null,  // the camera as moved ({position, target}); null: the scene's own
+  frameOutput: "color",  // the output the frame shown is
+  lastDepth: 0,  // when the depth map last arrived (performance.now())
+  depthStale: false,  // whether the depth map shown is older than the frame
+};
+const DEPTH_INTERVAL_PLAYING_MS = 1000;
 
 function number(id) {
   const value = Number($(id).value);
@@ -24,6 +31,11 @@ function buildRequest() {
     projection: $("projection").value,
   };
   if (number("size") > 0) light.size = number("size");
+  // The API's defaults are left out, so that a request stays as short as
+  // the settings allow.
+  const target = ["ltx", "lty", "ltz"].map(number);
+  if (target.some((x) => x !== 0)) light.target = target;
+  if (number("orbit") !== DEFAULT_ORBIT_DEG_PER_S) light.orbit_deg_per_s = number("orbit");
   const shadow = { enabled };
   if (enabled) {
     if (!perspective && !fixed && $("cascades").value !== "auto") shadow.cascades = Number($("cascades").value);
@@ -39,10 +51,15 @@ function buildRequest() {
     }
   }
   const model = chosenModel();
+  const view = model ? modelView(model) : { scene: $("scene").value };
+  // A built-in scene's own camera is left to the server (a shorter request,
+  // the same frame); a model's framing camera is always sent.
+  if (state.camera) view.camera = { position: state.camera.position, target: state.camera.target };
+  const [width, height] = $("resolution").value.split("x").map(Number);
   return {
-    width: 960,
-    height: 540,
-    ...(model ? modelView(model) : { scene: $("scene").value }),
+    width,
+    height,
+    ...view,
     light,
     time: number("time"),
     shadow,
@@ -87,6 +104,7 @@ async function post(path, body) {
     timing: response.headers.get("Server-Timing") || "",
     unused: response.headers.get("Umbra-Unused-Fields"),
     views: response.headers.get("Umbra-Shadow-Views"),
+    figures: response.headers.get("Umbra-Shadow-Error"),
   };
 }
 
@@ -109,6 +127,10 @@ function replaceImage(img, blob, key) {
 // Requests one frame (then the depth map). Called on every change and, while
 // playing, again whenever the previous frame has arrived.
 async function requestFrame() {
+  if (fieldsHeld()) {
+    state.lastTick = 0;  // playing resumes from here once the field is fixed
+    return;
+  }
   if (state.inFlight) {
     state.dirty = true;
     return;
@@ -122,12 +144,23 @@ async function requestFrame() {
     state.lastTick = now;
   }
   const body = buildRequest();
+  showLightNow(body.light, body.time);
   saveToUrl();
   try {
     const frame = await post("/api/render", body);
     replaceImage($("frame"), frame.blob, "frameUrl");
-    const depth = await post("/api/depth", { ...body, output: "depth" });
-    replaceImage($("depth"), depth.blob, "depthUrl");
+    showOutput(body.output, frame.figures);
+    // While a newer change waits (a drag), the next frame comes first: the
+    // depth map follows once the changes stop.
+    // While playing, it is drawn at most once a second: it costs a second
+    // render, which would halve the frame rate.
+    const depthDue = !state.playing || performance.now() - state.lastDepth >= DEPTH_INTERVAL_PLAYING_MS;
+    if (!state.dirty && depthDue) {
+      const depth = await post("/api/depth", { ...body, output: "depth" });
+      replaceImage($("depth"), depth.blob, "depthUrl");
+      state.lastDepth = performance.now();
+    }
+    state.depthStale = state.dirty || !depthDue;
     const t = parseTiming(frame.timing);
     const ms = performance.now() - started;
     const fps = state.playing ? ` · ${(1000 / ms).toFixed(1)} frames/s` : "";
@@ -156,6 +189,8 @@ function togglePlay() {
   $("play").textContent = state.playing ? "Pause" : "Play";
   $("play").setAttribute("aria-pressed", String(state.playing));
   if (state.playing) requestFrame();
+  // Paused, the depth map catches up with the last frame.
+  else if (state.depthStale) requestFrame();
 }
 
 function syncFixedSettings() {
@@ -165,6 +200,415 @@ function syncFixedSettings() {
   for (const id of ["near", "far", "half"]) $(id).disabled = !fixed;
   $("half").disabled = !fixed || perspective;
   $("cascades").disabled = fixed || perspective;
+}
+
+// --- The error view ---------------------------------------------------------------
+// The error PNG is |v - v_exact| in red (false shadow) or blue (false
+// light): most errors are a few levels out of 255, black to the eye. The
+// panel shows it amplified by the chosen gain on a canvas (the <img> keeps
+// the PNG as sent, for "Copy as curl"), with the server's figures beside it.
+
+const FIGURES = [
+  ["mae", "MAE"],
+  ["wrong", "wrong (> 0.5)"],
+  ["false_shadow", "false shadow"],
+  ["false_light", "false light"],
+  ["artifacts", "artifacts (> 0.1)"],
+  ["pixels", "pixels measured"],
+  ["interior_pixels", "interior pixels"],
+];
+
+// "mae=0.00015, wrong=0.0027%, ..." -> { mae: "0.00015", wrong: "0.0027%", ... }
+function parseFigures(header) {
+  const figures = {};
+  for (const entry of (header || "").split(",")) {
+    const match = entry.trim().match(/^(\w+)=(.+)$/);
+    if (match) figures[match[1]] = match[2];
+  }
+  return figures;
+}
+
+function showFigures(header) {
+  const figures = parseFigures(header);
+  const list = $("error-figures");
+  list.replaceChildren();
+  for (const [key, name] of FIGURES) {
+    if (!(key in figures)) continue;
+    const value = /^\d+$/.test(figures[key]) ? Number(figures[key]).toLocaleString("en") : figures[key].replace("%", " %");
+    list.append(Object.assign(document.createElement("dt"), { textContent: name }),
+                Object.assign(document.createElement("dd"), { textContent: value, id: `figure-${key}` }));
+  }
+  if (!list.children.length) list.append(Object.assign(document.createElement("dd"), { textContent: "The server sent no figures." }));
+}
+
+// Shows the frame as sent, or for "error" the amplified heatmap and its
+// figures.
+function showOutput(output, figures) {
+  const error = output === "error";
+  state.frameOutput = output;
+  $("frame").hidden = error;
+  $("heatmap").hidden = !error;
+  $("error-panel").hidden = !error;
+  if (!error) return;
+  showFigures(figures);
+  $("frame").decode().then(drawHeatmap, () => {});
+}
+
+function drawHeatmap() {
+  if (state.frameOutput !== "error") return;
+  const image = $("frame");
+  const canvas = $("heatmap");
+  const gain = Number($("gain").value);
+  canvas.width = image.naturalWidth;
+  canvas.height = image.naturalHeight;
+  const context = canvas.getContext("2d", { willReadFrequently: true });
+  context.drawImage(image, 0, 0);
+  if (gain !== 1) {
+    const pixels = context.getImageData(0, 0, canvas.width, canvas.height);
+    const data = pixels.data;
+    for (let i = 0; i < data.length; i += 4) {
+      data[i] = Math.min(255, data[i] * gain);
+      data[i + 1] = Math.min(255, data[i + 1] * gain);
+      data[i + 2] = Math.min(255, data[i + 2] * gain);
+    }
+    context.putImageData(pixels, 0, 0);
+  }
+  drawLegend(gain);
+}
+
+// Two ramps, black to red and black to blue, over the error that the gain
+// brings to full brightness.
+function drawLegend(gain) {
+  const canvas = $("legend-bar");
+  const context = canvas.getContext("2d");
+  const half = canvas.height / 2;
+  for (const [row, colour] of [[0, "#ff0000"], [half, "#0000ff"]]) {
+    const ramp = context.createLinearGradient(0, 0, canvas.width, 0);
+    ramp.addColorStop(0, "#000000");
+    ramp.addColorStop(1, colour);
+    context.fillStyle = ramp;
+    context.fillRect(0, row, canvas.width, half);
+  }
+  const full = 1 / gain;
+  $("legend").textContent = `Gain ×${gain}: brightness = ${gain} × |v − v_exact|, full at ${full.toPrecision(2)} or more. ` +
+    "Red: shadowed where exactly lit (false shadow); blue: lit where exactly shadowed (false light); black: no error.";
+}
+
+// --- The light ------------------------------------------------------------------
+// light.position is where the light is at time 0; the server turns it
+// about the vertical axis through light.target by time x orbit_deg_per_s
+// degrees, counter-clockwise seen from above. The fields keep the request's
+// position (so that the address and "Copy as curl" give the very frame),
+// and a line under them follows the light along its orbit.
+
+const DEFAULT_ORBIT_DEG_PER_S = 20;
+
+function lightTarget() {
+  return ["ltx", "lty", "ltz"].map(number);
+}
+
+// As the server's orbit_light_position.
+function orbitPosition(position, target, degrees) {
+  const angle = (degrees % 360) * Math.PI / 180;
+  const [x, y, z] = sub(position, target);
+  return add(target, [x * Math.cos(angle) + z * Math.sin(angle), y, -x * Math.sin(angle) + z * Math.cos(angle)]);
+}
+
+function showLightNow(light, time) {
+  const speed = light.orbit_deg_per_s ?? DEFAULT_ORBIT_DEG_PER_S;
+  const turned = (time * speed) % 360;
+  const now = orbitPosition(light.position, light.target || [0, 0, 0], turned);
+  $("light-now").textContent = turned === 0 ? "" :
+    `At t = ${time.toFixed(2)} s: (${now.map((x) => x.toFixed(2)).join(", ")}), turned ${turned.toFixed(1)}°.`;
+}
+
+// Alt-drag on the frame moves the light about its target as the camera
+// orbits its own: across turns it about the vertical axis, up raises it.
+function moveLight(dx, dy, height) {
+  const ids = ["lx", "ly", "lz"];
+  if (ids.some((id) => fieldProblem($(id))) || ["ltx", "lty", "ltz"].some((id) => fieldProblem($(id)))) return;
+  const moved = orbit({ position: ids.map(number), target: lightTarget() }, dx, -dy, height).position;
+  ids.forEach((id, i) => { $(id).value = String(round(moved[i])); });
+  requestFrame();
+}
+
+// --- Camera ---------------------------------------------------------------------
+// The camera orbits, dollies and pans about its target as three.js's
+// OrbitControls do: left-drag orbits, the wheel (or a pinch) dollies, right-
+// or shift-drag (or two fingers) pans. Every move only changes state.camera
+// and asks for a frame; requestFrame sends the newest camera when the frame
+// in flight arrives, so dragging runs at the panel's frame rate.
+
+const CAMERA_FIELDS = { position: ["cx", "cy", "cz"], target: ["ctx", "cty", "ctz"] };
+const CAMERA_FOV_DEG = 45;  // the server's default fov_y_deg, which the panel never changes
+const POLAR_MARGIN = 0.01;  // radians kept from the poles: straight up or down, "up" would be undefined
+const sceneCameras = new Map();  // built-in scene name -> its camera, from GET /api/scenes
+
+const sub = (a, b) => a.map((x, i) => x - b[i]);
+const add = (a, b) => a.map((x, i) => x + b[i]);
+const scale = (a, k) => a.map((x) => x * k);
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const clamp = (x, lo, hi) => Math.min(Math.max(x, lo), hi);
+
+// The chosen scene's own camera, or null where the panel does not know it
+// (a model the server does not list, a server without /api/scenes).
+function defaultCamera() {
+  const model = chosenModel();
+  if (model) return modelView(model).camera || null;
+  return sceneCameras.get($("scene").value) || null;
+}
+
+function currentCamera() {
+  return state.camera || defaultCamera();
+}
+
+function sameCamera(a, b) {
+  return !!a && !!b && ["position", "target"].every((k) => a[k].every((x, i) => x === b[k][i]));
+}
+
+// Every camera the panel sends is rounded as the address bar writes it,
+// so a link reproduces the very request (and frame).
+function roundedCamera(camera) {
+  return { position: camera.position.map(round), target: camera.target.map(round) };
+}
+
+// Takes a moved camera: kept (and sent) unless it is the scene's own.
+function setCamera(camera) {
+  const rounded = camera && roundedCamera(camera);
+  state.camera = rounded && !sameCamera(rounded, defaultCamera()) ? rounded : null;
+  showCamera();
+  requestFrame();
+}
+
+// The fields show the camera in use; blank where it is not known.
+function showCamera() {
+  const camera = currentCamera();
+  for (const key of ["position", "target"]) {
+    CAMERA_FIELDS[key].forEach((id, i) => {
+      $(id).value = camera ? String(camera[key][i]) : "";
+      markField($(id), "");
+    });
+  }
+}
+
+// The camera the fields hold, or null (each bad field marked) where one
+// cannot be sent.
+function cameraFromFields() {
+  let good = true;
+  for (const id of [...CAMERA_FIELDS.position, ...CAMERA_FIELDS.target]) {
+    const problem = fieldProblem($(id));
+    markField($(id), problem);
+    if (problem) good = false;
+  }
+  if (!good) return null;
+  const camera = {
+    position: CAMERA_FIELDS.position.map((id) => Number($(id).value)),
+    target: CAMERA_FIELDS.target.map((id) => Number($(id).value)),
+  };
+  if (sameCamera({ position: camera.position, target: camera.position }, { position: camera.target, target: camera.target })) {
+    markField($("cz"), "the position equals the target: the camera would look nowhere");
+    return null;
+  }
+  return camera;
+}
+
+// Spherical coordinates about the target: theta about +Y from +Z, phi
+// from +Y.
+function spherical(camera) {
+  const offset = sub(camera.position, camera.target);
+  const radius = Math.hypot(...offset);
+  return { radius, theta: Math.atan2(offset[0], offset[2]), phi: Math.acos(clamp(offset[1] / radius, -1, 1)) };
+}
+
+function fromSpherical(target, { radius, theta, phi }) {
+  return add(target, [radius * Math.sin(phi) * Math.sin(theta), radius * Math.cos(phi), radius * Math.sin(phi) * Math.cos(theta)]);
+}
+
+// A drag across the frame's full height turns the camera a full circle
+// (OrbitControls' rate); the polar angle stops short of the poles.
+function orbit(camera, dx, dy, height) {
+  const s = spherical(camera);
+  s.theta -= (2 * Math.PI * dx) / height;
+  s.phi = clamp(s.phi - (2 * Math.PI * dy) / height, POLAR_MARGIN, Math.PI - POLAR_MARGIN);
+  return { position: fromSpherical(camera.target, s), target: camera.target };
+}
+
+// Scales the distance to the target by factor (> 1: away), kept where
+// the server takes it (coordinates within 10^6, never on the target).
+function dolly(camera, factor) {
+  const s = spherical(camera);
+  s.radius = clamp(s.radius * factor, 1e-3, 1e5);
+  return { position: fromSpherical(camera.target, s), target: camera.target };
+}
+
+// Moves position and target together in the view plane so that the scene
+// follows the pointer at the target's distance.
+function pan(camera, dx, dy, height) {
+  const offset = sub(camera.position, camera.target);
+  const distance = Math.hypot(...offset);
+  const perPixel = (2 * distance * Math.tan((CAMERA_FOV_DEG * Math.PI) / 360)) / height;
+  const forward = scale(offset, -1 / distance);
+  let right = cross(forward, [0, 1, 0]);
+  right = scale(right, 1 / (Math.hypot(...right) || 1));
+  const up = cross(right, forward);
+  const move = add(scale(right, -dx * perPixel), scale(up, dy * perPixel));
+  return { position: add(camera.position, move), target: add(camera.target, move) };
+}
+
+// Pointer Events cover mouse, pen and touch alike. One pointer orbits (or
+// pans, with the right button or Shift); two pinch to dolly and move
+// together to pan.
+const drag = { pointers: new Map(), pan: false, light: false };
+
+function pointerDown(e) {
+  if (!currentCamera() || (e.pointerType === "mouse" && e.button !== 0 && e.button !== 2)) return;
+  e.preventDefault();
+  try {
+    $("viewport").setPointerCapture(e.pointerId);  // the drag goes on outside the frame
+  } catch (_) { /* a synthetic pointer: nothing to capture */ }
+  drag.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+  drag.pan = e.button === 2 || e.shiftKey || e.ctrlKey || e.metaKey;
+  drag.light = e.altKey && e.button === 0;
+}
+
+// The centre of the two touch points and their spread.
+function pinch() {
+  const [a, b] = Array.from(drag.pointers.values());
+  return { x: (a.x + b.x) / 2, y: (a.y + b.y) / 2, spread: Math.hypot(a.x - b.x, a.y - b.y) || 1 };
+}
+
+function pointerMove(e) {
+  const last = drag.pointers.get(e.pointerId);
+  if (!last) return;
+  const height = $("viewport").clientHeight || 1;
+  let camera = currentCamera();
+  if (drag.pointers.size === 1) {
+    const dx = e.clientX - last.x, dy = e.clientY - last.y;
+    drag.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+    if (drag.light) return moveLight(dx, dy, height);
+    camera = drag.pan ? pan(camera, dx, dy, height) : orbit(camera, dx, dy, height);
+  } else if (drag.pointers.size === 2) {
+    const before = pinch();
+    drag.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+    const after = pinch();
+    camera = pan(dolly(camera, before.spread / after.spread), after.x - before.x, after.y - before.y, height);
+  } else {
+    return;
+  }
+  setCamera(camera);
+}
+
+function pointerUp(e) {
+  drag.pointers.delete(e.pointerId);
+}
+
+// A wheel notch (100 px) dollies by 5 %, as OrbitControls does; lines and
+// pages are made pixels first.
+function wheel(e) {
+  const camera = currentCamera();
+  if (!camera) return;
+  e.preventDefault();
+  const pixels = e.deltaY * (e.deltaMode === 1 ? 40 : e.deltaMode === 2 ? 800 : 1);
+  setCamera(dolly(camera, Math.pow(1 / 0.95, clamp(pixels / 100, -10, 10))));
+}
+
+function cameraToUrl(query) {
+  if (!state.camera) return query;
+  // Commas written as they are: URLSearchParams would escape them.
+  const camera = `camera=${state.camera.position.join(",")}&camera_target=${state.camera.target.join(",")}`;
+  return query ? `${query}&${camera}` : camera;
+}
+
+// The address's camera, or null (and its names in skipped) where it is not
+// three finite numbers each.
+function cameraFromUrl(params, skipped) {
+  if (!params.has("camera") && !params.has("camera_target")) return null;
+  const triple = (name) => {
+    const values = (params.get(name) || "").split(",").map((v) => (v.trim() === "" ? NaN : Number(v)));
+    return values.length === 3 && values.every(Number.isFinite) ? values : null;
+  };
+  const fallback = defaultCamera();
+  const position = params.has("camera") ? triple("camera") : fallback && fallback.position;
+  const target = params.has("camera_target") ? triple("camera_target") : fallback && fallback.target;
+  if (!position || !target || position.every((x, i) => x === target[i])) {
+    skipped.push(...["camera", "camera_target"].filter((name) => params.has(name)));
+    return null;
+  }
+  return { position, target };
+}
+
+// --- Fields whose value cannot be sent --------------------------------------------
+// A number field the browser cannot read ("1e"), an empty one or one out of
+// its range is marked, with its message beside it, and nothing is sent
+// until it is fixed: sending 0 in its place would move the light to the
+// horizon without a word.
+
+function fieldProblem(input) {
+  if (input.disabled) return "";
+  if (input.validity.badInput) return "not a number";
+  if (input.value.trim() === "") return "a number is needed";
+  const value = Number(input.value);
+  if (!Number.isFinite(value)) return "not a number";
+  if (input.min !== "" && value < Number(input.min)) return `at least ${input.min}`;
+  if (input.max !== "" && value > Number(input.max)) return `at most ${input.max}`;
+  if ("integer" in input.dataset && !Number.isInteger(value)) return "a whole number";
+  return "";
+}
+
+// "Light position y": the field's label with its group's.
+function fieldName(input) {
+  const group = input.closest("[role=group]");
+  const label = input.labels && input.labels[0] ? input.labels[0].textContent.trim() : input.id;
+  return group ? `${group.getAttribute("aria-label")} ${label}` : label;
+}
+
+function markField(input, problem) {
+  let message = document.getElementById(`${input.id}-problem`);
+  if (!problem) {
+    input.removeAttribute("aria-invalid");
+    input.removeAttribute("aria-describedby");
+    if (message) message.remove();
+    return;
+  }
+  if (!message) {
+    message = document.createElement("p");
+    message.id = `${input.id}-problem`;
+    message.className = "field-problem";
+    (input.closest(".triple, .row") || input).after(message);
+  }
+  input.setAttribute("aria-invalid", "true");
+  input.setAttribute("aria-describedby", message.id);
+  message.textContent = `${fieldName(input)}: ${problem}. Nothing is sent until it is fixed.`;
+}
+
+// Marks every field that cannot be sent and says so under the frame; true
+// if there is one. The camera's fields are judged as they are typed in
+// (cameraFromFields): they hold no setting of their own.
+function fieldsHeld() {
+  const bad = [];
+  for (const input of $("controls").querySelectorAll("input[type=number]")) {
+    if (!isCameraField(input)) markField(input, fieldProblem(input));
+    if (input.getAttribute("aria-invalid") === "true") bad.push(fieldName(input));
+  }
+  $("held").hidden = bad.length === 0;
+  $("held").textContent = bad.length ? `Not sent: ${bad.join(", ")} cannot be sent as it is (marked above).` : "";
+  return bad.length > 0;
+}
+
+// A light's size softens shadows with the PCSS filter only (the server
+// refuses a size with "pcf" or "hard"): setting a size chooses PCSS, and
+// choosing another filter afterwards says that the size is not used.
+function syncSizeNote(changed) {
+  const soft = number("size") > 0 && $("enabled").checked;
+  if (changed === "size" && soft && $("filter").value !== "pcss") {
+    $("filter").value = "pcss";
+    $("size-note").textContent = "Filter set to PCSS: only PCSS softens shadows by the light's size.";
+  } else if (soft && $("filter").value !== "pcss") {
+    $("size-note").textContent = `Size not used: the ${$("filter").selectedOptions[0].textContent} filter draws hard-edged ` +
+      "shadows; choose PCSS for soft ones.";
+  } else if (changed !== "size" || !soft) {
+    $("size-note").textContent = "";
+  }
 }
 
 // --- Settings in the address bar ---------------------------------------------
@@ -192,7 +636,7 @@ function saveToUrl() {
     if (e.id === "scene" && value.startsWith(MODEL_PREFIX)) params.set("model", value.slice(MODEL_PREFIX.length));
     else params.set(e.name, value);
   }
-  const query = params.toString();
+  const query = cameraToUrl(params.toString());
   history.replaceState(null, "", query ? `?${query}` : location.pathname);
 }
 
@@ -227,7 +671,10 @@ function loadFromUrl() {
       else skipped.push(e.name);
     }
   }
-  const known = new Set(controls().map((e) => e.name).concat("model"));
+  const camera = cameraFromUrl(params, skipped);
+  state.camera = camera && roundedCamera(camera);
+  if (sameCamera(state.camera, defaultCamera())) state.camera = null;
+  const known = new Set(controls().map((e) => e.name).concat("model", "camera", "camera_target"));
   for (const name of params.keys()) if (!known.has(name)) skipped.push(name);
   $("notice").textContent = skipped.length
     ? `Ignored from the address: ${skipped.join(", ")} (not a setting, or a value it cannot take).` : "";
@@ -284,6 +731,7 @@ function fillScenes(scenes) {
   const select = $("scene");
   for (const option of Array.from(select.options)) if (!option.value.startsWith(MODEL_PREFIX)) option.remove();
   scenes.forEach((scene, i) => {
+    if (scene.camera) sceneCameras.set(scene.name, { position: scene.camera.position, target: scene.camera.target });
     const option = new Option(scene.name, scene.name, i === 0, i === 0);
     option.title = scene.description || "";
     select.insertBefore(option, select.querySelector("optgroup"));
@@ -426,6 +874,8 @@ async function uploadModel(file) {
     }
     rememberFileName(model.id, file.name);
     $("scene").value = addModel(model, file.name);
+    state.camera = null;
+    showCamera();
     status.textContent = `${file.name}: ${model.triangles.toLocaleString("en")} triangles, ` +
       (model.closed ? "closed" : "open (drawn two-sided in the shadow pass)") + (answer.status === 200 ? ", already held." : ".");
     requestFrame();
@@ -484,18 +934,47 @@ async function copyCurl() {
 async function start() {
   await loadChoices();
   loadFromUrl();
+  showCamera();
   syncFixedSettings();
+  syncSizeNote();
   requestFrame();
+}
+
+function isCameraField(e) {
+  return CAMERA_FIELDS.position.includes(e.id) || CAMERA_FIELDS.target.includes(e.id);
 }
 
 $("controls").addEventListener("input", (e) => {
   if (e.target.id === "model-file") return;  // its "change" uploads; the frame follows the answer
   clearError("upload");
+  if (isCameraField(e.target)) {
+    const camera = cameraFromFields();
+    if (camera) setCamera(camera);
+    return;
+  }
+  // Another scene is seen from its own camera.
+  if (e.target.id === "scene") {
+    state.camera = null;
+    showCamera();
+  }
+  syncSizeNote(e.target.id);
   syncFixedSettings();
   requestFrame();
 });
 $("controls").addEventListener("submit", (e) => e.preventDefault());
 $("play").addEventListener("click", togglePlay);
+$("reset-camera").addEventListener("click", () => setCamera(null));
+// The gain only changes how the frame is shown: no request.
+$("gain").addEventListener("input", () => {
+  drawHeatmap();
+  saveToUrl();
+});
+$("viewport").addEventListener("pointerdown", pointerDown);
+$("viewport").addEventListener("pointermove", pointerMove);
+$("viewport").addEventListener("pointerup", pointerUp);
+$("viewport").addEventListener("pointercancel", pointerUp);
+$("viewport").addEventListener("wheel", wheel, { passive: false });
+$("viewport").addEventListener("contextmenu", (e) => e.preventDefault());  // right-drag pans
 $("copy-curl").addEventListener("click", copyCurl);
 $("model-file").addEventListener("change", () => {
   const file = $("model-file").files[0];

@@ -43,12 +43,13 @@ function startServer() {
 // Counts the panel's requests and how many are in flight at once, by
 // wrapping fetch before the panel's script runs.
 function countRequests() {
-  const counter = { sent: 0, inFlight: 0, maxInFlight: 0, frames: 0, lastRenderBody: null };
+  const counter = { sent: 0, depthSent: 0, inFlight: 0, maxInFlight: 0, frames: 0, lastRenderBody: null };
   window.__umbra = counter;
   const original = window.fetch.bind(window);
   window.fetch = async (...args) => {
     counter.sent += 1;
     if (String(args[0]).endsWith("/api/render")) counter.lastRenderBody = args[1].body;
+    if (String(args[0]).endsWith("/api/depth")) counter.depthSent += 1;
     counter.inFlight += 1;
     counter.maxInFlight = Math.max(counter.maxInFlight, counter.inFlight);
     try {
@@ -199,6 +200,49 @@ async function checkCurlGivesTheFrame(page, port) {
   return command;
 }
 
+// The camera the panel would send: the request's own, else the fields'
+// (which show the scene's default camera, not sent).
+async function cameraInUse(page) {
+  const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+  if (body.camera) return { sent: true, ...body.camera };
+  const read = (ids) => page.evaluate((ids) => ids.map((id) => Number(document.getElementById(id).value)), ids);
+  return { sent: false, position: await read(["cx", "cy", "cz"]), target: await read(["ctx", "cty", "ctz"]) };
+}
+
+function distance(camera) {
+  return Math.hypot(...camera.position.map((x, i) => x - camera.target[i]));
+}
+
+// The frame's box on screen, scrolled into view first (clicking a control
+// further down the form scrolls the page).
+async function viewportBox(page) {
+  await page.$eval("#viewport", (v) => v.scrollIntoView({ block: "nearest" }));
+  return page.$eval("#viewport", (v) => { const r = v.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; });
+}
+
+// Synthetic touch pointers (pointerType "touch") on the frame: what a
+// finger sends, without a touch screen.
+async function touch(page, type, pointerId, x, y) {
+  await page.$eval("#viewport", (element, [type, pointerId, x, y]) => {
+    element.dispatchEvent(new PointerEvent(type, { pointerId, pointerType: "touch", clientX: x, clientY: y,
+                                                   isPrimary: pointerId === 1, bubbles: true, cancelable: true }));
+  }, [type, pointerId, x, y]);
+}
+
+// Types text into a field as a person would (fill() refuses "1e" in a
+// number field, which is exactly what a person can type).
+async function typeInto(page, id, text) {
+  await page.click(`#${id}`, { clickCount: 3 });
+  await page.keyboard.press("Control+A");
+  await page.keyboard.press("Backspace");
+  await page.keyboard.type(text);
+}
+
+async function sentStaysAt(page, sent, ms = 800) {
+  await page.waitForTimeout(ms);
+  assert.equal(await page.evaluate(() => window.__umbra.sent), sent, "nothing sent");
+}
+
 let stepNumber = 0;
 async function step(page, name, body) {
   stepNumber += 1;
@@ -236,6 +280,11 @@ try {
     assert.deepEqual([frame.width, frame.height], [960, 540], "the frame is 960x540");
     assert.deepEqual([depth.width, depth.height], [mapSize, mapSize], "the depth preview is map_size square");
     assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    assert.equal(new URL(page.url()).search, "", "the first address is clean");
+    const camera = await cameraInUse(page);
+    assert.ok(!camera.sent, "the scene's own camera is not sent");
+    const listed = (await (await fetch(`http://127.0.0.1:${port}/api/scenes`)).json()).scenes[0].camera;
+    assert.deepEqual([camera.position, camera.target], [listed.position, listed.target], "the fields show the scene's camera");
     ortho = { frame, depth };
   });
 
@@ -333,6 +382,230 @@ try {
     const command = await checkCurlGivesTheFrame(page, port);
     assert.equal(await page.$eval("#copy-status", (s) => s.textContent), "Copied to the clipboard.");
     assert.equal(await page.evaluate(() => navigator.clipboard.readText()), command, "the clipboard holds it");
+  });
+
+  await step(page, "drag-orbits-the-camera", async () => {
+    const start = await cameraInUse(page);
+    const box = await viewportBox(page);
+    const before = await currentSources(page);
+    await page.mouse.move(box[0] + box[2] / 2, box[1] + box[3] / 2);
+    await page.mouse.down();
+    await page.mouse.move(box[0] + box[2] / 2 + 120, box[1] + box[3] / 2 + 40, { steps: 6 });
+    await page.mouse.up();
+    await waitForNewImages(page, before);
+    const moved = await cameraInUse(page);
+    assert.ok(moved.sent, "the next request has a camera");
+    assert.deepEqual(moved.target, start.target, "orbiting keeps the target");
+    assert.notDeepEqual(moved.position, start.position, "the position moved");
+    assert.ok(Math.abs(distance(moved) - distance(start)) < 1e-3 * distance(start), "at the same distance");
+    assert.ok(moved.position[1] > start.position[1], "dragging down raises the camera (OrbitControls)");
+    const fields = await page.evaluate(() => ["cx", "cy", "cz"].map((id) => Number(document.getElementById(id).value)));
+    assert.deepEqual(fields, moved.position, "the fields follow the camera");
+    const url = new URL(page.url());
+    assert.equal(url.searchParams.get("camera"), moved.position.join(","), "the camera is in the address");
+    assert.equal(url.searchParams.get("camera_target"), moved.target.join(","));
+    await checkCurlGivesTheFrame(page, port);
+    // The link opens the same view.
+    const other = await page.context().newPage();
+    await other.addInitScript(countRequests);
+    await other.goto(url.href);
+    await waitForNewImages(other, { frame: "", depth: "" });
+    assert.deepEqual(JSON.parse(await other.evaluate(() => window.__umbra.lastRenderBody)),
+                     JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)));
+    await other.close();
+  });
+
+  await step(page, "wheel-dollies-right-drag-pans", async () => {
+    const start = await cameraInUse(page);
+    const box = await viewportBox(page);
+    const centre = [box[0] + box[2] / 2, box[1] + box[3] / 2];
+    let before = await currentSources(page);
+    await page.mouse.move(...centre);
+    await page.mouse.wheel(0, -300);  // towards the scene
+    await waitForNewImages(page, before);
+    await page.waitForFunction((d) => {
+      const c = JSON.parse(window.__umbra.lastRenderBody).camera;
+      return Math.hypot(...c.position.map((x, i) => x - c.target[i])) < 0.9 * d && window.__umbra.inFlight === 0;
+    }, distance(start), { timeout: 60000 });
+    const zoomed = await cameraInUse(page);
+    assert.deepEqual(zoomed.target, start.target, "dollying keeps the target");
+    // Right-drag pans: position and target move together.
+    before = await currentSources(page);
+    await page.mouse.down({ button: "right" });
+    await page.mouse.move(centre[0] - 80, centre[1], { steps: 4 });
+    await page.mouse.up({ button: "right" });
+    await waitForNewImages(page, before);
+    const panned = await cameraInUse(page);
+    assert.notDeepEqual(panned.target, zoomed.target, "the target moved");
+    const offset = (c) => c.position.map((x, i) => x - c.target[i]);
+    offset(panned).forEach((x, i) => assert.ok(Math.abs(x - offset(zoomed)[i]) < 1e-3, "the view direction is kept"));
+  });
+
+  await step(page, "touch-pinch-and-one-finger-orbit", async () => {
+    const start = await cameraInUse(page);
+    const before = await currentSources(page);
+    // Two fingers spread apart: dolly in.
+    await touch(page, "pointerdown", 1, 400, 300);
+    await touch(page, "pointerdown", 2, 500, 300);
+    await touch(page, "pointermove", 1, 350, 300);
+    await touch(page, "pointermove", 2, 550, 300);
+    await touch(page, "pointerup", 1, 350, 300);
+    await touch(page, "pointerup", 2, 550, 300);
+    await waitForNewImages(page, before);
+    await page.waitForFunction(() => window.__umbra.inFlight === 0);
+    const pinched = await cameraInUse(page);
+    assert.ok(distance(pinched) < 0.6 * distance(start), `spreading two fingers dollies in (${distance(start)} -> ${distance(pinched)})`);
+    // One finger orbits.
+    const again = await currentSources(page);
+    await touch(page, "pointerdown", 3, 400, 300);
+    await touch(page, "pointermove", 3, 300, 300);
+    await touch(page, "pointerup", 3, 300, 300);
+    await waitForNewImages(page, again);
+    const orbited = await cameraInUse(page);
+    assert.deepEqual(orbited.target, pinched.target);
+    assert.notDeepEqual(orbited.position, pinched.position);
+  });
+
+  await step(page, "reset-camera-cleans-the-address", async () => {
+    const before = await currentSources(page);
+    await page.click("#reset-camera");
+    await waitForNewImages(page, before);
+    assert.ok(!(await cameraInUse(page)).sent, "the scene's own camera again, not sent");
+    assert.ok(!new URL(page.url()).searchParams.has("camera"), "no camera in the address");
+  });
+
+  await step(page, "bad-field-is-marked-and-nothing-sent", async () => {
+    // On the way to "1e" the field held "1", a number, which was sent.
+    await typeInto(page, "ly", "1e");
+    await page.waitForSelector("#ly[aria-invalid=true]");
+    assert.match(await page.$eval("#ly-problem", (p) => p.textContent), /^Light position y: not a number\./);
+    assert.ok(await page.$eval("#held", (p) => !p.hidden), "the panel says nothing was sent");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0);
+    const sent = await page.evaluate(() => window.__umbra.sent);
+    await sentStaysAt(page, sent);
+    assert.notEqual(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light.position[1], 0,
+                    "never sent as 0 (the light on the horizon)");
+    await page.keyboard.press("Backspace");  // "1": a number again
+    await page.waitForFunction(() => !document.getElementById("ly-problem"));
+    await page.waitForFunction((n) => window.__umbra.sent > n, sent);
+    assert.equal(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light.position[1], 1);
+    // Size -3 is below the field's minimum.
+    await page.waitForFunction(() => window.__umbra.inFlight === 0);
+    const sent2 = await page.evaluate(() => window.__umbra.sent);
+    await typeInto(page, "size", "-3");
+    await page.waitForSelector("#size[aria-invalid=true]");
+    assert.match(await page.$eval("#size-problem", (p) => p.textContent), /at least 0/);
+    await sentStaysAt(page, sent2);
+    // A size with the PCF filter: the panel chooses PCSS and says why.
+    await typeInto(page, "size", "2");
+    await page.waitForFunction(() => document.getElementById("filter").value === "pcss");
+    assert.match(await page.$eval("#size-note", (p) => p.textContent), /PCSS/);
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && JSON.parse(window.__umbra.lastRenderBody).light.size === 2);
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    await page.selectOption("#filter", "pcf");
+    assert.match(await page.$eval("#size-note", (p) => p.textContent), /Size not used/);
+    // Back as it was.
+    await typeInto(page, "size", "0");
+    await typeInto(page, "ly", "4");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && JSON.parse(window.__umbra.lastRenderBody).light.position[1] === 4);
+    assert.equal(await page.$eval("#size-note", (p) => p.textContent), "");
+  });
+
+  await step(page, "error-view-shows-its-figures-and-an-amplified-heatmap", async () => {
+    const before = await currentSources(page);
+    await page.selectOption("#view", "error");
+    await waitForNewImages(page, before);
+    await page.waitForSelector("#error-panel:not([hidden]) #figure-mae");
+    // The figures are the server's header, as sent for this very request.
+    const body = await page.evaluate(() => window.__umbra.lastRenderBody);
+    const response = await fetch(`http://127.0.0.1:${port}/api/render`, { method: "POST", body });
+    const header = response.headers.get("Umbra-Shadow-Error");
+    const mae = header.match(/mae=([\d.]+)/)[1];
+    assert.equal(await page.$eval("#figure-mae", (d) => d.textContent), mae);
+    for (const key of ["wrong", "false_shadow", "false_light", "artifacts"]) {
+      assert.match(await page.$eval(`#figure-${key}`, (d) => d.textContent), /^[\d.]+ %$/, key);
+    }
+    assert.match(await page.$eval("#figure-pixels", (d) => d.textContent), /^[\d,]+$/);
+    // The heatmap shown is the PNG amplified (x16 by default), the legend says so.
+    assert.ok(await page.$eval("#frame", (i) => i.hidden), "the raw PNG is not what is shown");
+    assert.match(await page.$eval("#legend", (p) => p.textContent), /Gain ×16/);
+    const sums = await page.evaluate(() => {
+      const sum = (canvas) => canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data.reduce((a, b) => a + b, 0);
+      const image = document.getElementById("frame");
+      const raw = Object.assign(document.createElement("canvas"), { width: image.naturalWidth, height: image.naturalHeight });
+      raw.getContext("2d").drawImage(image, 0, 0);
+      return { raw: sum(raw), shown: sum(document.getElementById("heatmap")) };
+    });
+    assert.ok(sums.shown > sums.raw, `the heatmap is brighter than the PNG (${sums.shown} > ${sums.raw})`);
+    await page.screenshot({ path: path.join(artifacts, "error-view.png"), fullPage: true });
+    // The gain is the browser's: changing it sends nothing.
+    const sent = await page.evaluate(() => window.__umbra.sent);
+    await page.selectOption("#gain", "64");
+    assert.match(await page.$eval("#legend", (p) => p.textContent), /Gain ×64/);
+    await sentStaysAt(page, sent, 300);
+    assert.equal(new URL(page.url()).searchParams.get("gain"), "64");
+    await checkCurlGivesTheFrame(page, port);
+    await page.selectOption("#gain", "16");
+    const back = await currentSources(page);
+    await page.selectOption("#view", "color");
+    await waitForNewImages(page, back);
+    assert.ok(await page.$eval("#error-panel", (a) => a.hidden), "the figures go with the error view");
+  });
+
+  await step(page, "alt-drag-moves-the-light-target-and-orbit-speed", async () => {
+    const start = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    const box = await viewportBox(page);
+    const before = await currentSources(page);
+    await page.keyboard.down("Alt");
+    await page.mouse.move(box[0] + box[2] / 2, box[1] + box[3] / 2);
+    await page.mouse.down();
+    await page.mouse.move(box[0] + box[2] / 2 + 60, box[1] + box[3] / 2, { steps: 3 });
+    await page.mouse.up();
+    await page.keyboard.up("Alt");
+    await waitForNewImages(page, before);
+    const moved = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.notDeepEqual(moved.light.position, start.light.position, "the light moved");
+    assert.ok(Math.abs(moved.light.position[1] - start.light.position[1]) < 1e-3, "a drag across keeps its height");
+    assert.deepEqual(moved.camera, start.camera, "the camera stayed");
+    const fields = await page.evaluate(() => ["lx", "ly", "lz"].map((id) => Number(document.getElementById(id).value)));
+    assert.deepEqual(fields, moved.light.position, "the fields follow");
+    // Target and orbit speed are sent once they differ from the API's defaults.
+    const again = await currentSources(page);
+    await typeInto(page, "lty", "0.5");
+    await typeInto(page, "orbit", "45");
+    await waitForNewImages(page, again);
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && JSON.parse(window.__umbra.lastRenderBody).light.orbit_deg_per_s === 45);
+    const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.deepEqual(body.light.target, [0, 0.5, 0]);
+    if (body.time !== 0) assert.match(await page.$eval("#light-now", (p) => p.textContent), /^At t = [\d.]+ s: \(/);
+    await checkCurlGivesTheFrame(page, port);
+    // Back to the defaults: neither is sent.
+    await typeInto(page, "lty", "0");
+    await typeInto(page, "orbit", "20");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && !("orbit_deg_per_s" in JSON.parse(window.__umbra.lastRenderBody).light));
+    assert.ok(!("target" in JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light));
+  });
+
+  await step(page, "resolution-and-depth-map-at-a-lower-rate-while-playing", async () => {
+    let before = await currentSources(page);
+    await page.selectOption("#resolution", "480x270");
+    await waitForNewImages(page, before);
+    const small = await imageStats(page, "frame");
+    assert.deepEqual([small.width, small.height], [480, 270]);
+    assert.equal(new URL(page.url()).searchParams.get("resolution"), "480x270");
+    const counts0 = await page.evaluate(() => ({ frames: window.__umbra.frames, depth: window.__umbra.depthSent }));
+    await page.click("#play");
+    await page.waitForFunction((n) => window.__umbra.frames >= n + 6, counts0.frames, { timeout: 60000 });
+    await page.click("#play");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
+    const counts1 = await page.evaluate(() => ({ frames: window.__umbra.frames, depth: window.__umbra.depthSent }));
+    assert.ok(counts1.depth - counts0.depth < counts1.frames - counts0.frames,
+              `fewer depth maps (${counts1.depth - counts0.depth}) than frames (${counts1.frames - counts0.frames}) while playing`);
+    // Paused, the depth map is the last frame's.
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && document.getElementById("depth").complete);
+    before = await currentSources(page);
+    await page.selectOption("#resolution", "960x540");
+    await waitForNewImages(page, before);
   });
 
   await step(page, "keyboard-and-labels", async () => {
