@@ -21,16 +21,20 @@ PACKAGES=(
 # Optional groups:
 #   --fuzz     clang and its libFuzzer runtime (scripts/fuzz.sh)
 #   --browser  Debian's chromium, and node + npm for the panel's browser test
+#   --metrics  promtool, from Debian's prometheus package, into .tools/bin
+#              (the tests check GET /metrics with it)
+want_promtool=0
 for group in "$@"; do
   case "$group" in
     --fuzz) PACKAGES+=(clang-14 libclang-rt-14-dev) ;;
+    --metrics) want_promtool=1 ;;
     --browser)
       PACKAGES+=(chromium nodejs)
       # A node from elsewhere (e.g. NodeSource) brings its own npm, and
       # Debian's npm package would conflict with it.
       command -v npm >/dev/null || PACKAGES+=(npm)
       ;;
-    *) echo "install-deps: unknown option $group (known: --fuzz, --browser)" >&2; exit 2 ;;
+    *) echo "install-deps: unknown option $group (known: --fuzz, --browser, --metrics)" >&2; exit 2 ;;
   esac
 done
 
@@ -38,16 +42,33 @@ missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+SUDO=""
+[ "$(id -u)" -ne 0 ] && SUDO="sudo"
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#PACKAGES[@]} packages present"
-  exit 0
+else
+  if [ -n "$SUDO" ] && ! command -v sudo >/dev/null; then
+    echo "install-deps: need root or sudo to install: ${missing[*]}" >&2
+    exit 1
+  fi
+  echo "install-deps: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then
-  command -v sudo >/dev/null || { echo "install-deps: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
-  SUDO="sudo"
+# promtool alone, unpacked from Debian's prometheus package into the
+# repository's .tools/bin: installing the package would also enable and
+# start a Prometheus server on this machine, which the tests do not need.
+if [ "$want_promtool" = 1 ] && ! [ -x "$(dirname "$0")/../.tools/bin/promtool" ]; then
+  tools="$(cd "$(dirname "$0")/.." && pwd)/.tools"
+  work=$(mktemp -d)
+  if ! (cd "$work" && apt-get download prometheus >/dev/null 2>&1); then
+    $SUDO apt-get update -qq
+    (cd "$work" && apt-get download prometheus >/dev/null)
+  fi
+  dpkg-deb -x "$work"/prometheus_*.deb "$work/root"
+  mkdir -p "$tools/bin"
+  cp "$work/root/usr/bin/promtool" "$tools/bin/promtool"
+  rm -rf "$work"
+  echo "install-deps: promtool in $tools/bin ($("$tools/bin/promtool" --version 2>&1 | head -n 1))"
 fi
-echo "install-deps: installing ${missing[*]}"
-$SUDO apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -162,6 +162,7 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "/api/models", &HttpApi::list_models, false},
     {"POST", "/api/models", &HttpApi::upload_model, true},
     {"GET", "/api/models/", &HttpApi::get_model, false, true},
+    {"GET", "/metrics", &HttpApi::metrics, false},
 };
 
 HttpApi::HttpApi(RenderService& renderer, ServerOptions options)
@@ -198,11 +199,12 @@ HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, Se
     add_cors_headers(res);
   };
   handlers.error = [this](int status, const std::string& message) { return error_response(status, message); };
-  if (options_.log_requests)
-    handlers.log = [](const HttpRequest& req, const HttpResponse& res, double ms) {
+  handlers.log = [this](const HttpRequest& req, const HttpResponse& res, double ms) {
+    metrics_.request_answered(route_label(req), res.status, ms / 1000.0);
+    if (options_.log_requests)
       std::fprintf(stderr, "%s %s %d %.1f ms\n", req.method.empty() ? "-" : req.method.c_str(),
                    req.path.empty() ? "-" : req.path.c_str(), res.status, ms);
-    };
+  };
   http_ = std::make_unique<HttpServer>(std::move(connections), std::move(handlers));
 }
 
@@ -245,6 +247,14 @@ const HttpApi::Route* HttpApi::find_route(const HttpRequest& req, std::string& a
     allow += (allow.empty() ? "" : ", ") + std::string(route.method);
   }
   return nullptr;
+}
+
+std::string HttpApi::route_label(const HttpRequest& req) const {
+  std::string allow;
+  if (const Route* route = find_route(req, allow)) return std::string(route->path) + (route->prefix ? "{id}" : "");
+  const bool api = req.path == "/api" || req.path.rfind("/api/", 0) == 0;
+  if (!api && (req.method == "GET" || req.method == "HEAD")) return "static";
+  return "other";
 }
 
 bool HttpApi::blocks(const HttpRequest& req) const {
@@ -311,6 +321,37 @@ void HttpApi::health(const HttpRequest&, HttpResponse& res) {
                   "application/json");
 }
 
+void HttpApi::metrics(const HttpRequest&, HttpResponse& res) {
+  const RendererInfo& info = renderer_.info();
+  const HttpServerStats connections = http_->stats();
+  MetricsGauges g;
+  g.gl_renderer = info.gl_renderer;
+  g.gl_version = info.gl_version;
+  g.egl_source = info.egl_source;
+  g.uptime_s = std::chrono::duration<double>(Clock::now() - started_).count();
+  g.frames_rendered = renderer_.frames_rendered();
+  g.shadow_map_reuses = renderer_.shadow_cache_hits();
+  g.scene_uploads = renderer_.scene_uploads();
+  g.queue_depth = renderer_.queue_depth();
+  g.queue_capacity = renderer_.limits().queue_capacity;
+  g.rejected = renderer_.rejected();
+  g.expired = renderer_.expired();
+  g.abandoned = renderer_.abandoned();
+  g.too_costly = renderer_.too_costly();
+  g.overran = renderer_.overran();
+  g.cached_bytes = renderer_.cached_bytes();
+  g.models = models_->count();
+  g.model_bytes = models_->bytes();
+  g.model_budget_bytes = models_->max_bytes();
+  g.connections_open = connections.connections_open;
+  g.connections_evicted = connections.connections_evicted;
+  g.connections_refused = connections.connections_refused;
+  g.requests_timed_out = connections.requests_timed_out;
+  g.bodies_refused = connections.bodies_refused;
+  res.set_header("Cache-Control", "no-store");
+  res.set_content(metrics_.exposition(g), "text/plain; version=0.0.4; charset=utf-8");
+}
+
 void HttpApi::scenes(const HttpRequest&, HttpResponse& res) {
   json scenes = json::array();
   for (const auto& s : builtin_scenes()) {
@@ -338,6 +379,15 @@ void HttpApi::render_depth(const HttpRequest& req, HttpResponse& res) { render(r
 // curl -d's form type alike), except multipart/* (curl -F): a set of parts,
 // not one JSON document.
 void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route) {
+  // Counted however the request ends (every refusal returns early).
+  struct FrameRecord {
+    Metrics& metrics;
+    const HttpResponse& res;
+    std::string output = "invalid";
+    std::optional<FrameTimings> timings;
+    double encode_ms = 0.0, queue_ms = 0.0;
+    ~FrameRecord() { metrics.frame_answered(output, res.status, timings ? &*timings : nullptr, encode_ms, queue_ms); }
+  } record{metrics_, res};
   const std::string type = req.header("Content-Type");
   if (starts_with_ci(type, "multipart/"))
     return send_error(res, 415, "unsupported Content-Type " + type.substr(0, type.find(';')) +
@@ -355,6 +405,7 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
       parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, find_model);
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
+  record.output = to_string(request.output);
   const auto queued = Clock::now();
   // Asked just before the job's turn: a client that has gone costs no render.
   const int socket = req.socket;
@@ -385,6 +436,9 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   const auto encode_start = Clock::now();
   std::string png = encode_png(result.image);
   const double encode_ms = std::chrono::duration<double, std::milli>(Clock::now() - encode_start).count();
+  record.timings = t;
+  record.encode_ms = encode_ms;
+  record.queue_ms = queue_ms;
   res.set_header("Server-Timing", server_timing(t, encode_ms, queue_ms));
   res.set_header("Cache-Control", "no-store");
   if (!parsed.unused_fields.empty()) {

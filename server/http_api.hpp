@@ -12,6 +12,7 @@
 #include "render_service.hpp"
 
 #include "http_server.hpp"
+#include "metrics.hpp"
 
 namespace umbra {
 
@@ -84,6 +85,7 @@ class HttpApi {
 
   // Routes.
   void health(const HttpRequest& req, HttpResponse& res);
+  void metrics(const HttpRequest& req, HttpResponse& res);
   void scenes(const HttpRequest& req, HttpResponse& res);
   void openapi_document(const HttpRequest& req, HttpResponse& res);
   void render_color(const HttpRequest& req, HttpResponse& res);
@@ -99,6 +101,9 @@ class HttpApi {
   /// the path's methods, if the path is a route's).
   const Route* find_route(const HttpRequest& req, std::string& allow) const;
   void handle(const HttpRequest& req, HttpResponse& res);
+  /// The route label of `req` in the metrics: a route's path as the table
+  /// names it, "static" for the panel's files, or "other".
+  std::string route_label(const HttpRequest& req) const;
   bool blocks(const HttpRequest& req) const;
   HttpResponse error_response(int status, const std::string& message) const;
   void add_cors_headers(HttpResponse& res) const;
@@ -111,6 +116,7 @@ class HttpApi {
   std::shared_ptr<ModelStore> models_;  // owned, or the one given (not owned)
   std::mutex model_loads_mutex_;
   int model_loads_ = 0;  // uploads being loaded now
+  Metrics metrics_;
   std::unique_ptr<HttpServer> http_;
   std::chrono::steady_clock::time_point started_;
 };

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -173,6 +174,51 @@ TEST(Connections, RunningOutOfDescriptorsNeitherSpinsNorStopsTheServer) {
   auto res = client(server).Get("/api/health");
   ASSERT_TRUE(res) << httplib::to_string(res.error()) << "\n" << server.log();
   EXPECT_EQ(res->status, 200);
+  server.send_signal(SIGTERM);
+  EXPECT_EQ(server.wait(), 0) << server.log();
+}
+
+// GET /metrics after a mix of answers: Prometheus' own checker takes the
+// page, and the counters say what happened.
+TEST(Metrics, APageOfARealServerPassesPromtool) {
+  ASSERT_STRNE(UMBRA_PROMTOOL, "") << "promtool not found: bash scripts/install-deps.sh --metrics";
+  ServerProcess server = start();
+  auto c = client(server);
+  ASSERT_EQ(c.Post("/api/render", R"({"width": 64, "height": 48})", "application/json")->status, 200);
+  ASSERT_EQ(c.Post("/api/depth", R"({"shadow": {"map_size": 256}})", "application/json")->status, 200);
+  ASSERT_EQ(c.Post("/api/render", R"({"width": 64, "height": 48, "output": "exact"})", "application/json")->status, 200);
+  ASSERT_EQ(c.Post("/api/render", R"({"width": 1})", "application/json")->status, 400);
+  ASSERT_EQ(c.Get("/")->status, 200);
+  ASSERT_EQ(c.Get("/no/such/file")->status, 404);
+  auto res = c.Get("/metrics");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200);
+  EXPECT_EQ(res->get_header_value("Content-Type"), "text/plain; version=0.0.4; charset=utf-8");
+  const std::string& page = res->body;
+  for (const char* line : {R"(umbra_frames_total{output="color",status="200"} 1)",
+                           R"(umbra_frames_total{output="depth",status="200"} 1)",
+                           R"(umbra_frames_total{output="exact",status="200"} 1)",
+                           R"(umbra_frames_total{output="invalid",status="400"} 1)",
+                           R"(umbra_http_requests_total{route="/api/render",status="200"} 2)",
+                           R"(umbra_http_requests_total{route="static",status="200"} 1)",
+                           R"(umbra_http_requests_total{route="static",status="404"} 1)",
+                           R"(umbra_render_stage_seconds_count{stage="raycast"} 1)", "umbra_models 2"})
+    EXPECT_NE(page.find(std::string("\n") + line + "\n"), std::string::npos) << line << "\n" << page;
+
+  const std::string file = ::testing::TempDir() + "umbra-metrics-" + std::to_string(getpid()) + ".txt";
+  std::ofstream(file) << page;
+  const std::string command = std::string(UMBRA_PROMTOOL) + " check metrics < " + file + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string said;
+  char buffer[512];
+  while (fgets(buffer, sizeof buffer, pipe)) said += buffer;
+  const int status = pclose(pipe);
+  std::remove(file.c_str());
+  // promtool exits non-zero on a malformed page, and lists lint problems
+  // (names, units, help texts) on its output: neither may happen.
+  EXPECT_EQ(status, 0) << said;
+  EXPECT_EQ(said, "") << said;
   server.send_signal(SIGTERM);
   EXPECT_EQ(server.wait(), 0) << server.log();
 }
