@@ -161,7 +161,8 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"POST", "/api/depth", &HttpApi::render_depth, true},
     {"GET", "/api/models", &HttpApi::list_models, false},
     {"POST", "/api/models", &HttpApi::upload_model, true},
-    {"GET", "/api/models/", &HttpApi::get_model, false, true},
+    // On a worker: a model not held may be read from --model-store.
+    {"GET", "/api/models/", &HttpApi::get_model, true, true},
     {"GET", "/metrics", &HttpApi::metrics, false},
 };
 
@@ -174,6 +175,7 @@ HttpApi::HttpApi(RenderService& renderer, ModelStore& models, ServerOptions opti
 
 HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options)
     : renderer_(renderer), options_(std::move(options)), models_(std::move(models)), started_(Clock::now()) {
+  if (!options_.model_store_dir.empty()) archive_ = std::make_unique<ModelArchive>(options_.model_store_dir);
   HttpServerOptions connections = options_.connections;
   connections.host = options_.host;
   connections.port = options_.port;
@@ -381,13 +383,14 @@ void HttpApi::render_depth(const HttpRequest& req, HttpResponse& res) { render(r
 void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route) {
   // Counted however the request ends (every refusal returns early).
   struct FrameRecord {
+    FrameRecord(Metrics& m, const HttpResponse& r) : metrics(m), res(r) {}
+    ~FrameRecord() { metrics.frame_answered(output, res.status, timings ? &*timings : nullptr, encode_ms, queue_ms); }
     Metrics& metrics;
     const HttpResponse& res;
     std::string output = "invalid";
     std::optional<FrameTimings> timings;
     double encode_ms = 0.0, queue_ms = 0.0;
-    ~FrameRecord() { metrics.frame_answered(output, res.status, timings ? &*timings : nullptr, encode_ms, queue_ms); }
-  } record{metrics_, res};
+  } record(metrics_, res);
   const std::string type = req.header("Content-Type");
   if (starts_with_ci(type, "multipart/"))
     return send_error(res, 415, "unsupported Content-Type " + type.substr(0, type.find(';')) +
@@ -396,13 +399,13 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   // No body at all reads as {}, all defaults, like an empty one. The
   // parser sets a depth route's output itself, so that Umbra-Unused-Fields
   // is judged against the depth map.
-  const ModelLookup find_model = [this](const std::string& id_or_name) -> std::optional<FoundModel> {
-    const auto held = models_->find(id_or_name);
+  const ModelLookup lookup = [this](const std::string& id_or_name) -> std::optional<FoundModel> {
+    const auto held = find_model(id_or_name);
     if (!held) return std::nullopt;
     return FoundModel{held->id, held->model};
   };
   ParsedRequest parsed =
-      parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, find_model);
+      parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, lookup);
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
   record.output = to_string(request.output);
@@ -474,13 +477,35 @@ void HttpApi::list_models(const HttpRequest&, HttpResponse& res) {
 
 void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
   const std::string key = req.path.substr(std::char_traits<char>::length("/api/models/"));
-  const auto held = models_->find(key);
+  const auto held = find_model(key);
   if (!held)
     return send_error(res, 404,
                       "no model '" + key.substr(0, 100) +
                           "' is held; upload it with POST /api/models (GET /api/models lists those held)",
                       "");
   res.set_content(model_json(*held).dump(), "application/json");
+}
+
+std::shared_ptr<const HeldModel> HttpApi::find_model(const std::string& id_or_name) {
+  if (auto held = models_->find(id_or_name)) return held;
+  if (!archive_) return nullptr;
+  std::string why;
+  const std::optional<ModelArchive::Stored> stored = archive_->load(id_or_name, options_.max_model_bytes, why);
+  if (!stored) {
+    if (!why.empty()) std::fprintf(stderr, "umbra-server: --model-store: %s\n", why.c_str());
+    return nullptr;
+  }
+  LoadOptions load_options;  // as an upload: nothing outside the body is read
+  load_options.format = stored->format;
+  LoadResult loaded = load_gltf(stored->body, load_options);
+  if (!loaded.ok()) {
+    std::fprintf(stderr, "umbra-server: --model-store: %s: %s\n", id_or_name.c_str(), loaded.error.c_str());
+    return nullptr;
+  }
+  const ModelStore::AddResult added = models_->add(id_or_name, "", std::move(loaded.model), false);
+  if (!added.held)
+    std::fprintf(stderr, "umbra-server: --model-store: %s does not fit --models-budget-mib\n", id_or_name.c_str());
+  return added.held;
 }
 
 // A .glb or a self-contained .gltf; its id is the SHA-256 of the body, so
@@ -500,7 +525,19 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
                           "; send a .glb as model/gltf-binary or a self-contained .gltf as model/gltf+json",
                       "");
   const std::string id = model_id_for(req.body);
-  if (const auto held = models_->find(id)) return res.set_content(model_json(*held).dump(), "application/json");
+  // Every server of a cluster must find a model it is told of: it is in
+  // the shared folder before the upload is answered, also when this server
+  // held it already. Only a body that loaded is written there.
+  const auto archived = [&] {
+    std::string why;
+    if (!archive_ || archive_->save(id, options.format, req.body, why)) return true;
+    send_error(res, 503, "the model could not be written to --model-store: " + why, "");
+    return false;
+  };
+  if (const auto held = models_->find(id)) {
+    if (archived()) res.set_content(model_json(*held).dump(), "application/json");
+    return;
+  }
   {
     std::lock_guard<std::mutex> lock(model_loads_mutex_);
     if (model_loads_ >= kMaxConcurrentModelLoads) {
@@ -516,6 +553,7 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
     --model_loads_;
   }
   if (!loaded.ok()) return send_error(res, loaded.status, loaded.error, "");
+  if (!archived()) return;
   const std::size_t bytes = loaded.model->bytes();
   const ModelStore::AddResult added = models_->add(id, "", std::move(loaded.model), false);
   switch (added.outcome) {

@@ -8,6 +8,7 @@
 #include <mutex>
 #include <string>
 
+#include "model_archive.hpp"
 #include "model_store.hpp"
 #include "render_service.hpp"
 
@@ -34,6 +35,10 @@ struct ServerOptions {
   /// Geometry held (--models-budget-mib), for the store HttpApi makes when
   /// none is given to it.
   std::uint64_t models_budget_bytes = std::uint64_t(2048) << 20;
+  /// --model-store DIR: a folder shared with other servers where every
+  /// upload is written, and where a model not held is looked for
+  /// (model_archive.hpp). Empty: none.
+  std::string model_store_dir;
 };
 
 /// "*", or scheme://host[:port] with scheme http or https and nothing after.
@@ -97,6 +102,9 @@ class HttpApi {
   void get_model(const HttpRequest& req, HttpResponse& res);
 
   void render(const HttpRequest& req, HttpResponse& res, bool depth_route);
+  /// A held model by id or name; one not held is loaded from the
+  /// --model-store folder if that has it. Null if neither has it.
+  std::shared_ptr<const HeldModel> find_model(const std::string& id_or_name);
   /// The route for `req`'s method and path, or null (with `allow` set to
   /// the path's methods, if the path is a route's).
   const Route* find_route(const HttpRequest& req, std::string& allow) const;
@@ -116,6 +124,7 @@ class HttpApi {
   std::shared_ptr<ModelStore> models_;  // owned, or the one given (not owned)
   std::mutex model_loads_mutex_;
   int model_loads_ = 0;  // uploads being loaded now
+  std::unique_ptr<ModelArchive> archive_;  // --model-store, or null
   Metrics metrics_;
   std::unique_ptr<HttpServer> http_;
   std::chrono::steady_clock::time_point started_;

@@ -3,7 +3,7 @@
 //   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
 //                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--memory-mib 2048]
 //                [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--models DIR]
-//                [--max-model-mib 64] [--models-budget-mib 2048] [--quiet]
+//                [--model-store DIR] [--max-model-mib 64] [--models-budget-mib 2048] [--quiet]
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -19,6 +19,7 @@
 #include <pthread.h>
 #include <signal.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "http_api.hpp"
 #include "model_store.hpp"
@@ -31,7 +32,8 @@ void usage(std::FILE* out) {
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
                "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--memory-mib N]\n"
                "                    [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--models DIR]\n"
-               "                    [--max-model-mib N] [--models-budget-mib N] [--quiet]\n"
+               "                    [--model-store DIR] [--max-model-mib N] [--models-budget-mib N]\n"
+               "                    [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
                "  --web DIR       serve the web panel from DIR instead of the copy built in\n"
@@ -57,6 +59,10 @@ void usage(std::FILE* out) {
                "  --models DIR    load every .glb and .gltf in DIR at start, named by file name (\"teapot\" for teapot.glb);\n"
                "                  their external buffer files are read from inside DIR only. A file that fails is\n"
                "                  skipped with its reason on stderr. Never dropped from memory (pinned)\n"
+               "  --model-store DIR\n"
+               "                  a folder shared with other servers (several on one machine, or a network file system):\n"
+               "                  every upload is written there, named by its id, and a model this server does not hold\n"
+               "                  is loaded from there, so any server behind a load balancer can render any upload\n"
                "  --max-model-mib N\n"
                "                  largest model upload (POST /api/models body) and --models file, MiB; larger gets 413,\n"
                "                  1..4095 (default 64). Every other request body stays limited to 1 MiB\n"
@@ -129,6 +135,8 @@ int main(int argc, char** argv) {
           std::chrono::milliseconds(integer_flag("--request-timeout-ms", value("--request-timeout-ms"), 1, 3600000));
     } else if (arg == "--models") {
       models_dir = value("--models");
+    } else if (arg == "--model-store") {
+      options.model_store_dir = value("--model-store");
     } else if (arg == "--max-model-mib") {
       options.max_model_bytes = std::size_t(integer_flag("--max-model-mib", value("--max-model-mib"), 1, 4095)) << 20;
     } else if (arg == "--models-budget-mib") {
@@ -147,6 +155,15 @@ int main(int argc, char** argv) {
   }
 
 
+  if (!options.model_store_dir.empty()) {
+    struct stat info {};
+    if (stat(options.model_store_dir.c_str(), &info) != 0 || !S_ISDIR(info.st_mode) ||
+        access(options.model_store_dir.c_str(), W_OK) != 0) {
+      std::fprintf(stderr, "umbra-server: --model-store: '%s' is not a folder this server can write to\n",
+                   options.model_store_dir.c_str());
+      return 2;
+    }
+  }
   if (!options.web_dir.empty()) {
     struct stat info {};
     if (stat(options.web_dir.c_str(), &info) != 0 || !S_ISDIR(info.st_mode)) {

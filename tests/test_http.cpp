@@ -154,7 +154,9 @@ TEST(Http, EveryOutputDecodesToTheRightSize) {
     const std::string timing = res->get_header_value("Server-Timing");
     const bool cast = std::string(c.output) == "exact" || std::string(c.output) == "error";
     EXPECT_EQ(timing.find("raycast;dur=") != std::string::npos, cast) << c.output << ": " << timing;
-    if (std::string(c.output) == "exact") EXPECT_NE(timing.find("main;dur=0.000"), std::string::npos) << timing;
+    if (std::string(c.output) == "exact") {
+      EXPECT_NE(timing.find("main;dur=0.000"), std::string::npos) << timing;
+    }
     if (std::string(c.output) == "error") {
       std::smatch main_ms;
       ASSERT_TRUE(std::regex_search(timing, main_ms, std::regex("main;dur=([0-9.]+)"))) << timing;
@@ -1081,6 +1083,52 @@ TEST(Http, AMeshObjectRendersAnUploadedModelByIdAndAFolderModelByName) {
     EXPECT_EQ(d.width, 64);
     EXPECT_EQ(d.height, 48);
   }
+}
+
+// --model-store: two servers, as behind a load balancer, share a folder.
+// A model uploaded to one renders on the other, which never saw the upload;
+// a body that did not load is never written there.
+TEST(Http, AModelUploadedToOneServerRendersOnAnotherThroughTheSharedStore) {
+  namespace fs = std::filesystem;
+  const fs::path folder = fs::temp_directory_path() / ("umbra-http-store-" + std::to_string(getpid()));
+  fs::remove_all(folder);
+  fs::create_directories(folder);
+  ServerOptions options;
+  options.model_store_dir = folder.string();
+  ModelStore store_a(std::uint64_t(64) << 20), store_b(std::uint64_t(64) << 20);
+  OwnServer a(options, store_a), b(options, store_b);
+  httplib::Client to_a("127.0.0.1", a.api.port()), to_b("127.0.0.1", b.api.port());
+
+  const std::string glb = cube_model(0.7f).glb();
+  auto res = to_a.Post("/api/models", glb, "model/gltf-binary");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 201) << res->body;
+  const std::string id = json::parse(res->body)["id"];
+  EXPECT_TRUE(fs::exists(folder / (id.substr(7) + ".glb")));
+  EXPECT_EQ(store_b.count(), 0u);
+  // B has not seen it: it loads it from the folder to answer.
+  res = to_b.Post("/api/render", mesh_scene_body(id, "color"), "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200) << res->body;
+  EXPECT_EQ(store_b.count(), 1u);
+  EXPECT_EQ(to_b.Get("/api/models/" + id)->status, 200);
+  // By id only: a name is never looked for in the folder.
+  EXPECT_EQ(to_b.Get("/api/models/" + id.substr(7))->status, 404);
+
+  // A body that does not load is refused and not written.
+  res = to_a.Post("/api/models", "glTF but no more", "model/gltf-binary");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 400);
+  EXPECT_FALSE(fs::exists(folder / (model_id_for("glTF but no more").substr(7) + ".glb")));
+  // A file changed on the shared disk is not taken: unknown, as before.
+  const std::string other = cube_model(0.4f).glb();
+  ASSERT_EQ(to_a.Post("/api/models", other, "model/gltf-binary")->status, 201);
+  const std::string other_id = model_id_for(other);
+  std::ofstream(folder / (other_id.substr(7) + ".glb"), std::ios::binary | std::ios::trunc) << other.substr(0, 40);
+  res = to_b.Post("/api/render", mesh_scene_body(other_id, "color"), "application/json");
+  ASSERT_TRUE(res);
+  expect_json_error(res, 400, "scene.objects[0].model");
+  fs::remove_all(folder);
 }
 
 }  // namespace

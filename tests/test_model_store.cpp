@@ -5,9 +5,13 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <vector>
+
+#include <unistd.h>
 
 #include "gltf_builder.hpp"
 #include "gltf_loader.hpp"
+#include "model_archive.hpp"
 #include "model_store.hpp"
 
 namespace umbra {
@@ -145,6 +149,91 @@ TEST(ModelStore, AFolderLoadsByNameAndRefusesWhatLeavesIt) {
   FolderLoad none;
   EXPECT_FALSE(load_model_folder((root / "absent").string(), store, 64 << 20, none, error));
   fs::remove_all(root);
+}
+
+}  // namespace
+}  // namespace umbra
+
+// --- The shared folder (--model-store) -------------------------------------
+
+namespace umbra {
+namespace {
+
+struct TemporaryFolder {
+  std::filesystem::path path;
+  TemporaryFolder() {
+    path = std::filesystem::temp_directory_path() /
+           ("umbra-archive-" + std::to_string(getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(path);
+    std::filesystem::create_directories(path);
+  }
+  ~TemporaryFolder() { std::filesystem::remove_all(path); }
+};
+
+TEST(ModelArchive, KeepsABodyUnderItsIdAndGivesItBack) {
+  TemporaryFolder folder;
+  const ModelArchive archive(folder.path.string());
+  const std::string body = "glTF and then some bytes";
+  const std::string id = model_id_for(body);
+  std::string why;
+  ASSERT_TRUE(archive.save(id, LoadOptions::Format::Binary, body, why)) << why;
+  // Named by the id's hex, nothing else left in the folder (no temporary).
+  std::vector<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(folder.path)) names.push_back(entry.path().filename());
+  ASSERT_EQ(names.size(), 1u);
+  EXPECT_EQ(names[0], id.substr(7) + ".glb");
+  const auto stored = archive.load(id, 1 << 20, why);
+  ASSERT_TRUE(stored) << why;
+  EXPECT_EQ(stored->body, body);
+  EXPECT_EQ(stored->format, LoadOptions::Format::Binary);
+  // Saving again is a no-op; a .gltf is kept as such.
+  EXPECT_TRUE(archive.save(id, LoadOptions::Format::Binary, body, why));
+  const std::string json_body = R"({"asset": {"version": "2.0"}})";
+  ASSERT_TRUE(archive.save(model_id_for(json_body), LoadOptions::Format::Json, json_body, why));
+  EXPECT_EQ(archive.load(model_id_for(json_body), 1 << 20, why)->format, LoadOptions::Format::Json);
+}
+
+TEST(ModelArchive, TakesNoFileThatDoesNotHashToItsNameOrIsTooLarge) {
+  TemporaryFolder folder;
+  const ModelArchive archive(folder.path.string());
+  const std::string body = "the model's bytes";
+  const std::string id = model_id_for(body);
+  std::string why;
+  ASSERT_TRUE(archive.save(id, LoadOptions::Format::Binary, body, why));
+  EXPECT_FALSE(archive.load(id, 4, why)) << "larger than the limit";
+  EXPECT_NE(why.find("larger than 4 bytes"), std::string::npos) << why;
+  // Cut short (or changed) on the shared disk: refused, and said why.
+  std::ofstream(folder.path / (id.substr(7) + ".glb"), std::ios::binary | std::ios::trunc) << "the model";
+  why.clear();
+  EXPECT_FALSE(archive.load(id, 1 << 20, why));
+  EXPECT_NE(why.find("does not hash to its name"), std::string::npos) << why;
+  // Not there: nullopt and no why.
+  why.clear();
+  EXPECT_FALSE(archive.load(model_id_for("other"), 1 << 20, why));
+  EXPECT_TRUE(why.empty()) << why;
+}
+
+TEST(ModelArchive, NeverFormsAPathFromANameOrABadId) {
+  TemporaryFolder folder;
+  const ModelArchive archive(folder.path.string());
+  std::ofstream(folder.path / "teapot.glb") << "glTF";
+  std::string why;
+  for (const std::string& key : std::vector<std::string>{"teapot", "../teapot", "sha256:../../etc/passwd",
+                                                        "sha256:" + std::string(64, 'A'),
+                                                        "sha256:" + std::string(63, 'a')}) {
+    EXPECT_FALSE(is_model_id(key)) << key;
+    EXPECT_FALSE(archive.load(key, 1 << 20, why)) << key;
+    EXPECT_FALSE(archive.save(key, LoadOptions::Format::Binary, "x", why)) << key;
+  }
+  EXPECT_TRUE(is_model_id(model_id_for("x")));
+}
+
+TEST(ModelArchive, AFolderItCannotWriteToIsSaidSo) {
+  const ModelArchive archive("/nonexistent-umbra-folder");
+  std::string why;
+  EXPECT_FALSE(archive.save(model_id_for("x"), LoadOptions::Format::Binary, "x", why));
+  EXPECT_NE(why.find("/nonexistent-umbra-folder"), std::string::npos) << why;
 }
 
 }  // namespace
