@@ -23,18 +23,21 @@ PACKAGES=(
 #   --browser  Debian's chromium, and node + npm for the panel's browser test
 #   --metrics  promtool, from Debian's prometheus package, into .tools/bin
 #              (the tests check GET /metrics with it)
+#   --cluster  HAProxy, in front of several servers (scripts/cluster.sh), and
+#              systemd-analyze for deploy/umbra@.service
 want_promtool=0
 for group in "$@"; do
   case "$group" in
     --fuzz) PACKAGES+=(clang-14 libclang-rt-14-dev) ;;
     --metrics) want_promtool=1 ;;
+    --cluster) PACKAGES+=(haproxy systemd) ;;  # systemd: systemd-analyze checks deploy/umbra@.service
     --browser)
       PACKAGES+=(chromium nodejs)
       # A node from elsewhere (e.g. NodeSource) brings its own npm, and
       # Debian's npm package would conflict with it.
       command -v npm >/dev/null || PACKAGES+=(npm)
       ;;
-    *) echo "install-deps: unknown option $group (known: --fuzz, --browser, --metrics)" >&2; exit 2 ;;
+    *) echo "install-deps: unknown option $group (known: --fuzz, --browser, --metrics, --cluster)" >&2; exit 2 ;;
   esac
 done
 

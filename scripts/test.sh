@@ -11,7 +11,7 @@ phase() {
   echo "test.sh: $1 took $((SECONDS - phase_start)) s (total $SECONDS s)"
   phase_start=$SECONDS
 }
-bash scripts/install-deps.sh --browser --fuzz --metrics
+bash scripts/install-deps.sh --browser --fuzz --metrics --cluster
 npm ci --prefix tests/e2e --no-audit --no-fund --loglevel=error
 phase "setup"
 bash scripts/build.sh -DUMBRA_BUILD_TESTS=ON
