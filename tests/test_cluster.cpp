@@ -145,9 +145,9 @@ TEST(Cluster, SixteenClientsLoseNothingWhileServersAreKilledAndDrained) {
                                                    {{"type", "mesh"}, {"model", model}, {"position", {0, 0.5, 0}}}}}}}}
                           .dump()}};
 #ifdef UMBRA_SANITIZED
-  const auto run_for = std::chrono::seconds(12);  // servers 3-4x slower: fewer requests, same events
+  const auto run_for = std::chrono::seconds(15);  // servers 3-4x slower: fewer requests, same events
 #else
-  const auto run_for = std::chrono::seconds(20);
+  const auto run_for = std::chrono::seconds(30);
 #endif
   const auto started = Clock::now();
   std::atomic<bool> running{true};
