@@ -158,6 +158,7 @@ async function requestFrame() {
     if (!state.dirty && depthDue) {
       const depth = await post("/api/depth", { ...body, output: "depth" });
       replaceImage($("depth"), depth.blob, "depthUrl");
+      showDepthTiles(depth.views);
       state.lastDepth = performance.now();
     }
     state.depthStale = state.dirty || !depthDue;
@@ -292,6 +293,107 @@ function drawLegend(gain) {
   const full = 1 / gain;
   $("legend").textContent = `Gain ×${gain}: brightness = ${gain} × |v − v_exact|, full at ${full.toPrecision(2)} or more. ` +
     "Red: shadowed where exactly lit (false shadow); blue: lit where exactly shadowed (false light); black: no error.";
+}
+
+// --- The depth map ---------------------------------------------------------------
+// The depth PNG tiles the light's views in a square grid (the server's
+// depth_preview.frag): ceil(sqrt(N)) tiles a side, view 0 top left, row by
+// row; cells past the last view are grey (0.5). Each view's depth spans
+// only part of 0..1, so the panel shows every view on its own canvas,
+// stretched from its nearest texel (black) to its farthest drawn one
+// (white); texels where nothing was drawn hold the far plane (255) and are
+// shown in FAR_COLOUR. The <img> keeps the PNG as sent.
+
+const CUBE_FACES = ["+X", "−X", "+Y", "−Y", "+Z", "−Z"];  // light_math.cpp's kAxes, the layers' order
+const FAR_COLOUR = [29, 43, 69];
+const DEPTH_WORK_SIZE = 2048;  // larger maps are read scaled down (nearest texel), to bound the memory
+
+// "cascades; views=3; size=2048" -> { layout: "cascades", views: 3 }; an
+// unknown or missing header: one view.
+function parseViews(header) {
+  const layout = ((header || "").split(";")[0] || "").trim() || "single";
+  const match = (header || "").match(/views=(\d+)/);
+  const views = match ? Math.max(1, Number(match[1])) : 1;
+  return { layout, views };
+}
+
+function viewLabel(layout, i, views) {
+  if (layout === "cube" && views === 6) return `cube face ${CUBE_FACES[i]}`;
+  if (layout === "cascades") return `cascade ${i}`;
+  return views === 1 ? "the light's view" : `view ${i}`;
+}
+
+function showDepthTiles(header) {
+  const { layout, views } = parseViews(header);
+  const image = $("depth");
+  const src = image.src;
+  // A newer map may replace this one before it is decoded: draw each with its own layout.
+  image.decode().then(() => { if (image.src === src) drawDepthTiles(image, layout, views); }, () => {});
+}
+
+function drawDepthTiles(image, layout, views) {
+  const size = Math.min(image.naturalWidth, DEPTH_WORK_SIZE);
+  if (!size) return;
+  const work = Object.assign(document.createElement("canvas"), { width: size, height: size });
+  const context = work.getContext("2d", { willReadFrequently: true });
+  context.imageSmoothingEnabled = false;  // no texel mixed with a neighbour tile's
+  context.drawImage(image, 0, 0, size, size);
+  const grid = Math.ceil(Math.sqrt(views) - 1e-9);
+  const data = context.getImageData(0, 0, size, size).data;
+  const container = $("depth-tiles");
+  container.style.setProperty("--depth-columns", String(Math.min(grid, views)));
+  container.dataset.layout = layout;
+  const tiles = [];
+  for (let i = 0; i < views; i += 1) {
+    const column = i % grid, row = Math.floor(i / grid);
+    const x0 = Math.round((column * size) / grid), x1 = Math.round(((column + 1) * size) / grid);
+    const y0 = Math.round((row * size) / grid), y1 = Math.round(((row + 1) * size) / grid);
+    tiles.push(stretchedTile(data, size, x0, y0, x1 - x0, y1 - y0, viewLabel(layout, i, views)));
+  }
+  container.replaceChildren(...tiles);
+}
+
+// One view's tile: its grey levels stretched to its own min..max, the far
+// plane (255) left out of both and drawn in FAR_COLOUR.
+function stretchedTile(data, size, x0, y0, width, height, label) {
+  // One texel in from the edges: a scaled-down map's nearest texel there may be the next tile's.
+  let min = 255, max = 0;
+  for (let y = y0 + 1; y < y0 + height - 1; y += 1) {
+    for (let x = x0 + 1; x < x0 + width - 1; x += 1) {
+      const v = data[4 * (y * size + x)];
+      if (v === 255) continue;
+      if (v < min) min = v;
+      if (v > max) max = v;
+    }
+  }
+  const empty = min > max;
+  const canvas = Object.assign(document.createElement("canvas"), { width, height });
+  const context = canvas.getContext("2d");
+  const out = context.createImageData(width, height);
+  const range = max - min;
+  for (let y = 0; y < height; y += 1) {
+    for (let x = 0; x < width; x += 1) {
+      const v = data[4 * ((y0 + y) * size + x0 + x)];
+      const o = 4 * (y * width + x);
+      if (v === 255 || empty) {
+        [out.data[o], out.data[o + 1], out.data[o + 2]] = FAR_COLOUR;
+      } else {
+        const grey = range > 0 ? Math.round((255 * (clamp(v, min, max) - min)) / range) : 128;
+        out.data[o] = out.data[o + 1] = out.data[o + 2] = grey;
+      }
+      out.data[o + 3] = 255;
+    }
+  }
+  context.putImageData(out, 0, 0);
+  const text = empty ? `${label} (empty)` : label;
+  canvas.setAttribute("role", "img");
+  canvas.setAttribute("aria-label", `${text}: grey levels ${min}…${max} of 255 stretched to black…white`);
+  const figure = document.createElement("figure");
+  figure.className = "depth-tile";
+  figure.dataset.rawMin = empty ? "" : String(min);
+  figure.dataset.rawMax = empty ? "" : String(max);
+  figure.append(canvas, Object.assign(document.createElement("figcaption"), { textContent: text }));
+  return figure;
 }
 
 // --- The light ------------------------------------------------------------------
