@@ -10,6 +10,7 @@ const state = {
   frameOutput: "color",  // the output the frame shown is
   lastDepth: 0,  // when the depth map last arrived (performance.now())
   depthStale: false,  // whether the depth map shown is older than the frame
+  custom: null,  // the scene editor's request fragment being rendered; null: the form's scene
 };
 const DEPTH_INTERVAL_PLAYING_MS = 1000;
 
@@ -56,7 +57,7 @@ function buildRequest() {
   // the same frame); a model's framing camera is always sent.
   if (state.camera) view.camera = { position: state.camera.position, target: state.camera.target };
   const [width, height] = $("resolution").value.split("x").map(Number);
-  return {
+  const body = {
     width,
     height,
     ...view,
@@ -65,6 +66,7 @@ function buildRequest() {
     shadow,
     output: $("view").value,
   };
+  return state.custom ? withFragment(body, state.custom) : body;
 }
 
 // The error box says what failed last: a render or an upload. A frame that
@@ -158,6 +160,7 @@ async function requestFrame() {
     if (!state.dirty && depthDue) {
       const depth = await post("/api/depth", { ...body, output: "depth" });
       replaceImage($("depth"), depth.blob, "depthUrl");
+      showDepthTiles(depth.views);
       state.lastDepth = performance.now();
     }
     state.depthStale = state.dirty || !depthDue;
@@ -172,6 +175,7 @@ async function requestFrame() {
     clearError();
   } catch (e) {
     showError(e.message);
+    if (state.custom) $("scene-json-status").textContent = `The editor's scene was not rendered: ${e.message}`;
     if (state.playing) togglePlay();
   } finally {
     state.inFlight = false;
@@ -294,6 +298,107 @@ function drawLegend(gain) {
     "Red: shadowed where exactly lit (false shadow); blue: lit where exactly shadowed (false light); black: no error.";
 }
 
+// --- The depth map ---------------------------------------------------------------
+// The depth PNG tiles the light's views in a square grid (the server's
+// depth_preview.frag): ceil(sqrt(N)) tiles a side, view 0 top left, row by
+// row; cells past the last view are grey (0.5). Each view's depth spans
+// only part of 0..1, so the panel shows every view on its own canvas,
+// stretched from its nearest texel (black) to its farthest drawn one
+// (white); texels where nothing was drawn hold the far plane (255) and are
+// shown in FAR_COLOUR. The <img> keeps the PNG as sent.
+
+const CUBE_FACES = ["+X", "−X", "+Y", "−Y", "+Z", "−Z"];  // light_math.cpp's kAxes, the layers' order
+const FAR_COLOUR = [29, 43, 69];
+const DEPTH_WORK_SIZE = 2048;  // larger maps are read scaled down (nearest texel), to bound the memory
+
+// "cascades; views=3; size=2048" -> { layout: "cascades", views: 3 }; an
+// unknown or missing header: one view.
+function parseViews(header) {
+  const layout = ((header || "").split(";")[0] || "").trim() || "single";
+  const match = (header || "").match(/views=(\d+)/);
+  const views = match ? Math.max(1, Number(match[1])) : 1;
+  return { layout, views };
+}
+
+function viewLabel(layout, i, views) {
+  if (layout === "cube" && views === 6) return `cube face ${CUBE_FACES[i]}`;
+  if (layout === "cascades") return `cascade ${i}`;
+  return views === 1 ? "the light's view" : `view ${i}`;
+}
+
+function showDepthTiles(header) {
+  const { layout, views } = parseViews(header);
+  const image = $("depth");
+  const src = image.src;
+  // A newer map may replace this one before it is decoded: draw each with its own layout.
+  image.decode().then(() => { if (image.src === src) drawDepthTiles(image, layout, views); }, () => {});
+}
+
+function drawDepthTiles(image, layout, views) {
+  const size = Math.min(image.naturalWidth, DEPTH_WORK_SIZE);
+  if (!size) return;
+  const work = Object.assign(document.createElement("canvas"), { width: size, height: size });
+  const context = work.getContext("2d", { willReadFrequently: true });
+  context.imageSmoothingEnabled = false;  // no texel mixed with a neighbour tile's
+  context.drawImage(image, 0, 0, size, size);
+  const grid = Math.ceil(Math.sqrt(views) - 1e-9);
+  const data = context.getImageData(0, 0, size, size).data;
+  const container = $("depth-tiles");
+  container.style.setProperty("--depth-columns", String(Math.min(grid, views)));
+  container.dataset.layout = layout;
+  const tiles = [];
+  for (let i = 0; i < views; i += 1) {
+    const column = i % grid, row = Math.floor(i / grid);
+    const x0 = Math.round((column * size) / grid), x1 = Math.round(((column + 1) * size) / grid);
+    const y0 = Math.round((row * size) / grid), y1 = Math.round(((row + 1) * size) / grid);
+    tiles.push(stretchedTile(data, size, x0, y0, x1 - x0, y1 - y0, viewLabel(layout, i, views)));
+  }
+  container.replaceChildren(...tiles);
+}
+
+// One view's tile: its grey levels stretched to its own min..max, the far
+// plane (255) left out of both and drawn in FAR_COLOUR.
+function stretchedTile(data, size, x0, y0, width, height, label) {
+  // One texel in from the edges: a scaled-down map's nearest texel there may be the next tile's.
+  let min = 255, max = 0;
+  for (let y = y0 + 1; y < y0 + height - 1; y += 1) {
+    for (let x = x0 + 1; x < x0 + width - 1; x += 1) {
+      const v = data[4 * (y * size + x)];
+      if (v === 255) continue;
+      if (v < min) min = v;
+      if (v > max) max = v;
+    }
+  }
+  const empty = min > max;
+  const canvas = Object.assign(document.createElement("canvas"), { width, height });
+  const context = canvas.getContext("2d");
+  const out = context.createImageData(width, height);
+  const range = max - min;
+  for (let y = 0; y < height; y += 1) {
+    for (let x = 0; x < width; x += 1) {
+      const v = data[4 * ((y0 + y) * size + x0 + x)];
+      const o = 4 * (y * width + x);
+      if (v === 255 || empty) {
+        [out.data[o], out.data[o + 1], out.data[o + 2]] = FAR_COLOUR;
+      } else {
+        const grey = range > 0 ? Math.round((255 * (clamp(v, min, max) - min)) / range) : 128;
+        out.data[o] = out.data[o + 1] = out.data[o + 2] = grey;
+      }
+      out.data[o + 3] = 255;
+    }
+  }
+  context.putImageData(out, 0, 0);
+  const text = empty ? `${label} (empty)` : label;
+  canvas.setAttribute("role", "img");
+  canvas.setAttribute("aria-label", `${text}: grey levels ${min}…${max} of 255 stretched to black…white`);
+  const figure = document.createElement("figure");
+  figure.className = "depth-tile";
+  figure.dataset.rawMin = empty ? "" : String(min);
+  figure.dataset.rawMax = empty ? "" : String(max);
+  figure.append(canvas, Object.assign(document.createElement("figcaption"), { textContent: text }));
+  return figure;
+}
+
 // --- The light ------------------------------------------------------------------
 // light.position is where the light is at time 0; the server turns it
 // about the vertical axis through light.target by time x orbit_deg_per_s
@@ -315,6 +420,13 @@ function orbitPosition(position, target, degrees) {
 }
 
 function showLightNow(light, time) {
+  // The scene editor can send anything: the server judges it, this line only follows a valid light.
+  const triple = (v) => Array.isArray(v) && v.length === 3 && v.every(Number.isFinite);
+  if (!light || !triple(light.position) || (light.target !== undefined && !triple(light.target)) || !Number.isFinite(time) ||
+      (light.orbit_deg_per_s !== undefined && !Number.isFinite(light.orbit_deg_per_s))) {
+    $("light-now").textContent = "";
+    return;
+  }
   const speed = light.orbit_deg_per_s ?? DEFAULT_ORBIT_DEG_PER_S;
   const turned = (time * speed) % 360;
   const now = orbitPosition(light.position, light.target || [0, 0, 0], turned);
@@ -343,6 +455,7 @@ const CAMERA_FIELDS = { position: ["cx", "cy", "cz"], target: ["ctx", "cty", "ct
 const CAMERA_FOV_DEG = 45;  // the server's default fov_y_deg, which the panel never changes
 const POLAR_MARGIN = 0.01;  // radians kept from the poles: straight up or down, "up" would be undefined
 const sceneCameras = new Map();  // built-in scene name -> its camera, from GET /api/scenes
+const sceneObjects = new Map();  // built-in scene name -> its objects, from GET /api/scenes
 
 const sub = (a, b) => a.map((x, i) => x - b[i]);
 const add = (a, b) => a.map((x, i) => x + b[i]);
@@ -353,6 +466,8 @@ const clamp = (x, lo, hi) => Math.min(Math.max(x, lo), hi);
 // The chosen scene's own camera, or null where the panel does not know it
 // (a model the server does not list, a server without /api/scenes).
 function defaultCamera() {
+  const custom = customCamera();
+  if (custom) return custom;
   const model = chosenModel();
   if (model) return modelView(model).camera || null;
   return sceneCameras.get($("scene").value) || null;
@@ -636,6 +751,7 @@ function saveToUrl() {
     if (e.id === "scene" && value.startsWith(MODEL_PREFIX)) params.set("model", value.slice(MODEL_PREFIX.length));
     else params.set(e.name, value);
   }
+  sceneJsonToUrl(params);
   const query = cameraToUrl(params.toString());
   history.replaceState(null, "", query ? `?${query}` : location.pathname);
 }
@@ -671,10 +787,11 @@ function loadFromUrl() {
       else skipped.push(e.name);
     }
   }
+  sceneJsonFromUrl(params, skipped);
   const camera = cameraFromUrl(params, skipped);
   state.camera = camera && roundedCamera(camera);
   if (sameCamera(state.camera, defaultCamera())) state.camera = null;
-  const known = new Set(controls().map((e) => e.name).concat("model", "camera", "camera_target"));
+  const known = new Set(controls().map((e) => e.name).concat("model", "camera", "camera_target", "scene_json"));
   for (const name of params.keys()) if (!known.has(name)) skipped.push(name);
   $("notice").textContent = skipped.length
     ? `Ignored from the address: ${skipped.join(", ")} (not a setting, or a value it cannot take).` : "";
@@ -732,6 +849,7 @@ function fillScenes(scenes) {
   for (const option of Array.from(select.options)) if (!option.value.startsWith(MODEL_PREFIX)) option.remove();
   scenes.forEach((scene, i) => {
     if (scene.camera) sceneCameras.set(scene.name, { position: scene.camera.position, target: scene.camera.target });
+    if (Array.isArray(scene.objects)) sceneObjects.set(scene.name, scene.objects);
     const option = new Option(scene.name, scene.name, i === 0, i === 0);
     option.title = scene.description || "";
     select.insertBefore(option, select.querySelector("optgroup"));
@@ -873,6 +991,7 @@ async function uploadModel(file) {
       throw new Error(`${file.name} was not loaded (${answer.status}): ${detail}`);
     }
     rememberFileName(model.id, file.name);
+    if (state.custom) leaveCustomScene();  // the upload is chosen, as if picked in the list
     $("scene").value = addModel(model, file.name);
     state.camera = null;
     showCamera();
@@ -907,6 +1026,146 @@ function drop(e) {
   document.body.classList.remove("dropping");
   const file = e.dataTransfer.files[0];
   if (file) uploadModel(file);
+}
+
+// --- Your own scene ---------------------------------------------------------------
+// The editor holds a JSON request fragment ({"scene": {"objects": [...]},
+// "camera": {...}, "light": {...}}, or any other request field). "Render
+// this" sends the form's request with the fragment's fields over it: an
+// object field (light, shadow, camera) is merged key by key, anything else
+// replaced. Its camera is then the scene's own: dragging moves from it,
+// "Reset camera" goes back to it. Choosing another scene leaves it.
+// The address keeps it as scene_json (minified) while that stays under
+// SCENE_JSON_URL_LIMIT characters encoded; a longer one is not kept there.
+
+const SCENE_JSON_URL_LIMIT = 2000;
+
+const isPlainObject = (v) => v !== null && typeof v === "object" && !Array.isArray(v);
+
+function withFragment(body, fragment) {
+  const merged = { ...body };
+  for (const [key, value] of Object.entries(fragment)) {
+    merged[key] = isPlainObject(value) && isPlainObject(body[key]) ? { ...body[key], ...value } : value;
+  }
+  // A dragged camera moves from the fragment's, keeping its other keys (fov_y_deg).
+  if (state.camera) merged.camera = { ...(isPlainObject(fragment.camera) ? fragment.camera : {}), ...state.camera };
+  return merged;
+}
+
+// The fragment's camera, where it has a position and a target to orbit about.
+function customCamera() {
+  const camera = state.custom && state.custom.camera;
+  const triple = (v) => Array.isArray(v) && v.length === 3 && v.every(Number.isFinite);
+  if (!isPlainObject(camera) || !triple(camera.position) || !triple(camera.target)) return null;
+  return { position: camera.position, target: camera.target };
+}
+
+// The chosen scene (or model view) as a fragment: its objects, the camera
+// in use and the light as the form sends it, so that rendering it at once
+// gives the frame shown.
+function loadSceneIntoEditor() {
+  const model = chosenModel();
+  let scene;
+  if (model) scene = modelView(model).scene;
+  else if (sceneObjects.has($("scene").value)) scene = { objects: sceneObjects.get($("scene").value) };
+  else scene = $("scene").value;  // the server did not list it: its name
+  const fragment = { scene };
+  const camera = currentCamera();
+  if (camera) fragment.camera = { position: camera.position, target: camera.target };
+  const light = { position: ["lx", "ly", "lz"].map(number) };
+  const target = lightTarget();
+  if (target.some((x) => x !== 0)) light.target = target;
+  fragment.light = light;
+  $("scene-json").value = formatFragment(fragment);
+  markSceneJson("");
+  $("scene-json-status").textContent = `Loaded ${$("scene").selectedOptions[0].textContent}: edit it, then Render this.`;
+}
+
+// Two-space JSON with each number list on one line: an object per line is
+// easier to edit than one number per line.
+function formatFragment(fragment) {
+  return JSON.stringify(fragment, null, 2).replace(/\[\s+([^\[\]{}]*?)\s+\]/g, (_, inner) => `[${inner.replace(/,\s+/g, ", ")}]`);
+}
+
+// The editor's text as a fragment, or null (the textarea marked) where it is not one.
+function parseSceneJson() {
+  let fragment;
+  try {
+    fragment = JSON.parse($("scene-json").value);
+  } catch (e) {
+    markSceneJson(`not valid JSON: ${e.message}`);
+    return null;
+  }
+  if (!isPlainObject(fragment)) {
+    markSceneJson("must be a JSON object, e.g. {\"scene\": {\"objects\": [...]}}");
+    return null;
+  }
+  markSceneJson("");
+  return fragment;
+}
+
+function markSceneJson(problem) {
+  const area = $("scene-json");
+  let message = $("scene-json-problem");
+  if (!problem) {
+    area.removeAttribute("aria-invalid");
+    area.removeAttribute("aria-describedby");
+    if (message) message.remove();
+    return;
+  }
+  if (!message) {
+    message = Object.assign(document.createElement("p"), { id: "scene-json-problem", className: "field-problem" });
+    area.after(message);
+  }
+  area.setAttribute("aria-invalid", "true");
+  area.setAttribute("aria-describedby", message.id);
+  message.textContent = `Scene JSON: ${problem}. Nothing is sent until it is fixed.`;
+}
+
+function renderSceneJson() {
+  const fragment = parseSceneJson();
+  if (!fragment) {
+    $("scene-json-status").textContent = "";
+    return;
+  }
+  state.custom = fragment;
+  state.camera = null;
+  showCamera();
+  $("scene-json-status").textContent = "Rendering the editor's scene; choosing another scene goes back to the form's.";
+  requestFrame();
+}
+
+// While marked, the mark follows the text (cleared once it parses).
+function sceneJsonTyped() {
+  if ($("scene-json").getAttribute("aria-invalid") === "true") parseSceneJson();
+}
+
+function leaveCustomScene() {
+  state.custom = null;
+  $("scene-json-status").textContent = "The form's scene is rendered again; the editor keeps its text.";
+}
+
+function sceneJsonToUrl(params) {
+  if (!state.custom) return;
+  const json = JSON.stringify(state.custom);
+  if (encodeURIComponent(json).length <= SCENE_JSON_URL_LIMIT) params.set("scene_json", json);
+  else $("scene-json-status").textContent = `The editor's scene is rendered, but it is too long for the address ` +
+    `(over ${SCENE_JSON_URL_LIMIT} characters encoded): a link to this view does not keep it.`;
+}
+
+function sceneJsonFromUrl(params, skipped) {
+  if (!params.has("scene_json")) return;
+  let fragment = null;
+  try {
+    fragment = JSON.parse(params.get("scene_json"));
+  } catch (_) { /* reported below */ }
+  if (!isPlainObject(fragment)) {
+    skipped.push("scene_json");
+    return;
+  }
+  state.custom = fragment;
+  $("scene-json").value = formatFragment(fragment);
+  $("scene-json-status").textContent = "Rendering the editor's scene (from the address).";
 }
 
 // --- Copy as curl --------------------------------------------------------------
@@ -946,6 +1205,7 @@ function isCameraField(e) {
 
 $("controls").addEventListener("input", (e) => {
   if (e.target.id === "model-file") return;  // its "change" uploads; the frame follows the answer
+  if (e.target.id === "scene-json") return sceneJsonTyped();  // sent by "Render this" only
   clearError("upload");
   if (isCameraField(e.target)) {
     const camera = cameraFromFields();
@@ -954,6 +1214,7 @@ $("controls").addEventListener("input", (e) => {
   }
   // Another scene is seen from its own camera.
   if (e.target.id === "scene") {
+    if (state.custom) leaveCustomScene();
     state.camera = null;
     showCamera();
   }
@@ -976,6 +1237,8 @@ $("viewport").addEventListener("pointercancel", pointerUp);
 $("viewport").addEventListener("wheel", wheel, { passive: false });
 $("viewport").addEventListener("contextmenu", (e) => e.preventDefault());  // right-drag pans
 $("copy-curl").addEventListener("click", copyCurl);
+$("load-scene").addEventListener("click", loadSceneIntoEditor);
+$("render-json").addEventListener("click", renderSceneJson);
 $("model-file").addEventListener("change", () => {
   const file = $("model-file").files[0];
   if (file) uploadModel(file);

@@ -243,6 +243,42 @@ async function sentStaysAt(page, sent, ms = 800) {
   assert.equal(await page.evaluate(() => window.__umbra.sent), sent, "nothing sent");
 }
 
+// The depth map's tiles as shown: each one's label, and the grey range of
+// its canvas and of the same tile in the PNG as sent (far-plane texels,
+// 255 in the PNG and FAR_COLOUR on the canvas, left out of both).
+async function depthTiles(page) {
+  return page.evaluate(() => {
+    const image = document.getElementById("depth");
+    const raw = Object.assign(document.createElement("canvas"), { width: image.naturalWidth, height: image.naturalHeight });
+    raw.getContext("2d").drawImage(image, 0, 0);
+    const rawData = raw.getContext("2d").getImageData(0, 0, raw.width, raw.height).data;
+    const tiles = Array.from(document.querySelectorAll("#depth-tiles .depth-tile"));
+    const grid = Math.ceil(Math.sqrt(tiles.length) - 1e-9);
+    return tiles.map((tile, i) => {
+      const canvas = tile.querySelector("canvas");
+      const shown = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
+      let shownMin = 255, shownMax = 0, grey = 0;
+      for (let o = 0; o < shown.length; o += 4) {
+        if (shown[o] !== shown[o + 1] || shown[o] !== shown[o + 2]) continue;  // the far plane's colour
+        grey += 1;
+        shownMin = Math.min(shownMin, shown[o]);
+        shownMax = Math.max(shownMax, shown[o]);
+      }
+      const size = raw.width, column = i % grid, row = Math.floor(i / grid);
+      let rawMin = 255, rawMax = 0;
+      for (let y = Math.round((row * size) / grid) + 2; y < Math.round(((row + 1) * size) / grid) - 2; y += 1) {
+        for (let x = Math.round((column * size) / grid) + 2; x < Math.round(((column + 1) * size) / grid) - 2; x += 1) {
+          const v = rawData[4 * (y * size + x)];
+          if (v === 255) continue;
+          rawMin = Math.min(rawMin, v);
+          rawMax = Math.max(rawMax, v);
+        }
+      }
+      return { label: tile.querySelector("figcaption").textContent, shownMin, shownMax, rawMin, rawMax, grey };
+    });
+  });
+}
+
 let stepNumber = 0;
 async function step(page, name, body) {
   stepNumber += 1;
@@ -376,6 +412,34 @@ try {
     await bad.waitForFunction(() => /map_size, bogus/.test(document.getElementById("notice").textContent));
     assert.equal(await bad.$eval("#scene", (s) => s.value), "three-cubes");
     await bad.close();
+  });
+
+  await step(page, "depth-map-views-are-labelled-and-stretched", async () => {
+    // Three cascades: a 2 x 2 grid in the PNG, three tiles shown (not the grey fourth cell).
+    assert.match(await page.$eval("#timing", (p) => p.textContent), /light views: cascades; views=3/);
+    let tiles = await depthTiles(page);
+    assert.deepEqual(tiles.map((t) => t.label), ["cascade 0", "cascade 1", "cascade 2"]);
+    for (const t of tiles) {
+      console.log(`  ${t.label}: PNG grey ${t.rawMin}..${t.rawMax}, shown ${t.shownMin}..${t.shownMax}`);
+      assert.ok(t.shownMax - t.shownMin >= 250, `${t.label} is stretched to black..white (${t.shownMin}..${t.shownMax})`);
+    }
+    // The nearest cascade spans a small part of the PNG's grey scale (about
+    // 90 of 255 levels here; a farther one can span nearly all of it).
+    assert.ok(tiles.some((t) => t.shownMax - t.shownMin >= 2 * (t.rawMax - t.rawMin)),
+              "a cascade's contrast is stretched well beyond the PNG's");
+    // A point light: six cube faces, labelled in the renderer's layer order.
+    const before = await currentSources(page);
+    await page.selectOption("#projection", "perspective");
+    await waitForNewImages(page, before);
+    await page.waitForFunction(() => document.querySelectorAll("#depth-tiles .depth-tile").length === 6, null, { timeout: 60000 });
+    tiles = await depthTiles(page);
+    assert.deepEqual(tiles.map((t) => t.label.replace(" (empty)", "")),
+                     ["cube face +X", "cube face −X", "cube face +Y", "cube face −Y", "cube face +Z", "cube face −Z"]);
+    await page.$eval("#depth-figure", (f) => f.scrollIntoView());
+    await page.screenshot({ path: path.join(artifacts, "depth-cube-faces.png"), fullPage: true });
+    const back = await currentSources(page);
+    await page.selectOption("#projection", "orthographic");
+    await waitForNewImages(page, back);
   });
 
   await step(page, "copy-as-curl-is-the-exact-request", async () => {
@@ -636,6 +700,67 @@ try {
     assert.equal(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).scene, "teapot");
     assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
     assert.equal(new URL(page.url()).searchParams.get("scene"), "teapot");
+  });
+
+  await step(page, "scene-editor-loads-edits-and-renders", async () => {
+    let before = await currentSources(page);
+    await page.selectOption("#scene", "three-cubes");
+    await waitForNewImages(page, before);
+    const listed = (await (await fetch(`http://127.0.0.1:${port}/api/scenes`)).json()).scenes.find((s) => s.name === "three-cubes");
+    await page.click("#load-scene");
+    const loaded = JSON.parse(await page.$eval("#scene-json", (t) => t.value));
+    assert.deepEqual(loaded.scene.objects, listed.objects, "the editor holds three-cubes' objects");
+    const original = await imageStats(page, "frame");
+    // Move the big red-brown cube and make it near black (under the red light set earlier).
+    loaded.scene.objects[1].center[0] += 1;
+    loaded.scene.objects[1].color = [0.05, 0.05, 0.05];
+    await page.fill("#scene-json", JSON.stringify(loaded, null, 2));
+    before = await currentSources(page);
+    await page.click("#render-json");
+    await waitForNewImages(page, before);
+    const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.deepEqual(body.scene.objects, loaded.scene.objects, "the request carries the edited objects");
+    assert.deepEqual(body.light.position, loaded.light.position);
+    assert.equal(body.light.color, await page.$eval("#color", (c) => c.value), "the form's other light fields stay");
+    const edited = await imageStats(page, "frame");
+    assert.notEqual(edited.digest, original.digest, "the frame changed");
+    assert.ok(edited.r < original.r, `darker (red ${original.r.toFixed(1)} -> ${edited.r.toFixed(1)})`);
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    await checkCurlGivesTheFrame(page, port);
+    // The address keeps it (short enough), and opens the same request.
+    const url = new URL(page.url());
+    assert.deepEqual(JSON.parse(url.searchParams.get("scene_json")), loaded);
+    const other = await page.context().newPage();
+    await other.addInitScript(countRequests);
+    await other.goto(url.href);
+    await waitForNewImages(other, { frame: "", depth: "" });
+    assert.deepEqual(JSON.parse(await other.evaluate(() => window.__umbra.lastRenderBody)), body);
+    await other.close();
+    // Bad JSON is marked and nothing is sent.
+    await page.waitForFunction(() => window.__umbra.inFlight === 0);
+    const sent = await page.evaluate(() => window.__umbra.sent);
+    await page.fill("#scene-json", '{"scene": {"objects": [}');
+    await page.click("#render-json");
+    assert.equal(await page.$eval("#scene-json", (t) => t.getAttribute("aria-invalid")), "true");
+    assert.match(await page.$eval("#scene-json-problem", (p) => p.textContent), /^Scene JSON: not valid JSON: .+Nothing is sent/);
+    await sentStaysAt(page, sent);
+    await page.screenshot({ path: path.join(artifacts, "scene-editor-bad-json.png"), fullPage: true });
+    // A server 400 names its field; the last good frame stays.
+    const frameSrc = await page.$eval("#frame", (img) => img.src);
+    await page.fill("#scene-json", '{"scene": {"objects": [{"type": "box", "size": [-1, 1, 1]}]}}');
+    assert.equal(await page.$eval("#scene-json", (t) => t.getAttribute("aria-invalid")), null, "fixed: no longer marked");
+    await page.click("#render-json");
+    await page.waitForFunction(() => !document.getElementById("error").hidden, null, { timeout: 60000 });
+    assert.match(await page.$eval("#error", (e) => e.textContent), /\(400\): scene\.objects\[0\]\.size/);
+    assert.match(await page.$eval("#scene-json-status", (p) => p.textContent), /scene\.objects\[0\]\.size/);
+    assert.equal(await page.$eval("#frame", (img) => img.src), frameSrc);
+    // Choosing a scene goes back to the form's.
+    before = await currentSources(page);
+    await page.selectOption("#scene", "teapot");
+    await waitForNewImages(page, before);
+    assert.equal(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).scene, "teapot");
+    assert.ok(!new URL(page.url()).searchParams.has("scene_json"));
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
   });
 
   const box = boxGlb();
