@@ -17,10 +17,10 @@
 //    answers that status with exactly that JSON.
 // Exits non-zero, naming the check, at the first failure.
 import assert from "node:assert/strict";
-import { spawn } from "node:child_process";
 import fs from "node:fs";
 import SwaggerParser from "@apidevtools/swagger-parser";
 import Ajv2020 from "ajv/dist/2020.js";
+import { startServer } from "./server.mjs";
 
 const [serverBinary, documentPath] = process.argv.slice(2);
 if (!serverBinary || !documentPath) {
@@ -54,26 +54,6 @@ function validate(schema, value, what) {
   const check = validators.get(schema);
   assert.ok(check(value), `${what} does not match its schema: ${ajv.errorsText(check.errors)}\n${JSON.stringify(value)}`);
   checks += 1;
-}
-
-// --- The server ----------------------------------------------------------------
-
-function startServer() {
-  const child = spawn(serverBinary, ["--port", "0", "--quiet"], { stdio: ["ignore", "ignore", "pipe"] });
-  let log = "";
-  const exited = new Promise((resolve) => child.on("exit", (code, signal) => resolve({ code, signal })));
-  const port = new Promise((resolve, reject) => {
-    child.stderr.on("data", (chunk) => {
-      log += chunk;
-      const match = log.match(/listening on http:\/\/[^:]+:(\d+)\//);
-      if (match) resolve(Number(match[1]));
-    });
-    exited.then(() => reject(new Error("umbra-server exited before listening:\n" + log)));
-    // unref: a pending timer would keep node alive for the full 60 s after
-    // every check has passed.
-    setTimeout(() => reject(new Error("umbra-server did not listen within 60 s:\n" + log)), 60000).unref();
-  });
-  return { child, port, exited };
 }
 
 let base;
@@ -151,7 +131,7 @@ async function main() {
     }
   });
 
-  const server = startServer();
+  const server = startServer(serverBinary);
   try {
     base = `http://127.0.0.1:${await server.port}`;
 

@@ -6,11 +6,11 @@
 // Each step writes a screenshot to ARTIFACTS_DIR (default artifacts/e2e).
 // Exits non-zero, naming the step, at the first failed check.
 import assert from "node:assert/strict";
-import { spawn } from "node:child_process";
 import { createHash } from "node:crypto";
 import fs from "node:fs";
 import path from "node:path";
 import { chromium } from "playwright-core";
+import { startServer } from "./server.mjs";
 
 const [serverBinary, artifacts = "artifacts/e2e"] = process.argv.slice(2);
 if (!serverBinary) {
@@ -19,24 +19,6 @@ if (!serverBinary) {
 }
 const chromiumPath = process.env.UMBRA_CHROMIUM || "/usr/bin/chromium";
 fs.mkdirSync(artifacts, { recursive: true });
-
-// --- The server ------------------------------------------------------------
-
-function startServer() {
-  const child = spawn(serverBinary, ["--port", "0", "--quiet"], { stdio: ["ignore", "ignore", "pipe"] });
-  let log = "";
-  const exited = new Promise((resolve) => child.on("exit", (code, signal) => resolve({ code, signal })));
-  const port = new Promise((resolve, reject) => {
-    child.stderr.on("data", (chunk) => {
-      log += chunk;
-      const match = log.match(/listening on http:\/\/[^:]+:(\d+)\//);
-      if (match) resolve(Number(match[1]));
-    });
-    exited.then(() => reject(new Error("umbra-server exited before listening:\n" + log)));
-    setTimeout(() => reject(new Error("umbra-server did not listen within 60 s:\n" + log)), 60000);
-  });
-  return { child, port, exited, log: () => log };
-}
 
 // --- The page ------------------------------------------------------------
 
@@ -293,7 +275,7 @@ async function step(page, name, body) {
 
 // --- The checks ------------------------------------------------------------
 
-const server = startServer();
+const server = startServer(serverBinary);
 const port = await server.port;
 const browser = await chromium.launch({
   executablePath: chromiumPath,
