@@ -119,37 +119,43 @@ std::string Metrics::exposition(const MetricsGauges& g) const {
     for (const auto& [stage, h] : stage_seconds_)
       h.write(out, "umbra_render_stage_seconds", "stage=\"" + stage + "\"");
   }
-  single(out, "umbra_frames_rendered_total", "counter", "Frames the GL thread has drawn.", double(g.frames_rendered));
-  single(out, "umbra_shadow_map_reuses_total", "counter", "Frames served from an earlier frame's shadow map.",
-         double(g.shadow_map_reuses));
-  single(out, "umbra_scene_uploads_total", "counter", "Scenes whose meshes had to be uploaded to GL.",
-         double(g.scene_uploads));
-  single(out, "umbra_rejected_total", "counter", "Requests refused at once with 503: the queue was full.",
-         double(g.rejected));
-  single(out, "umbra_expired_total", "counter", "Requests that waited past the deadline (503).", double(g.expired));
-  single(out, "umbra_abandoned_total", "counter", "Requests whose client left before they were answered.",
-         double(g.abandoned));
-  single(out, "umbra_too_costly_total", "counter", "Requests refused with 422: estimated over the cost budget.",
-         double(g.too_costly));
-  single(out, "umbra_overran_total", "counter", "Ray casts stopped at the run-time limit (503).", double(g.overran));
-  single(out, "umbra_queue_depth", "gauge", "Requests queued or being rendered.", double(g.queue_depth));
-  single(out, "umbra_queue_capacity", "gauge", "Requests the queue holds before it answers 503.",
-         double(g.queue_capacity));
-  single(out, "umbra_scene_cache_bytes", "gauge", "Bytes of scenes the renderer keeps for reuse.",
-         double(g.cached_bytes));
-  single(out, "umbra_models", "gauge", "Models held (uploads, --models files and the built-in ones).",
-         double(g.models));
-  single(out, "umbra_model_bytes", "gauge", "Bytes of the models held.", double(g.model_bytes));
-  single(out, "umbra_model_budget_bytes", "gauge", "--models-budget-mib in bytes.", double(g.model_budget_bytes));
-  single(out, "umbra_connections_open", "gauge", "Client connections open.", double(g.connections_open));
-  single(out, "umbra_connections_evicted_total", "counter",
-         "Connections closed to make room for new ones at --max-connections.", double(g.connections_evicted));
-  single(out, "umbra_connections_refused_total", "counter", "Connections refused with 503 at --max-connections.",
-         double(g.connections_refused));
-  single(out, "umbra_requests_timed_out_total", "counter", "Requests not received whole in time (408).",
-         double(g.requests_timed_out));
-  single(out, "umbra_bodies_refused_total", "counter",
-         "Requests answered 503 because 256 MiB of bodies were held already.", double(g.bodies_refused));
+  // The renderer's and the connections' own counters and gauges, read at
+  // scrape time.
+  const struct {
+    const char* name;
+    const char* type;
+    const char* help;
+    double value;
+  } scalars[] = {
+      {"umbra_frames_rendered_total", "counter", "Frames the GL thread has drawn.", double(g.frames_rendered)},
+      {"umbra_shadow_map_reuses_total", "counter", "Frames served from an earlier frame's shadow map.",
+       double(g.shadow_map_reuses)},
+      {"umbra_scene_uploads_total", "counter", "Scenes whose meshes had to be uploaded to GL.",
+       double(g.scene_uploads)},
+      {"umbra_rejected_total", "counter", "Requests refused at once with 503: the queue was full.", double(g.rejected)},
+      {"umbra_expired_total", "counter", "Requests that waited past the deadline (503).", double(g.expired)},
+      {"umbra_abandoned_total", "counter", "Requests whose client left before they were answered.",
+       double(g.abandoned)},
+      {"umbra_too_costly_total", "counter", "Requests refused with 422: estimated over the cost budget.",
+       double(g.too_costly)},
+      {"umbra_overran_total", "counter", "Ray casts stopped at the run-time limit (503).", double(g.overran)},
+      {"umbra_queue_depth", "gauge", "Requests queued or being rendered.", double(g.queue_depth)},
+      {"umbra_queue_capacity", "gauge", "Requests the queue holds before it answers 503.", double(g.queue_capacity)},
+      {"umbra_scene_cache_bytes", "gauge", "Bytes of scenes the renderer keeps for reuse.", double(g.cached_bytes)},
+      {"umbra_models", "gauge", "Models held (uploads, --models files and the built-in ones).", double(g.models)},
+      {"umbra_model_bytes", "gauge", "Bytes of the models held.", double(g.model_bytes)},
+      {"umbra_model_budget_bytes", "gauge", "--models-budget-mib in bytes.", double(g.model_budget_bytes)},
+      {"umbra_connections_open", "gauge", "Client connections open.", double(g.connections_open)},
+      {"umbra_connections_evicted_total", "counter", "Connections closed to make room for new ones at --max-connections.",
+       double(g.connections_evicted)},
+      {"umbra_connections_refused_total", "counter", "Connections refused with 503 at --max-connections.",
+       double(g.connections_refused)},
+      {"umbra_requests_timed_out_total", "counter", "Requests not received whole in time (408).",
+       double(g.requests_timed_out)},
+      {"umbra_bodies_refused_total", "counter", "Requests answered 503 because 256 MiB of bodies were held already.",
+       double(g.bodies_refused)},
+  };
+  for (const auto& m : scalars) single(out, m.name, m.type, m.help, m.value);
   return out;
 }
 
