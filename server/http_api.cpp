@@ -404,8 +404,12 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
     if (!held) return std::nullopt;
     return FoundModel{held->id, held->model};
   };
-  ParsedRequest parsed =
-      parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, lookup);
+  ParsedRequest parsed;
+  try {
+    parsed = parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, lookup);
+  } catch (const ModelLoadsBusy&) {
+    return send_models_busy(res);
+  }
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
   record.output = to_string(request.output);
@@ -477,13 +481,39 @@ void HttpApi::list_models(const HttpRequest&, HttpResponse& res) {
 
 void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
   const std::string key = req.path.substr(std::char_traits<char>::length("/api/models/"));
-  const auto held = find_model(key);
+  std::shared_ptr<const HeldModel> held;
+  try {
+    held = find_model(key);
+  } catch (const ModelLoadsBusy&) {
+    return send_models_busy(res);
+  }
   if (!held)
     return send_error(res, 404,
                       "no model '" + key.substr(0, 100) +
                           "' is held; upload it with POST /api/models (GET /api/models lists those held)",
                       "");
   res.set_content(model_json(*held).dump(), "application/json");
+}
+
+std::optional<LoadResult> HttpApi::load_model(const std::string& body, const LoadOptions& options) {
+  {
+    std::lock_guard<std::mutex> lock(model_loads_mutex_);
+    if (model_loads_ >= kMaxConcurrentModelLoads) return std::nullopt;
+    ++model_loads_;
+  }
+  struct Release {
+    HttpApi& api;
+    ~Release() {
+      std::lock_guard<std::mutex> lock(api.model_loads_mutex_);
+      --api.model_loads_;
+    }
+  } release{*this};
+  return load_gltf(body, options);
+}
+
+void HttpApi::send_models_busy(HttpResponse& res) const {
+  res.set_header("Retry-After", "1");
+  send_error(res, 503, "already loading " + std::to_string(kMaxConcurrentModelLoads) + " models; retry later", "");
 }
 
 std::shared_ptr<const HeldModel> HttpApi::find_model(const std::string& id_or_name) {
@@ -497,7 +527,9 @@ std::shared_ptr<const HeldModel> HttpApi::find_model(const std::string& id_or_na
   }
   LoadOptions load_options;  // as an upload: nothing outside the body is read
   load_options.format = stored->format;
-  LoadResult loaded = load_gltf(stored->body, load_options);
+  std::optional<LoadResult> result = load_model(stored->body, load_options);
+  if (!result) throw ModelLoadsBusy();
+  LoadResult& loaded = *result;
   if (!loaded.ok()) {
     std::fprintf(stderr, "umbra-server: --model-store: %s: %s\n", id_or_name.c_str(), loaded.error.c_str());
     return nullptr;
@@ -538,20 +570,9 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
     if (archived()) res.set_content(model_json(*held).dump(), "application/json");
     return;
   }
-  {
-    std::lock_guard<std::mutex> lock(model_loads_mutex_);
-    if (model_loads_ >= kMaxConcurrentModelLoads) {
-      res.set_header("Retry-After", "1");
-      return send_error(res, 503,
-                        "already loading " + std::to_string(kMaxConcurrentModelLoads) + " models; retry later", "");
-    }
-    ++model_loads_;
-  }
-  LoadResult loaded = load_gltf(req.body, options);
-  {
-    std::lock_guard<std::mutex> lock(model_loads_mutex_);
-    --model_loads_;
-  }
+  std::optional<LoadResult> result = load_model(req.body, options);
+  if (!result) return send_models_busy(res);
+  LoadResult& loaded = *result;
   if (!loaded.ok()) return send_error(res, loaded.status, loaded.error, "");
   if (!archived()) return;
   const std::size_t bytes = loaded.model->bytes();

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 
 #include "model_archive.hpp"
@@ -53,8 +54,9 @@ class HttpApi {
   static constexpr std::size_t kMaxHeaderCount = 100;       ///< 431 above this many header fields
   static constexpr std::size_t kMaxHeaderBytes = 32 << 10;  ///< 431 above this many bytes of names and values
 
-  /// Models uploaded at most this many at once; more get 503 with
-  /// Retry-After (a load holds several times its body in memory).
+  /// Models loaded at most this many at once (uploads, and files read
+  /// from --model-store); more get 503 with Retry-After (a load holds
+  /// several times its body in memory).
   static constexpr int kMaxConcurrentModelLoads = 2;
 
   /// With a model store of its own (options.models_budget_bytes).
@@ -103,8 +105,15 @@ class HttpApi {
 
   void render(const HttpRequest& req, HttpResponse& res, bool depth_route);
   /// A held model by id or name; one not held is loaded from the
-  /// --model-store folder if that has it. Null if neither has it.
+  /// --model-store folder if that has it. Null if neither has it. Throws
+  /// ModelLoadsBusy if it would have to load one with no place free.
   std::shared_ptr<const HeldModel> find_model(const std::string& id_or_name);
+  /// load_gltf in one of kMaxConcurrentModelLoads places (a load holds a
+  /// few times its body in memory): nullopt, unloaded, if none is free.
+  std::optional<LoadResult> load_model(const std::string& body, const LoadOptions& options);
+  /// 503 with Retry-After: every model-load place is taken.
+  void send_models_busy(HttpResponse& res) const;
+  struct ModelLoadsBusy {};
   /// The route for `req`'s method and path, or null (with `allow` set to
   /// the path's methods, if the path is a route's).
   const Route* find_route(const HttpRequest& req, std::string& allow) const;
