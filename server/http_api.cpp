@@ -292,38 +292,8 @@ void HttpApi::preflight(const HttpRequest&, HttpResponse& res) {
   res.set_header("Access-Control-Max-Age", "600");
 }
 
-void HttpApi::health(const HttpRequest&, HttpResponse& res) {
-  const RendererInfo& info = renderer_.info();
-  const HttpServerStats connections = http_->stats();
-  const double uptime = std::chrono::duration<double>(Clock::now() - started_).count();
-  res.set_content(json{{"status", "ok"},
-                       {"gl_renderer", info.gl_renderer},
-                       {"gl_version", info.gl_version},
-                       {"egl_source", info.egl_source},
-                       {"uptime_s", uptime},
-                       {"frames_rendered", renderer_.frames_rendered()},
-                       {"shadow_cache_hits", renderer_.shadow_cache_hits()},
-                       {"scene_uploads", renderer_.scene_uploads()},
-                       {"queue_depth", renderer_.queue_depth()},
-                       {"queue_capacity", renderer_.limits().queue_capacity},
-                       {"rejected", renderer_.rejected()},
-                       {"expired", renderer_.expired()},
-                       {"abandoned", renderer_.abandoned()},
-                       {"too_costly", renderer_.too_costly()},
-                       {"overran", renderer_.overran()},
-                       {"cached_bytes", renderer_.cached_bytes()},
-                       {"models", models_->count()},
-                       {"model_bytes", models_->bytes()},
-                       {"connections_open", connections.connections_open},
-                       {"connections_evicted", connections.connections_evicted},
-                       {"connections_refused", connections.connections_refused},
-                       {"requests_timed_out", connections.requests_timed_out},
-                       {"bodies_refused", connections.bodies_refused}}
-                      .dump(),
-                  "application/json");
-}
-
-void HttpApi::metrics(const HttpRequest&, HttpResponse& res) {
+// The server's state, read once for /api/health and /metrics alike.
+MetricsGauges HttpApi::state() const {
   const RendererInfo& info = renderer_.info();
   const HttpServerStats connections = http_->stats();
   MetricsGauges g;
@@ -350,8 +320,41 @@ void HttpApi::metrics(const HttpRequest&, HttpResponse& res) {
   g.connections_refused = connections.connections_refused;
   g.requests_timed_out = connections.requests_timed_out;
   g.bodies_refused = connections.bodies_refused;
+  return g;
+}
+
+void HttpApi::health(const HttpRequest&, HttpResponse& res) {
+  const MetricsGauges g = state();
+  res.set_content(json{{"status", "ok"},
+                       {"gl_renderer", g.gl_renderer},
+                       {"gl_version", g.gl_version},
+                       {"egl_source", g.egl_source},
+                       {"uptime_s", g.uptime_s},
+                       {"frames_rendered", g.frames_rendered},
+                       {"shadow_cache_hits", g.shadow_map_reuses},
+                       {"scene_uploads", g.scene_uploads},
+                       {"queue_depth", g.queue_depth},
+                       {"queue_capacity", g.queue_capacity},
+                       {"rejected", g.rejected},
+                       {"expired", g.expired},
+                       {"abandoned", g.abandoned},
+                       {"too_costly", g.too_costly},
+                       {"overran", g.overran},
+                       {"cached_bytes", g.cached_bytes},
+                       {"models", g.models},
+                       {"model_bytes", g.model_bytes},
+                       {"connections_open", g.connections_open},
+                       {"connections_evicted", g.connections_evicted},
+                       {"connections_refused", g.connections_refused},
+                       {"requests_timed_out", g.requests_timed_out},
+                       {"bodies_refused", g.bodies_refused}}
+                      .dump(),
+                  "application/json");
+}
+
+void HttpApi::metrics(const HttpRequest&, HttpResponse& res) {
   res.set_header("Cache-Control", "no-store");
-  res.set_content(metrics_.exposition(g), "text/plain; version=0.0.4; charset=utf-8");
+  res.set_content(metrics_.exposition(state()), "text/plain; version=0.0.4; charset=utf-8");
 }
 
 void HttpApi::scenes(const HttpRequest&, HttpResponse& res) {

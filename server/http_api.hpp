@@ -93,6 +93,8 @@ class HttpApi {
   // Routes.
   void health(const HttpRequest& req, HttpResponse& res);
   void metrics(const HttpRequest& req, HttpResponse& res);
+  /// The renderer's, the connections' and the store's counters now.
+  MetricsGauges state() const;
   void scenes(const HttpRequest& req, HttpResponse& res);
   void openapi_document(const HttpRequest& req, HttpResponse& res);
   void render_color(const HttpRequest& req, HttpResponse& res);

@@ -34,7 +34,8 @@ class LatencyHistogram {
   std::uint64_t count_ = 0;
 };
 
-/// What the server reads from its parts when it is scraped.
+/// What the server reads from its parts when it is scraped (and what
+/// /api/health reports).
 struct MetricsGauges {
   std::string gl_renderer, gl_version, egl_source;
   double uptime_s = 0.0;
