@@ -307,13 +307,16 @@ void read_mesh(const json& j, const std::string& path, std::set<std::string>& se
                SceneObject& o) {
   o.type = SceneObject::Type::Mesh;
   ObjectReader r(j, path, {"type", "model", "position", "rotation_deg", "scale", "color"}, sent);
-  std::string builtins;
-  for (const BuiltinModel& m : builtin_models()) builtins += (builtins.empty() ? "" : ", ") + quote_text(m.name);
-  const std::string kHowToUpload =
-      "upload it with POST /api/models (a .glb or .gltf body) and name it by the \"id\" that returns, "
-      "or by its file name if the server loaded it with --models DIR, or name a built-in model (" + builtins + ")";
+  // Written only for a refusal: up to 1000 mesh objects are read per request.
+  const auto how_to_upload = [] {
+    std::string builtins;
+    for (const BuiltinModel& m : builtin_models()) builtins += (builtins.empty() ? "" : ", ") + quote_text(m.name);
+    return "upload it with POST /api/models (a .glb or .gltf body) and name it by the \"id\" that returns, "
+           "or by its file name if the server loaded it with --models DIR, or name a built-in model (" +
+           builtins + ")";
+  };
   const json* model = r.get("model");
-  if (model == nullptr) reject(r.path("model"), "is required: a model's id or name; " + kHowToUpload);
+  if (model == nullptr) reject(r.path("model"), "is required: a model's id or name; " + how_to_upload());
   if (!model->is_string())
     reject(r.path("model"), std::string("must be a string (a model's id or name), not ") + type_name(*model));
   const std::string& key = model->get_ref<const std::string&>();
@@ -323,7 +326,7 @@ void read_mesh(const json& j, const std::string& path, std::set<std::string>& se
   if (!found || !found->model)
     if (const BuiltinModel* builtin = find_builtin_model(key)) found = FoundModel{builtin->id, builtin->model};
   if (!found || !found->model)
-    reject(r.path("model"), "unknown model " + quote_text(key) + ": " + kHowToUpload);
+    reject(r.path("model"), "unknown model " + quote_text(key) + ": " + how_to_upload());
   o.model = std::move(found->model);
   o.model_id = std::move(found->id);
   if (auto v = r.get("position")) o.center = read_position(*v, r.path("position"));
