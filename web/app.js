@@ -11,6 +11,7 @@ const state = {
   lastDepth: 0,  // when the depth map last arrived (performance.now())
   depthStale: false,  // whether the depth map shown is older than the frame
   custom: null,  // the scene editor's request fragment being rendered; null: the form's scene
+  lightAtZero: null,  // the light's position at time 0, unrounded: what the request sends (see "The light")
 };
 const DEPTH_INTERVAL_PLAYING_MS = 1000;
 
@@ -26,7 +27,7 @@ function buildRequest() {
   const fixed = $("fit").value === "fixed";
   const enabled = $("enabled").checked;
   const light = {
-    position: [number("lx"), number("ly"), number("lz")],
+    position: lightAtZero().map(round),
     color: $("color").value,
     ambient: number("ambient"),
     projection: $("projection").value,
@@ -142,7 +143,10 @@ async function requestFrame() {
   const started = performance.now();
   if (state.playing) {
     const now = performance.now();
-    if (state.lastTick) $("time").value = (number("time") + (now - state.lastTick) / 1000).toFixed(3);
+    if (state.lastTick) {
+      $("time").value = (number("time") + (now - state.lastTick) / 1000).toFixed(3);
+      showLightAtTime();
+    }
     state.lastTick = now;
   }
   const body = buildRequest();
@@ -400,16 +404,29 @@ function stretchedTile(data, size, x0, y0, width, height, label) {
 }
 
 // --- The light ------------------------------------------------------------------
-// light.position is where the light is at time 0; the server turns it
-// about the vertical axis through light.target by time x orbit_deg_per_s
-// degrees, counter-clockwise seen from above. The fields keep the request's
-// position (so that the address and "Copy as curl" give the very frame),
-// and a line under them follows the light along its orbit.
+// The API's light.position is where the light is at time 0; the server
+// turns it about the vertical axis through light.target by
+// time x orbit_deg_per_s degrees, counter-clockwise seen from above.
+// The position fields show where the light is at the time shown, so they
+// follow it while playing and a typed (or Alt-dragged) position is where the
+// light is in the frame. One rule links what is shown and what is sent:
+//   shown = turned(sent, +time x speed),  sent = turned(shown, -time x speed).
+// state.lightAtZero keeps the sent position unrounded, so that the fields'
+// six significant digits do not drift over a long play. The address keeps
+// the fields and the time (reloading shows the same light); the request and
+// "Copy as curl" send the position at time 0.
 
 const DEFAULT_ORBIT_DEG_PER_S = 20;
+const LIGHT_FIELDS = ["lx", "ly", "lz"];
+const LIGHT_TARGET_FIELDS = ["ltx", "lty", "ltz"];
 
 function lightTarget() {
-  return ["ltx", "lty", "ltz"].map(number);
+  return LIGHT_TARGET_FIELDS.map(number);
+}
+
+// Degrees the light has turned at the time shown.
+function lightTurn() {
+  return (number("time") * number("orbit")) % 360;
 }
 
 // As the server's orbit_light_position.
@@ -419,28 +436,52 @@ function orbitPosition(position, target, degrees) {
   return add(target, [x * Math.cos(angle) + z * Math.sin(angle), y, -x * Math.sin(angle) + z * Math.cos(angle)]);
 }
 
+function lightFieldsValid() {
+  return [...LIGHT_FIELDS, ...LIGHT_TARGET_FIELDS, "orbit", "time"].every((id) => !fieldProblem($(id)));
+}
+
+// The position the request sends, taken from the fields when they changed.
+function lightAtZero() {
+  if (!state.lightAtZero) state.lightAtZero = orbitPosition(LIGHT_FIELDS.map(number), lightTarget(), -lightTurn());
+  return state.lightAtZero;
+}
+
+// The position, target or speed was edited: the light stays where the
+// fields show it, and its position at time 0 follows.
+function lightFieldsEdited() {
+  if (!lightFieldsValid()) return;
+  state.lightAtZero = null;
+  lightAtZero();  // now, at the time shown: a later change of time turns this position
+}
+
+// The time changed (typed, or Play): the fields follow the light.
+function showLightAtTime() {
+  if (!lightFieldsValid()) return;
+  const now = orbitPosition(lightAtZero(), lightTarget(), lightTurn());
+  LIGHT_FIELDS.forEach((id, i) => { $(id).value = String(round(now[i])); });
+}
+
+// Under the fields: what the request sends, where that differs from them.
 function showLightNow(light, time) {
   // The scene editor can send anything: the server judges it, this line only follows a valid light.
   const triple = (v) => Array.isArray(v) && v.length === 3 && v.every(Number.isFinite);
-  if (!light || !triple(light.position) || (light.target !== undefined && !triple(light.target)) || !Number.isFinite(time) ||
-      (light.orbit_deg_per_s !== undefined && !Number.isFinite(light.orbit_deg_per_s))) {
+  if (!light || !triple(light.position) || !Number.isFinite(time)) {
     $("light-now").textContent = "";
     return;
   }
-  const speed = light.orbit_deg_per_s ?? DEFAULT_ORBIT_DEG_PER_S;
-  const turned = (time * speed) % 360;
-  const now = orbitPosition(light.position, light.target || [0, 0, 0], turned);
-  $("light-now").textContent = turned === 0 ? "" :
-    `At t = ${time.toFixed(2)} s: (${now.map((x) => x.toFixed(2)).join(", ")}), turned ${turned.toFixed(1)}°.`;
+  const shown = LIGHT_FIELDS.map(number);
+  const same = light.position.every((x, i) => Math.abs(x - shown[i]) < 1e-9);
+  $("light-now").textContent = same ? "" :
+    `Shown at t = ${time.toFixed(2)} s; sent as position (${light.position.map((x) => x.toFixed(3)).join(", ")}) at time 0.`;
 }
 
 // Alt-drag on the frame moves the light about its target as the camera
 // orbits its own: across turns it about the vertical axis, up raises it.
 function moveLight(dx, dy, height) {
-  const ids = ["lx", "ly", "lz"];
-  if (ids.some((id) => fieldProblem($(id))) || ["ltx", "lty", "ltz"].some((id) => fieldProblem($(id)))) return;
-  const moved = orbit({ position: ids.map(number), target: lightTarget() }, dx, -dy, height).position;
-  ids.forEach((id, i) => { $(id).value = String(round(moved[i])); });
+  if (!lightFieldsValid()) return;
+  const moved = orbit({ position: LIGHT_FIELDS.map(number), target: lightTarget() }, dx, -dy, height).position;
+  LIGHT_FIELDS.forEach((id, i) => { $(id).value = String(round(moved[i])); });
+  lightFieldsEdited();
   requestFrame();
 }
 
@@ -729,6 +770,8 @@ function syncSizeNote(changed) {
 // --- Settings in the address bar ---------------------------------------------
 // Every control whose value differs from the page's default is a query
 // parameter named after the control, so the address is a link to this view.
+// lx, ly and lz hold the light's position at time 0, as the API's
+// light.position does (the fields show it turned to the time shown).
 
 function controls() {
   return Array.from($("controls").elements).filter((e) => e.name);
@@ -739,14 +782,20 @@ function controls() {
 function isDefault(e) {
   if (e.type === "checkbox") return e.checked === e.defaultChecked;
   if (e.tagName === "SELECT") return e.selectedIndex === Math.max(0, Array.from(e.options).findIndex((o) => o.defaultSelected));
-  return e.value === e.defaultValue;
+  return urlValue(e) === e.defaultValue;
+}
+
+function urlValue(e) {
+  if (e.type === "checkbox") return e.checked ? "1" : "0";
+  const light = LIGHT_FIELDS.indexOf(e.id);
+  return light >= 0 && lightFieldsValid() ? String(round(lightAtZero()[light])) : e.value;
 }
 
 function saveToUrl() {
   const params = new URLSearchParams();
   for (const e of controls()) {
     if (isDefault(e)) continue;
-    const value = e.type === "checkbox" ? (e.checked ? "1" : "0") : e.value;
+    const value = urlValue(e);
     // A model is chosen in the scene list but named by its own parameter.
     if (e.id === "scene" && value.startsWith(MODEL_PREFIX)) params.set("model", value.slice(MODEL_PREFIX.length));
     else params.set(e.name, value);
@@ -786,6 +835,11 @@ function loadFromUrl() {
       if (/^#[0-9a-fA-F]{6}$/.test(value)) e.value = value.toLowerCase();
       else skipped.push(e.name);
     }
+  }
+  state.lightAtZero = null;
+  if (lightFieldsValid()) {
+    state.lightAtZero = LIGHT_FIELDS.map(number);
+    showLightAtTime();
   }
   sceneJsonFromUrl(params, skipped);
   const camera = cameraFromUrl(params, skipped);
@@ -1072,7 +1126,7 @@ function loadSceneIntoEditor() {
   const fragment = { scene };
   const camera = currentCamera();
   if (camera) fragment.camera = { position: camera.position, target: camera.target };
-  const light = { position: ["lx", "ly", "lz"].map(number) };
+  const light = { position: lightAtZero().map(round) };
   const target = lightTarget();
   if (target.some((x) => x !== 0)) light.target = target;
   fragment.light = light;
@@ -1218,6 +1272,8 @@ $("controls").addEventListener("input", (e) => {
     state.camera = null;
     showCamera();
   }
+  if ([...LIGHT_FIELDS, ...LIGHT_TARGET_FIELDS, "orbit"].includes(e.target.id)) lightFieldsEdited();
+  if (e.target.id === "time") showLightAtTime();
   syncSizeNote(e.target.id);
   syncFixedSettings();
   requestFrame();

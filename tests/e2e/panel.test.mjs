@@ -262,6 +262,25 @@ async function depthTiles(page) {
 }
 
 let stepNumber = 0;
+// The light's fields show the last request's light.position turned about
+// light.target by time x orbit_deg_per_s (the server's orbit_light_position).
+// The panel turns the fields and sends the request in one task, so one
+// evaluate sees both as they were sent, even while playing.
+async function checkLightFieldsShowTheOrbit(page) {
+  const { body, fields } = await page.evaluate(() => ({
+    body: JSON.parse(window.__umbra.lastRenderBody),
+    fields: ["lx", "ly", "lz"].map((id) => Number(document.getElementById(id).value)),
+  }));
+  const target = body.light.target || [0, 0, 0];
+  const angle = ((body.time * (body.light.orbit_deg_per_s ?? 20)) % 360) * Math.PI / 180;
+  const [x, y, z] = body.light.position.map((v, i) => v - target[i]);
+  const turned = [x * Math.cos(angle) + z * Math.sin(angle), y, -x * Math.sin(angle) + z * Math.cos(angle)].map((v, i) => v + target[i]);
+  for (let i = 0; i < 3; ++i) {
+    assert.ok(Math.abs(fields[i] - turned[i]) < 1e-4,
+              `light field ${"xyz"[i]} shows ${fields[i]}, the light is at ${turned[i].toFixed(5)} at t = ${body.time} (sent ${body.light.position})`);
+  }
+}
+
 async function step(page, name, body) {
   stepNumber += 1;
   const label = `${String(stepNumber).padStart(2, "0")}-${name}`;
@@ -343,6 +362,11 @@ try {
     await page.waitForFunction((n) => window.__umbra.frames >= n + 3, frames0, { timeout: 60000 });
     const time1 = Number(await page.$eval("#time", (i) => i.value));
     assert.ok(time1 > time0, `time advanced (${time0} -> ${time1})`);
+    // The position fields follow the light along its orbit; the request
+    // keeps sending where it is at time 0.
+    const played = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.deepEqual(played.light.position, [-2, 4, -1], "the request's light.position is the time-0 position");
+    await checkLightFieldsShowTheOrbit(page);
     assert.equal(await page.evaluate(() => window.__umbra.maxInFlight), 1, "never more than one request in flight");
     assert.match(await page.$eval("#timing", (p) => p.textContent), /frames\/s/, "frames per second shown while playing");
   });
@@ -613,8 +637,7 @@ try {
     assert.notDeepEqual(moved.light.position, start.light.position, "the light moved");
     assert.ok(Math.abs(moved.light.position[1] - start.light.position[1]) < 1e-3, "a drag across keeps its height");
     assert.deepEqual(moved.camera, start.camera, "the camera stayed");
-    const fields = await page.evaluate(() => ["lx", "ly", "lz"].map((id) => Number(document.getElementById(id).value)));
-    assert.deepEqual(fields, moved.light.position, "the fields follow");
+    await checkLightFieldsShowTheOrbit(page);
     // Target and orbit speed are sent once they differ from the API's defaults.
     const again = await currentSources(page);
     await typeInto(page, "lty", "0.5");
@@ -623,7 +646,8 @@ try {
     await page.waitForFunction(() => window.__umbra.inFlight === 0 && JSON.parse(window.__umbra.lastRenderBody).light.orbit_deg_per_s === 45);
     const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
     assert.deepEqual(body.light.target, [0, 0.5, 0]);
-    if (body.time !== 0) assert.match(await page.$eval("#light-now", (p) => p.textContent), /^At t = [\d.]+ s: \(/);
+    if (body.time !== 0) assert.match(await page.$eval("#light-now", (p) => p.textContent), /^Shown at t = [\d.]+ s; sent as position \(/);
+    await checkLightFieldsShowTheOrbit(page);
     await checkCurlGivesTheFrame(page, port);
     // Back to the defaults: neither is sent.
     await typeInto(page, "lty", "0");
