@@ -61,6 +61,8 @@ struct Atmosphere {
 //   delta_t_s: TT - UT1 at that instant, seconds (delta_t_seconds() below
 //     gives a model of it). Each second of error turns the sky by up to
 //     0.0042 deg.
+// Nothing is validated here (the request parser does that): a latitude
+// outside [-90, 90] or a NaN gives meaningless angles or NaN.
 SunAngles solar_position(double latitude_deg, double longitude_deg, double unix_seconds, double delta_t_s,
                          const Atmosphere& atmosphere = {});
 
