@@ -17,6 +17,7 @@ PACKAGES=(
   libtinygltf-dev                                     # glTF 2.0 parser (header; renderer/tiny_gltf_impl.cpp compiles it)
   nettle-dev                                          # SHA-256: the ids of uploaded models
   libembree-dev                                       # Embree 3: the exact reference's ray cast against meshes
+  python3-ephem                                       # PyEphem: the sun positions tests/data/sun_positions.csv is checked against
 )
 # Optional groups:
 #   --fuzz     clang and its libFuzzer runtime (scripts/fuzz.sh)
