@@ -137,7 +137,7 @@ bool same_objects(const std::vector<SceneObject>& a, const std::vector<SceneObje
 glm::dmat4 light_space(const RenderRequest& request, const Aabb& scene_box) {
   Aabb bounds = scene_box;
   if (bounds.empty()) bounds.extend(request.light.target), bounds.extend(request.light.target + glm::dvec3(1.0));
-  const glm::dvec3 position = orbit_light_position(request.light, request.time);
+  const glm::dvec3 position = light_at(request.light, request.time).position;
   const glm::dmat4 view = stable_look_at(position, request.light.target, glm::dvec3(0.0, 1.0, 0.0));
   if (request.light.projection == LightProjection::Orthographic) {
     Aabb box;  // in light view space, looking down -z
@@ -315,7 +315,7 @@ PlainFrame PlainFrameRenderer::render(const RenderRequest& request, bool shadow_
   glProgramUniformMatrix4fv(p, m.view_projection, 1, GL_FALSE,
                             glm::value_ptr(relative_to(camera.projection * camera.view, origin_)));
   glProgramUniformMatrix4fv(p, m.light_space, 1, GL_FALSE, glm::value_ptr(light));
-  const glm::dvec3 light_position = orbit_light_position(request.light, request.time);
+  const glm::dvec3 light_position = light_at(request.light, request.time).position;
   const glm::dvec3 towards_light = glm::normalize(light_position - request.light.target);
   const glm::vec4 light_vector = request.light.projection == LightProjection::Perspective
                                      ? glm::vec4(glm::vec3(light_position - origin_), 1.0f)

@@ -19,6 +19,29 @@ glm::dvec3 orbit_light_position(const Light& light, double time) {
   return light.target + rotate_y(light.position - light.target, std::fmod(time * light.orbit_deg_per_s, 360.0));
 }
 
+glm::dvec3 sun_direction(double azimuth_deg, double elevation_deg, double north_deg) {
+  // Azimuth A from a north turned clockwise by N is azimuth A + N from -Z
+  // towards +X (clockwise seen from above, +Y up).
+  const double azimuth = glm::radians(azimuth_deg + north_deg);
+  const double elevation = glm::radians(elevation_deg);
+  return {std::cos(elevation) * std::sin(azimuth), std::sin(elevation), -std::cos(elevation) * std::cos(azimuth)};
+}
+
+LightState light_at(const Light& light, double time) {
+  LightState state;
+  if (!light.sun) {
+    state.position = orbit_light_position(light, time);
+    return state;
+  }
+  const SunClock& clock = *light.sun;
+  const SunAngles sun = solar_position(clock.latitude_deg, clock.longitude_deg, clock.utc_unix_s + time);
+  state.sun = sun;
+  state.direct = sun.elevation_deg > 0.0;
+  state.position = light.target + sun_direction(sun.azimuth_deg, sun.elevation_deg, clock.north_deg) *
+                                       glm::length(light.position - light.target);
+  return state;
+}
+
 double sun_disc_tan_radius(const Light& light) { return std::tan(glm::radians(0.5 * light.size)); }
 
 glm::dmat4 stable_look_at(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up) {
@@ -394,7 +417,9 @@ ShadowPlan plan_shadow(const RenderRequest& request) {
   const ShadowSettings& shadow = request.shadow;
   ShadowPlan plan;
   plan.perspective = light.projection == LightProjection::Perspective;
-  plan.position = orbit_light_position(light, request.time);
+  const LightState placed = light_at(light, request.time);
+  plan.position = placed.position;
+  plan.direct_light = placed.direct;
   plan.direction = glm::normalize(light.target - plan.position);
   plan.layer_size = shadow.map_size;
   const glm::dmat4 light_view = stable_look_at(plan.position, light.target, glm::dvec3(0.0, 1.0, 0.0));

@@ -4,6 +4,7 @@
 // Everything here is unit tested without a GPU (tests/test_light_math.cpp).
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <glm/mat4x4.hpp>
@@ -12,6 +13,7 @@
 
 #include "request.hpp"
 #include "scene.hpp"
+#include "sun_position.hpp"
 
 namespace umbra {
 
@@ -19,6 +21,31 @@ namespace umbra {
 /// vertical (+Y) axis through light.target by time * orbit_deg_per_s degrees,
 /// counter-clockwise seen from above.
 glm::dvec3 orbit_light_position(const Light& light, double time);
+
+/// The unit vector from the scene towards a sun at `azimuth_deg` (clockwise
+/// from north) and `elevation_deg` (above the horizon), in scene coordinates:
+/// +Y up, north along -Z turned clockwise seen from above by `north_deg`
+/// (so with north_deg 0, east is +X and the noon sun of the northern
+/// mid-latitudes stands towards +Z).
+glm::dvec3 sun_direction(double azimuth_deg, double elevation_deg, double north_deg);
+
+/// Where a light stands at a moment of the animation.
+struct LightState {
+  glm::dvec3 position{0.0};
+  /// false: a sun below the horizon. No direct light arrives anywhere
+  /// (visibility 0, ambient only), in the rendered frame and the exact
+  /// reference alike.
+  bool direct = true;
+  /// A sun light's apparent position at that moment (the Umbra-Sun header).
+  std::optional<SunAngles> sun;
+};
+
+/// The one update function for every kind of light, by what places it:
+/// - orbiting (no light.sun): orbit_light_position(light, time);
+/// - a sun: target + sun_direction x |position - target|, the sun's position
+///   at sun.utc_unix_s + time seconds (solar_position, NREL SPA); its direct
+///   light is off while its apparent elevation is below 0.
+LightState light_at(const Light& light, double time);
 
 /// A directional area light's angular radius, as its tangent: tan(size / 2),
 /// size being the disc's angular diameter in degrees. The shader's penumbra
@@ -77,6 +104,9 @@ enum class ShadowLayout {
 /// Everything the shadow and main passes need to know about the light.
 struct ShadowPlan {
   bool perspective = false;
+  /// light_at's `direct`: false, a sun below the horizon, whose frame needs
+  /// no shadow map (only a depth preview draws one).
+  bool direct_light = true;
   /// Light position (orbited) and unit direction of travel of its light
   /// (position -> target).
   glm::dvec3 position{0.0};
@@ -102,7 +132,7 @@ inline constexpr int kMaxCascades = 4;
 /// view must hold a point for the main pass to use it.
 int filter_reach_texels(const ShadowSettings& shadow);
 
-/// Plans the light's views for `request` (light orbited by request.time).
+/// Plans the light's views for `request` (light placed by light_at at request.time).
 ///
 /// fit "fixed": the seeds' single ortho(+-h, +-h, near, far) or
 /// perspective(light.fov_y_deg, 1, near, far).

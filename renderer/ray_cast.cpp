@@ -357,7 +357,8 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request, const st
   std::vector<ExactPixel> pixels(std::size_t(width) * height);
   const CameraMatrices camera = camera_matrices(request.camera, width, height);
   const glm::dmat4 inverse = glm::inverse(camera.projection * camera.view);
-  const glm::dvec3 light_position = orbit_light_position(request.light, request.time);
+  const LightState light = light_at(request.light, request.time);
+  const glm::dvec3& light_position = light.position;
   const RayScene rays(request.scene, stop_requested);
 
   std::atomic<bool> stopped{false};
@@ -387,7 +388,8 @@ std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request, const st
         px.object = hit->object;
         px.normal = glm::vec3(hit->normal);
         px.n_dot_l = glm::dot(hit->normal, direction_to_light(request.light, light_position, hit->point));
-        px.visibility = exact_visibility(rays, request, light_position, *hit);
+        // A sun below the horizon lights nothing directly (LightState::direct).
+        px.visibility = light.direct ? exact_visibility(rays, request, light_position, *hit) : 0.0;
       }
     }
   };

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -74,9 +75,28 @@ enum class LightProjection {
   Perspective,
 };
 
+/// A sun light: the light comes from the sun's apparent direction at a place
+/// and instant (sun_position.hpp), instead of orbiting. The scene's -Z axis
+/// points north, +X east, +Y up, before `north_deg` turns them.
+struct SunClock {
+  /// Degrees, [-90, 90], north positive.
+  double latitude_deg = 0.0;
+  /// Degrees, [-180, 180], east positive.
+  double longitude_deg = 0.0;
+  /// The instant at time 0: seconds since 1970-01-01T00:00:00Z (UTC, taken
+  /// as UT1), from the API's RFC 3339 "utc" text; years 0001..5000.
+  /// The request's `time` advances this clock, in seconds.
+  double utc_unix_s = 0.0;
+  /// Where north is in the scene: -Z turned clockwise seen from above by
+  /// this many degrees, [-360, 360]. Default 0 (north is -Z).
+  double north_deg = 0.0;
+};
+
 struct Light {
   /// For an orthographic light only the direction position -> target matters.
-  /// position != target. Before rendering, `position` is orbited by `time`.
+  /// position != target. Before rendering, `position` is orbited by `time`
+  /// (light_at in light_math.hpp); with a `sun`, only its distance from the
+  /// target is kept.
   glm::dvec3 position{-2.0, 4.0, -1.0};
   glm::dvec3 target{0.0};
   /// Linear RGB, each in [0, 1].
@@ -91,7 +111,11 @@ struct Light {
   /// angular diameter in degrees, (0, 90]; perspective: the radius, world units.
   double size = 0.0;
   /// Orbit speed of the light about +Y through `target`, degrees per second.
+  /// Unused with a `sun`.
   double orbit_deg_per_s = 20.0;
+  /// Set: a sun light (always orthographic), placed by the sun's position at
+  /// sun->utc_unix_s + time; below the horizon only ambient light arrives.
+  std::optional<SunClock> sun;
 };
 
 enum class ShadowFilter {
@@ -166,7 +190,8 @@ struct RenderRequest {
   Camera camera;
   Light light;
   /// Animation time, seconds. The light position is rotated about +Y through
-  /// light.target by time * light.orbit_deg_per_s degrees.
+  /// light.target by time * light.orbit_deg_per_s degrees; a sun light's
+  /// clock is advanced by `time` seconds.
   double time = 0.0;
   ShadowSettings shadow;
   Output output = Output::Color;

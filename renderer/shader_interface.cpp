@@ -43,6 +43,7 @@ const BlockMember* frame_block_members(std::size_t& count) {
 std::string DisplayVariant::defines() const {
   std::ostringstream d;
   d << "#define SHADOWS " << int(shadows) << "\n"
+    << "#define DIRECT_LIGHT " << int(direct_light) << "\n"
     << "#define OUTPUT_SHADOW " << int(shadow_output) << "\n"
     << "#define LIGHT_PERSPECTIVE " << int(perspective) << "\n"
     << "#define LIGHT_CUBE " << int(cube) << "\n"
@@ -56,7 +57,8 @@ std::string DisplayVariant::defines() const {
 
 DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& plan) {
   DisplayVariant v;
-  v.shadows = request.shadow.enabled;
+  v.direct_light = plan.direct_light;
+  v.shadows = request.shadow.enabled && plan.direct_light;
   v.shadow_output = request.output == Output::Shadow;
   v.perspective = plan.perspective;
   if (!v.shadows) return v;

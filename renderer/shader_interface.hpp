@@ -115,6 +115,7 @@ const BlockMember* frame_block_members(std::size_t& count);
 /// The main pass's variant for one frame.
 struct DisplayVariant {
   bool shadows = true;          // SHADOWS: 0 draws no shadow term at all
+  bool direct_light = true;     // DIRECT_LIGHT: 0 (a sun below the horizon): ambient only, visibility 0
   bool shadow_output = false;   // OUTPUT_SHADOW: visibility as grey, not colour
   bool perspective = false;     // LIGHT_PERSPECTIVE: point light
   bool cube = false;            // LIGHT_CUBE: six faces, picked by major axis

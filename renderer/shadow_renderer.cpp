@@ -283,8 +283,9 @@ bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const Shado
 
 void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light) {
   resize_display(request.width, request.height);
-  glUseProgram(display_.programs.get(display_variant(request, light).defines()).id());
-  if (request.shadow.enabled) glBindTextureUnit(0, shadow_.depth_map.id());
+  const DisplayVariant variant = display_variant(request, light);
+  glUseProgram(display_.programs.get(variant.defines()).id());
+  if (variant.shadows) glBindTextureUnit(0, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
   glViewport(0, 0, display_.width, display_.height);
   if (request.output == Output::Shadow)
@@ -347,7 +348,8 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
   ShadowPlan light = plan_shadow(request);
   const bool depth_output = request.output == Output::Depth;
 
-  const bool needs_map = request.shadow.enabled || depth_output;
+  // A sun below the horizon casts no shadow: its frame is ambient only.
+  const bool needs_map = (request.shadow.enabled && light.direct_light) || depth_output;
   if (needs_map && shadow_map_serves(request, light)) {
     // Nothing the map depends on changed (typically only the camera
     // moved): draw with the views it was made for; shadow_ms stays 0.

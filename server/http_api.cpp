@@ -1,6 +1,7 @@
 #include "http_api.hpp"
 
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -12,6 +13,7 @@
 #include "client_socket.hpp"
 #include "folder_file.hpp"
 #include "gltf_loader.hpp"
+#include "light_math.hpp"
 #include "png.hpp"
 #include "request_parser.hpp"
 #include "scene.hpp"
@@ -84,6 +86,20 @@ std::string content_type_for(const std::string& path) {
   if (ends_with(".svg")) return "image/svg+xml";
   if (ends_with(".png")) return "image/png";
   return "application/octet-stream";
+}
+
+// Umbra-Sun: where a sun light's sun stood for this image (docs/api.md), so
+// that clients and tests read what was used; "" for an orbiting light.
+std::string sun_header(const RenderRequest& request) {
+  const std::optional<SunAngles> sun = light_at(request.light, request.time).sun;
+  if (!sun) return "";
+  // Rounded here, so that 359.99996 reads 0.0000 and -0.00001 reads 0.0000.
+  const auto four_places = [](double v) { return std::round(v * 1e4) / 1e4 + 0.0; };
+  double azimuth = four_places(sun->azimuth_deg);
+  if (azimuth >= 360.0) azimuth -= 360.0;
+  char buffer[96];
+  std::snprintf(buffer, sizeof buffer, "azimuth_deg=%.4f; elevation_deg=%.4f", azimuth, four_places(sun->elevation_deg));
+  return buffer;
 }
 
 std::string server_timing(const FrameTimings& t, double encode_ms, double queue_ms) {
@@ -233,7 +249,7 @@ void HttpApi::add_cors_headers(HttpResponse& res) const {
   res.set_header("Access-Control-Allow-Origin", options_.cors_origin);
   res.set_header("Vary", "Origin");
   res.set_header("Access-Control-Expose-Headers",
-                 "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error");
+                 "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error, Umbra-Sun");
   res.set_header("Timing-Allow-Origin", options_.cors_origin);
 }
 
@@ -416,6 +432,7 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
   record.output = to_string(request.output);
+  const std::string sun = sun_header(request);
   const auto queued = Clock::now();
   // Asked just before the job's turn: a client that has gone costs no render.
   const int socket = req.socket;
@@ -457,6 +474,7 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
     res.set_header("Umbra-Unused-Fields", list);
   }
   if (!result.shadow_views.empty()) res.set_header("Umbra-Shadow-Views", result.shadow_views);
+  if (!sun.empty()) res.set_header("Umbra-Sun", sun);
   if (result.error) {
     const ShadowError& e = *result.error;
     // New fields go last, so that clients parsing the first ones keep working.

@@ -14,6 +14,7 @@
 #include "light_math.hpp"
 #include "mesh_instance.hpp"
 #include "scene.hpp"
+#include "sun_position.hpp"
 
 namespace umbra {
 
@@ -438,10 +439,37 @@ void read_camera(const json* j, Camera& c, std::set<std::string>& sent) {
   if (auto v = r.get("far")) c.far_plane = read_number(*v, r.path("far"), 0.0, 1e9, true);
 }
 
+// light.sun: where and when the sun is seen. Latitude, longitude and utc
+// are required: a sun at a default place would be a guess.
+SunClock read_sun(const json& j, std::set<std::string>& sent) {
+  ObjectReader r(j, "light.sun", {"latitude", "longitude", "utc", "north_deg"}, sent);
+  SunClock sun;
+  const auto required = [&](const char* key) {
+    const json* v = r.get(key);
+    if (v == nullptr) reject(r.path(key), "is required for a sun light");
+    return v;
+  };
+  sun.latitude_deg = read_number(*required("latitude"), r.path("latitude"), -90.0, 90.0);
+  sun.longitude_deg = read_number(*required("longitude"), r.path("longitude"), -180.0, 180.0);
+  const json& utc = *required("utc");
+  if (!utc.is_string())
+    reject(r.path("utc"), std::string("must be an RFC 3339 date-time string such as \"2026-12-21T14:00:00Z\", not ") +
+                              type_name(utc));
+  std::string why;
+  const std::optional<double> instant = parse_utc(utc.get_ref<const std::string&>(), &why);
+  if (!instant) reject(r.path("utc"), quote_text(utc.get<std::string>()) + " is not an RFC 3339 date-time: " + why);
+  if (*instant >= RequestLimits::kMaxSunUnixSeconds)
+    reject(r.path("utc"), "years 0001 to " + std::to_string(RequestLimits::kMaxSunYear) + " are supported");
+  sun.utc_unix_s = *instant;
+  if (auto v = r.get("north_deg")) sun.north_deg = read_number(*v, r.path("north_deg"), -360.0, 360.0);
+  return sun;
+}
+
 void read_light(const json* j, Light& l, std::set<std::string>& sent) {
   if (j == nullptr) return;
   ObjectReader r(*j, "light",
-                 {"position", "target", "color", "ambient", "projection", "fov_y_deg", "size", "orbit_deg_per_s"}, sent);
+                 {"position", "target", "color", "ambient", "projection", "fov_y_deg", "size", "orbit_deg_per_s", "sun"},
+                 sent);
   if (auto v = r.get("position")) l.position = read_position(*v, r.path("position"));
   if (auto v = r.get("target")) l.target = read_position(*v, r.path("target"));
   if (auto v = r.get("color")) l.color = read_color(*v, r.path("color"));
@@ -459,6 +487,12 @@ void read_light(const json* j, Light& l, std::set<std::string>& sent) {
   }
   if (auto v = r.get("orbit_deg_per_s"))
     l.orbit_deg_per_s = read_number(*v, r.path("orbit_deg_per_s"), -RequestLimits::kMaxOrbitSpeed, RequestLimits::kMaxOrbitSpeed);
+  if (auto v = r.get("sun")) {
+    if (!v->is_object()) reject(r.path("sun"), std::string("must be an object, not ") + type_name(*v));
+    l.sun = read_sun(*v, sent);
+    if (l.projection == LightProjection::Perspective)
+      reject(r.path("projection"), "a sun light is directional: \"orthographic\" (or leave projection out)");
+  }
 }
 
 void read_shadow(const json* j, ShadowSettings& s, std::set<std::string>& sent) {
@@ -538,6 +572,13 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   const bool fixed = q.shadow.fit == FrustumFit::Fixed;
   const bool perspective = q.light.projection == LightProjection::Perspective;
   if (!fixed || !perspective) mark("light.fov_y_deg");
+  // A sun places the light: it does not orbit, and only the position's
+  // distance from the target is kept, which fit "fixed" measures near and
+  // far from.
+  if (q.light.sun) {
+    mark("light.orbit_deg_per_s");
+    if (!fixed) mark("light.position");
+  }
   if (!fixed || perspective) mark("shadow.ortho_half_size");
   if (!fixed || !shadow_pass) mark("shadow.near"), mark("shadow.far");
   if (fixed || perspective) mark("shadow.cascades");

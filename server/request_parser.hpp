@@ -47,6 +47,11 @@ struct RequestLimits {
   static constexpr double kMaxTime = 1e9;           ///< |time|, seconds
   static constexpr double kMaxOrbitSpeed = 1e6;     ///< |orbit_deg_per_s|
   static constexpr double kMaxLightAngularSize = 90.0;
+  /// light.sun.utc: years 0001 to kMaxSunYear. NREL SPA is valid for years
+  /// -2000 to 6000, so the clock stays inside it with any `time`
+  /// (|time| <= kMaxTime is under 32 years).
+  static constexpr int kMaxSunYear = 5000;
+  static constexpr double kMaxSunUnixSeconds = 95649120000.0;  ///< 5001-01-01T00:00:00Z
   /// Narrowest field of view, degrees (camera and light): below it a
   /// projection's scale (1 / tan(fov / 2)) leaves float range and the frame
   /// would come back empty.

@@ -7,7 +7,7 @@
 // that reaches the surface, and is also what the "shadow" output shows.
 //
 // Built once per variant (DisplayVariant in renderer/shader_interface.hpp,
-// which also declares the FrameBlock `u`): SHADOWS, OUTPUT_SHADOW,
+// which also declares the FrameBlock `u`): SHADOWS, DIRECT_LIGHT, OUTPUT_SHADOW,
 // LIGHT_PERSPECTIVE, LIGHT_CUBE, VIEW_COUNT, FILTER, PCF_RADIUS,
 // FILTER_REACH and BIAS_AUTO are #defines, so nothing below branches on a
 // uniform and every loop has a constant trip count.
@@ -387,8 +387,11 @@ void main() {
   if (dot(geometric_normal, normal) < 0.0) geometric_normal = -geometric_normal;
   // Surfaces facing away from the light get no direct light at all.
   float visibility = n_dot_l > 0.0 ? shadow_visibility(v_position, geometric_normal, n_dot_l) : 0.0;
-#else
+#elif DIRECT_LIGHT
   float visibility = n_dot_l > 0.0 ? 1.0 : 0.0;
+#else
+  // A sun below the horizon: no direct light reaches any surface.
+  float visibility = 0.0;
 #endif
 
 #if OUTPUT_SHADOW

@@ -85,6 +85,8 @@ std::map<std::string, json> parser_defaults() {
       R"({"scene": {"objects": [{"type": "plane"}, {"type": "box"}, {"type": "sphere"}, {"type": "mesh", "model": "teapot"}]}})");
   const SceneObject plane = custom.scene.objects.at(0), box = custom.scene.objects.at(1),
                     sphere = custom.scene.objects.at(2), mesh = custom.scene.objects.at(3);
+  const SunClock sun =
+      *parse_ok(R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "2000-01-01T00:00:00Z"}}})").light.sun;
   const auto scale = [](const glm::dvec3& v) { return v.x == v.y && v.y == v.z ? json(v.x) : vec(v); };
   return {
       {"RenderRequest.width", q.width},
@@ -104,6 +106,7 @@ std::map<std::string, json> parser_defaults() {
       {"Light.fov_y_deg", l.fov_y_deg},
       {"Light.size", l.size},
       {"Light.orbit_deg_per_s", l.orbit_deg_per_s},
+      {"Sun.north_deg", sun.north_deg},
       {"Shadow.enabled", s.enabled},
       {"Shadow.map_size", s.map_size},
       {"Shadow.filter", name_of(s.filter)},

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstdio>
 #include <chrono>
 #include <memory>
 #include <regex>
@@ -26,6 +27,7 @@
 #include "http_api.hpp"
 #include "model_store.hpp"
 #include "render_service.hpp"
+#include "sun_position.hpp"
 
 namespace umbra {
 namespace {
@@ -628,6 +630,45 @@ TEST(Http, ACameraOnlyChangeSkipsTheShadowPass) {
                       "application/json");
   ASSERT_TRUE(relit);
   EXPECT_GT(shadow_duration(relit->get_header_value("Server-Timing")), 0.0);
+}
+
+// What Umbra-Sun should say for a sun at Paris, `seconds` after `utc`.
+std::string paris_sun_header(double utc_unix_s) {
+  const SunAngles sun = solar_position(48.85, 2.35, utc_unix_s);
+  char buffer[96];
+  std::snprintf(buffer, sizeof buffer, "azimuth_deg=%.4f; elevation_deg=%.4f", sun.azimuth_deg, sun.elevation_deg);
+  return buffer;
+}
+
+TEST(Http, ASunLightSaysWhereTheSunStoodOnEveryImage) {
+  const std::string sun = R"("sun": {"latitude": 48.85, "longitude": 2.35, "utc": "2026-12-21T14:00:00Z"})";
+  const double afternoon = 1797861600.0;  // 2026-12-21T14:00:00Z
+  auto res = client().Post("/api/render", R"({"width": 32, "height": 32, "light": {)" + sun + "}}", "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  const std::string header = res->get_header_value("Umbra-Sun");
+  EXPECT_TRUE(std::regex_match(header, std::regex(R"(azimuth_deg=\d{1,3}\.\d{4}; elevation_deg=-?\d{1,2}\.\d{4})"))) << header;
+  EXPECT_EQ(header, paris_sun_header(afternoon));
+  // time advances the clock; the depth map carries it too.
+  res = client().Post("/api/depth", R"({"time": 5400, "shadow": {"map_size": 64}, "light": {)" + sun + "}}",
+                      "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  EXPECT_EQ(res->get_header_value("Umbra-Sun"), paris_sun_header(afternoon + 5400));
+  // At night: a frame of ambient light only, with no shadow pass.
+  res = client().Post("/api/render", R"({"width": 32, "height": 32, "time": 32400, "light": {)" + sun + "}}",
+                      "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  EXPECT_NE(res->get_header_value("Umbra-Sun").find("elevation_deg=-"), std::string::npos) << res->get_header_value("Umbra-Sun");
+  EXPECT_FALSE(res->has_header("Umbra-Shadow-Views"));
+  // An orbiting light has no sun to report.
+  res = client().Post("/api/render", R"({"width": 32, "height": 32})", "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_FALSE(res->has_header("Umbra-Sun"));
+  expect_json_error(client().Post("/api/render", R"({"light": {"sun": {"latitude": 48.85, "longitude": 2.35, "utc": "21/12/2026"}}})",
+                                  "application/json"),
+                    400, "light.sun.utc");
 }
 
 TEST(Http, UnusedFieldsAreReportedNotIgnored) {

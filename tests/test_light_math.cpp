@@ -318,3 +318,96 @@ TEST(PlanCovers, ACameraFittedMapServesOnlyWhatItHolds) {
 
 }  // namespace
 }  // namespace umbra
+
+namespace umbra {
+namespace {
+
+void expect_near(const glm::dvec3& got, const glm::dvec3& want, double tolerance = 1e-12) {
+  EXPECT_NEAR(got.x, want.x, tolerance);
+  EXPECT_NEAR(got.y, want.y, tolerance);
+  EXPECT_NEAR(got.z, want.z, tolerance);
+}
+
+TEST(SunLight, SceneAxesAreNorthMinusZEastPlusXAndNorthDegTurnsClockwiseFromAbove) {
+  const double s30 = std::sin(glm::radians(30.0)), c30 = std::cos(glm::radians(30.0));
+  expect_near(sun_direction(0.0, 0.0, 0.0), {0, 0, -1});     // north
+  expect_near(sun_direction(90.0, 0.0, 0.0), {1, 0, 0});     // east
+  expect_near(sun_direction(180.0, 30.0, 0.0), {0, s30, c30});  // a noon sun in the south
+  expect_near(sun_direction(270.0, 0.0, 0.0), {-1, 0, 0});   // west
+  expect_near(sun_direction(123.0, 90.0, 45.0), {0, 1, 0});  // the zenith, whatever the azimuth
+  // Seen from above (looking down -Y, +X to the right, -Z up the page),
+  // clockwise takes -Z towards +X: north_deg 90 puts north at +X.
+  expect_near(sun_direction(0.0, 0.0, 90.0), {1, 0, 0});
+  expect_near(sun_direction(0.0, 0.0, -90.0), {-1, 0, 0});
+  expect_near(sun_direction(90.0, 0.0, 90.0), {0, 0, 1});    // east turns with it
+}
+
+// A sun light over Paris at `utc_unix_s`, 10 units from its target.
+Light paris_sun(double utc_unix_s) {
+  Light light;
+  light.position = {0.0, 10.0, 0.0};
+  light.target = {1.0, 0.0, 2.0};
+  light.sun = SunClock{48.85, 2.35, utc_unix_s, 0.0};
+  return light;
+}
+
+TEST(SunLight, LightAtPlacesTheLightTowardsTheSunAtItsDistanceFromTheTarget) {
+  const double afternoon = 1797861600.0;  // 2026-12-21T14:00:00Z
+  const Light light = paris_sun(afternoon);
+  const LightState state = light_at(light, 0.0);
+  ASSERT_TRUE(state.sun.has_value());
+  const SunAngles sun = solar_position(48.85, 2.35, afternoon);
+  EXPECT_DOUBLE_EQ(state.sun->azimuth_deg, sun.azimuth_deg);
+  EXPECT_DOUBLE_EQ(state.sun->elevation_deg, sun.elevation_deg);
+  // Paris, a winter afternoon: low in the south-west, so the light stands
+  // towards +Z (south) and -X (west) of its target.
+  EXPECT_GT(sun.azimuth_deg, 180.0);
+  EXPECT_LT(sun.azimuth_deg, 270.0);
+  EXPECT_GT(sun.elevation_deg, 0.0);
+  EXPECT_LT(sun.elevation_deg, 20.0);
+  EXPECT_TRUE(state.direct);
+  const glm::dvec3 offset = state.position - light.target;
+  EXPECT_NEAR(glm::length(offset), glm::length(light.position - light.target), 1e-9);
+  expect_near(glm::normalize(offset), sun_direction(sun.azimuth_deg, sun.elevation_deg, 0.0), 1e-12);
+  EXPECT_GT(offset.z, 0.0);
+  EXPECT_LT(offset.x, 0.0);
+}
+
+TEST(SunLight, TimeAdvancesTheClockAndOrbitingDoesNotApply) {
+  Light light = paris_sun(1797840000.0);  // 2026-12-21T08:00:00Z
+  light.orbit_deg_per_s = 1000.0;
+  const LightState later = light_at(light, 3 * 3600.0);
+  Light moved = light;
+  moved.sun->utc_unix_s += 3 * 3600.0;
+  const LightState same = light_at(moved, 0.0);
+  EXPECT_DOUBLE_EQ(later.sun->azimuth_deg, same.sun->azimuth_deg);
+  EXPECT_DOUBLE_EQ(later.sun->elevation_deg, same.sun->elevation_deg);
+  expect_near(later.position, same.position, 1e-12);
+  // The morning sun climbs towards noon.
+  EXPECT_GT(later.sun->elevation_deg, light_at(light, 0.0).sun->elevation_deg);
+}
+
+TEST(SunLight, BelowTheHorizonNoDirectLightArrivesAndNoShadowMapIsNeeded) {
+  // Paris at 23:00 UTC in December: deep night.
+  RenderRequest request = request_with_light({-2, 4, -1}, LightProjection::Orthographic, "cube-on-plane");
+  request.light.sun = SunClock{48.85, 2.35, 1797894000.0, 0.0};  // 2026-12-21T23:00:00Z
+  const LightState night = light_at(request.light, 0.0);
+  ASSERT_TRUE(night.sun.has_value());
+  EXPECT_LT(night.sun->elevation_deg, -10.0);
+  EXPECT_FALSE(night.direct);
+  EXPECT_FALSE(plan_shadow(request).direct_light);
+  // Noon the next day: up again.
+  EXPECT_TRUE(plan_shadow([&] {
+                RenderRequest noon = request;
+                noon.time = 13 * 3600.0;
+                return noon;
+              }())
+                  .direct_light);
+  // An orbiting light always lights directly.
+  request.light.sun.reset();
+  EXPECT_TRUE(light_at(request.light, 0.0).direct);
+  EXPECT_FALSE(light_at(request.light, 0.0).sun.has_value());
+}
+
+}  // namespace
+}  // namespace umbra

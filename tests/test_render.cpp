@@ -12,6 +12,7 @@
 
 #include "gl/egl_context.hpp"
 #include "gl/program.hpp"
+#include "light_math.hpp"
 #include "ray_cast.hpp"
 #include "render_support.hpp"
 #include "render_service.hpp"
@@ -81,6 +82,9 @@ TEST(GlProgram, EveryKindOfVariantBuildsWithTheBlockLayoutOfCxx) {
   DisplayVariant unshadowed;
   unshadowed.shadows = false;
   variants.push_back(unshadowed);
+  DisplayVariant night;  // a sun below the horizon
+  night.shadows = night.direct_light = false;
+  variants.push_back(night);
   // Each builds, and build_program checks every FrameBlock member's offset.
   for (const DisplayVariant& v : variants) EXPECT_NO_THROW(programs.get(v.defines())) << v.defines();
   EXPECT_EQ(programs.size(), 4u);  // the most recently used four are kept
@@ -325,6 +329,58 @@ TEST(Renderer, ExactAndErrorOutputs) {
   int wrong = 0;
   for (std::size_t i = 0; i < error.pixels.size(); i += 3) wrong += error.pixels[i] > 127 || error.pixels[i + 2] > 127;
   EXPECT_LT(wrong, 120 * 68 / 50);
+}
+
+// A sun light: the frame and the exact reference agree wherever the sun
+// stands, low winter afternoons included, as the error view shows.
+class SunLightMatchesTheExactReference : public testing::TestWithParam<const char*> {};
+
+TEST_P(SunLightMatchesTheExactReference, WithinTheErrorBudget) {
+  const RenderRequest r = request(std::string(R"({"width": 320, "height": 180, "output": "shadow", "scene": "three-cubes",
+      "light": {"sun": {"latitude": 48.85, "longitude": 2.35, "utc": ")") + GetParam() + R"("}}})");
+  const LightState sun = light_at(r.light, r.time);
+  ASSERT_TRUE(sun.direct) << GetParam() << ": the sun is up";
+  const RenderResult result = render(r);
+  EXPECT_FALSE(result.shadow_views.empty());
+  const ShadowError e = measure_shadow_error(result.image, cast_exact_pixels(r));
+  EXPECT_GT(e.pixels, 320u * 180u / 2u);
+  EXPECT_LE(e.false_shadow, 0.002) << "acne or over-shadowing";
+  EXPECT_LE(e.false_light, 0.01) << "lost, cut-off or detached shadows";
+  EXPECT_LE(e.wrong, 0.01);
+  EXPECT_LE(e.mae, 0.01);
+}
+
+// Paris: a summer noon (65 degrees up), a winter afternoon (12 degrees), a
+// winter sunset (3.9 degrees: long, grazing shadows; any lower and the floor
+// is a grazing surface the error measure leaves out, |N.L| < 0.05).
+INSTANTIATE_TEST_SUITE_P(Paris, SunLightMatchesTheExactReference,
+                         testing::Values("2026-06-21T11:50:00Z", "2026-12-21T14:00:00Z", "2026-12-21T15:20:00Z"));
+
+TEST(Renderer, ASunBelowTheHorizonLeavesOnlyAmbientLightAndTheExactReferenceAgrees) {
+  RenderRequest r = request(R"({"width": 160, "height": 90, "output": "shadow",
+      "light": {"sun": {"latitude": 48.85, "longitude": 2.35, "utc": "2026-12-21T23:00:00Z"}}})");
+  ASSERT_FALSE(light_at(r.light, r.time).direct);
+  const RenderResult shadow = render(r);
+  EXPECT_TRUE(shadow.shadow_views.empty()) << "no shadow map for a sun that lights nothing: " << shadow.shadow_views;
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  std::size_t geometry = 0;
+  for (std::size_t i = 0; i < exact.size(); ++i) {
+    if (!exact[i].geometry) continue;
+    ++geometry;
+    EXPECT_EQ(exact[i].visibility, 0.0);
+    ASSERT_EQ(shadow.image.pixels[i], 0) << "pixel " << i << ": direct light at night";
+  }
+  EXPECT_GT(geometry, exact.size() / 2);
+  const ShadowError e = measure_shadow_error(shadow.image, exact);
+  EXPECT_EQ(e.wrong, 0.0);
+  EXPECT_EQ(e.mae, 0.0);
+  // The colour frame is the ambient share of the albedo: 0.3 x the floor's
+  // red 0.72, in the light's place and in the cube's shadow alike.
+  r.output = Output::Color;
+  const Image color = render(r).image;
+  const std::size_t floor = std::size_t(80) * 160 + 20;  // low in the frame, left
+  ASSERT_TRUE(exact[floor].geometry && exact[floor].object == 0) << "not the floor";
+  EXPECT_NEAR(color.pixels[3 * floor], 255.0 * 0.3 * 0.72, 2.0);
 }
 
 // Default settings against the exact reference (issue 3's thresholds: no

@@ -353,7 +353,60 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{R"({"output": "depth", "depth_bits": "16"})", "depth_bits"},
         BadInput{R"({"output": "depth", "depth_bits": 16.5})", "depth_bits"},
         BadInput{R"({"output": "depth", "depth_bits": -1})", "depth_bits"},
-        BadInput{R"({"depth_bits": 32})", "depth_bits"}));
+        BadInput{R"({"depth_bits": 32})", "depth_bits"},
+        // A sun light: place and instant required and in range, an RFC 3339
+        // instant, and never a point light.
+        BadInput{R"({"light": {"sun": {"latitude": 91, "longitude": 0, "utc": "2026-12-21T14:00:00Z"}}})", "light.sun.latitude"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "longitude": -180.5, "utc": "2026-12-21T14:00:00Z"}}})", "light.sun.longitude"},
+        BadInput{R"({"light": {"sun": {"longitude": 0, "utc": "2026-12-21T14:00:00Z"}}})", "light.sun.latitude"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "utc": "2026-12-21T14:00:00Z"}}})", "light.sun.longitude"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "longitude": 0}}})", "light.sun.utc"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "2026-13-01T00:00:00Z"}}})", "light.sun.utc"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "2026-12-21 14:00"}}})", "light.sun.utc"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": 1766325600}}})", "light.sun.utc"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "6000-01-01T00:00:00Z"}}})", "light.sun.utc"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "2026-12-21T14:00:00Z", "north_deg": 400}}})", "light.sun.north_deg"},
+        BadInput{R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "2026-12-21T14:00:00Z", "elevation": 3}}})", "light.sun.elevation"},
+        BadInput{R"({"light": {"sun": {"latitude": "48.85", "longitude": 0, "utc": "2026-12-21T14:00:00Z"}}})", "light.sun.latitude"},
+        BadInput{R"({"light": {"sun": "Paris"}})", "light.sun"},
+        BadInput{R"({"light": {"projection": "perspective", "sun": {"latitude": 0, "longitude": 0, "utc": "2026-12-21T14:00:00Z"}}})", "light.projection"}));
+
+TEST(RequestParser, ASunLightReadsItsPlaceAndInstantAndReportsWhatItDoesNotUse) {
+  const ParsedRequest p = parse_render_request(
+      R"({"light": {"position": [1, 2, 3], "orbit_deg_per_s": 5, "sun": {"latitude": -33.87, "longitude": 151.21,
+          "utc": "2026-06-21T03:00:00+01:00", "north_deg": -30}}})");
+  ASSERT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  const SunClock& sun = p.request->light.sun.value();
+  EXPECT_DOUBLE_EQ(sun.latitude_deg, -33.87);
+  EXPECT_DOUBLE_EQ(sun.longitude_deg, 151.21);
+  EXPECT_DOUBLE_EQ(sun.utc_unix_s, 1782007200.0);  // 2026-06-21T02:00:00Z
+  EXPECT_DOUBLE_EQ(sun.north_deg, -30.0);
+  // The sun places the light: orbiting is off, and with the default fit only
+  // the direction matters, which the sun gives.
+  EXPECT_EQ(p.unused_fields, (std::vector<std::string>{"light.orbit_deg_per_s", "light.position"}));
+  // Fit "fixed" measures near and far from the light: the position's
+  // distance from the target is used.
+  const ParsedRequest fixed = parse_render_request(
+      R"({"shadow": {"fit": "fixed"}, "light": {"position": [1, 2, 3], "sun": {"latitude": 0, "longitude": 0, "utc": "2000-01-01T12:00:00Z"}}})");
+  ASSERT_TRUE(fixed.ok());
+  EXPECT_TRUE(fixed.unused_fields.empty()) << fixed.unused_fields.front();
+  EXPECT_FALSE(parse_ok("{}").light.sun.has_value());
+  EXPECT_TRUE(parse_ok(R"({"light": {"sun": {"latitude": 90, "longitude": -180, "utc": "0001-01-01T00:00:00Z"}}})").light.sun);
+  EXPECT_TRUE(parse_ok(R"({"light": {"sun": {"latitude": -90, "longitude": 180, "utc": "5000-12-31T23:59:59Z"}}})").light.sun);
+}
+
+TEST(RequestParser, ABadSunInstantSaysWhatIsWrongWithIt) {
+  const ParsedRequest month = parse_render_request(
+      R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "2026-13-01T00:00:00Z"}}})");
+  ASSERT_FALSE(month.ok());
+  EXPECT_NE(month.error.message.find("\"2026-13-01T00:00:00Z\" is not an RFC 3339 date-time: "), std::string::npos)
+      << month.error.message;
+  EXPECT_NE(month.error.message.find("13"), std::string::npos) << month.error.message;
+  const ParsedRequest late = parse_render_request(
+      R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "5001-01-01T00:00:00Z"}}})");
+  ASSERT_FALSE(late.ok());
+  EXPECT_EQ(late.error.message, "years 0001 to 5000 are supported");
+}
 
 TEST(RequestParser, CascadesAreAutoOrACount) {
   EXPECT_EQ(parse_ok(R"({"shadow": {"cascades": "auto"}})").shadow.cascades, 0);

@@ -23,7 +23,8 @@ function number(id) {
 // The request body for the current settings. Only fields that matter for
 // the chosen settings are sent (the server reports unused ones).
 function buildRequest() {
-  const perspective = $("projection").value === "perspective";
+  const sun = sunMode();
+  const perspective = !sun && $("projection").value === "perspective";
   const fixed = $("fit").value === "fixed";
   const enabled = $("enabled").checked;
   const light = {
@@ -38,6 +39,12 @@ function buildRequest() {
   const target = ["ltx", "lty", "ltz"].map(number);
   if (target.some((x) => x !== 0)) light.target = target;
   if (number("orbit") !== DEFAULT_ORBIT_DEG_PER_S) light.orbit_deg_per_s = number("orbit");
+  if (sun) {
+    // The sun places the light: no position (its default distance serves
+    // fit "fixed"), target, projection or orbit speed to send.
+    for (const key of ["position", "target", "projection", "orbit_deg_per_s"]) delete light[key];
+    light.sun = sunClock();
+  }
   const shadow = { enabled };
   if (enabled) {
     if (!perspective && !fixed && $("cascades").value !== "auto") shadow.cascades = Number($("cascades").value);
@@ -106,6 +113,7 @@ async function post(path, body) {
     blob: await response.blob(),
     timing: response.headers.get("Server-Timing") || "",
     unused: response.headers.get("Umbra-Unused-Fields"),
+    sun: response.headers.get("Umbra-Sun"),
     views: response.headers.get("Umbra-Shadow-Views"),
     figures: response.headers.get("Umbra-Shadow-Error"),
   };
@@ -144,7 +152,9 @@ async function requestFrame() {
   if (state.playing) {
     const now = performance.now();
     if (state.lastTick) {
-      $("time").value = (number("time") + (now - state.lastTick) / 1000).toFixed(3);
+      // A sun's Play runs the clock faster than real time: a day in tens of seconds.
+      const rate = sunMode() ? number("sun_speed") : 1;
+      $("time").value = (number("time") + rate * (now - state.lastTick) / 1000).toFixed(3);
       showLightAtTime();
     }
     state.lastTick = now;
@@ -156,6 +166,7 @@ async function requestFrame() {
     const frame = await post("/api/render", body);
     replaceImage($("frame"), frame.blob, "frameUrl");
     showOutput(body.output, frame.figures);
+    showSunNow(body, frame.sun);
     // While a newer change waits (a drag), the next frame comes first: the
     // depth map follows once the changes stop.
     // While playing, it is drawn at most once a second: it costs a second
@@ -202,8 +213,9 @@ function togglePlay() {
 }
 
 function syncFixedSettings() {
+  syncLightMode();
   const fixed = $("fit").value === "fixed";
-  const perspective = $("projection").value === "perspective";
+  const perspective = !sunMode() && $("projection").value === "perspective";
   $("fixed-settings").setAttribute("aria-disabled", String(!fixed));
   for (const id of ["near", "far", "half"]) $(id).disabled = !fixed;
   $("half").disabled = !fixed || perspective;
@@ -456,7 +468,7 @@ function lightFieldsEdited() {
 
 // The time changed (typed, or Play): the fields follow the light.
 function showLightAtTime() {
-  if (!lightFieldsValid()) return;
+  if (sunMode() || !lightFieldsValid()) return;
   const now = orbitPosition(lightAtZero(), lightTarget(), lightTurn());
   LIGHT_FIELDS.forEach((id, i) => { $(id).value = String(round(now[i])); });
 }
@@ -475,10 +487,75 @@ function showLightNow(light, time) {
     `Shown at t = ${time.toFixed(2)} s; sent as position (${light.position.map((x) => x.toFixed(3)).join(", ")}) at time 0.`;
 }
 
+// --- The sun -----------------------------------------------------------------------
+// "Placed by the sun" sends light.sun: the place, and the date and time
+// (UTC) at time 0; `time` then advances that clock, and Play runs it at
+// "Play speed" clock seconds per real second. The server answers with
+// Umbra-Sun, the sun's azimuth and elevation, shown under the fields.
+
+function sunMode() {
+  return $("light_mode").value === "sun";
+}
+
+function sunClock() {
+  // RFC 3339 needs the seconds, which a time field of step 60 leaves out.
+  const time = $("sun_time").value.length === 5 ? `${$("sun_time").value}:00` : $("sun_time").value;
+  const clock = { latitude: number("sun_lat"), longitude: number("sun_lon"), utc: `${$("sun_date").value}T${time}Z` };
+  if (number("sun_north") !== 0) clock.north_deg = number("sun_north");
+  return clock;
+}
+
+// Orbit settings or sun settings: the other kind is hidden and disabled,
+// so it is neither checked nor sent.
+function syncLightMode() {
+  const sun = sunMode();
+  $("sun-settings").hidden = !sun;
+  $("orbit-settings").hidden = sun;
+  for (const e of $("sun-settings").querySelectorAll("input, select")) e.disabled = !sun;
+  for (const e of $("orbit-settings").querySelectorAll("input")) e.disabled = sun;
+  $("projection").disabled = sun;  // a sun is a directional light
+  if (!sun) $("sun-now").textContent = "";
+  syncSunCity();
+}
+
+// The place list shows the city whose coordinates the fields hold, if any.
+function syncSunCity() {
+  const here = `${number("sun_lat")},${number("sun_lon")}`;
+  const match = Array.from($("sun_city").options).find((o) => o.value === here);
+  $("sun_city").value = match ? match.value : "";
+}
+
+function chooseSunCity() {
+  if (!$("sun_city").value) return;
+  const [latitude, longitude] = $("sun_city").value.split(",");
+  $("sun_lat").value = latitude;
+  $("sun_lon").value = longitude;
+  for (const id of ["sun_lat", "sun_lon"]) markField($(id), "");
+  requestFrame();
+}
+
+// "Umbra-Sun: azimuth_deg=214.5512; elevation_deg=12.4409" under the fields,
+// with the clock it was read at (utc + time).
+function showSunNow(body, header) {
+  const sun = body.light && body.light.sun;
+  const match = (header || "").match(/azimuth_deg=(-?[\d.]+); elevation_deg=(-?[\d.]+)/);
+  if (!sun || !match) {
+    $("sun-now").textContent = "";
+    return;
+  }
+  const clock = new Date(Date.parse(sun.utc) + 1000 * body.time);
+  const when = Number.isNaN(clock.getTime()) ? sun.utc : clock.toISOString().replace("T", " ").replace(/:\d\d\.\d+Z$/, " UTC");
+  const [azimuth, elevation] = [Number(match[1]), Number(match[2])];
+  $("sun-now").textContent = `${when}: sun at azimuth ${azimuth.toFixed(2)}°, elevation ${elevation.toFixed(2)}°` +
+    (elevation <= 0 ? " — below the horizon: ambient light only." : ".");
+  $("sun-now").dataset.azimuth = match[1];
+  $("sun-now").dataset.elevation = match[2];
+}
+
 // Alt-drag on the frame moves the light about its target as the camera
 // orbits its own: across turns it about the vertical axis, up raises it.
 function moveLight(dx, dy, height) {
-  if (!lightFieldsValid()) return;
+  if (sunMode() || !lightFieldsValid()) return;  // the sun is moved by the clock
   const moved = orbit({ position: LIGHT_FIELDS.map(number), target: lightTarget() }, dx, -dy, height).position;
   LIGHT_FIELDS.forEach((id, i) => { $(id).value = String(round(moved[i])); });
   lightFieldsEdited();
@@ -701,6 +778,11 @@ function cameraFromUrl(params, skipped) {
 
 function fieldProblem(input) {
   if (input.disabled) return "";
+  if (input.type === "date" || input.type === "time") {
+    if (input.validity.badInput || input.value === "") return `a ${input.type} is needed`;
+    if (input.validity.rangeUnderflow || input.validity.rangeOverflow) return `from ${input.min} to ${input.max}`;
+    return "";
+  }
   if (input.validity.badInput) return "not a number";
   if (input.value.trim() === "") return "a number is needed";
   const value = Number(input.value);
@@ -742,7 +824,7 @@ function markField(input, problem) {
 // (cameraFromFields): they hold no setting of their own.
 function fieldsHeld() {
   const bad = [];
-  for (const input of $("controls").querySelectorAll("input[type=number]")) {
+  for (const input of $("controls").querySelectorAll("input[type=number], input[type=date], input[type=time]")) {
     if (!isCameraField(input)) markField(input, fieldProblem(input));
     if (input.getAttribute("aria-invalid") === "true") bad.push(fieldName(input));
   }
@@ -831,6 +913,12 @@ function loadFromUrl() {
     } else if (e.type === "number" || e.type === "range") {
       if (value.trim() !== "" && Number.isFinite(Number(value))) e.value = value;
       else skipped.push(e.name);
+    } else if (e.type === "date" || e.type === "time") {
+      e.value = value;  // the browser empties a value it cannot take
+      if (e.value !== value) {
+        e.value = e.defaultValue;
+        skipped.push(e.name);
+      }
     } else if (e.type === "color") {
       if (/^#[0-9a-fA-F]{6}$/.test(value)) e.value = value.toLowerCase();
       else skipped.push(e.name);
@@ -1126,9 +1214,9 @@ function loadSceneIntoEditor() {
   const fragment = { scene };
   const camera = currentCamera();
   if (camera) fragment.camera = { position: camera.position, target: camera.target };
-  const light = { position: lightAtZero().map(round) };
+  const light = sunMode() ? { sun: sunClock() } : { position: lightAtZero().map(round) };
   const target = lightTarget();
-  if (target.some((x) => x !== 0)) light.target = target;
+  if (!sunMode() && target.some((x) => x !== 0)) light.target = target;
   fragment.light = light;
   $("scene-json").value = formatFragment(fragment);
   markSceneJson("");
@@ -1274,12 +1362,15 @@ $("controls").addEventListener("input", (e) => {
   }
   if ([...LIGHT_FIELDS, ...LIGHT_TARGET_FIELDS, "orbit"].includes(e.target.id)) lightFieldsEdited();
   if (e.target.id === "time") showLightAtTime();
+  if (e.target.id === "sun_city") return;  // chooseSunCity fills the fields and renders
+  if (e.target.id === "sun_lat" || e.target.id === "sun_lon") syncSunCity();
   syncSizeNote(e.target.id);
   syncFixedSettings();
   requestFrame();
 });
 $("controls").addEventListener("submit", (e) => e.preventDefault());
 $("play").addEventListener("click", togglePlay);
+$("sun_city").addEventListener("change", chooseSunCity);
 $("reset-camera").addEventListener("click", () => setCamera(null));
 // The gain only changes how the frame is shown: no request.
 $("gain").addEventListener("input", () => {

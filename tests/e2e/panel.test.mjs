@@ -656,6 +656,66 @@ try {
     assert.ok(!("target" in JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light));
   });
 
+  await step(page, "sun-mode-places-the-light-by-place-and-time-and-plays-the-day", async () => {
+    const lastBody = async () => JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    const time0 = await page.$eval("#time", (i) => i.value);
+    await typeInto(page, "time", "0");
+    let before = await currentSources(page);
+    await page.selectOption("#light_mode", "sun");
+    await waitForNewImages(page, before);
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && "sun" in JSON.parse(window.__umbra.lastRenderBody).light);
+    let body = await lastBody();
+    assert.deepEqual(body.light.sun, { latitude: 48.8566, longitude: 2.3522, utc: "2026-12-21T14:00:00Z" });
+    for (const key of ["position", "projection", "orbit_deg_per_s"]) assert.ok(!(key in body.light), `no ${key} with a sun`);
+    assert.equal(await page.$eval("#sun_city", (s) => s.selectedOptions[0].textContent), "Paris");
+    // Paris on a winter afternoon: low in the south-west, as the server's Umbra-Sun says.
+    const sunNow = async () => page.$eval("#sun-now", (p) => ({ text: p.textContent, azimuth: Number(p.dataset.azimuth), elevation: Number(p.dataset.elevation) }));
+    let sun = await sunNow();
+    assert.match(sun.text, /^2026-12-21 14:00 UTC: sun at azimuth [\d.]+°, elevation [\d.]+°\.$/);
+    assert.ok(sun.azimuth > 180 && sun.azimuth < 270 && sun.elevation > 5 && sun.elevation < 20, sun.text);
+    await page.screenshot({ path: path.join(artifacts, "sun-paris-winter-afternoon.png"), fullPage: true });
+    assert.ok(!(await page.$eval("#orbit-settings", (d) => d.hidden === false)), "the orbit's fields are hidden");
+    assert.ok(await page.$eval("#projection", (s) => s.disabled), "a sun is directional");
+    await checkCurlGivesTheFrame(page, port);
+    // A city preset fills the place; the other side of the date line works too.
+    before = await currentSources(page);
+    await page.selectOption("#sun_city", { label: "Auckland" });
+    await waitForNewImages(page, before);
+    body = await lastBody();
+    assert.deepEqual([body.light.sun.latitude, body.light.sun.longitude], [-36.8485, 174.7633]);
+    // 14:00 UTC is 03:00 in Auckland the next day: night, ambient only.
+    await page.waitForFunction(() => /below the horizon/.test(document.getElementById("sun-now").textContent));
+    // Play runs the clock at the chosen speed: an hour of sun in a few frames.
+    await typeInto(page, "sun_speed", "7200");
+    const frames0 = await page.evaluate(() => window.__umbra.frames);
+    await page.click("#play");
+    await page.waitForFunction((n) => window.__umbra.frames >= n + 3, frames0, { timeout: 60000 });
+    await page.click("#play");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
+    body = await lastBody();
+    assert.ok(body.time > 100, `the clock ran fast (time ${body.time} s)`);
+    assert.equal(body.light.sun.utc, "2026-12-21T14:00:00Z", "Play advances time, not the date and time fields");
+    // A latitude past the pole is marked on its field and nothing is sent.
+    await typeInto(page, "sun_lat", "95");
+    await page.waitForFunction(() => document.getElementById("sun_lat").getAttribute("aria-invalid") === "true");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
+    const sent = await page.evaluate(() => window.__umbra.sent);
+    await page.keyboard.press("Tab");
+    await sentStaysAt(page, sent);
+    assert.notEqual(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light.sun.latitude, 95, "95 never sent");
+    assert.equal(await page.$eval("#sun_city", (s) => s.value), "", "no city is at latitude 95");
+    // Back to the orbit, as the steps after this one expect.
+    await typeInto(page, "sun_lat", "48.8566");
+    await typeInto(page, "sun_lon", "2.3522");
+    await typeInto(page, "sun_speed", "1800");
+    before = await currentSources(page);
+    await page.selectOption("#light_mode", "orbit");
+    await waitForNewImages(page, before);
+    await typeInto(page, "time", time0);
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && !("sun" in JSON.parse(window.__umbra.lastRenderBody).light));
+    assert.equal(await page.$eval("#sun-now", (p) => p.textContent), "");
+  });
+
   await step(page, "resolution-and-depth-map-at-a-lower-rate-while-playing", async () => {
     let before = await currentSources(page);
     await page.selectOption("#resolution", "480x270");
