@@ -534,7 +534,7 @@ function chooseSunCity() {
   requestFrame();
 }
 
-// "Umbra-Sun: azimuth_deg=214.5512; elevation_deg=12.4409" under the fields,
+// "Umbra-Sun: azimuth_deg=210.5597; elevation_deg=12.0704" under the fields,
 // with the clock it was read at (utc + time).
 function showSunNow(body, header) {
   const sun = body.light && body.light.sun;
