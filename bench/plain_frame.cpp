@@ -137,6 +137,8 @@ bool same_objects(const std::vector<SceneObject>& a, const std::vector<SceneObje
 glm::dmat4 light_space(const RenderRequest& request, const Aabb& scene_box) {
   Aabb bounds = scene_box;
   if (bounds.empty()) bounds.extend(request.light.target), bounds.extend(request.light.target + glm::dvec3(1.0));
+  // The bench scenes' lights orbit; a sun below the horizon (light_at's
+  // `direct`) is not modelled by the plain frame, which lights it anyway.
   const glm::dvec3 position = light_at(request.light, request.time).position;
   const glm::dmat4 view = stable_look_at(position, request.light.target, glm::dvec3(0.0, 1.0, 0.0));
   if (request.light.projection == LightProjection::Orthographic) {

@@ -458,8 +458,9 @@ SunClock read_sun(const json& j, std::set<std::string>& sent) {
   std::string why;
   const std::optional<double> instant = parse_utc(utc.get_ref<const std::string&>(), &why);
   if (!instant) reject(r.path("utc"), quote_text(utc.get<std::string>()) + " is not an RFC 3339 date-time: " + why);
-  if (*instant >= RequestLimits::kMaxSunUnixSeconds)
-    reject(r.path("utc"), "years 0001 to " + std::to_string(RequestLimits::kMaxSunYear) + " are supported");
+  // The offset applied, the instant itself must lie in those years (UTC).
+  if (*instant < RequestLimits::kMinSunUnixSeconds || *instant >= RequestLimits::kMaxSunUnixSeconds)
+    reject(r.path("utc"), "years 0001 to " + std::to_string(RequestLimits::kMaxSunYear) + " (UTC) are supported");
   sun.utc_unix_s = *instant;
   if (auto v = r.get("north_deg")) sun.north_deg = read_number(*v, r.path("north_deg"), -360.0, 360.0);
   return sun;
@@ -568,7 +569,12 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
     if (sent.count(field)) unused.push_back(field);
   };
   const bool depth = q.output == Output::Depth;
-  const bool shadow_pass = q.shadow.enabled || depth;
+  // A sun below the horizon lights nothing directly: its frame draws no
+  // shadow, as if shadows were off (the depth output still draws the map).
+  // So these fields may come and go from the list while Play crosses sunset.
+  const bool sun_down = q.light.sun && !light_at(q.light, q.time).direct;
+  const bool shadowed = q.shadow.enabled && !sun_down;
+  const bool shadow_pass = shadowed || depth;
   const bool fixed = q.shadow.fit == FrustumFit::Fixed;
   const bool perspective = q.light.projection == LightProjection::Perspective;
   if (!fixed || !perspective) mark("light.fov_y_deg");
@@ -577,7 +583,8 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
   // far from.
   if (q.light.sun) {
     mark("light.orbit_deg_per_s");
-    if (!fixed) mark("light.position");
+    if (!fixed || !shadow_pass) mark("light.position");
+    if (sun_down && !depth) mark("shadow.enabled");
   }
   if (!fixed || perspective) mark("shadow.ortho_half_size");
   if (!fixed || !shadow_pass) mark("shadow.near"), mark("shadow.far");
@@ -586,7 +593,7 @@ std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<st
     for (const char* f : {"shadow.map_size", "shadow.cull", "shadow.fit", "shadow.cascades", "shadow.ortho_half_size"})
       mark(f);
   }
-  const bool filtering = q.shadow.enabled && !depth;
+  const bool filtering = shadowed && !depth;
   const bool pcf_used = q.shadow.filter == ShadowFilter::Pcf ||
                         (q.shadow.filter == ShadowFilter::Pcss && q.light.size == 0.0);
   if (!filtering || !pcf_used) mark("shadow.pcf_radius");

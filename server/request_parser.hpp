@@ -51,7 +51,8 @@ struct RequestLimits {
   /// -2000 to 6000, so the clock stays inside it with any `time`
   /// (|time| <= kMaxTime is under 32 years).
   static constexpr int kMaxSunYear = 5000;
-  static constexpr double kMaxSunUnixSeconds = 95649120000.0;  ///< 5001-01-01T00:00:00Z
+  static constexpr double kMinSunUnixSeconds = -62135596800.0;  ///< 0001-01-01T00:00:00Z
+  static constexpr double kMaxSunUnixSeconds = 95649120000.0;   ///< 5001-01-01T00:00:00Z
   /// Narrowest field of view, degrees (camera and light): below it a
   /// projection's scale (1 / tan(fov / 2)) leaves float range and the frame
   /// would come back empty.

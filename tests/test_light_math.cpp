@@ -371,6 +371,18 @@ TEST(SunLight, LightAtPlacesTheLightTowardsTheSunAtItsDistanceFromTheTarget) {
   expect_near(glm::normalize(offset), sun_direction(sun.azimuth_deg, sun.elevation_deg, 0.0), 1e-12);
   EXPECT_GT(offset.z, 0.0);
   EXPECT_LT(offset.x, 0.0);
+  // North turned a quarter clockwise (to +X): the south-west sun moves from
+  // +Z/-X to -X/-Z of the target; the sun itself stays where it is.
+  Light turned = light;
+  turned.sun->north_deg = 90.0;
+  const LightState quarter = light_at(turned, 0.0);
+  EXPECT_DOUBLE_EQ(quarter.sun->azimuth_deg, sun.azimuth_deg);
+  const glm::dvec3 turned_offset = glm::normalize(quarter.position - turned.target);
+  expect_near(turned_offset, sun_direction(sun.azimuth_deg, sun.elevation_deg, 90.0), 1e-12);
+  EXPECT_NEAR(turned_offset.x, -glm::normalize(offset).z, 1e-12);
+  EXPECT_NEAR(turned_offset.z, glm::normalize(offset).x, 1e-12);
+  EXPECT_LT(turned_offset.x, 0.0);
+  EXPECT_LT(turned_offset.z, 0.0);
 }
 
 TEST(SunLight, TimeAdvancesTheClockAndOrbitingDoesNotApply) {

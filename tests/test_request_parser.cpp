@@ -405,7 +405,35 @@ TEST(RequestParser, ABadSunInstantSaysWhatIsWrongWithIt) {
   const ParsedRequest late = parse_render_request(
       R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "5001-01-01T00:00:00Z"}}})");
   ASSERT_FALSE(late.ok());
-  EXPECT_EQ(late.error.message, "years 0001 to 5000 are supported");
+  EXPECT_EQ(late.error.message, "years 0001 to 5000 (UTC) are supported");
+  // The offset counts: 00:00 at +01:00 on the first day of year 1 is still year 0 in UTC.
+  const ParsedRequest early = parse_render_request(
+      R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "0001-01-01T00:00:00+01:00"}}})");
+  ASSERT_FALSE(early.ok());
+  EXPECT_EQ(early.error.field, "light.sun.utc");
+  EXPECT_TRUE(parse_render_request(R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "0001-01-01T00:00:00-01:00"}}})").ok());
+}
+
+TEST(RequestParser, ASunBelowTheHorizonReportsTheShadowSettingsUnusedAsShadowsOffWould) {
+  const std::string night = R"("sun": {"latitude": 48.85, "longitude": 2.35, "utc": "2026-12-21T22:00:00Z"})";
+  const std::string settings = R"("shadow": {"enabled": true, "map_size": 512, "filter": "pcss", "cull": "back", "cascades": 2})";
+  ParsedRequest p = parse_render_request("{" + settings + R"(, "light": {"size": 2, )" + night + "}}");
+  ASSERT_TRUE(p.ok()) << p.error.message;
+  EXPECT_EQ(p.unused_fields, (std::vector<std::string>{"light.size", "shadow.cascades", "shadow.cull", "shadow.enabled",
+                                                      "shadow.filter", "shadow.map_size"}));
+  // By day the same body uses them all.
+  const std::string day = R"("sun": {"latitude": 48.85, "longitude": 2.35, "utc": "2026-12-21T12:00:00Z"})";
+  p = parse_render_request("{" + settings + R"(, "light": {"size": 2, )" + day + "}}");
+  ASSERT_TRUE(p.ok()) << p.error.message;
+  EXPECT_TRUE(p.unused_fields.empty()) << p.unused_fields.front();
+  // The depth map is drawn whatever the sun's height: its settings count.
+  p = parse_render_request("{" + settings + R"(, "output": "depth", "light": {)" + night + "}}");
+  ASSERT_TRUE(p.ok()) << p.error.message;
+  EXPECT_EQ(p.unused_fields, std::vector<std::string>{"shadow.filter"});
+  // With fit "fixed" and no shadow pass, not even the position's distance counts.
+  p = parse_render_request(R"({"shadow": {"fit": "fixed", "enabled": false}, "light": {"position": [1, 2, 3], )" + day + "}}");
+  ASSERT_TRUE(p.ok()) << p.error.message;
+  EXPECT_EQ(p.unused_fields, (std::vector<std::string>{"light.position", "shadow.fit"}));
 }
 
 TEST(RequestParser, CascadesAreAutoOrACount) {

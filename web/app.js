@@ -467,8 +467,10 @@ function lightFieldsEdited() {
 }
 
 // The time changed (typed, or Play): the fields follow the light.
+// (In sun mode too, where the fields are hidden: switched back to the
+// orbit, they show where the orbiting light is at the time shown.)
 function showLightAtTime() {
-  if (sunMode() || !lightFieldsValid()) return;
+  if (!lightFieldsValid()) return;
   const now = orbitPosition(lightAtZero(), lightTarget(), lightTurn());
   LIGHT_FIELDS.forEach((id, i) => { $(id).value = String(round(now[i])); });
 }
@@ -1214,10 +1216,14 @@ function loadSceneIntoEditor() {
   const fragment = { scene };
   const camera = currentCamera();
   if (camera) fragment.camera = { position: camera.position, target: camera.target };
-  const light = sunMode() ? { sun: sunClock() } : { position: lightAtZero().map(round) };
-  const target = lightTarget();
-  if (!sunMode() && target.some((x) => x !== 0)) light.target = target;
-  fragment.light = light;
+  // A sun stays the form's (Placed by, place, date and time): a sun in the
+  // editor would override every later change of those fields.
+  if (!sunMode()) {
+    const light = { position: lightAtZero().map(round) };
+    const target = lightTarget();
+    if (target.some((x) => x !== 0)) light.target = target;
+    fragment.light = light;
+  }
   $("scene-json").value = formatFragment(fragment);
   markSceneJson("");
   $("scene-json-status").textContent = `Loaded ${$("scene").selectedOptions[0].textContent}: edit it, then Render this.`;

@@ -677,6 +677,14 @@ try {
     assert.ok(!(await page.$eval("#orbit-settings", (d) => d.hidden === false)), "the orbit's fields are hidden");
     assert.ok(await page.$eval("#projection", (s) => s.disabled), "a sun is directional");
     await checkCurlGivesTheFrame(page, port);
+    // The link opens the same sun.
+    const link = await page.context().newPage();
+    await link.addInitScript(countRequests);
+    await link.goto(page.url());
+    await waitForNewImages(link, { frame: "", depth: "" });
+    assert.equal(await link.$eval("#light_mode", (s) => s.value), "sun");
+    assert.deepEqual(JSON.parse(await link.evaluate(() => window.__umbra.lastRenderBody)), body);
+    await link.close();
     // A city preset fills the place; the other side of the date line works too.
     before = await currentSources(page);
     await page.selectOption("#sun_city", { label: "Auckland" });
@@ -711,6 +719,10 @@ try {
     before = await currentSources(page);
     await page.selectOption("#light_mode", "orbit");
     await waitForNewImages(page, before);
+    // Back on the orbit at the time the sun's Play left: the fields show
+    // where the orbiting light is now.
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && !("sun" in JSON.parse(window.__umbra.lastRenderBody).light));
+    await checkLightFieldsShowTheOrbit(page);
     await typeInto(page, "time", time0);
     await page.waitForFunction(() => window.__umbra.inFlight === 0 && !("sun" in JSON.parse(window.__umbra.lastRenderBody).light));
     assert.equal(await page.$eval("#sun-now", (p) => p.textContent), "");
