@@ -135,6 +135,7 @@ struct RenderService::Impl {
   std::atomic<std::uint64_t> frames{0};
   std::atomic<std::uint64_t> shadow_reuses{0};
   std::atomic<std::uint64_t> scene_uploads{0};
+  std::atomic<std::uint64_t> context_renewals{0};  // fresh GL contexts made when idle (release_when_idle)
   // Estimated peak bytes of the ray casts running ("exact", "error"): the
   // GL thread leaves them room in the budget.
   std::atomic<std::uint64_t> reserved_bytes{0};
@@ -173,8 +174,23 @@ struct RenderService::Impl {
   // arena (frames' images and PNGs, llvmpipe's scratch, ray casts' records)
   // go back to the system, so that resident memory follows the work, not
   // the history.
-  void release_when_idle(ShadowRenderer& renderer) {
-    cached.store(renderer.release_cached(limits.memory_budget_bytes / kIdleShare));
+  //
+  // llvmpipe holds on to much of the GL memory released until its context
+  // goes (ShadowRenderer::released_gl_bytes), so once that passes the
+  // idle share the GL context itself is made anew: what is lost is the
+  // kept scene and the compiled shader variants, which the next request
+  // rebuilds (tens of milliseconds), against hundreds of megabytes held for
+  // as long as the server runs idle.
+  void release_when_idle(std::optional<gl::EglContext>& context, std::optional<ShadowRenderer>& renderer) {
+    cached.store(renderer->release_cached(limits.memory_budget_bytes / kIdleShare));
+    if (renderer->released_gl_bytes() > limits.memory_budget_bytes / kIdleShare) {
+      renderer.reset();
+      context.reset();
+      context.emplace();
+      renderer.emplace(limits.memory_budget_bytes / kSceneShare);
+      cached.store(renderer->cached_bytes());
+      context_renewals.fetch_add(1);
+    }
     malloc_trim(0);
   }
 
@@ -214,7 +230,13 @@ struct RenderService::Impl {
             // cast starts the wait again).
             idle_release_due = false;
             lock.unlock();
-            release_when_idle(*renderer);
+            try {
+              release_when_idle(context, renderer);
+            } catch (...) {
+              // A context that cannot be made again now (it was made at
+              // start-up) is tried again by the next job, which fails
+              // with the reason if it still cannot be.
+            }
             lock.lock();
           }
         }
@@ -227,6 +249,12 @@ struct RenderService::Impl {
       std::exception_ptr error;
       try {
         check_still_wanted(job.queued, job.client_gone);
+        if (!renderer) {
+          renderer.reset();
+          context.reset();
+          context.emplace();
+          renderer.emplace(limits.memory_budget_bytes / kSceneShare);
+        }
         // Room for this frame's peak and the ray casts running beside it:
         // what is kept goes first, so the request is not refused for it.
         renderer->release_cached(
@@ -238,7 +266,7 @@ struct RenderService::Impl {
       } catch (...) {
         error = std::current_exception();
       }
-      cached.store(renderer->cached_bytes());
+      cached.store(renderer ? renderer->cached_bytes() : 0);
       // Counters first, then the answer: whoever holds the answer sees the
       // place already given back.
       if (job.holds_place) in_flight.fetch_sub(1);
@@ -380,6 +408,7 @@ std::size_t RenderService::queue_depth() const { return impl_->in_flight.load();
 std::uint64_t RenderService::shadow_cache_hits() const { return impl_->shadow_reuses.load(); }
 std::uint64_t RenderService::rejected() const { return impl_->rejected_count.load(); }
 std::uint64_t RenderService::scene_uploads() const { return impl_->scene_uploads.load(); }
+std::uint64_t RenderService::context_renewals() const { return impl_->context_renewals.load(); }
 std::uint64_t RenderService::abandoned() const { return impl_->abandoned_count.load(); }
 std::uint64_t RenderService::expired() const { return impl_->expired_count.load(); }
 std::uint64_t RenderService::too_costly() const { return impl_->too_costly_count.load(); }

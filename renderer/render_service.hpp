@@ -123,6 +123,12 @@ class RenderService {
   /// distinct scenes (within a third of the memory budget), so a scene seen
   /// recently costs no upload.
   std::uint64_t scene_uploads() const;
+  /// Fresh GL contexts made when idle: llvmpipe keeps the memory of render
+  /// targets it drew into (and of deleted scene buffers) until their context
+  /// goes, so after a burst whose released GL memory exceeds the idle share
+  /// of the budget the GL thread makes its context anew
+  /// (ShadowRenderer::released_gl_bytes).
+  std::uint64_t context_renewals() const;
   /// Jobs waiting or being rendered.
   std::size_t queue_depth() const;
   /// Jobs refused because the queue was full, and jobs dropped at their

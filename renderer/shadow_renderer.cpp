@@ -103,8 +103,14 @@ bool ShadowRenderer::use_scene(const Scene& scene) {
   g.mesh = std::move(mesh);
   const std::uint64_t bytes = std::uint64_t(vertex_count) * sizeof(Vertex) + std::uint64_t(index_count) * sizeof(std::uint32_t);
   scenes_.insert(std::move(key), std::move(g), bytes);
-  scenes_.evict_to(scene_cache_bytes_, kCachedScenes, 1);
+  evict_scenes_to(scene_cache_bytes_, 1);
   return true;
+}
+
+void ShadowRenderer::evict_scenes_to(std::uint64_t max_bytes, std::size_t keep) {
+  const std::uint64_t before = scenes_.bytes();
+  scenes_.evict_to(max_bytes, kCachedScenes, keep);
+  released_gl_bytes_ += before - scenes_.bytes();
 }
 
 std::uint64_t ShadowRenderer::shadow_map_bytes() const {
@@ -126,13 +132,15 @@ std::uint64_t ShadowRenderer::cached_bytes() const {
 std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
   if (cached_bytes() <= max_bytes) return cached_bytes();
   const std::uint64_t others = shadow_map_bytes() + display_bytes() + depth_preview_bytes();
-  scenes_.evict_to(max_bytes > others ? max_bytes - others : 0, kCachedScenes, 1);
+  evict_scenes_to(max_bytes > others ? max_bytes - others : 0, 1);
   if (cached_bytes() > max_bytes) {
+    released_gl_bytes_ += depth_preview_bytes();
     preview_.framebuffer.reset();
     preview_.grey.reset();
     preview_.size = preview_.bits = 0;
   }
   if (cached_bytes() > max_bytes) {
+    released_gl_bytes_ += shadow_map_bytes();
     shadow_.framebuffer.reset();
     shadow_.depth_map.reset();
     shadow_.size = shadow_.layers = 0;
@@ -140,12 +148,13 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
     shadow_.scene_key.clear();
   }
   if (cached_bytes() > max_bytes) {
+    released_gl_bytes_ += display_bytes();
     display_.framebuffer.reset();
     display_.color.reset();
     display_.depth.reset();
     display_.width = display_.height = 0;
   }
-  scenes_.evict_to(max_bytes, kCachedScenes, 0);
+  evict_scenes_to(max_bytes, 0);
   unbind_released();
   return cached_bytes();
 }
@@ -166,6 +175,7 @@ void ShadowRenderer::resize_shadow_map(int size, int layers) {
   // Kept while it is big enough: a light that needs fewer views uses the
   // first layers.
   if (shadow_.size == size && shadow_.layers >= layers) return;
+  released_gl_bytes_ += shadow_map_bytes();
   shadow_.holds_plan = false;
   shadow_.depth_map = gl::create_texture(GL_TEXTURE_2D_ARRAY);
   const GLuint map = shadow_.depth_map.id();
@@ -194,6 +204,7 @@ void ShadowRenderer::resize_shadow_map(int size, int layers) {
 
 void ShadowRenderer::resize_display(int width, int height) {
   if (display_.width == width && display_.height == height) return;
+  released_gl_bytes_ += display_bytes();
   display_.color = gl::create_renderbuffer();
   display_.depth = gl::create_renderbuffer();
   glNamedRenderbufferStorage(display_.color.id(), GL_RGBA8, width, height);
@@ -209,6 +220,7 @@ void ShadowRenderer::resize_display(int width, int height) {
 
 void ShadowRenderer::resize_depth_preview(int size, int bits) {
   if (preview_.size == size && preview_.bits == bits) return;
+  released_gl_bytes_ += depth_preview_bytes();
   preview_.grey = gl::create_texture(GL_TEXTURE_2D);
   // The shader's float is stored as UNORM: R8 keeps the 8-bit preview byte for byte what it was, R16 gives the 16-bit
   // one 65536 levels of the same mapping (the map itself is 32F, so they are real).

@@ -39,6 +39,15 @@ class ShadowRenderer {
   /// preview, the shadow map, the display framebuffer, and last the last
   /// scene. Returns cached_bytes() after.
   std::uint64_t release_cached(std::uint64_t max_bytes);
+  /// Bytes of GL memory released since this renderer was made: render
+  /// targets (shadow maps, display and preview framebuffers) and evicted
+  /// scenes' buffers. llvmpipe (Mesa 22.3) keeps much of it until the GL
+  /// context is destroyed: every render target it drew into but the last
+  /// (a 4-layer 4096^2 map: 256 MB after glDeleteTextures; measured in a
+  /// 60-line EGL program), and most of three 999-sphere scenes drawn whole
+  /// (~130 MB). So this is memory the process may still hold: RenderService
+  /// starts a fresh context when it grows too large.
+  std::uint64_t released_gl_bytes() const { return released_gl_bytes_; }
 
   std::string gl_renderer() const;
   std::string gl_version() const;
@@ -118,6 +127,9 @@ class ShadowRenderer {
   // about 280 MB).
   static constexpr std::size_t kCachedScenes = 8;
   std::uint64_t scene_cache_bytes_;
+  std::uint64_t released_gl_bytes_ = 0;  // see released_gl_bytes()
+  // scenes_.evict_to, counting what goes in released_gl_bytes_.
+  void evict_scenes_to(std::uint64_t max_bytes, std::size_t keep);
   ByteBoundedLru<SceneGeometry> scenes_;
   ShadowPass shadow_;
   DisplayPass display_;

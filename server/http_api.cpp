@@ -320,6 +320,7 @@ MetricsGauges HttpApi::state() const {
   g.frames_rendered = renderer_.frames_rendered();
   g.shadow_map_reuses = renderer_.shadow_cache_hits();
   g.scene_uploads = renderer_.scene_uploads();
+  g.context_renewals = renderer_.context_renewals();
   g.queue_depth = renderer_.queue_depth();
   g.queue_capacity = renderer_.limits().queue_capacity;
   g.rejected = renderer_.rejected();
@@ -349,6 +350,7 @@ void HttpApi::health(const HttpRequest&, HttpResponse& res) {
                        {"frames_rendered", g.frames_rendered},
                        {"shadow_cache_hits", g.shadow_map_reuses},
                        {"scene_uploads", g.scene_uploads},
+                       {"gl_context_renewals", g.context_renewals},
                        {"queue_depth", g.queue_depth},
                        {"queue_capacity", g.queue_capacity},
                        {"rejected", g.rejected},

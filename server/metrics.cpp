@@ -132,6 +132,8 @@ std::string Metrics::exposition(const MetricsGauges& g) const {
        double(g.shadow_map_reuses)},
       {"umbra_scene_uploads_total", "counter", "Scenes whose meshes had to be uploaded to GL.",
        double(g.scene_uploads)},
+      {"umbra_gl_context_renewals_total", "counter",
+       "Fresh GL contexts made when idle, to give back GL memory the driver kept.", double(g.context_renewals)},
       {"umbra_rejected_total", "counter", "Requests refused at once with 503: the queue was full.", double(g.rejected)},
       {"umbra_expired_total", "counter", "Requests that waited past the deadline (503).", double(g.expired)},
       {"umbra_abandoned_total", "counter", "Requests whose client left before they were answered.",

@@ -39,7 +39,7 @@ class LatencyHistogram {
 struct MetricsGauges {
   std::string gl_renderer, gl_version, egl_source;
   double uptime_s = 0.0;
-  std::uint64_t frames_rendered = 0, shadow_map_reuses = 0, scene_uploads = 0;
+  std::uint64_t frames_rendered = 0, shadow_map_reuses = 0, scene_uploads = 0, context_renewals = 0;
   std::uint64_t queue_depth = 0, queue_capacity = 0;
   std::uint64_t rejected = 0, expired = 0, abandoned = 0, too_costly = 0, overran = 0;
   std::uint64_t cached_bytes = 0, models = 0, model_bytes = 0, model_budget_bytes = 0;
