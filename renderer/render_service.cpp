@@ -179,19 +179,26 @@ struct RenderService::Impl {
   // goes (ShadowRenderer::released_gl_bytes), so once that passes the
   // idle share the GL context itself is made anew: what is lost is the
   // kept scene and the compiled shader variants, which the next request
-  // rebuilds (tens of milliseconds), against hundreds of megabytes held for
-  // as long as the server runs idle.
+  // rebuilds (its first frame took 0.13 s instead of 0.035 s at 960 x 540),
+  // against hundreds of megabytes held for as long as the server runs idle.
   void release_when_idle(std::optional<gl::EglContext>& context, std::optional<ShadowRenderer>& renderer) {
     cached.store(renderer->release_cached(limits.memory_budget_bytes / kIdleShare));
     if (renderer->released_gl_bytes() > limits.memory_budget_bytes / kIdleShare) {
-      renderer.reset();
-      context.reset();
-      context.emplace();
-      renderer.emplace(limits.memory_budget_bytes / kSceneShare);
+      make_renderer(context, renderer);
       cached.store(renderer->cached_bytes());
       context_renewals.fetch_add(1);
     }
     malloc_trim(0);
+  }
+
+  // A GL context and a renderer in it, the old ones (if any) destroyed
+  // first, renderer before context. Throws what EglContext and
+  // ShadowRenderer throw, leaving the renderer empty.
+  void make_renderer(std::optional<gl::EglContext>& context, std::optional<ShadowRenderer>& renderer) {
+    renderer.reset();
+    context.reset();
+    context.emplace();
+    renderer.emplace(limits.memory_budget_bytes / kSceneShare);
   }
 
   // Called when a ray cast ends: its memory is freed in its own thread's
@@ -210,8 +217,7 @@ struct RenderService::Impl {
     std::optional<gl::EglContext> context;
     std::optional<ShadowRenderer> renderer;
     try {
-      context.emplace();
-      renderer.emplace(limits.memory_budget_bytes / kSceneShare);
+      make_renderer(context, renderer);
       info = {renderer->gl_renderer(), renderer->gl_version(), context->source()};
     } catch (...) {
       ready.set_exception(std::current_exception());
@@ -249,12 +255,7 @@ struct RenderService::Impl {
       std::exception_ptr error;
       try {
         check_still_wanted(job.queued, job.client_gone);
-        if (!renderer) {
-          renderer.reset();
-          context.reset();
-          context.emplace();
-          renderer.emplace(limits.memory_budget_bytes / kSceneShare);
-        }
+        if (!renderer) make_renderer(context, renderer);
         // Room for this frame's peak and the ray casts running beside it:
         // what is kept goes first, so the request is not refused for it.
         renderer->release_cached(
