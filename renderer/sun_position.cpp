@@ -837,4 +837,14 @@ std::string format_utc(double unix_seconds) {
   return buf;
 }
 
+std::string format_sun_angles(const SunAngles& sun) {
+  // + 0.0 turns a rounded -0.0 into +0.0.
+  const auto four_places = [](double v) { return std::round(v * 1e4) / 1e4 + 0.0; };
+  double azimuth = four_places(sun.azimuth_deg);
+  if (azimuth >= 360.0) azimuth -= 360.0;
+  char buffer[96];
+  std::snprintf(buffer, sizeof buffer, "azimuth_deg=%.4f; elevation_deg=%.4f", azimuth, four_places(sun.elevation_deg));
+  return buffer;
+}
+
 }  // namespace umbra

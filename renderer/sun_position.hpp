@@ -117,4 +117,10 @@ std::optional<double> parse_utc(std::string_view text, std::string* why);
 // (3 billion years) are clamped to it.
 std::string format_utc(double unix_seconds);
 
+// "azimuth_deg=<A>; elevation_deg=<E>", each to 4 decimals: the value of the
+// Umbra-Sun response header (docs/api.md). Rounded before printing, so that
+// an azimuth of 359.99996 reads 0.0000 (never 360.0000) and -0.00001 reads
+// 0.0000 (never -0.0000).
+std::string format_sun_angles(const SunAngles& sun);
+
 }  // namespace umbra

@@ -92,14 +92,7 @@ std::string content_type_for(const std::string& path) {
 // that clients and tests read what was used; "" for an orbiting light.
 std::string sun_header(const RenderRequest& request) {
   const std::optional<SunAngles> sun = light_at(request.light, request.time).sun;
-  if (!sun) return "";
-  // Rounded here, so that 359.99996 reads 0.0000 and -0.00001 reads 0.0000.
-  const auto four_places = [](double v) { return std::round(v * 1e4) / 1e4 + 0.0; };
-  double azimuth = four_places(sun->azimuth_deg);
-  if (azimuth >= 360.0) azimuth -= 360.0;
-  char buffer[96];
-  std::snprintf(buffer, sizeof buffer, "azimuth_deg=%.4f; elevation_deg=%.4f", azimuth, four_places(sun->elevation_deg));
-  return buffer;
+  return sun ? format_sun_angles(*sun) : "";
 }
 
 std::string server_timing(const FrameTimings& t, double encode_ms, double queue_ms) {

@@ -633,12 +633,7 @@ TEST(Http, ACameraOnlyChangeSkipsTheShadowPass) {
 }
 
 // What Umbra-Sun should say for a sun at Paris, `seconds` after `utc`.
-std::string paris_sun_header(double utc_unix_s) {
-  const SunAngles sun = solar_position(48.85, 2.35, utc_unix_s);
-  char buffer[96];
-  std::snprintf(buffer, sizeof buffer, "azimuth_deg=%.4f; elevation_deg=%.4f", sun.azimuth_deg, sun.elevation_deg);
-  return buffer;
-}
+std::string paris_sun_header(double utc_unix_s) { return format_sun_angles(solar_position(48.85, 2.35, utc_unix_s)); }
 
 TEST(Http, ASunLightSaysWhereTheSunStoodOnEveryImage) {
   const std::string sun = R"("sun": {"latitude": 48.85, "longitude": 2.35, "utc": "2026-12-21T14:00:00Z"})";

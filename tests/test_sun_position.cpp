@@ -404,3 +404,14 @@ TEST(SunUtc, DecimalYear) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(SunHeader, FourDecimalsWithNoMinusZeroAndNo360) {
+  EXPECT_EQ(umbra::format_sun_angles({210.55966, 12.07044}), "azimuth_deg=210.5597; elevation_deg=12.0704");
+  EXPECT_EQ(umbra::format_sun_angles({359.99996, -0.00001}), "azimuth_deg=0.0000; elevation_deg=0.0000");
+  EXPECT_EQ(umbra::format_sun_angles({359.99994, -12.5}), "azimuth_deg=359.9999; elevation_deg=-12.5000");
+  EXPECT_EQ(umbra::format_sun_angles({0.0, 90.0}), "azimuth_deg=0.0000; elevation_deg=90.0000");
+}
+
+}  // namespace
