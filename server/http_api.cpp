@@ -1,7 +1,6 @@
 #include "http_api.hpp"
 
 #include <cctype>
-#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
