@@ -5,9 +5,12 @@
 //
 // The document's path comes from CMake (UMBRA_OPENAPI_JSON): the repository's
 // own file, the one the server embeds and serves at GET /api/openapi.json.
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -196,6 +199,100 @@ TEST(ApiDocument, EveryEnumIsWhatTheParserTakes) {
     }
   }
   EXPECT_GE(checked, 15);
+}
+
+// Where a request-side component's property sits in a body, and what else
+// the body needs for a value at the edge of its range to be valid on its
+// own (a camera.near of 10^6 needs a farther far). nullptr: not a request
+// component.
+struct RangeCase {
+  json body;           // with the property set to `value`
+  std::string field;   // the parser's path for it
+};
+
+std::optional<RangeCase> range_case(const std::string& component, const std::string& property, const json& value) {
+  const json sun = {{"latitude", 0}, {"longitude", 0}, {"utc", "2000-01-01T00:00:00Z"}};
+  if (component == "RenderRequest") return RangeCase{{{property, value}}, property};
+  if (component == "Camera") {
+    json camera = {{property, value}};
+    if (property == "near") camera["far"] = 1e9;
+    return RangeCase{{{"camera", camera}}, "camera." + property};
+  }
+  if (component == "Light") {
+    json light = {{property, value}};
+    // light.size's range in the properties is a perspective light's; an
+    // orthographic one's (at most 90 degrees) is the schema's `else`.
+    if (property == "size" || property == "fov_y_deg") light["projection"] = "perspective";
+    json body = {{"light", light}};
+    if (property == "fov_y_deg") body["shadow"] = {{"fit", "fixed"}};
+    if (property == "size") body["shadow"] = {{"filter", "pcss"}};
+    return RangeCase{body, "light." + property};
+  }
+  if (component == "Sun") {
+    json clock = sun;
+    clock[property] = value;
+    return RangeCase{{{"light", {{"sun", clock}}}}, "light.sun." + property};
+  }
+  if (component == "Shadow") {
+    // near and far have each the whole range; fit "fixed" also wants
+    // near < far, which the document states beside them (not a range).
+    json shadow = {{property, value}};
+    if (property != "near" && property != "far") shadow["fit"] = "fixed";
+    return RangeCase{{{"shadow", shadow}}, "shadow." + property};
+  }
+  if (component == "BiasObject") return RangeCase{{{"shadow", {{"bias", {{property, value}}}}}}, "shadow.bias." + property};
+  for (const char* object : {"BoxObject", "SphereObject", "PlaneObject"}) {
+    if (component != object) continue;
+    const std::string type = component == "BoxObject" ? "box" : component == "SphereObject" ? "sphere" : "plane";
+    json o = {{"type", type}, {property, value}};
+    return RangeCase{{{"scene", {{"objects", json::array({o})}}}}, "scene.objects[0]." + property};
+  }
+  return std::nullopt;
+}
+
+// Every numeric range the document states for a request field is the
+// parser's: the bounds themselves are taken (or refused, where exclusive),
+// and a value just beyond is refused naming the field.
+TEST(ApiDocument, EveryNumericRangeIsWhatTheParserTakes) {
+  const json document = load_document();
+  int checked = 0;
+  for (const auto& [component, schema] : document["components"]["schemas"].items()) {
+    if (!schema.contains("properties")) continue;
+    for (const auto& [property, p] : schema["properties"].items()) {
+      if (!p.contains("type") || (p["type"] != "number" && p["type"] != "integer")) continue;
+      if (!range_case(component, property, 0)) continue;
+      const bool integer = p["type"] == "integer";
+      const auto beyond = [&](double bound, double direction) {
+        return bound + direction * (integer ? 1.0 : std::max(1e-6, 1e-6 * std::abs(bound)));
+      };
+      const auto expect = [&](double value, bool taken, const char* why) {
+        const RangeCase c = *range_case(component, property, value);
+        const ParsedRequest parsed = parse_render_request(c.body.dump());
+        if (taken) {
+          EXPECT_TRUE(parsed.ok()) << component << "." << property << " " << why << ": " << c.body.dump() << " -> "
+                                   << parsed.error.field << ": " << parsed.error.message;
+        } else {
+          EXPECT_FALSE(parsed.ok()) << component << "." << property << " " << why << ": " << c.body.dump() << " was taken";
+          if (!parsed.ok()) EXPECT_EQ(parsed.error.field, c.field) << c.body.dump() << ": " << parsed.error.message;
+        }
+        ++checked;
+      };
+      if (p.contains("minimum")) {
+        expect(p["minimum"].get<double>(), true, "at its minimum");
+        expect(beyond(p["minimum"].get<double>(), -1.0), false, "below its minimum");
+      }
+      if (p.contains("exclusiveMinimum")) expect(p["exclusiveMinimum"].get<double>(), false, "at its exclusive minimum");
+      if (p.contains("maximum")) {
+        expect(p["maximum"].get<double>(), true, "at its maximum");
+        expect(beyond(p["maximum"].get<double>(), 1.0), false, "above its maximum");
+      }
+      if (p.contains("exclusiveMaximum")) {
+        expect(p["exclusiveMaximum"].get<double>(), false, "at its exclusive maximum");
+        expect(beyond(p["exclusiveMaximum"].get<double>(), -1.0), true, "just under its exclusive maximum");
+      }
+    }
+  }
+  EXPECT_GE(checked, 60);
 }
 
 TEST(ApiDocument, TheBuiltInSceneNamesAreTheServers) {
