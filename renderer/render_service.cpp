@@ -1,5 +1,6 @@
 #include "render_service.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -10,6 +11,8 @@
 #include <thread>
 
 #include <malloc.h>
+
+#include <cstdio>
 
 #include "gl/egl_context.hpp"
 #include "ray_cast.hpp"
@@ -35,6 +38,15 @@ constexpr std::uint64_t kIdleShare = 32;
 constexpr std::uint64_t kSceneShare = 3;
 
 std::uint64_t minus_or_zero(std::uint64_t a, std::uint64_t b) { return a > b ? a - b : 0; }
+
+// A fresh GL context is made only once at least this much GL memory has
+// been released since the last one (or the idle share of the budget, if
+// larger): each costs the next request its shader compiles and scene
+// upload, so a server with a small budget that idles between small frames
+// must not pay it after every one. (A rule on resident memory instead was
+// tried: it made the same workload renew or not depending on how far the
+// allocator had grown, which the 5000-request test saw as 13 % drift.)
+constexpr std::uint64_t kMinRenewalBytes = 64ull << 20;
 
 }  // namespace
 
@@ -176,20 +188,34 @@ struct RenderService::Impl {
   // the history.
   //
   // llvmpipe holds on to much of the GL memory released until its context
-  // goes (ShadowRenderer::released_gl_bytes), so once that passes the
-  // idle share the GL context itself is made anew: what is lost is the
-  // kept scene and the compiled shader variants, which the next request
+  // goes (ShadowRenderer::released_gl_bytes), so when that passes
+  // renewal_bytes() the GL context itself is made anew: what is lost is
+  // the kept scene and the compiled shader variants, which the next request
   // rebuilds (its first frame took 0.13 s instead of 0.035 s at 960 x 540),
   // against hundreds of megabytes held for as long as the server runs idle.
   void release_when_idle(std::optional<gl::EglContext>& context, std::optional<ShadowRenderer>& renderer) {
+    if (!renderer) {  // a fresh context failed before: the next job tries again
+      malloc_trim(0);
+      return;
+    }
     cached.store(renderer->release_cached(limits.memory_budget_bytes / kIdleShare));
-    if (renderer->released_gl_bytes() > limits.memory_budget_bytes / kIdleShare) {
+    malloc_trim(0);
+    if (renderer->released_gl_bytes() <= renewal_bytes()) return;
+    try {
       make_renderer(context, renderer);
       cached.store(renderer->cached_bytes());
       context_renewals.fetch_add(1);
+    } catch (const std::exception& e) {
+      cached.store(0);
+      std::fprintf(stderr, "umbra: a fresh GL context could not be made (%s); the next render tries again\n", e.what());
+    } catch (...) {
+      cached.store(0);
+      std::fprintf(stderr, "umbra: a fresh GL context could not be made; the next render tries again\n");
     }
     malloc_trim(0);
   }
+
+  std::uint64_t renewal_bytes() const { return std::max(kMinRenewalBytes, limits.memory_budget_bytes / kIdleShare); }
 
   // A GL context and a renderer in it, the old ones (if any) destroyed
   // first, renderer before context. Throws what EglContext and
@@ -218,6 +244,8 @@ struct RenderService::Impl {
     std::optional<ShadowRenderer> renderer;
     try {
       make_renderer(context, renderer);
+      // Read by other threads without a lock, so set once: a fresh context
+      // is chosen by the same rules (EglContext) and is on the same driver.
       info = {renderer->gl_renderer(), renderer->gl_version(), context->source()};
     } catch (...) {
       ready.set_exception(std::current_exception());
@@ -236,13 +264,7 @@ struct RenderService::Impl {
             // cast starts the wait again).
             idle_release_due = false;
             lock.unlock();
-            try {
-              release_when_idle(context, renderer);
-            } catch (...) {
-              // A context that cannot be made again now (it was made at
-              // start-up) is tried again by the next job, which fails
-              // with the reason if it still cannot be.
-            }
+            release_when_idle(context, renderer);
             lock.lock();
           }
         }

@@ -320,6 +320,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{R"({"light": {"color": [-0.1, 1, 1]}})", "light.color[0]"},
         BadInput{R"({"light": {"color": "#12345"}})", "light.color"}, BadInput{R"({"light": {"color": "#gg0000"}})", "light.color"},
         BadInput{R"({"light": {"ambient": 1.5}})", "light.ambient"}, BadInput{R"({"light": {"size": -1}})", "light.size"},
+        // An orthographic light's size is an angle: at most 90 degrees (a perspective one's is a radius).
+        BadInput{R"({"light": {"size": 90.001}})", "light.size"},
         BadInput{R"({"shadow": {"map_size": 63}})", "shadow.map_size"}, BadInput{R"({"shadow": {"map_size": 8193}})", "shadow.map_size"},
         BadInput{R"({"shadow": {"pcf_radius": 9}})", "shadow.pcf_radius"}, BadInput{R"({"shadow": {"pcf_radius": -1}})", "shadow.pcf_radius"},
         BadInput{R"({"shadow": {"ortho_half_size": 0}})", "shadow.ortho_half_size"},

@@ -435,7 +435,7 @@ TEST(Memory, AMultiLayerShadowMapIsGivenBackOnceIdleAndFramesStayTheSame) {
   const auto render = [&](const json& body) { return render_ok(c, body); };
   const auto renewals = [&] {
     auto res = c.Get("/api/health");
-    return res ? json::parse(res->body)["gl_context_renewals"].get<std::uint64_t>() : 0u;
+    return res ? json::parse(res->body).value("gl_context_renewals", std::uint64_t(0)) : 0u;
   };
   const json small = {{"width", 320}, {"height", 180}, {"shadow", {{"cascades", 2}}}};
   std::string before;
