@@ -39,14 +39,6 @@ constexpr std::uint64_t kSceneShare = 3;
 
 std::uint64_t minus_or_zero(std::uint64_t a, std::uint64_t b) { return a > b ? a - b : 0; }
 
-// A fresh GL context is made only once at least this much GL memory has
-// been released since the last one (or the idle share of the budget, if
-// larger): each costs the next request its shader compiles and scene
-// upload, so a server with a small budget that idles between small frames
-// must not pay it after every one. (A rule on resident memory instead was
-// tried: it made the same workload renew or not depending on how far the
-// allocator had grown, which the 5000-request test saw as 13 % drift.)
-constexpr std::uint64_t kMinRenewalBytes = 64ull << 20;
 
 }  // namespace
 
@@ -200,7 +192,7 @@ struct RenderService::Impl {
     }
     cached.store(renderer->release_cached(limits.memory_budget_bytes / kIdleShare));
     malloc_trim(0);
-    if (renderer->released_gl_bytes() <= renewal_bytes()) return;
+    if (limits.fresh_context_bytes == 0 || renderer->released_gl_bytes() <= renewal_bytes()) return;
     try {
       make_renderer(context, renderer);
       cached.store(renderer->cached_bytes());
@@ -215,7 +207,14 @@ struct RenderService::Impl {
     malloc_trim(0);
   }
 
-  std::uint64_t renewal_bytes() const { return std::max(kMinRenewalBytes, limits.memory_budget_bytes / kIdleShare); }
+  // At least fresh_context_bytes of GL memory released (or the idle share of
+  // the budget, if larger): a server with a small budget that idles between
+  // small frames must not pay a renewal after every one. (A rule on resident
+  // memory instead was tried: the same workload then renewed or not
+  // depending on how far the allocator had grown.)
+  std::uint64_t renewal_bytes() const {
+    return std::max(limits.fresh_context_bytes, limits.memory_budget_bytes / kIdleShare);
+  }
 
   // A GL context and a renderer in it, the old ones (if any) destroyed
   // first, renderer before context. Throws what EglContext and

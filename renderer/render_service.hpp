@@ -60,6 +60,13 @@ struct ServiceLimits {
   /// other services; it holds the largest request the API allows (a 1 GiB
   /// map), or two cached 1000-sphere scenes (280 MB each) and a 4096^2 frame.
   std::uint64_t memory_budget_bytes = std::uint64_t(2) << 30;
+  /// When idle, the GL context is made anew once the GL memory released
+  /// since the last one passes this (or 1/32 of memory_budget_bytes, if
+  /// larger), bytes; 0: never. llvmpipe keeps much of what is deleted until
+  /// its context goes (ShadowRenderer::released_gl_bytes); each renewal
+  /// costs the next request its shader compiles and scene upload. Default
+  /// 64 MiB.
+  std::uint64_t fresh_context_bytes = std::uint64_t(64) << 20;
 };
 
 /// submit() refused the job: the queue holds queue_capacity jobs already.

@@ -2,7 +2,7 @@
 //
 //   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
 //                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--memory-mib 2048]
-//                [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--models DIR]
+//                [--fresh-context-mib 64] [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--models DIR]
 //                [--model-store DIR] [--max-model-mib 64] [--models-budget-mib 2048] [--quiet]
 #include <atomic>
 #include <chrono>
@@ -31,7 +31,7 @@ void usage(std::FILE* out) {
   std::fprintf(out,
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
                "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--memory-mib N]\n"
-               "                    [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--models DIR]\n"
+               "                    [--fresh-context-mib N] [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--models DIR]\n"
                "                    [--model-store DIR] [--max-model-mib N] [--models-budget-mib N]\n"
                "                    [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
@@ -49,6 +49,9 @@ void usage(std::FILE* out) {
                "                  (default 8000)\n"
                "  --memory-mib N  memory budget of the renderer (MiB): caches are released to fit each request and\n"
                "                  after 1.5 s idle; a request needing more alone gets 422, 64..1048576 (default 2048)\n"
+               "  --fresh-context-mib N\n"
+               "                  when idle, make the GL context anew once this much GL memory (MiB) was released since\n"
+               "                  the last one, giving back what llvmpipe keeps until then; 0: never, 0..1048576 (default 64)\n"
                "  --max-connections N\n"
                "                  connections open at once, 1..65536; past it a new one replaces the longest idle\n"
                "                  (or slowest-sending) one, or gets 503 if all are busy (default 256)\n"
@@ -118,6 +121,9 @@ int main(int argc, char** argv) {
       limits.max_run_time = std::chrono::milliseconds(integer_flag("--max-run-ms", value("--max-run-ms"), 1, 3600000));
     } else if (arg == "--memory-mib") {
       limits.memory_budget_bytes = std::uint64_t(integer_flag("--memory-mib", value("--memory-mib"), 64, 1048576)) << 20;
+    } else if (arg == "--fresh-context-mib") {
+      limits.fresh_context_bytes =
+          std::uint64_t(integer_flag("--fresh-context-mib", value("--fresh-context-mib"), 0, 1048576)) << 20;
     } else if (arg == "--cors") {
       options.cors_origin = value("--cors");
       if (!umbra::valid_cors_origin(options.cors_origin)) {
