@@ -802,7 +802,8 @@ function fieldName(input) {
   return group ? `${group.getAttribute("aria-label")} ${label}` : label;
 }
 
-function markField(input, problem) {
+// `name` is how the message names the field (default: its group and label).
+function markField(input, problem, name = fieldName(input)) {
   let message = document.getElementById(`${input.id}-problem`);
   if (!problem) {
     input.removeAttribute("aria-invalid");
@@ -818,7 +819,7 @@ function markField(input, problem) {
   }
   input.setAttribute("aria-invalid", "true");
   input.setAttribute("aria-describedby", message.id);
-  message.textContent = `${fieldName(input)}: ${problem}. Nothing is sent until it is fixed.`;
+  message.textContent = `${name}: ${problem}. Nothing is sent until it is fixed.`;
 }
 
 // Marks every field that cannot be sent and says so under the frame; true
@@ -1253,21 +1254,7 @@ function parseSceneJson() {
 }
 
 function markSceneJson(problem) {
-  const area = $("scene-json");
-  let message = $("scene-json-problem");
-  if (!problem) {
-    area.removeAttribute("aria-invalid");
-    area.removeAttribute("aria-describedby");
-    if (message) message.remove();
-    return;
-  }
-  if (!message) {
-    message = Object.assign(document.createElement("p"), { id: "scene-json-problem", className: "field-problem" });
-    area.after(message);
-  }
-  area.setAttribute("aria-invalid", "true");
-  area.setAttribute("aria-describedby", message.id);
-  message.textContent = `Scene JSON: ${problem}. Nothing is sent until it is fixed.`;
+  markField($("scene-json"), problem, "Scene JSON");
 }
 
 function renderSceneJson() {
