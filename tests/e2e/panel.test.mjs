@@ -220,6 +220,21 @@ async function typeInto(page, id, text) {
   await page.keyboard.type(text);
 }
 
+// The requests sent once the panel has gone quiet. A frame's depth request
+// follows its render request once the render has arrived, so "nothing in
+// flight" can fall between the two: nothing may have been sent for 300 ms
+// as well.
+async function quietSent(page) {
+  let sent = -1;
+  for (;;) {
+    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
+    const now = await page.evaluate(() => window.__umbra.sent);
+    if (now === sent) return sent;
+    sent = now;
+    await page.waitForTimeout(300);
+  }
+}
+
 async function sentStaysAt(page, sent, ms = 800) {
   await page.waitForTimeout(ms);
   assert.equal(await page.evaluate(() => window.__umbra.sent), sent, "nothing sent");
@@ -374,17 +389,7 @@ try {
   await step(page, "pause-stops-the-requests", async () => {
     await page.click("#play");
     assert.equal(await page.$eval("#play", (b) => b.getAttribute("aria-pressed")), "false");
-    // A frame's depth request follows its render request once the render
-    // has arrived, so "nothing in flight" can fall between the two: wait
-    // until nothing has been sent for a moment as well.
-    let sent = -1;
-    for (;;) {
-      await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
-      const now = await page.evaluate(() => window.__umbra.sent);
-      if (now === sent) break;
-      sent = now;
-      await page.waitForTimeout(300);
-    }
+    const sent = await quietSent(page);
     const time = await page.$eval("#time", (i) => i.value);
     await page.waitForTimeout(1500);
     assert.equal(await page.evaluate(() => window.__umbra.sent), sent, "no request after pausing");
@@ -550,8 +555,7 @@ try {
     await page.waitForSelector("#ly[aria-invalid=true]");
     assert.match(await page.$eval("#ly-problem", (p) => p.textContent), /^Light position y: not a number\./);
     assert.ok(await page.$eval("#held", (p) => !p.hidden), "the panel says nothing was sent");
-    await page.waitForFunction(() => window.__umbra.inFlight === 0);
-    const sent = await page.evaluate(() => window.__umbra.sent);
+    const sent = await quietSent(page);
     await sentStaysAt(page, sent);
     assert.notEqual(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light.position[1], 0,
                     "never sent as 0 (the light on the horizon)");
@@ -560,8 +564,7 @@ try {
     await page.waitForFunction((n) => window.__umbra.sent > n, sent);
     assert.equal(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light.position[1], 1);
     // Size -3 is below the field's minimum.
-    await page.waitForFunction(() => window.__umbra.inFlight === 0);
-    const sent2 = await page.evaluate(() => window.__umbra.sent);
+    const sent2 = await quietSent(page);
     await typeInto(page, "size", "-3");
     await page.waitForSelector("#size[aria-invalid=true]");
     assert.match(await page.$eval("#size-problem", (p) => p.textContent), /at least 0/);
@@ -706,8 +709,7 @@ try {
     // A latitude past the pole is marked on its field and nothing is sent.
     await typeInto(page, "sun_lat", "95");
     await page.waitForFunction(() => document.getElementById("sun_lat").getAttribute("aria-invalid") === "true");
-    await page.waitForFunction(() => window.__umbra.inFlight === 0, null, { timeout: 60000 });
-    const sent = await page.evaluate(() => window.__umbra.sent);
+    const sent = await quietSent(page);
     await page.keyboard.press("Tab");
     await sentStaysAt(page, sent);
     assert.notEqual(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).light.sun.latitude, 95, "95 never sent");
