@@ -488,6 +488,14 @@ bool view_covers(const ShadowView& have, const ShadowView& want, bool perspectiv
 
 }  // namespace
 
+bool plane_can_shadow(const PlaneRange& plane, const ShadowPlan& plan) {
+  // > 0: the light is above the plane, whose shadow falls below it.
+  const double light_above = plan.perspective ? plan.position.y - plane.height : -plan.direction.y;
+  if (light_above > 0.0) return plane.lowest_other < plane.height;
+  if (light_above < 0.0) return plane.highest_other > plane.height;
+  return false;
+}
+
 bool plan_covers(const ShadowPlan& have, const ShadowPlan& want) {
   if (have.perspective != want.perspective || have.layout != want.layout || have.layer_size != want.layer_size ||
       have.position != want.position || have.direction != want.direction || have.views.size() != want.views.size())

@@ -159,6 +159,16 @@ ShadowPlan plan_shadow(const RenderRequest& request);
 /// Both plans must be for the same scene and cull mode.
 bool plan_covers(const ShadowPlan& have, const ShadowPlan& want);
 
+/// Whether `plane` can shadow any other object of its scene under the light
+/// of `plan`. A horizontal plane only hides what lies beyond it from the
+/// light; a floor under a scene lit from above hides nothing, and drawing
+/// it into the map would fill every layer with texels that no receiver is
+/// ever darker for (the receiver-plane test keeps the floor from shadowing
+/// itself, and the cap at the receiver's own depth keeps it from shadowing
+/// the objects that stand on it). So the shadow pass leaves such a plane
+/// out. Edge-on, the plane covers no texel and hides nothing either.
+bool plane_can_shadow(const PlaneRange& plane, const ShadowPlan& plan);
+
 /// The vertices of the convex intersection of a frustum (given by its
 /// view-projection matrix, clip z in [-w, w]) and a box; empty if they do not
 /// meet. Exposed for tests.

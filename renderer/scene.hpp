@@ -66,9 +66,22 @@ struct Vertex {
   float color[3];
 };
 
+/// A plane's triangles in Mesh::indices, and where the rest of the scene lies
+/// against it: enough to tell, for any light, whether the plane can shadow
+/// anything (plane_can_shadow in light_math.hpp).
+struct PlaneRange {
+  std::uint32_t first_index = 0;
+  std::uint32_t index_count = 0;
+  double height = 0.0;  ///< world y of the plane (planes are horizontal)
+  /// The lowest and highest world y of every other object's bounds; a scene
+  /// of this plane alone has none (lowest > highest).
+  double lowest_other = 1e300;
+  double highest_other = -1e300;
+};
+
 /// The whole scene as one vertex/index buffer. Closed meshes (boxes, spheres,
-/// closed models) come first, then open ones (planes, open models), so each
-/// pass can cull them apart.
+/// closed models) come first, then open ones (open models, then planes), so
+/// each pass can cull them apart.
 /// Positions are stored relative to `origin` (the bounds' centre, in double)
 /// so a scene far from the world origin keeps float precision.
 struct Mesh {
@@ -77,6 +90,8 @@ struct Mesh {
   std::vector<std::uint32_t> indices;
   std::uint32_t closed_index_count = 0;  ///< indices [0, closed) are closed meshes
   std::uint32_t open_index_count = 0;    ///< then [closed, closed + open) open ones
+  /// The planes, last in the open range, in the scene's order.
+  std::vector<PlaneRange> planes;
 };
 
 Mesh tessellate(const Scene& scene);

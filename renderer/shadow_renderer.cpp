@@ -233,7 +233,7 @@ void ShadowRenderer::resize_depth_preview(int size, int bits) {
   preview_.bits = bits;
 }
 
-void ShadowRenderer::draw_scene(CullMode closed_mesh_cull) {
+void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& planes) {
   const Mesh& mesh = scene().mesh;
   glBindVertexArray(scene().vertex_array.id());
   if (mesh.closed_index_count > 0) {
@@ -245,14 +245,36 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull) {
     }
     glDrawElements(GL_TRIANGLES, GLsizei(mesh.closed_index_count), GL_UNSIGNED_INT, nullptr);
   }
-  if (mesh.open_index_count > 0) {
-    // A plane or an open model has one side: culling it could drop it from
-    // the pass entirely.
-    glDisable(GL_CULL_FACE);
-    glDrawElements(GL_TRIANGLES, GLsizei(mesh.open_index_count), GL_UNSIGNED_INT,
-                   reinterpret_cast<const void*>(std::size_t(mesh.closed_index_count) * sizeof(std::uint32_t)));
-  }
+  // A plane or an open model has one side: culling it could drop it from
+  // the pass entirely.
   glDisable(GL_CULL_FACE);
+  const auto draw_range = [](std::uint32_t first, std::uint32_t count) {
+    if (count > 0)
+      glDrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
+                     reinterpret_cast<const void*>(std::size_t(first) * sizeof(std::uint32_t)));
+  };
+  const std::uint32_t open_end = mesh.closed_index_count + mesh.open_index_count;
+  const std::uint32_t planes_begin = mesh.planes.empty() ? open_end : mesh.planes.front().first_index;
+  draw_range(mesh.closed_index_count, planes_begin - mesh.closed_index_count);  // open models
+  // Runs of consecutive planes to draw, one call each.
+  std::uint32_t run_first = planes_begin, run_count = 0;
+  for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
+    if (planes.empty() || planes[i]) {
+      if (run_count == 0) run_first = mesh.planes[i].first_index;
+      run_count += mesh.planes[i].index_count;
+    } else {
+      draw_range(run_first, run_count);
+      run_count = 0;
+    }
+  }
+  draw_range(run_first, run_count);
+}
+
+std::vector<bool> ShadowRenderer::casting_planes(const RenderRequest& request, const ShadowPlan& light) const {
+  std::vector<bool> planes;
+  for (const PlaneRange& plane : scene().mesh.planes)
+    planes.push_back(request.output == Output::Depth || plane_can_shadow(plane, light));
+  return planes;
 }
 
 void ShadowRenderer::upload_frame_block(const RenderRequest& request, const ShadowPlan& light) {
@@ -268,6 +290,7 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   // drawn partly or not at all.
   glViewport(0, 0, light.layer_size, light.layer_size);
   glUseProgram(shadow_.program.id());
+  const std::vector<bool> planes = casting_planes(request, light);
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     // An empty view (no object reaches into it) holds no receiver either,
     // so the main pass never reads its layer: it is not even cleared (the
@@ -280,17 +303,18 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
     // faces then sit well in front of the stored depth, so no bias is needed
     // against self-shadowing there, and the bias stays small elsewhere (less
     // peter panning). See ShadowSettings::cull for why planes are exempt.
-    draw_scene(request.shadow.cull);
+    draw_scene(request.shadow.cull, planes);
   }
   shadow_.holds_plan = true;
   shadow_.plan = light;
   shadow_.scene_key = current_scene_key();
   shadow_.cull = request.shadow.cull;
+  shadow_.planes = planes;
 }
 
 bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const {
   return shadow_.holds_plan && shadow_.scene_key == current_scene_key() && shadow_.cull == request.shadow.cull &&
-         plan_covers(shadow_.plan, light);
+         shadow_.planes == casting_planes(request, light) && plan_covers(shadow_.plan, light);
 }
 
 void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light) {

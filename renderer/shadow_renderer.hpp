@@ -74,6 +74,7 @@ class ShadowRenderer {
     ShadowPlan plan;
     std::string scene_key;
     CullMode cull = CullMode::Front;
+    std::vector<bool> planes;  // casting_planes() it was drawn with
   };
   // The camera's view, into an offscreen colour + depth framebuffer.
   struct DisplayPass {
@@ -113,7 +114,13 @@ class ShadowRenderer {
   /// buffers, textures and framebuffers of the last frame, so that those
   /// released are freed now, not at the next request.
   void unbind_released();
-  void draw_scene(CullMode closed_mesh_cull);
+  // Every object; the planes only where `planes` says so (one flag per
+  // Mesh::planes entry; empty: all of them).
+  void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& planes = {});
+  // The scene's planes that the shadow pass for `light` draws: all of them
+  // for the depth output (it shows what the light sees), else those that
+  // can shadow something (plane_can_shadow).
+  std::vector<bool> casting_planes(const RenderRequest& request, const ShadowPlan& light) const;
   void upload_frame_block(const RenderRequest& request, const ShadowPlan& light);
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light);
   bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const;

@@ -158,6 +158,37 @@ TEST(Cascades, TexelGridIsSnappedSoShadowsDoNotShimmer) {
   }
 }
 
+TEST(Planes, APlaneShadowsOnlyWhatLiesBeyondItFromTheLight) {
+  PlaneRange floor;
+  floor.height = 0.0;
+  floor.lowest_other = 0.0;  // a box standing on it
+  floor.highest_other = 2.0;
+  ShadowPlan sun;
+  sun.direction = glm::normalize(glm::dvec3(1, -2, 0));  // from above
+  EXPECT_FALSE(plane_can_shadow(floor, sun));
+  sun.direction.y = -sun.direction.y;  // from below: the box is in its shadow
+  EXPECT_TRUE(plane_can_shadow(floor, sun));
+  sun.direction = {1, 0, 0};  // edge-on
+  EXPECT_FALSE(plane_can_shadow(floor, sun));
+
+  ShadowPlan lamp;
+  lamp.perspective = true;
+  lamp.position = {0, 3, 0};
+  EXPECT_FALSE(plane_can_shadow(floor, lamp));
+  floor.lowest_other = -0.01;  // something reaches under the floor
+  EXPECT_TRUE(plane_can_shadow(floor, lamp));
+  floor.lowest_other = 0.0;
+  lamp.position.y = -1.0;  // a lamp under the floor, the box above it
+  EXPECT_TRUE(plane_can_shadow(floor, lamp));
+  floor.highest_other = 0.0;  // ... or nothing above it
+  EXPECT_FALSE(plane_can_shadow(floor, lamp));
+
+  PlaneRange alone;  // a scene of one plane: nothing else to shadow
+  EXPECT_FALSE(plane_can_shadow(alone, lamp));
+  lamp.position.y = 1.0;
+  EXPECT_FALSE(plane_can_shadow(alone, lamp));
+}
+
 TEST(PointLight, NarrowConeWhenEverythingIsBelowIt) {
   // A point light high above: the whole scene is within a narrow cone.
   RenderRequest r = request_with_light({0, 40, 0}, LightProjection::Perspective);

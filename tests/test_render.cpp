@@ -389,6 +389,50 @@ TEST(Renderer, ASunBelowTheHorizonLeavesOnlyAmbientLightAndTheExactReferenceAgre
   EXPECT_NEAR(color.pixels[3 * floor], 255.0 * 0.3 * 0.72, 2.0);
 }
 
+// The shadow pass leaves out a plane that can shadow nothing (a floor lit
+// from above) and keeps one that can: a roof over the scene, or the floor
+// itself once the light is under it.
+TEST(Renderer, APlaneIsACasterExactlyWhenSomethingLiesBeyondItFromTheLight) {
+  const std::string objects = R"("scene": {"objects": [
+      {"type": "plane", "center": [0, 0, 0], "size": [12, 12]},
+      {"type": "plane", "center": [0.5, 2.5, 0], "size": [2, 2]},
+      {"type": "box", "center": [-2, 0.5, 1], "size": [1, 1, 1]}]},
+      "camera": {"position": [0, 7, 6], "target": [0, 0, 0]})";
+  const auto case_with_light = [&](const char* position) {
+    return request(R"({"width": 320, "height": 180, "output": "shadow", "light": {"position": )" + std::string(position) +
+                   "}, " + objects + "}");
+  };
+  // From above: the roof's shadow on the floor is dark throughout.
+  const RenderRequest above = case_with_light("[1, 6, 2]");
+  const std::vector<ExactPixel> exact = cast_exact_pixels(above);
+  const Image image = render(above).image;
+  const std::vector<int> under_roof = interior_pixels(above, exact, 0, 0.0);
+  EXPECT_GT(under_roof.size(), 300u);
+  for (int i : under_roof) ASSERT_LT(image.pixels[std::size_t(i)], 13) << "pixel " << i << " lit under the roof";
+  expect_within_the_error_budget(measure_shadow_error(image, exact), 320u * 180u / 4u);
+
+  // From under the floor: the box's faces that turn to the light are in
+  // the floor's shadow (the floor's own top faces away from it).
+  const RenderRequest below = case_with_light("[3, -4, 2]");
+  const std::vector<ExactPixel> exact_below = cast_exact_pixels(below);
+  const Image image_below = render(below).image;
+  const std::vector<int> box_faces_to_light = interior_pixels(below, exact_below, 2, 0.0);
+  EXPECT_GT(box_faces_to_light.size(), 300u);
+  for (int i : box_faces_to_light)
+    ASSERT_LT(image_below.pixels[std::size_t(i)], 13) << "pixel " << i << " of the box lit through the floor";
+}
+
+TEST(Renderer, TheDepthOutputShowsTheFloorThatTheShadowPassLeftOut) {
+  // A point light's single cone: the floor fills most of it, at depths
+  // the preview tells from far (white).
+  const std::string body = R"({"width": 160, "height": 90, "shadow": {"map_size": 128},
+                               "light": {"projection": "perspective", "position": [0, 12, 0]}, "output": ")";
+  render(request(body + R"(shadow"})"));
+  const Image depth = render(request(body + R"(depth"})")).image;
+  const auto nearer_than_far = std::count_if(depth.pixels.begin(), depth.pixels.end(), [](std::uint8_t v) { return v < 250; });
+  EXPECT_GT(nearer_than_far, 128 * 128 / 2);
+}
+
 // Default settings against the exact reference (issue 3's thresholds: no
 // acne, no lost shadows): the built-in scenes with either projection ...
 class DefaultsMatchTheExactReference : public testing::TestWithParam<std::tuple<const char*, const char*>> {};

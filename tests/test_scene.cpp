@@ -66,7 +66,15 @@ TEST(Scene, PlanesComeAfterClosedMeshesAndFaceUp) {
   EXPECT_EQ(mesh.open_index_count, 6u);
   const Vertex& v = mesh.vertices[mesh.indices[mesh.closed_index_count]];
   EXPECT_FLOAT_EQ(v.normal[1], 1.0f);
+  // The floor's own range, its height, and where the cube lies against it.
+  ASSERT_EQ(mesh.planes.size(), 1u);
+  EXPECT_EQ(mesh.planes[0].first_index, 36u);
+  EXPECT_EQ(mesh.planes[0].index_count, 6u);
+  EXPECT_EQ(mesh.planes[0].height, -0.5);
+  EXPECT_EQ(mesh.planes[0].lowest_other, -0.5);
+  EXPECT_EQ(mesh.planes[0].highest_other, 0.5);
 }
+
 
 TEST(Scene, VerticesAreStoredRelativeToTheBoundsCentre) {
   Scene scene;
@@ -125,6 +133,31 @@ TEST(Scene, ClosedMeshesJoinTheCulledSectionAndOpenOnesThePlanes) {
   EXPECT_EQ(mesh.open_index_count, 30u);
   for (std::uint32_t i = 0; i < mesh.closed_index_count; ++i) EXPECT_LT(world_position(mesh, i).x, 1.0);
   for (std::uint32_t i = mesh.closed_index_count; i < mesh.indices.size(); ++i) EXPECT_GT(world_position(mesh, i).x, 2.0);
+}
+
+TEST(Scene, PlanesComeLastEachWithTheRangeOfTheOtherObjectsHeights) {
+  Scene scene;
+  SceneObject floor, roof, box;
+  floor.type = roof.type = SceneObject::Type::Plane;
+  floor.size = roof.size = {4, 0, 4};
+  roof.center = {0, 3, 0};
+  box.center = {0, 1, 0};
+  SceneObject open = mesh_object(test::box_model({0.5f, 0.5f, 0.5f}, false), "open");
+  open.center = {0, 5, 0};
+  scene.objects = {floor, open, roof, box};
+  const Mesh mesh = tessellate(scene);
+  ASSERT_EQ(mesh.planes.size(), 2u);
+  // The open model first, then the floor and the roof in the scene's order.
+  EXPECT_EQ(mesh.planes[0].first_index, mesh.closed_index_count + 30u);
+  EXPECT_EQ(mesh.planes[1].first_index, mesh.planes[0].first_index + 6u);
+  EXPECT_EQ(mesh.planes[1].first_index + 6u, mesh.closed_index_count + mesh.open_index_count);
+  EXPECT_EQ(mesh.planes[0].height, 0.0);
+  EXPECT_EQ(mesh.planes[0].lowest_other, 0.5);   // the box's bottom
+  EXPECT_EQ(mesh.planes[0].highest_other, 5.5);  // the open model's top
+  EXPECT_EQ(mesh.planes[1].height, 3.0);
+  EXPECT_EQ(mesh.planes[1].lowest_other, 0.0);  // the floor
+  for (std::uint32_t i = mesh.planes[1].first_index; i < mesh.planes[1].first_index + 6u; ++i)
+    EXPECT_EQ(world_position(mesh, i).y, 3.0);
 }
 
 TEST(Scene, AMirroringOrNonUniformTransformKeepsMeshesWoundOutwardWithTrueNormals) {
