@@ -86,6 +86,47 @@ int filter_reach_texels(const ShadowSettings& shadow) {
   return 1;
 }
 
+int filter_read_texels(const ShadowSettings& shadow) {
+  switch (shadow.filter) {
+    case ShadowFilter::Hard: return 1;
+    // Bilinear taps R texels out read one texel further, rounded up.
+    case ShadowFilter::Pcf: return shadow.pcf_radius + 2;
+    case ShadowFilter::Pcss: return std::max(kPcssSearchTexels, kPcssMaxPenumbraTexels) + 1;
+  }
+  return 1;
+}
+
+TexelRect caster_texels(const ShadowView& view, int layer_size, const std::vector<Aabb>& casters) {
+  const double size = double(layer_size);
+  const glm::dmat4 to_clip = view.view_projection();
+  TexelRect r{glm::dvec2(1e300), glm::dvec2(-1e300)};
+  const auto add = [&](const std::vector<glm::dvec3>& points) {
+    for (const glm::dvec3& p : points) {
+      const glm::dvec4 clip = to_clip * glm::dvec4(p, 1.0);
+      const glm::dvec2 texel = (glm::dvec2(clip) / clip.w * 0.5 + 0.5) * size;
+      r.min = glm::min(r.min, texel);
+      r.max = glm::max(r.max, texel);
+    }
+  };
+  for (const Aabb& box : casters) {
+    if (box.empty()) continue;
+    // A box wholly in front of the eye projects within its corners' image.
+    // One that reaches behind a point light's eye, or beyond the layer, is
+    // cut to the view's frustum first: only that part is drawn.
+    const std::vector<glm::dvec3> corners = box.corners();
+    bool projects_inside = true;
+    for (const glm::dvec3& c : corners) {
+      const glm::dvec4 clip = to_clip * glm::dvec4(c, 1.0);
+      projects_inside = projects_inside && clip.w > 0.0 && std::abs(clip.x) <= clip.w && std::abs(clip.y) <= clip.w;
+    }
+    add(projects_inside ? corners : frustum_box_intersection(to_clip, box));
+  }
+  if (!(r.min.x <= r.max.x && r.min.y <= r.max.y)) return TexelRect{};
+  r.min = glm::clamp(glm::floor(r.min) - 1.0, 0.0, size);
+  r.max = glm::clamp(glm::ceil(r.max) + 1.0, 0.0, size);
+  return r;
+}
+
 // ---------------------------------------------------------------------------
 // Convex geometry: a frustum against a box.
 

@@ -132,6 +132,27 @@ inline constexpr int kMaxCascades = 4;
 /// view must hold a point for the main pass to use it.
 int filter_reach_texels(const ShadowSettings& shadow);
 
+/// Texels a filter reads around a point's own texel, at most: the margin
+/// around the casters that the shadow pass clears (PCSS's filter reaches
+/// further than its blocker search).
+int filter_read_texels(const ShadowSettings& shadow);
+
+/// A rectangle of a layer, in texel units ([0, layer_size] per axis, as the
+/// main pass addresses the map); empty unless min < max on both axes.
+struct TexelRect {
+  glm::dvec2 min{0.0};
+  glm::dvec2 max{0.0};
+  bool empty() const { return !(min.x < max.x && min.y < max.y); }
+};
+
+/// The part of `view`'s layer (layer_size^2 texels) that objects within
+/// `casters` (world bounds) can cover: the bounding rectangle of their
+/// projected corners, one texel wider on each side for rounding, clamped to
+/// the layer. The whole layer if a box reaches behind a perspective view's
+/// eye (its projection is then unbounded). Empty if there is no caster or
+/// none projects into the layer.
+TexelRect caster_texels(const ShadowView& view, int layer_size, const std::vector<Aabb>& casters);
+
 /// Plans the light's views for `request` (light placed by light_at at request.time).
 ///
 /// fit "fixed": the seeds' single ortho(+-h, +-h, near, far) or

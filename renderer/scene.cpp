@@ -253,20 +253,20 @@ Mesh tessellate(const Scene& scene) {
     if (o.type == SceneObject::Type::Mesh && !mesh_is_closed(o)) append_mesh_instance(o, mesh);
   // Planes last, each with its own range: the shadow pass leaves out those
   // that cannot shadow anything under the frame's light.
-  std::vector<Aabb> bounds_of;
-  for (const auto& o : scene.objects) bounds_of.push_back(object_bounds(o));
+  for (const auto& o : scene.objects) mesh.bounds.push_back(object_bounds(o));
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const SceneObject& o = scene.objects[i];
     if (o.type != SceneObject::Type::Plane) continue;
     PlaneRange range;
+    range.object = i;
     range.first_index = std::uint32_t(mesh.indices.size());
     builder.plane(o);
     range.index_count = std::uint32_t(mesh.indices.size()) - range.first_index;
     range.height = o.center.y;
     for (std::size_t j = 0; j < scene.objects.size(); ++j) {
       if (j == i) continue;
-      range.lowest_other = std::min(range.lowest_other, bounds_of[j].min.y);
-      range.highest_other = std::max(range.highest_other, bounds_of[j].max.y);
+      range.lowest_other = std::min(range.lowest_other, mesh.bounds[j].min.y);
+      range.highest_other = std::max(range.highest_other, mesh.bounds[j].max.y);
     }
     mesh.planes.push_back(range);
   }

@@ -70,6 +70,7 @@ struct Vertex {
 /// against it: enough to tell, for any light, whether the plane can shadow
 /// anything (plane_can_shadow in light_math.hpp).
 struct PlaneRange {
+  std::size_t object = 0;  ///< its index in Scene::objects
   std::uint32_t first_index = 0;
   std::uint32_t index_count = 0;
   double height = 0.0;  ///< world y of the plane (planes are horizontal)
@@ -92,6 +93,8 @@ struct Mesh {
   std::uint32_t open_index_count = 0;    ///< then [closed, closed + open) open ones
   /// The planes, last in the open range, in the scene's order.
   std::vector<PlaneRange> planes;
+  /// Each object's world bounds (object_bounds), in the scene's order.
+  std::vector<Aabb> bounds;
 };
 
 Mesh tessellate(const Scene& scene);

@@ -51,7 +51,8 @@ std::string DisplayVariant::defines() const {
     << "#define FILTER " << filter_code(filter) << "\n"
     << "#define PCF_RADIUS " << pcf_radius << "\n"
     << "#define BIAS_AUTO " << int(bias_auto) << "\n"
-    << "#define FILTER_REACH " << filter_reach << "\n";
+    << "#define FILTER_REACH " << filter_reach << "\n"
+    << "#define FILTER_READ " << filter_read << "\n";
   return d.str();
 }
 
@@ -70,10 +71,12 @@ DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& p
   v.pcf_radius = v.filter == ShadowFilter::Pcf ? s.pcf_radius : 0;
   v.bias_auto = s.bias.automatic;
   v.filter_reach = filter_reach_texels(s);
+  v.filter_read = filter_read_texels(s);
   return v;
 }
 
-FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const glm::dvec3& origin) {
+FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const glm::dvec3& origin,
+                       const std::vector<TexelRect>& casters) {
   // Origin-relative float matrices: the translation by the origin is folded
   // in while still in double precision.
   const glm::dmat4 from_origin = glm::translate(glm::dmat4(1.0), origin);
@@ -95,6 +98,10 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
     b.light_projection[i] = glm::mat4(v.projection);
     b.view_depth_texel[i] = plan.perspective ? glm::vec4(v.near_plane, v.far_plane, v.texel_size.x, v.tan_half)
                                              : glm::vec4(v.near_plane, v.far_plane, v.texel_size.x, v.texel_size.y);
+    const TexelRect& held = casters.at(i);
+    // None: a rectangle that no filter's reach meets from anywhere.
+    b.view_casters[i] = held.empty() ? glm::vec4(1e30f, 1e30f, -1e30f, -1e30f)
+                                     : glm::vec4(held.min.x, held.min.y, held.max.x, held.max.y);
   }
   const DepthBias& bias = request.shadow.bias;
   b.bias_constant = float(bias.constant);

@@ -63,6 +63,9 @@ inline constexpr int kPcssFilterSamples = 32;
   /* z, w: orthographic: world size of one texel along light x and y; */                          \
   /*       perspective: z = that size per unit of distance, w = tan(half fov). */                 \
   ARRAY(vec4, view_depth_texel, kMaxViews)                                                         \
+  /* xy, zw: the texel rectangle (min, max) of the view's layer that the */                       \
+  /* shadow pass drew anything into (caster_texels); none: 1e30, -1e30. */                        \
+  ARRAY(vec4, view_casters, kMaxViews)                                                             \
   /* The seeds' explicit bias (BIAS_AUTO 0): constant and slope in window */                      \
   /* depth, normal offset in texels. */                                                           \
   MEMBER(float, bias_constant)                                                                     \
@@ -124,6 +127,7 @@ struct DisplayVariant {
   int pcf_radius = 1;           // PCF_RADIUS: 0..8
   bool bias_auto = true;        // BIAS_AUTO: receiver plane vs the seeds' bias
   int filter_reach = 2;         // FILTER_REACH: see filter_reach_texels
+  int filter_read = 3;          // FILTER_READ: see filter_read_texels
 
   /// The #define lines that select this variant.
   std::string defines() const;
@@ -142,8 +146,10 @@ struct PreviewVariant {
 };
 
 /// The block's contents for `request` drawn with the light's views in
-/// `plan`, positions relative to `origin` (the mesh origin).
-FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const glm::dvec3& origin);
+/// `plan`, positions relative to `origin` (the mesh origin); `casters`: one
+/// per view, where its layer holds anything (caster_texels).
+FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const glm::dvec3& origin,
+                       const std::vector<TexelRect>& casters);
 
 /// What every program's source starts with: the GLSL version, the shared
 /// constants, `extra_defines`, and the FrameBlock declaration.

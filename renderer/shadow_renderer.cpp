@@ -1,5 +1,6 @@
 #include "shadow_renderer.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <stdexcept>
@@ -277,12 +278,29 @@ std::vector<bool> ShadowRenderer::casting_planes(const RenderRequest& request, c
   return planes;
 }
 
-void ShadowRenderer::upload_frame_block(const RenderRequest& request, const ShadowPlan& light) {
-  const FrameBlock block = frame_block(request, light, scene().mesh.origin);
+std::vector<TexelRect> ShadowRenderer::caster_rects(const ShadowPlan& light, const std::vector<bool>& planes) const {
+  const Mesh& mesh = scene().mesh;
+  std::vector<bool> drawn(mesh.bounds.size(), true);
+  for (std::size_t i = 0; i < mesh.planes.size(); ++i)
+    if (!planes.empty() && !planes[i]) drawn[mesh.planes[i].object] = false;
+  std::vector<Aabb> casters;
+  for (std::size_t i = 0; i < mesh.bounds.size(); ++i)
+    if (drawn[i]) casters.push_back(mesh.bounds[i]);
+  std::vector<TexelRect> rects;
+  // An empty view's layer is neither cleared nor drawn: nothing there.
+  for (const ShadowView& view : light.views)
+    rects.push_back(view.empty ? TexelRect{} : caster_texels(view, light.layer_size, casters));
+  return rects;
+}
+
+void ShadowRenderer::upload_frame_block(const RenderRequest& request, const ShadowPlan& light,
+                                        const std::vector<TexelRect>& casters) {
+  const FrameBlock block = frame_block(request, light, scene().mesh.origin, casters);
   glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
 }
 
-void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowPlan& light) {
+void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowPlan& light,
+                                     const std::vector<bool>& planes, const std::vector<TexelRect>& casters) {
   resize_shadow_map(light.layer_size, int(light.views.size()));
   const GLuint framebuffer = shadow_.framebuffer.id();
   glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
@@ -290,14 +308,32 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   // drawn partly or not at all.
   glViewport(0, 0, light.layer_size, light.layer_size);
   glUseProgram(shadow_.program.id());
-  const std::vector<bool> planes = casting_planes(request, light);
+  // The depth output shows whole layers. A frame's main pass reads a layer
+  // only for points whose filter (FILTER_READ texels around them) meets the
+  // casters' rectangle, so only within twice that of it: only that much is
+  // cleared. On
+  // llvmpipe, clearing a 2048^2 layer costs ~2 ms, most of what a layer of
+  // a few objects costs once the floor is left out.
+  const bool whole_layers = request.output == Output::Depth;
+  const int margin = 2 * filter_read_texels(request.shadow) + 1;
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     // An empty view (no object reaches into it) holds no receiver either,
     // so the main pass never reads its layer: it is not even cleared (the
-    // depth preview clears it before showing it).
-    if (light.views[layer].empty) continue;
+    // depth preview clears it before showing it). Nor is a layer that no
+    // drawn object reaches: the main pass sees its rectangle empty.
+    if (light.views[layer].empty || (!whole_layers && casters[layer].empty())) continue;
     glNamedFramebufferTextureLayer(framebuffer, GL_DEPTH_ATTACHMENT, shadow_.depth_map.id(), 0, GLint(layer));
-    glClear(GL_DEPTH_BUFFER_BIT);
+    if (whole_layers) {
+      glClear(GL_DEPTH_BUFFER_BIT);
+    } else {
+      const TexelRect& c = casters[layer];
+      const int x0 = std::max(0, int(c.min.x) - margin), y0 = std::max(0, int(c.min.y) - margin);
+      const int x1 = std::min(light.layer_size, int(c.max.x) + margin);
+      const int y1 = std::min(light.layer_size, int(c.max.y) + margin);
+      const float far = 1.0f;
+      glClearTexSubImage(shadow_.depth_map.id(), 0, x0, y0, GLint(layer), x1 - x0, y1 - y0, 1, GL_DEPTH_COMPONENT,
+                         GL_FLOAT, &far);
+    }
     glProgramUniform1i(shadow_.program.id(), shadow_.layer, GLint(layer));
     // Culling front faces stores the far side of closed objects: their lit
     // faces then sit well in front of the stored depth, so no bias is needed
@@ -310,11 +346,16 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   shadow_.scene_key = current_scene_key();
   shadow_.cull = request.shadow.cull;
   shadow_.planes = planes;
+  shadow_.whole_layers = whole_layers;
+  shadow_.clear_margin = margin;
 }
 
-bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const {
+bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light,
+                                       const std::vector<bool>& planes) const {
+  const bool cleared_enough = shadow_.whole_layers ||
+                              (request.output != Output::Depth && 2 * filter_read_texels(request.shadow) + 1 <= shadow_.clear_margin);
   return shadow_.holds_plan && shadow_.scene_key == current_scene_key() && shadow_.cull == request.shadow.cull &&
-         shadow_.planes == casting_planes(request, light) && plan_covers(shadow_.plan, light);
+         shadow_.planes == planes && cleared_enough && plan_covers(shadow_.plan, light);
 }
 
 void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light) {
@@ -386,17 +427,19 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
 
   // A sun below the horizon casts no shadow: its frame is ambient only.
   const bool needs_map = (request.shadow.enabled && light.direct_light) || depth_output;
-  if (needs_map && shadow_map_serves(request, light)) {
+  const std::vector<bool> planes = casting_planes(request, light);
+  if (needs_map && shadow_map_serves(request, light, planes)) {
     // Nothing the map depends on changed (typically only the camera
     // moved): draw with the views it was made for; shadow_ms stays 0.
     light = shadow_.plan;
     result.shadow_reused = true;
   }
-  upload_frame_block(request, light);
+  const std::vector<TexelRect> casters = caster_rects(light, planes);
+  upload_frame_block(request, light, casters);
   if (needs_map) {
     if (!result.shadow_reused) {
       const auto start = Clock::now();
-      run_shadow_pass(request, light);
+      run_shadow_pass(request, light, planes, casters);
       glFinish();
       result.timings.shadow_ms = elapsed_ms(start);
     }

@@ -75,6 +75,10 @@ class ShadowRenderer {
     std::string scene_key;
     CullMode cull = CullMode::Front;
     std::vector<bool> planes;  // casting_planes() it was drawn with
+    // Whole layers cleared (the depth output), or only the casters'
+    // rectangles with this many texels around them.
+    bool whole_layers = false;
+    int clear_margin = 0;
   };
   // The camera's view, into an offscreen colour + depth framebuffer.
   struct DisplayPass {
@@ -121,9 +125,13 @@ class ShadowRenderer {
   // for the depth output (it shows what the light sees), else those that
   // can shadow something (plane_can_shadow).
   std::vector<bool> casting_planes(const RenderRequest& request, const ShadowPlan& light) const;
-  void upload_frame_block(const RenderRequest& request, const ShadowPlan& light);
-  void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light);
-  bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light) const;
+  // Per view of `light`, the texels of its layer that the objects drawn
+  // (all but the planes left out) can cover.
+  std::vector<TexelRect> caster_rects(const ShadowPlan& light, const std::vector<bool>& planes) const;
+  void upload_frame_block(const RenderRequest& request, const ShadowPlan& light, const std::vector<TexelRect>& casters);
+  void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
+                       const std::vector<TexelRect>& casters);
+  bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes) const;
   void run_display_pass(const RenderRequest& request, const ShadowPlan& light);
   void run_depth_preview(const ShadowPlan& light, int image_size, int bits);
   Image read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth = 8);

@@ -9,7 +9,7 @@
 // Built once per variant (DisplayVariant in renderer/shader_interface.hpp,
 // which also declares the FrameBlock `u`): SHADOWS, DIRECT_LIGHT, OUTPUT_SHADOW,
 // LIGHT_PERSPECTIVE, LIGHT_CUBE, VIEW_COUNT, FILTER, PCF_RADIUS,
-// FILTER_REACH and BIAS_AUTO are #defines, so nothing below branches on a
+// FILTER_REACH, FILTER_READ and BIAS_AUTO are #defines, so nothing below branches on a
 // uniform and every loop has a constant trip count.
 in vec3 v_position;  // relative to the mesh origin
 in vec3 v_normal;
@@ -37,6 +37,7 @@ struct View {
   float near, far;  // world units along the view's axis
   vec2 texel;       // world size of a texel (perspective: per unit of distance)
   float tan_half;   // perspective: tangent of half the field of view
+  vec4 casters;     // texels the shadow pass drew into: min xy, max zw
 };
 
 #if !LIGHT_CUBE
@@ -80,8 +81,13 @@ bool holds(vec4 clip, out vec3 ndc) {
 // Everything but the point's own coordinates, for view `layer`.
 void set_view_constants(inout View v) {
   vec4 depth_texel = u.view_depth_texel[0];
-  for (int i = 1; i < VIEW_COUNT; ++i)
-    if (v.layer == i) depth_texel = u.view_depth_texel[i];
+  v.casters = u.view_casters[0];
+  for (int i = 1; i < VIEW_COUNT; ++i) {
+    if (v.layer == i) {
+      depth_texel = u.view_depth_texel[i];
+      v.casters = u.view_casters[i];
+    }
+  }
   v.near = depth_texel.x;
   v.far = depth_texel.y;
 #if LIGHT_PERSPECTIVE
@@ -238,6 +244,16 @@ bool make_receiver(View v, vec3 geometric_normal, float n_dot_l, out Receiver r)
   return true;
 }
 
+// Whether the texels the filter reads around the receiver (FILTER_READ at
+// most each way) meet the part of the layer that the shadow pass drew
+// into. If not, nothing in the map can shadow the point, and the layer
+// there was not even cleared: the point is lit without reading it. Most of
+// a floor is lit this way, far from what stands on it.
+bool near_casters(View v, Receiver r) {
+  return all(greaterThan(r.texel + float(FILTER_READ), v.casters.xy)) &&
+         all(lessThan(r.texel - float(FILTER_READ), v.casters.zw));
+}
+
 // The receiver's reference at a texel centre: its plane where that texel
 // looks, but never deeper than the point itself. Only what lies in front of
 // the point can shadow it, and capping the plane there keeps two things
@@ -359,6 +375,7 @@ float shadow_visibility(vec3 p, vec3 geometric_normal, float n_dot_l) {
   if (!choose_view(p, v)) return 1.0;
   Receiver r;
   if (!make_receiver(v, geometric_normal, n_dot_l, r)) return 1.0;
+  if (!near_casters(v, r)) return 1.0;
 #if FILTER == FILTER_HARD
   return lit_by_texel(v, r, floor(r.texel) + 0.5);
 #elif FILTER == FILTER_PCSS

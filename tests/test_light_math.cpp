@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include <glm/ext/matrix_clip_space.hpp>
+#include <glm/ext/matrix_transform.hpp>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
@@ -187,6 +188,57 @@ TEST(Planes, APlaneShadowsOnlyWhatLiesBeyondItFromTheLight) {
   EXPECT_FALSE(plane_can_shadow(alone, lamp));
   lamp.position.y = 1.0;
   EXPECT_FALSE(plane_can_shadow(alone, lamp));
+}
+
+TEST(CasterTexels, TheRectangleAroundWhatAViewCanDraw) {
+  // An orthographic view down -Z over x, y in [-10, 10]: 100 texels of 0.2.
+  ShadowView view;
+  view.projection = glm::ortho(-10.0, 10.0, -10.0, 10.0, 0.0, 100.0);
+  view.view = glm::translate(glm::dmat4(1.0), glm::dvec3(0, 0, -50));
+  Aabb box;
+  box.extend({1.0, 2.0, -1.0});
+  box.extend({2.0, 3.0, 1.0});
+  TexelRect r = caster_texels(view, 100, {box});
+  // x 1..2 -> texels 55..60, y 2..3 -> 60..65, one texel wider each way.
+  EXPECT_EQ(r.min, glm::dvec2(54.0, 59.0));
+  EXPECT_EQ(r.max, glm::dvec2(61.0, 66.0));
+  EXPECT_TRUE(caster_texels(view, 100, {}).empty());
+  Aabb beside;  // wholly outside the view
+  beside.extend({30.0, 0.0, 0.0});
+  beside.extend({31.0, 1.0, 1.0});
+  EXPECT_TRUE(caster_texels(view, 100, {beside}).empty());
+  // Half out: clamped to the layer.
+  beside.min.x = 5.0;
+  r = caster_texels(view, 100, {beside});
+  EXPECT_EQ(r.max.x, 100.0);
+  EXPECT_EQ(r.min.x, 74.0);
+
+  // A 90-degree cube face looking down -Z from the origin: a box that
+  // reaches behind the eye holds only what lies in front, cut to the face.
+  ShadowView face;
+  face.projection = glm::perspective(glm::radians(90.0), 1.0, 0.1, 100.0);
+  Aabb across;
+  across.extend({-0.5, -0.5, -10.0});
+  across.extend({0.5, 0.5, 10.0});
+  r = caster_texels(face, 200, {across});
+  EXPECT_FALSE(r.empty());
+  // In front, its nearest part (z = -0.1, the near plane) spans the face.
+  EXPECT_EQ(r.min, glm::dvec2(0.0));
+  EXPECT_EQ(r.max, glm::dvec2(200.0));
+  Aabb behind;
+  behind.extend({-1.0, -1.0, 1.0});
+  behind.extend({1.0, 1.0, 2.0});
+  EXPECT_TRUE(caster_texels(face, 200, {behind}).empty());
+  Aabb ahead;  // x, y in [-1, 1] at depth 10..20: within +-0.1 of the centre
+  ahead.extend({-1.0, -1.0, -20.0});
+  ahead.extend({1.0, 1.0, -10.0});
+  r = caster_texels(face, 200, {ahead, behind});
+  for (int axis = 0; axis < 2; ++axis) {  // texels 90..110, give or take rounding
+    EXPECT_GE(r.min[axis], 88.0);
+    EXPECT_LE(r.min[axis], 89.0);
+    EXPECT_GE(r.max[axis], 111.0);
+    EXPECT_LE(r.max[axis], 112.0);
+  }
 }
 
 TEST(PointLight, NarrowConeWhenEverythingIsBelowIt) {

@@ -433,6 +433,26 @@ TEST(Renderer, TheDepthOutputShowsTheFloorThatTheShadowPassLeftOut) {
   EXPECT_GT(nearer_than_far, 128 * 128 / 2);
 }
 
+// The shadow pass clears only around what it draws; the main pass must
+// read nothing beyond. A frame whose map was a roof over everything (near
+// depths in every texel), then the seeds' frame: its lit floor stays lit.
+TEST(Renderer, AFrameReadsNothingThatAnEarlierFrameLeftInTheMap) {
+  const std::string roofed = R"({"width": 320, "height": 180, "output": "shadow", "shadow": {"cascades": 1},
+      "scene": {"objects": [{"type": "plane", "center": [0, -0.5, 0], "size": [50, 50]},
+                            {"type": "box", "center": [0, 0, 0], "size": [1, 1, 1]},
+                            {"type": "plane", "center": [0, 3, 0], "size": [400, 400]}]}})";
+  const RenderRequest seeds = request(R"({"width": 320, "height": 180, "output": "shadow", "shadow": {"cascades": 1}})");
+  const RenderResult under_roof = render(request(roofed));
+  ASSERT_EQ(under_roof.shadow_views, "single; views=1; size=2048");
+  const RenderResult result = render(seeds);
+  ASSERT_EQ(result.shadow_views, under_roof.shadow_views) << "the same map, drawn again";
+  const std::vector<ExactPixel> exact = cast_exact_pixels(seeds);
+  const std::vector<int> lit_floor = interior_pixels(seeds, exact, 0, 1.0);
+  EXPECT_GT(lit_floor.size(), 320u * 180u / 4u);
+  for (int i : lit_floor) ASSERT_GT(result.image.pixels[std::size_t(i)], 242) << "pixel " << i << " read a stale texel";
+  expect_within_the_error_budget(measure_shadow_error(result.image, exact), 320u * 180u / 2u);
+}
+
 // Default settings against the exact reference (issue 3's thresholds: no
 // acne, no lost shadows): the built-in scenes with either projection ...
 class DefaultsMatchTheExactReference : public testing::TestWithParam<std::tuple<const char*, const char*>> {};

@@ -78,8 +78,15 @@ TEST(FrameBlock, HoldsEachViewRelativeToTheOrigin) {
   r.light.ambient = 0.25;
   const ShadowPlan plan = plan_shadow(r);
   const glm::dvec3 origin(10.0, -2.0, 3.0);
-  const FrameBlock b = frame_block(r, plan, origin);
+  std::vector<TexelRect> casters(plan.views.size());  // nothing drawn
+  // No rectangle: one that no filter, however far it reaches, can meet.
+  EXPECT_EQ(frame_block(r, plan, origin, casters).view_casters[0], glm::vec4(1e30f, 1e30f, -1e30f, -1e30f));
+  casters[0] = {{3.0, 4.0}, {50.0, 60.0}};
+  const FrameBlock b = frame_block(r, plan, origin, casters);
+  EXPECT_EQ(b.view_casters[0], glm::vec4(3.0f, 4.0f, 50.0f, 60.0f));
   EXPECT_EQ(b.map_size, float(plan.layer_size));
+  casters.pop_back();
+  EXPECT_THROW(frame_block(r, plan, origin, casters), std::out_of_range);
   EXPECT_FLOAT_EQ(b.light_color_ambient.w, 0.25f);
   EXPECT_NEAR(b.light_size, std::tan(1.0 * M_PI / 180.0), 1e-7);
   EXPECT_NEAR(b.camera_position.x, r.camera.position.x - origin.x, 1e-6);
