@@ -48,8 +48,10 @@ std::size_t queue_depth(const ServerProcess& server) {
   return res && res->status == 200 ? json::parse(res->body)["queue_depth"].get<std::size_t>() : 0;
 }
 
-// A render that takes about two seconds on a 2-core llvmpipe machine.
-const char* kSlowBody = R"({"width": 2048, "height": 2048, "output": "shadow", "shadow": {"pcf_radius": 8}})";
+// A render that takes about a second on a 2-core llvmpipe machine: a wide
+// kernel over a frame filled with the cube (far from any caster the
+// filter is skipped).
+const char* kSlowBody = R"({"width": 3072, "height": 3072, "output": "shadow", "shadow": {"pcf_radius": 8}, "camera": {"position": [0.5, 1.2, 1.5], "target": [0, 0, 0]}})";
 
 class GracefulStop : public ::testing::TestWithParam<int> {};
 
@@ -473,7 +475,12 @@ TEST(Memory, AMultiLayerShadowMapIsGivenBackOnceIdleAndFramesStayTheSame) {
   const long idle = server.resident_kib();
   std::printf("resident memory: %ld KiB baseline, %ld KiB after four 8192^2 cascades and a 4096^2 cube, %ld KiB idle\n",
               baseline, busy, idle);
-  EXPECT_GT(busy, baseline + 256 * 1024) << "the maps did not take the memory they should";
+  // llvmpipe holds the maps in process memory; a GPU in its own (an H100
+  // left resident memory at +3 MB), where only the renewal can be checked.
+  auto health = c.Get("/api/health");
+  ASSERT_TRUE(health);
+  if (json::parse(health->body).value("gl_renderer", std::string()).find("llvmpipe") != std::string::npos)
+    EXPECT_GT(busy, baseline + 256 * 1024) << "the maps did not take the memory they should";
   EXPECT_LE(idle, baseline + kMarginKib);
   EXPECT_EQ(renewals(), renewals_before + 1);
   // The fresh context draws the very same PNG.
