@@ -311,9 +311,8 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   // The depth output shows whole layers. A frame's main pass reads a layer
   // only for points whose filter (FILTER_READ texels around them) meets the
   // casters' rectangle, so only within twice that of it: only that much is
-  // cleared. On
-  // llvmpipe, clearing a 2048^2 layer costs ~2 ms, most of what a layer of
-  // a few objects costs once the floor is left out.
+  // cleared. On llvmpipe, clearing a 2048^2 layer costs ~2 ms, most of what
+  // a layer of a few objects costs once the floor is left out.
   const bool whole_layers = request.output == Output::Depth;
   const int margin = 2 * filter_read_texels(request.shadow) + 1;
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
@@ -352,8 +351,11 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
 
 bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light,
                                        const std::vector<bool>& planes) const {
-  const bool cleared_enough = shadow_.whole_layers ||
-                              (request.output != Output::Depth && 2 * filter_read_texels(request.shadow) + 1 <= shadow_.clear_margin);
+  // A map cleared only around its casters serves frames whose filter
+  // reads no further than the one it was cleared for, and no depth output.
+  const bool cleared_enough =
+      shadow_.whole_layers ||
+      (request.output != Output::Depth && 2 * filter_read_texels(request.shadow) + 1 <= shadow_.clear_margin);
   return shadow_.holds_plan && shadow_.scene_key == current_scene_key() && shadow_.cull == request.shadow.cull &&
          shadow_.planes == planes && cleared_enough && plan_covers(shadow_.plan, light);
 }
