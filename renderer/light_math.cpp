@@ -100,26 +100,35 @@ TexelRect caster_texels(const ShadowView& view, int layer_size, const std::vecto
   const double size = double(layer_size);
   const glm::dmat4 to_clip = view.view_projection();
   TexelRect r{glm::dvec2(1e300), glm::dvec2(-1e300)};
-  const auto add = [&](const std::vector<glm::dvec3>& points) {
-    for (const glm::dvec3& p : points) {
-      const glm::dvec4 clip = to_clip * glm::dvec4(p, 1.0);
-      const glm::dvec2 texel = (glm::dvec2(clip) / clip.w * 0.5 + 0.5) * size;
-      r.min = glm::min(r.min, texel);
-      r.max = glm::max(r.max, texel);
-    }
+  const auto add = [&](const glm::dvec4& clip) {
+    const glm::dvec2 texel = (glm::dvec2(clip) / clip.w * 0.5 + 0.5) * size;
+    r.min = glm::min(r.min, texel);
+    r.max = glm::max(r.max, texel);
   };
   for (const Aabb& box : casters) {
     if (box.empty()) continue;
-    // A box wholly in front of the eye projects within its corners' image.
-    // One that reaches behind a point light's eye, or beyond the layer, is
-    // cut to the view's frustum first: only that part is drawn.
+    std::array<glm::dvec4, 8> clips;
+    // Corners inside the layer's sides and in front of the eye; corners
+    // beyond each side (x < -w, x > w, y < -w, y > w) or at or behind it.
+    bool inside = true;
+    std::array<int, 5> beyond{};
     const std::vector<glm::dvec3> corners = box.corners();
-    bool projects_inside = true;
-    for (const glm::dvec3& c : corners) {
-      const glm::dvec4 clip = to_clip * glm::dvec4(c, 1.0);
-      projects_inside = projects_inside && clip.w > 0.0 && std::abs(clip.x) <= clip.w && std::abs(clip.y) <= clip.w;
+    for (std::size_t i = 0; i < 8; ++i) {
+      const glm::dvec4 c = to_clip * glm::dvec4(corners[i], 1.0);
+      clips[i] = c;
+      inside = inside && c.w > 0.0 && std::abs(c.x) <= c.w && std::abs(c.y) <= c.w;
+      beyond[0] += c.x < -c.w, beyond[1] += c.x > c.w, beyond[2] += c.y < -c.w, beyond[3] += c.y > c.w;
+      beyond[4] += c.w <= 0.0;
     }
-    add(projects_inside ? corners : frustum_box_intersection(to_clip, box));
+    // A box wholly in front of the eye projects within its corners' image.
+    // One wholly beyond a side, or behind the eye, draws nothing here. One
+    // that straddles a side or reaches behind a point light's eye is cut to
+    // the view's frustum first: only that part is drawn.
+    if (inside) {
+      for (const glm::dvec4& c : clips) add(c);
+    } else if (std::find(beyond.begin(), beyond.end(), 8) == beyond.end()) {
+      for (const glm::dvec3& p : frustum_box_intersection(to_clip, box)) add(to_clip * glm::dvec4(p, 1.0));
+    }
   }
   if (!(r.min.x <= r.max.x && r.min.y <= r.max.y)) return TexelRect{};
   r.min = glm::clamp(glm::floor(r.min) - 1.0, 0.0, size);

@@ -147,10 +147,10 @@ struct TexelRect {
 
 /// The part of `view`'s layer (layer_size^2 texels) that objects within
 /// `casters` (world bounds) can cover: the bounding rectangle of their
-/// projected corners, one texel wider on each side for rounding, clamped to
-/// the layer. The whole layer if a box reaches behind a perspective view's
-/// eye (its projection is then unbounded). Empty if there is no caster or
-/// none projects into the layer.
+/// projected corners (of the part inside the view's frustum, for a box that
+/// reaches past the layer's sides or behind a perspective view's eye), one
+/// texel wider on each side for rounding, clamped to the layer. Empty if
+/// there is no caster or none reaches into the view.
 TexelRect caster_texels(const ShadowView& view, int layer_size, const std::vector<Aabb>& casters);
 
 /// Plans the light's views for `request` (light placed by light_at at request.time).
