@@ -5,14 +5,13 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <deque>
 #include <mutex>
 #include <optional>
 #include <thread>
 
 #include <malloc.h>
-
-#include <cstdio>
 
 #include "gl/egl_context.hpp"
 #include "ray_cast.hpp"
@@ -38,7 +37,6 @@ constexpr std::uint64_t kIdleShare = 32;
 constexpr std::uint64_t kSceneShare = 3;
 
 std::uint64_t minus_or_zero(std::uint64_t a, std::uint64_t b) { return a > b ? a - b : 0; }
-
 
 }  // namespace
 
@@ -186,13 +184,15 @@ struct RenderService::Impl {
   // rebuilds (its first frame took 0.13 s instead of 0.035 s at 960 x 540),
   // against hundreds of megabytes held for as long as the server runs idle.
   void release_when_idle(std::optional<gl::EglContext>& context, std::optional<ShadowRenderer>& renderer) {
-    if (!renderer) {  // a fresh context failed before: the next job tries again
-      malloc_trim(0);
-      return;
+    // No renderer: a fresh context failed before, and the next job tries again.
+    if (renderer) {
+      cached.store(renderer->release_cached(limits.memory_budget_bytes / kIdleShare));
+      if (limits.fresh_context_bytes != 0 && renderer->released_gl_bytes() > renewal_bytes()) renew(context, renderer);
     }
-    cached.store(renderer->release_cached(limits.memory_budget_bytes / kIdleShare));
     malloc_trim(0);
-    if (limits.fresh_context_bytes == 0 || renderer->released_gl_bytes() <= renewal_bytes()) return;
+  }
+
+  void renew(std::optional<gl::EglContext>& context, std::optional<ShadowRenderer>& renderer) {
     try {
       make_renderer(context, renderer);
       cached.store(renderer->cached_bytes());
@@ -204,7 +204,6 @@ struct RenderService::Impl {
       cached.store(0);
       std::fprintf(stderr, "umbra: a fresh GL context could not be made; the next render tries again\n");
     }
-    malloc_trim(0);
   }
 
   // At least fresh_context_bytes of GL memory released (or the idle share of

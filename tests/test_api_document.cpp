@@ -328,7 +328,9 @@ TEST(ApiDocument, EveryNumericRangeIsWhatTheParserTakes) {
                                      << ": " << parsed.error.message;
           } else {
             EXPECT_FALSE(parsed.ok()) << c.field << " " << why << ": " << c.body.dump() << " was taken";
-            if (!parsed.ok()) EXPECT_EQ(parsed.error.field, c.field) << c.body.dump() << ": " << parsed.error.message;
+            if (!parsed.ok()) {
+              EXPECT_EQ(parsed.error.field, c.field) << c.body.dump() << ": " << parsed.error.message;
+            }
           }
           ++checked;
         };
