@@ -105,7 +105,10 @@ class RenderService {
   /// shaders. Throws std::runtime_error with the reason if it cannot (no EGL,
   /// no GL 4.5 core context, a GLSL error).
   explicit RenderService(ServiceLimits limits = {});
-  /// Finishes the jobs already queued, then stops the GL thread.
+  /// Finishes the jobs already queued, then stops the GL thread. Destroy
+  /// the service before the process exits, not from a static destructor:
+  /// Mesa's exit handlers are registered after it starts, run before such a
+  /// destructor, and free state the GL thread may still be using.
   ~RenderService();
   RenderService(const RenderService&) = delete;
   RenderService& operator=(const RenderService&) = delete;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "render_service.hpp"
@@ -13,10 +14,32 @@
 
 namespace umbra {
 
-inline RenderService& service() {
-  static std::unique_ptr<RenderService> instance = std::make_unique<RenderService>();
-  return *instance;
-}
+// The service is made on first use and destroyed when the tests end, inside
+// RUN_ALL_TESTS, never by a static destructor at exit: Mesa registers its
+// exit handlers after the service is made, so they would run first and free
+// the shader compiler's state while the GL thread may still be at work (an
+// idle release making a fresh context compiles shaders). ASan saw that as a
+// use-after-free in swrast in a third of the runs of a test that ended about
+// kIdleRelease after its frame.
+class ServiceEnvironment : public testing::Environment {
+ public:
+  static RenderService& service() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!instance_) instance_ = std::make_unique<RenderService>();
+    return *instance_;
+  }
+  void TearDown() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    instance_.reset();
+  }
+
+ private:
+  static inline std::mutex mutex_;
+  static inline std::unique_ptr<RenderService> instance_;
+};
+inline testing::Environment* const kServiceEnvironment = testing::AddGlobalTestEnvironment(new ServiceEnvironment);
+
+inline RenderService& service() { return ServiceEnvironment::service(); }
 
 /// The body parsed as the server would (mesh objects resolved by
 /// `find_model`); a test fails if it is not valid.
