@@ -244,6 +244,9 @@ bool make_receiver(View v, vec3 geometric_normal, float n_dot_l, out Receiver r)
   return true;
 }
 
+// The texel of a point lit without reading the map: off the layer.
+const float kReadsNothing = -1.0e6;
+
 // Whether the texels the filter reads around the receiver (FILTER_READ at
 // most each way) meet the part of the layer that the shadow pass drew
 // into. If not, nothing in the map can shadow the point, and the layer
@@ -375,7 +378,16 @@ float shadow_visibility(vec3 p, vec3 geometric_normal, float n_dot_l) {
   if (!choose_view(p, v)) return 1.0;
   Receiver r;
   if (!make_receiver(v, geometric_normal, n_dot_l, r)) return 1.0;
-  if (!near_casters(v, r)) return 1.0;
+  // A point that no caster is near is lit, but it does not just return:
+  // llvmpipe runs a branch for a whole block of pixels at once, and the
+  // lanes that left it still make their texture reads (masked), each at its
+  // own texel all over the layer: a quarter of the default frame's main
+  // pass went to those cache misses. Pointed off the layer, they all read
+  // the one border texel. The branch tests the texel, not near_casters:
+  // past a test of the flag the compiler knows it is true and drops the
+  // select. (A GPU skips the rest for those pixels either way.)
+  r.texel = near_casters(v, r) ? r.texel : vec2(kReadsNothing);
+  if (r.texel.x == kReadsNothing) return 1.0;
 #if FILTER == FILTER_HARD
   return lit_by_texel(v, r, floor(r.texel) + 0.5);
 #elif FILTER == FILTER_PCSS
