@@ -58,6 +58,12 @@ glm::dmat4 stable_look_at(const glm::dvec3& eye, const glm::dvec3& target, const
   return glm::lookAt(eye, target, chosen_up);
 }
 
+glm::dmat4 cube_face_view(const glm::dvec3& position, int face) {
+  glm::dvec3 axis(0.0);
+  axis[face / 2] = face % 2 == 0 ? 1.0 : -1.0;
+  return stable_look_at(position, position + axis, glm::dvec3(0.0, 1.0, 0.0));
+}
+
 CameraMatrices camera_matrices(const Camera& camera, int width, int height) {
   CameraMatrices m;
   m.view = stable_look_at(camera.position, camera.target, camera.up);
@@ -448,11 +454,10 @@ void plan_perspective(ShadowPlan& plan, const RenderRequest& request, const glm:
   plan.layout = ShadowLayout::Cube;
   plan.layer_size = std::min(request.shadow.map_size, int(std::sqrt(kMaxShadowTexels / 6.0)));
   const double face_spare = spare_fraction(reach + 1, plan.layer_size);
-  static const glm::dvec3 kAxes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
   plan.views.clear();
-  for (const auto& axis : kAxes) {
+  for (int face = 0; face < 6; ++face) {
     ShadowView v;
-    v.view = stable_look_at(plan.position, plan.position + axis, glm::dvec3(0.0, 1.0, 0.0));
+    v.view = cube_face_view(plan.position, face);
     v.tan_half = 1.0 / (1.0 - face_spare);
     fit_depth_range(v, boxes, reach_far);
     set_texel_size(v, true, plan.layer_size);

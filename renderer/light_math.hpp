@@ -59,6 +59,16 @@ double sun_disc_tan_radius(const Light& light);
 /// Precondition: eye != target, up != 0.
 glm::dmat4 stable_look_at(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up);
 
+/// The view of cube face `face` (0..5: +X, -X, +Y, -Y, +Z, -Z) of a point
+/// light at `position`: stable_look_at along the face's axis with up +Y
+/// (+Z, -Z for the +Y, -Y faces). With s = +1 on the even faces and -1 on
+/// the odd ones, a point at d = p - position is at eye
+///   (s d.z, d.y, -s d.x) on +-X,  (d.x, s d.z, -s d.y) on +-Y,
+///   (-s d.x, d.y, -s d.z) on +-Z:
+/// a signed permutation, which scene.frag (LIGHT_CUBE) builds from the
+/// face's axis and sign instead of selecting a matrix per pixel.
+glm::dmat4 cube_face_view(const glm::dvec3& position, int face);
+
 /// The camera's view and projection for an image of width x height.
 struct CameraMatrices {
   glm::dmat4 view{1.0};

@@ -101,19 +101,25 @@ void set_view_constants(inout View v) {
 
 #if LIGHT_CUBE
 // Faces +X, -X, +Y, -Y, +Z, -Z, each a little wider than 90 degrees so that
-// the face of p's major axis holds p with its filter kernel. Only the
-// chosen face's rotation and translation are selected (constant indices),
-// and its projection is rebuilt from near, far and tan_half.
+// the face of p's major axis holds p with its filter kernel. A face's
+// rotation is a signed permutation (cube_face_view in
+// renderer/light_math.hpp), built here from the axis and sign rather than
+// selected among six matrices: that selection was half of a point light's
+// main pass on llvmpipe. The projection is rebuilt from near, far and
+// tan_half.
 bool choose_view(vec3 p, out View v) {
   vec3 d = p - u.light_position.xyz;
   vec3 a = abs(d);
   int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
-  v.layer = 2 * axis + (d[axis] < 0.0 ? 1 : 0);
-  mat4 view = u.light_view[0];
-  for (int i = 1; i < VIEW_COUNT; ++i)
-    if (v.layer == i) view = u.light_view[i];
-  v.rotation = mat3(view);
-  v.eye = v.rotation * p + view[3].xyz;
+  float s = d[axis] < 0.0 ? -1.0 : 1.0;
+  v.layer = 2 * axis + (s < 0.0 ? 1 : 0);
+  // Columns: where the world axes go. Eye (s d.z, d.y, -s d.x) on +-X,
+  // (d.x, s d.z, -s d.y) on +-Y, (-s d.x, d.y, -s d.z) on +-Z.
+  vec3 x_to = axis == 0 ? vec3(0.0, 0.0, -s) : (axis == 1 ? vec3(1.0, 0.0, 0.0) : vec3(-s, 0.0, 0.0));
+  vec3 y_to = axis == 1 ? vec3(0.0, 0.0, -s) : vec3(0.0, 1.0, 0.0);
+  vec3 z_to = axis == 0 ? vec3(s, 0.0, 0.0) : (axis == 1 ? vec3(0.0, s, 0.0) : vec3(0.0, 0.0, -s));
+  v.rotation = mat3(x_to, y_to, z_to);
+  v.eye = v.rotation * d;
   set_view_constants(v);
   return holds(clip_in_chosen_view(v, v.eye), v.ndc);
 }

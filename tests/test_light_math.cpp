@@ -6,6 +6,7 @@
 #include <glm/ext/matrix_clip_space.hpp>
 #include <glm/ext/matrix_transform.hpp>
 #include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
 #include <glm/trigonometric.hpp>
 
 #include "light_math.hpp"
@@ -270,6 +271,31 @@ TEST(PointLight, AmidObjectsItUsesSixFacesAndSkipsEmptyOnes) {
   EXPECT_EQ(empty, 1);
   EXPECT_TRUE(plan.views[2].empty);  // +Y
   expect_visible_scene_inside(r);
+}
+
+TEST(PointLight, EachCubeFaceIsTheSignedPermutationTheShaderBuilds) {
+  // scene.frag (LIGHT_CUBE) does not read the faces' matrices: it rebuilds
+  // each from its axis and sign. The two must agree, or every point light
+  // would read the wrong texels.
+  const glm::dvec3 light(1.5, -2.0, 0.25);
+  const glm::dvec3 d(0.3, -0.7, 1.9);  // a point's offset from the light
+  for (int face = 0; face < 6; ++face) {
+    const int a = face / 2;
+    const double s = face % 2 == 0 ? 1.0 : -1.0;
+    const glm::dvec3 expected = a == 0   ? glm::dvec3(s * d.z, d.y, -s * d.x)
+                                : a == 1 ? glm::dvec3(d.x, s * d.z, -s * d.y)
+                                         : glm::dvec3(-s * d.x, d.y, -s * d.z);
+    const glm::dmat4 view = cube_face_view(light, face);
+    const glm::dvec3 eye(view * glm::dvec4(light + d, 1.0));
+    EXPECT_NEAR(glm::length(eye - expected), 0.0, 1e-12) << face;
+    // A rotation (no mirror), looking down its axis: a point on the axis
+    // in front of the light is straight ahead, at -z.
+    EXPECT_NEAR(glm::determinant(glm::dmat3(view)), 1.0, 1e-12) << face;
+    glm::dvec3 ahead(0.0);
+    ahead[a] = 2.0 * s;
+    const glm::dvec3 seen(view * glm::dvec4(light + ahead, 1.0));
+    EXPECT_NEAR(glm::length(seen - glm::dvec3(0.0, 0.0, -2.0)), 0.0, 1e-12) << face;
+  }
 }
 
 TEST(PointLight, CubeFacesAtTheLargestMapStayWithinTheMemoryCap) {
