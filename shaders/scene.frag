@@ -104,9 +104,9 @@ void set_view_constants(inout View v) {
 // the face of p's major axis holds p with its filter kernel. A face's
 // rotation is a signed permutation (cube_face_view in
 // renderer/light_math.hpp), built here from the axis and sign rather than
-// selected among six matrices: that selection was half of a point light's
-// main pass on llvmpipe. The projection is rebuilt from near, far and
-// tan_half.
+// selected among six matrices: that selection was about a third of a point
+// light's main pass on llvmpipe. The projection is rebuilt from near, far
+// and tan_half.
 bool choose_view(vec3 p, out View v) {
   vec3 d = p - u.light_position.xyz;
   vec3 a = abs(d);
@@ -388,8 +388,8 @@ float shadow_visibility(vec3 p, vec3 geometric_normal, float n_dot_l) {
   // llvmpipe runs a branch for a whole block of pixels at once, and the
   // lanes that left it still make their texture reads (masked), each at its
   // own texel all over the layer: a quarter of the default frame's main
-  // pass went to those cache misses. Pointed off the layer, they all read
-  // the one border texel. The branch tests the texel, not near_casters:
+  // pass went to those cache misses. Pointed off the layer, they all fall
+  // on the border (far). The branch tests the texel, not near_casters:
   // past a test of the flag the compiler knows it is true and drops the
   // select. (A GPU skips the rest for those pixels either way.)
   r.texel = near_casters(v, r) ? r.texel : vec2(kReadsNothing);
