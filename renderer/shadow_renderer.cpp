@@ -41,6 +41,11 @@ std::string scene_key(const Scene& scene) {
   return key;
 }
 
+// Texels cleared around each layer's casters' rectangle for `shadow`: a
+// point is read for only if its filter (FILTER_READ texels) meets the
+// rectangle, and then reads up to FILTER_READ beyond where it is.
+int clear_margin_texels(const ShadowSettings& shadow) { return 2 * filter_read_texels(shadow) + 1; }
+
 }  // namespace
 
 ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_bytes_(scene_cache_bytes) {
@@ -314,7 +319,7 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   // cleared. On llvmpipe, clearing a 2048^2 layer costs ~2 ms, most of what
   // a layer of a few objects costs once the floor is left out.
   const bool whole_layers = request.output == Output::Depth;
-  const int margin = 2 * filter_read_texels(request.shadow) + 1;
+  const int margin = clear_margin_texels(request.shadow);
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     // An empty view (no object reaches into it) holds no receiver either,
     // so the main pass never reads its layer: it is not even cleared (the
@@ -355,7 +360,7 @@ bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const Shado
   // reads no further than the one it was cleared for, and no depth output.
   const bool cleared_enough =
       shadow_.whole_layers ||
-      (request.output != Output::Depth && 2 * filter_read_texels(request.shadow) + 1 <= shadow_.clear_margin);
+      (request.output != Output::Depth && clear_margin_texels(request.shadow) <= shadow_.clear_margin);
   return shadow_.holds_plan && shadow_.scene_key == current_scene_key() && shadow_.cull == request.shadow.cull &&
          shadow_.planes == planes && cleared_enough && plan_covers(shadow_.plan, light);
 }
