@@ -1,10 +1,5 @@
 #include "mesh_instance.hpp"
 
-#include <algorithm>
-#include <memory>
-#include <mutex>
-#include <vector>
-
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/matrix.hpp>
@@ -22,55 +17,20 @@ glm::dmat4 mesh_transform(const SceneObject& o) {
   return glm::scale(m, o.mesh_scale);
 }
 
-namespace {
-
-// The exact bounds of a model's positions under a linear map (rotation and
-// scale), for the last few (model, map) pairs asked for: a placed model is
-// asked for its world bounds several times a frame, every frame, and each
-// answer visits every position.
-class LinearBoundsMemo {
- public:
-  Aabb bounds(const std::shared_ptr<const TriangleModel>& model, const glm::dmat3& linear) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      for (const Entry& e : entries_)
-        if (e.model == model.get() && !e.alive.expired() && e.linear == linear) return e.bounds;
-    }
-    Aabb b;
-    for (const ModelPart& part : model->parts)
-      for (const glm::vec3& p : part.positions) b.extend(linear * glm::dvec3(p));
-    std::lock_guard<std::mutex> lock(mutex_);
-    // A freed model's address can be reused: its entries go first.
-    entries_.erase(std::remove_if(entries_.begin(), entries_.end(), [](const Entry& e) { return e.alive.expired(); }),
-                   entries_.end());
-    if (entries_.size() >= kEntries) entries_.erase(entries_.begin());
-    entries_.push_back({model.get(), model, linear, b});
-    return b;
-  }
-
- private:
-  static constexpr std::size_t kEntries = 256;
-  struct Entry {
-    const TriangleModel* model;
-    std::weak_ptr<const TriangleModel> alive;
-    glm::dmat3 linear;
-    Aabb bounds;
-  };
-  std::mutex mutex_;
-  std::vector<Entry> entries_;  // oldest first
-};
-
-}  // namespace
-
 Aabb mesh_bounds(const SceneObject& o) {
   Aabb b;
   if (!o.model || o.model->bounds.empty()) return b;
   const glm::dmat4 m = mesh_transform(o);
-  static LinearBoundsMemo memo;
-  b = memo.bounds(o.model, glm::dmat3(m));
-  const glm::dvec3 translation(m[3]);
-  b.min += translation;
-  b.max += translation;
+  for (const glm::dvec3& corner : o.model->bounds.corners()) b.extend(glm::dvec3(m * glm::dvec4(corner, 1.0)));
+  return b;
+}
+
+Aabb mesh_surface_bounds(const SceneObject& o) {
+  Aabb b;
+  if (!o.model) return b;
+  const glm::dmat4 m = mesh_transform(o);
+  for (const ModelPart& part : o.model->parts)
+    for (const glm::vec3& p : part.positions) b.extend(glm::dvec3(m * glm::dvec4(glm::dvec3(p), 1.0)));
   return b;
 }
 

@@ -20,12 +20,17 @@ namespace umbra {
 /// rotation applies first, as the API documents).
 glm::dmat4 mesh_transform(const SceneObject& mesh);
 
-/// The world bounds of a mesh object: exactly those of its transformed
-/// positions, so that fitting and the test of which planes can cast a
-/// shadow see the surface, not a box turned around it (whose corners can
-/// reach far beyond it). Memoised for the last 256 (model, rotation and
-/// scale) pairs. Empty for a model without triangles.
+/// The world bounds of a mesh object: the 8 transformed corners of its
+/// model's bounds (not tight under rotation, but never too small, which is
+/// what frustum fitting needs). Empty for a model without triangles.
 Aabb mesh_bounds(const SceneObject& mesh);
+
+/// The exact world bounds of a mesh object's transformed positions: under
+/// rotation, mesh_bounds' turned box can reach well beyond the surface
+/// (the torus-knot scene's reached below its floor). What tessellate()
+/// tells planes about the objects around them (PlaneRange), where a box
+/// too large would make a floor a caster for nothing. O(positions).
+Aabb mesh_surface_bounds(const SceneObject& mesh);
 
 /// Whether the model's surface is closed (TriangleModel::closed): only then
 /// may the shadow pass cull its faces.

@@ -254,6 +254,13 @@ Mesh tessellate(const Scene& scene) {
   // Planes last, each with its own range: the shadow pass leaves out those
   // that cannot shadow anything under the frame's light.
   for (const auto& o : scene.objects) mesh.bounds.push_back(object_bounds(o));
+  // Where the other objects lie against each plane: a turned mesh's bounds
+  // are not tight (mesh_surface_bounds), and a floor they reach under would
+  // be drawn into every layer of the map.
+  std::vector<Aabb> surfaces;
+  for (std::size_t j = 0; j < scene.objects.size(); ++j)
+    surfaces.push_back(scene.objects[j].type == SceneObject::Type::Mesh ? mesh_surface_bounds(scene.objects[j])
+                                                                        : mesh.bounds[j]);
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const SceneObject& o = scene.objects[i];
     if (o.type != SceneObject::Type::Plane) continue;
@@ -265,8 +272,9 @@ Mesh tessellate(const Scene& scene) {
     range.height = o.center.y;
     for (std::size_t j = 0; j < scene.objects.size(); ++j) {
       if (j == i) continue;
-      range.lowest_other = std::min(range.lowest_other, mesh.bounds[j].min.y);
-      range.highest_other = std::max(range.highest_other, mesh.bounds[j].max.y);
+      if (surfaces[j].empty()) continue;  // a model without triangles
+      range.lowest_other = std::min(range.lowest_other, surfaces[j].min.y);
+      range.highest_other = std::max(range.highest_other, surfaces[j].max.y);
     }
     mesh.planes.push_back(range);
   }

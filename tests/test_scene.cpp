@@ -120,10 +120,10 @@ TEST(Scene, AMeshIsPlacedScaleThenRotateXThenYThenZThenTranslate) {
   EXPECT_NEAR(b.max.z, 31, 1e-12);
 }
 
-TEST(Scene, ATurnedMeshsBoundsAreThoseOfItsPositionsNotOfItsTurnedBox) {
+TEST(Scene, ATurnedMeshsSurfaceBoundsAreThoseOfItsPositionsNotOfItsTurnedBox) {
   // An octahedron with corners on the axes at distance 1: turned 45 degrees
-  // about Z, its box's corners would reach sqrt(2) along x and y; its
-  // positions reach only cos(45) = 0.707 and 1 along both.
+  // about Z, its box's corners reach sqrt(2) along x and y; its positions
+  // reach only cos(45) = 0.707 along both.
   auto model = std::make_shared<TriangleModel>();
   ModelPart part;
   part.positions = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
@@ -134,30 +134,26 @@ TEST(Scene, ATurnedMeshsBoundsAreThoseOfItsPositionsNotOfItsTurnedBox) {
   SceneObject o = mesh_object(model, "octahedron");
   o.center = {5, 6, 7};
   o.rotation_deg = {0, 0, 45};
-  for (int asked = 0; asked < 2; ++asked) {  // the second answer comes from the memo
-    const Aabb b = object_bounds(o);
-    EXPECT_NEAR(b.min.x, 5 - std::sqrt(0.5), 1e-12);
-    EXPECT_NEAR(b.max.x, 5 + std::sqrt(0.5), 1e-12);
-    EXPECT_NEAR(b.min.y, 6 - std::sqrt(0.5), 1e-12);
-    EXPECT_NEAR(b.max.y, 6 + std::sqrt(0.5), 1e-12);
-    EXPECT_NEAR(b.min.z, 6, 1e-12);
-    EXPECT_NEAR(b.max.z, 8, 1e-12);
-  }
-  // Another turn of the same model is not answered from the memo.
-  o.rotation_deg = {0, 0, 90};
-  const Aabb turned = object_bounds(o);
-  EXPECT_NEAR(turned.max.x, 6, 1e-12);
-  EXPECT_NEAR(turned.max.y, 7, 1e-12);
+  const Aabb surface = mesh_surface_bounds(o);
+  EXPECT_NEAR(surface.min.x, 5 - std::sqrt(0.5), 1e-12);
+  EXPECT_NEAR(surface.max.x, 5 + std::sqrt(0.5), 1e-12);
+  EXPECT_NEAR(surface.min.y, 6 - std::sqrt(0.5), 1e-12);
+  EXPECT_NEAR(surface.max.y, 6 + std::sqrt(0.5), 1e-12);
+  EXPECT_NEAR(surface.min.z, 6, 1e-12);
+  EXPECT_NEAR(surface.max.z, 8, 1e-12);
+  const Aabb box = mesh_bounds(o);
+  EXPECT_NEAR(box.max.y, 6 + std::sqrt(2.0), 1e-12);
 }
 
 TEST(Scene, TheTorusKnotsFloorCastsNothingUnderALightAbove) {
-  // The knot's turned box reached below the floor, so the floor was drawn
-  // into every shadow map layer for nothing (most of that scene's shadow
-  // pass); its surface stays above it.
+  // The knot's turned box reaches below the floor, which made the floor a
+  // caster drawn into every layer of the map for nothing (most of that
+  // scene's shadow pass); its surface stays above the floor.
   Scene scene;
   scene.objects = find_builtin_scene("torus-knot")->objects;
   const Mesh mesh = tessellate(scene);
   ASSERT_EQ(mesh.planes.size(), 1u);
+  ASSERT_LT(object_bounds(scene.objects[1]).min.y, mesh.planes[0].height);
   EXPECT_GT(mesh.planes[0].lowest_other, mesh.planes[0].height);
 }
 
