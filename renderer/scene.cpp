@@ -272,7 +272,6 @@ Mesh tessellate(const Scene& scene) {
     range.height = o.center.y;
     for (std::size_t j = 0; j < scene.objects.size(); ++j) {
       if (j == i) continue;
-      if (surfaces[j].empty()) continue;  // a model without triangles
       range.lowest_other = std::min(range.lowest_other, surfaces[j].min.y);
       range.highest_other = std::max(range.highest_other, surfaces[j].max.y);
     }

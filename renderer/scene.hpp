@@ -74,8 +74,9 @@ struct PlaneRange {
   std::uint32_t first_index = 0;
   std::uint32_t index_count = 0;
   double height = 0.0;  ///< world y of the plane (planes are horizontal)
-  /// The lowest and highest world y of every other object's bounds; a scene
-  /// of this plane alone has none (lowest > highest).
+  /// The lowest and highest world y of every other object: its bounds, or
+  /// for a mesh object its surface's (mesh_surface_bounds, tighter than a
+  /// turned box); a scene of this plane alone has none (lowest > highest).
   double lowest_other = 1e300;
   double highest_other = -1e300;
 };
