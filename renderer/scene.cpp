@@ -270,6 +270,7 @@ Mesh tessellate(const Scene& scene) {
     builder.plane(o);
     range.index_count = std::uint32_t(mesh.indices.size()) - range.first_index;
     range.height = o.center.y;
+    range.color = o.color;
     for (std::size_t j = 0; j < scene.objects.size(); ++j) {
       if (j == i) continue;
       range.lowest_other = std::min(range.lowest_other, surfaces[j].min.y);

@@ -74,6 +74,7 @@ struct PlaneRange {
   std::uint32_t first_index = 0;
   std::uint32_t index_count = 0;
   double height = 0.0;  ///< world y of the plane (planes are horizontal)
+  glm::dvec3 color{0.0};  ///< its colour (the main pass may draw it in cells)
   /// The lowest and highest world y of every other object: its bounds, or
   /// for a mesh object its surface's (mesh_surface_bounds, tighter than a
   /// turned box); a scene of this plane alone has none (lowest > highest).

@@ -75,6 +75,15 @@ DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& p
   return v;
 }
 
+DisplayVariant without_shadows(const DisplayVariant& v) {
+  DisplayVariant lit;
+  lit.shadows = false;
+  lit.direct_light = v.direct_light;
+  lit.shadow_output = v.shadow_output;
+  lit.perspective = v.perspective;
+  return lit;
+}
+
 FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const glm::dvec3& origin,
                        const std::vector<TexelRect>& casters) {
   // Origin-relative float matrices: the translation by the origin is folded

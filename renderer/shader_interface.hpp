@@ -138,6 +138,11 @@ struct DisplayVariant {
 /// pass: no filter), so equal frames share one program.
 DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& plan);
 
+/// `v` with no shadow term (and the shadow switches at their defaults, as
+/// display_variant leaves them): the program for points no caster can
+/// shadow, the same one a frame without shadows uses.
+DisplayVariant without_shadows(const DisplayVariant& v);
+
 /// The depth preview's variant.
 struct PreviewVariant {
   bool perspective = false;  // LIGHT_PERSPECTIVE: linearise the stored depth

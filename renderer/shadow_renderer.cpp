@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "gl/program.hpp"
+#include "receiver_cells.hpp"
 #include "shader_interface.hpp"
 
 namespace umbra {
@@ -46,6 +47,25 @@ std::string scene_key(const Scene& scene) {
 // rectangle, and then reads up to FILTER_READ beyond where it is.
 int clear_margin_texels(const ShadowSettings& shadow) { return 2 * filter_read_texels(shadow) + 1; }
 
+// Vertex array `vao` reads Vertex records from `vertices` and indices from
+// `indices`.
+void describe_vertices(GLuint vao, GLuint vertices, GLuint indices) {
+  glVertexArrayVertexBuffer(vao, 0, vertices, 0, sizeof(Vertex));
+  glVertexArrayElementBuffer(vao, indices);
+  const GLuint offsets[3] = {offsetof(Vertex, position), offsetof(Vertex, normal), offsetof(Vertex, color)};
+  for (GLuint attribute = 0; attribute < 3; ++attribute) {
+    glEnableVertexArrayAttrib(vao, attribute);
+    glVertexArrayAttribFormat(vao, attribute, 3, GL_FLOAT, GL_FALSE, offsets[attribute]);
+    glVertexArrayAttribBinding(vao, attribute, 0);
+  }
+}
+
+void draw_indices(std::size_t first, std::size_t count) {
+  if (count > 0)
+    glDrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>(first * sizeof(std::uint32_t)));
+}
+
 }  // namespace
 
 ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_bytes_(scene_cache_bytes) {
@@ -60,6 +80,10 @@ ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_by
   glNamedBufferStorage(frame_block_.id(), sizeof(FrameBlock), nullptr, GL_DYNAMIC_STORAGE_BIT);
   glBindBufferBase(GL_UNIFORM_BUFFER, 0, frame_block_.id());
   empty_vertex_array_ = gl::create_vertex_array();
+  display_.cells_vertex_array = gl::create_vertex_array();
+  display_.cell_vertices = gl::create_buffer();
+  display_.cell_indices = gl::create_buffer();
+  describe_vertices(display_.cells_vertex_array.id(), display_.cell_vertices.id(), display_.cell_indices.id());
   unbind_depth_ = gl::create_texture(GL_TEXTURE_2D);
   glTextureStorage2D(unbind_depth_.id(), 1, GL_DEPTH_COMPONENT32F, 1, 1);
   unbind_framebuffer_ = gl::create_framebuffer();
@@ -93,15 +117,7 @@ bool ShadowRenderer::use_scene(const Scene& scene) {
                        mesh.vertices.empty() ? nullptr : mesh.vertices.data(), 0);
   glNamedBufferStorage(g.indices.id(), GLsizeiptr(index_count * sizeof(std::uint32_t)),
                        mesh.indices.empty() ? nullptr : mesh.indices.data(), 0);
-  const GLuint vao = g.vertex_array.id();
-  glVertexArrayVertexBuffer(vao, 0, g.vertices.id(), 0, sizeof(Vertex));
-  glVertexArrayElementBuffer(vao, g.indices.id());
-  const GLuint offsets[3] = {offsetof(Vertex, position), offsetof(Vertex, normal), offsetof(Vertex, color)};
-  for (GLuint attribute = 0; attribute < 3; ++attribute) {
-    glEnableVertexArrayAttrib(vao, attribute);
-    glVertexArrayAttribFormat(vao, attribute, 3, GL_FLOAT, GL_FALSE, offsets[attribute]);
-    glVertexArrayAttribBinding(vao, attribute, 0);
-  }
+  describe_vertices(g.vertex_array.id(), g.vertices.id(), g.indices.id());
   mesh.vertices.clear();
   mesh.vertices.shrink_to_fit();
   mesh.indices.clear();
@@ -254,11 +270,7 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
   // A plane or an open model has one side: culling it could drop it from
   // the pass entirely.
   glDisable(GL_CULL_FACE);
-  const auto draw_range = [](std::uint32_t first, std::uint32_t count) {
-    if (count > 0)
-      glDrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
-                     reinterpret_cast<const void*>(std::size_t(first) * sizeof(std::uint32_t)));
-  };
+  const auto draw_range = [](std::uint32_t first, std::uint32_t count) { draw_indices(first, count); };
   const std::uint32_t open_end = mesh.closed_index_count + mesh.open_index_count;
   const std::uint32_t planes_begin = mesh.planes.empty() ? open_end : mesh.planes.front().first_index;
   draw_range(mesh.closed_index_count, planes_begin - mesh.closed_index_count);  // open models
@@ -283,18 +295,23 @@ std::vector<bool> ShadowRenderer::casting_planes(const RenderRequest& request, c
   return planes;
 }
 
-std::vector<TexelRect> ShadowRenderer::caster_rects(const ShadowPlan& light, const std::vector<bool>& planes) const {
+std::vector<Aabb> ShadowRenderer::casters(const std::vector<bool>& planes) const {
   const Mesh& mesh = scene().mesh;
   std::vector<bool> drawn(mesh.bounds.size(), true);
   for (std::size_t i = 0; i < mesh.planes.size(); ++i)
     if (!planes.empty() && !planes[i]) drawn[mesh.planes[i].object] = false;
-  std::vector<Aabb> casters;
+  std::vector<Aabb> bounds;
   for (std::size_t i = 0; i < mesh.bounds.size(); ++i)
-    if (drawn[i]) casters.push_back(mesh.bounds[i]);
+    if (drawn[i]) bounds.push_back(mesh.bounds[i]);
+  return bounds;
+}
+
+std::vector<TexelRect> ShadowRenderer::caster_rects(const ShadowPlan& light, const std::vector<bool>& planes) const {
+  const std::vector<Aabb> drawn = casters(planes);
   std::vector<TexelRect> rects;
   // An empty view's layer is neither cleared nor drawn: nothing there.
   for (const ShadowView& view : light.views)
-    rects.push_back(view.empty ? TexelRect{} : caster_texels(view, light.layer_size, casters));
+    rects.push_back(view.empty ? TexelRect{} : caster_texels(view, light.layer_size, drawn));
   return rects;
 }
 
@@ -365,9 +382,44 @@ bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const Shado
          shadow_.planes == planes && cleared_enough && plan_covers(shadow_.plan, light);
 }
 
-void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light) {
+std::size_t ShadowRenderer::upload_plane_cells(const RenderRequest& request, const ShadowPlan& light,
+                                               const std::vector<bool>& planes, std::vector<bool>& whole_planes,
+                                               std::size_t& unshadowable) {
+  const Mesh& mesh = scene().mesh;
+  whole_planes.assign(mesh.planes.size(), true);
+  // The seeds' bias moves the point along its normal before it is looked up:
+  // such frames draw every plane whole.
+  if (!request.shadow.bias.automatic) return unshadowable = 0;
+  const std::vector<Aabb> drawn = casters(planes);
+  const double margin = double(filter_read_texels(request.shadow)) + 1.0;
+  CellTriangles cells;
+  for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
+    const PlaneRange& plane = mesh.planes[i];
+    // A plane in the map is a caster: all of it can be shadowed.
+    if (planes[i]) continue;
+    const PlaneCells grid =
+        plane_cells(mesh.bounds[plane.object], shadowable_regions(plane.height, light, drawn, margin));
+    append_cell_triangles(grid, plane.height, plane.color, mesh.origin, cells);
+    whole_planes[i] = false;
+  }
+  std::vector<std::uint32_t> indices = std::move(cells.shadowable);
+  indices.insert(indices.end(), cells.unshadowable.begin(), cells.unshadowable.end());
+  unshadowable = cells.unshadowable.size();
+  if (indices.empty()) return 0;
+  glNamedBufferData(display_.cell_vertices.id(), GLsizeiptr(cells.vertices.size() * sizeof(Vertex)),
+                    cells.vertices.data(), GL_STREAM_DRAW);
+  glNamedBufferData(display_.cell_indices.id(), GLsizeiptr(indices.size() * sizeof(std::uint32_t)), indices.data(),
+                    GL_STREAM_DRAW);
+  return indices.size() - unshadowable;
+}
+
+void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light,
+                                      const std::vector<bool>& planes) {
   resize_display(request.width, request.height);
   const DisplayVariant variant = display_variant(request, light);
+  std::vector<bool> whole_planes;
+  std::size_t shadowable = 0, unshadowable = 0;
+  if (variant.shadows) shadowable = upload_plane_cells(request, light, planes, whole_planes, unshadowable);
   glUseProgram(display_.programs.get(variant.defines()).id());
   if (variant.shadows) glBindTextureUnit(0, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
@@ -383,7 +435,15 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   glClearDepth(0.0);
   glDepthFunc(GL_GREATER);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  draw_scene(CullMode::None);
+  draw_scene(CullMode::None, whole_planes);
+  if (shadowable + unshadowable > 0) {
+    glBindVertexArray(display_.cells_vertex_array.id());
+    draw_indices(0, shadowable);
+    if (unshadowable > 0) {
+      glUseProgram(display_.programs.get(without_shadows(variant).defines()).id());
+      draw_indices(shadowable, unshadowable);
+    }
+  }
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
   glClearDepth(1.0);
   glDepthFunc(GL_LESS);
@@ -461,7 +521,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
   if (depth_output)
     run_depth_preview(light, request.shadow.map_size, request.depth_bits);
   else
-    run_display_pass(request, light);
+    run_display_pass(request, light, planes);
   glFinish();
   result.timings.main_ms = elapsed_ms(main_start);
 

@@ -87,6 +87,12 @@ class ShadowRenderer {
     gl::Renderbuffer depth;  // DEPTH_COMPONENT32F
     gl::Framebuffer framebuffer;
     int width = 0, height = 0;
+    // The planes that cast nothing, drawn as cells (receiver_cells.hpp):
+    // this frame's vertices, then the shadowable cells' indices followed by
+    // the others'.
+    gl::VertexArray cells_vertex_array;
+    gl::Buffer cell_vertices;
+    gl::Buffer cell_indices;
   };
   // The depth map turned into a grey image for the "depth" output.
   struct DepthPreviewPass {
@@ -125,14 +131,22 @@ class ShadowRenderer {
   // for the depth output (it shows what the light sees), else those that
   // can shadow something (plane_can_shadow).
   std::vector<bool> casting_planes(const RenderRequest& request, const ShadowPlan& light) const;
+  // The bounds of the objects the shadow pass draws: all but the planes
+  // that `planes` leaves out.
+  std::vector<Aabb> casters(const std::vector<bool>& planes) const;
   // Per view of `light`, the texels of its layer that the objects drawn
-  // (all but the planes left out) can cover.
+  // can cover.
   std::vector<TexelRect> caster_rects(const ShadowPlan& light, const std::vector<bool>& planes) const;
   void upload_frame_block(const RenderRequest& request, const ShadowPlan& light, const std::vector<TexelRect>& casters);
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
                        const std::vector<TexelRect>& casters);
   bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes) const;
-  void run_display_pass(const RenderRequest& request, const ShadowPlan& light);
+  void run_display_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes);
+  // Uploads the cells of the planes the shadow pass leaves out (planes[i]
+  // false) and returns how many indices are shadowable; fills
+  // `whole_planes` with the planes still drawn whole.
+  std::size_t upload_plane_cells(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
+                                 std::vector<bool>& whole_planes, std::size_t& unshadowable);
   void run_depth_preview(const ShadowPlan& light, int image_size, int bits);
   Image read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth = 8);
 
