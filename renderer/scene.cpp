@@ -240,17 +240,26 @@ Mesh tessellate(const Scene& scene) {
   const Aabb bounds = scene_bounds(scene);
   mesh.origin = bounds.empty() ? glm::dvec3(0.0) : bounds.center();
   MeshBuilder builder{mesh};
-  for (const auto& o : scene.objects) {
-    if (o.type == SceneObject::Type::Box) builder.box(o);
-    if (o.type == SceneObject::Type::Sphere) builder.sphere(o);
-    if (o.type == SceneObject::Type::Mesh && mesh_is_closed(o)) append_mesh_instance(o, mesh);
+  // Appends object i's triangles with `append` and records where they lie.
+  const auto record = [&mesh](std::size_t i, auto&& append) {
+    const auto first = std::uint32_t(mesh.indices.size());
+    append();
+    mesh.object_ranges.push_back({i, first, std::uint32_t(mesh.indices.size()) - first});
+  };
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const SceneObject& o = scene.objects[i];
+    if (o.type == SceneObject::Type::Box) record(i, [&] { builder.box(o); });
+    if (o.type == SceneObject::Type::Sphere) record(i, [&] { builder.sphere(o); });
+    if (o.type == SceneObject::Type::Mesh && mesh_is_closed(o)) record(i, [&] { append_mesh_instance(o, mesh); });
   }
   mesh.closed_index_count = std::uint32_t(mesh.indices.size());
   // Open surfaces (planes, open meshes: a terrain, a leaf) are never culled
   // in the shadow pass: culling either side would drop the side that faces
   // the light as a caster.
-  for (const auto& o : scene.objects)
-    if (o.type == SceneObject::Type::Mesh && !mesh_is_closed(o)) append_mesh_instance(o, mesh);
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const SceneObject& o = scene.objects[i];
+    if (o.type == SceneObject::Type::Mesh && !mesh_is_closed(o)) record(i, [&] { append_mesh_instance(o, mesh); });
+  }
   // Planes last, each with its own range: the shadow pass leaves out those
   // that cannot shadow anything under the frame's light.
   for (const auto& o : scene.objects) mesh.bounds.push_back(object_bounds(o));
@@ -266,9 +275,9 @@ Mesh tessellate(const Scene& scene) {
     if (o.type != SceneObject::Type::Plane) continue;
     PlaneRange range;
     range.object = i;
-    range.first_index = std::uint32_t(mesh.indices.size());
-    builder.plane(o);
-    range.index_count = std::uint32_t(mesh.indices.size()) - range.first_index;
+    record(i, [&] { builder.plane(o); });
+    range.first_index = mesh.object_ranges.back().first_index;
+    range.index_count = mesh.object_ranges.back().index_count;
     range.height = o.center.y;
     range.color = o.color;
     for (std::size_t j = 0; j < scene.objects.size(); ++j) {

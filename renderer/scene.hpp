@@ -82,6 +82,13 @@ struct PlaneRange {
   double highest_other = -1e300;
 };
 
+/// One object's triangles in Mesh::indices.
+struct ObjectRange {
+  std::size_t object = 0;  ///< its index in Scene::objects
+  std::uint32_t first_index = 0;
+  std::uint32_t index_count = 0;
+};
+
 /// The whole scene as one vertex/index buffer. Closed meshes (boxes, spheres,
 /// closed models) come first, then open ones (open models, then planes), so
 /// each pass can cull them apart.
@@ -97,6 +104,9 @@ struct Mesh {
   std::vector<PlaneRange> planes;
   /// Each object's world bounds (object_bounds), in the scene's order.
   std::vector<Aabb> bounds;
+  /// Each object's triangles, in index order (so that a pass can leave
+  /// out what it need not draw).
+  std::vector<ObjectRange> object_ranges;
 };
 
 Mesh tessellate(const Scene& scene);

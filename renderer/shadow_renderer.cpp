@@ -255,37 +255,46 @@ void ShadowRenderer::resize_depth_preview(int size, int bits) {
   preview_.bits = bits;
 }
 
-void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& planes) {
+void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects) {
   const Mesh& mesh = scene().mesh;
   glBindVertexArray(scene().vertex_array.id());
-  if (mesh.closed_index_count > 0) {
+  // Runs of consecutive objects to draw, one call each, closed meshes apart.
+  using Run = std::pair<std::uint32_t, std::uint32_t>;  // first index, count
+  std::vector<Run> closed, open;
+  for (const ObjectRange& r : mesh.object_ranges) {
+    if ((!objects.empty() && !objects[r.object]) || r.index_count == 0) continue;
+    std::vector<Run>& runs = r.first_index < mesh.closed_index_count ? closed : open;
+    if (!runs.empty() && runs.back().first + runs.back().second == r.first_index)
+      runs.back().second += r.index_count;
+    else
+      runs.emplace_back(r.first_index, r.index_count);
+  }
+  // Many scattered objects (a thousand spheres, some in the view): one call
+  // for all closed meshes costs less than hundreds; those outside the view
+  // draw nothing. (Planes are open, and their flags are always kept.)
+  constexpr std::size_t kMaxClosedRuns = 16;
+  if (closed.size() > kMaxClosedRuns) closed = {Run{0, mesh.closed_index_count}};
+  if (!closed.empty()) {
     if (closed_mesh_cull == CullMode::None) {
       glDisable(GL_CULL_FACE);
     } else {
       glEnable(GL_CULL_FACE);
       glCullFace(closed_mesh_cull == CullMode::Front ? GL_FRONT : GL_BACK);
     }
-    glDrawElements(GL_TRIANGLES, GLsizei(mesh.closed_index_count), GL_UNSIGNED_INT, nullptr);
+    for (const Run& run : closed) draw_indices(run.first, run.second);
   }
   // A plane or an open model has one side: culling it could drop it from
   // the pass entirely.
   glDisable(GL_CULL_FACE);
-  const auto draw_range = [](std::uint32_t first, std::uint32_t count) { draw_indices(first, count); };
-  const std::uint32_t open_end = mesh.closed_index_count + mesh.open_index_count;
-  const std::uint32_t planes_begin = mesh.planes.empty() ? open_end : mesh.planes.front().first_index;
-  draw_range(mesh.closed_index_count, planes_begin - mesh.closed_index_count);  // open models
-  // Runs of consecutive planes to draw, one call each.
-  std::uint32_t run_first = planes_begin, run_count = 0;
-  for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
-    if (planes.empty() || planes[i]) {
-      if (run_count == 0) run_first = mesh.planes[i].first_index;
-      run_count += mesh.planes[i].index_count;
-    } else {
-      draw_range(run_first, run_count);
-      run_count = 0;
-    }
-  }
-  draw_range(run_first, run_count);
+  for (const Run& run : open) draw_indices(run.first, run.second);
+}
+
+std::vector<bool> ShadowRenderer::drawn_objects(const std::vector<bool>& planes) const {
+  const Mesh& mesh = scene().mesh;
+  std::vector<bool> drawn(mesh.bounds.size(), true);
+  for (std::size_t i = 0; i < mesh.planes.size(); ++i)
+    if (!planes.empty() && !planes[i]) drawn[mesh.planes[i].object] = false;
+  return drawn;
 }
 
 std::vector<bool> ShadowRenderer::casting_planes(const RenderRequest& request, const ShadowPlan& light) const {
@@ -297,9 +306,7 @@ std::vector<bool> ShadowRenderer::casting_planes(const RenderRequest& request, c
 
 std::vector<Aabb> ShadowRenderer::casters(const std::vector<bool>& planes) const {
   const Mesh& mesh = scene().mesh;
-  std::vector<bool> drawn(mesh.bounds.size(), true);
-  for (std::size_t i = 0; i < mesh.planes.size(); ++i)
-    if (!planes.empty() && !planes[i]) drawn[mesh.planes[i].object] = false;
+  const std::vector<bool> drawn = drawn_objects(planes);
   std::vector<Aabb> bounds;
   for (std::size_t i = 0; i < mesh.bounds.size(); ++i)
     if (drawn[i]) bounds.push_back(mesh.bounds[i]);
@@ -337,6 +344,8 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   // a layer of a few objects costs once the floor is left out.
   const bool whole_layers = request.output == Output::Depth;
   const int margin = clear_margin_texels(request.shadow);
+  const std::vector<bool> drawn = drawn_objects(planes);
+  const Mesh& mesh = scene().mesh;
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     // An empty view (no object reaches into it) holds no receiver either,
     // so the main pass never reads its layer: it is not even cleared (the
@@ -360,7 +369,16 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
     // faces then sit well in front of the stored depth, so no bias is needed
     // against self-shadowing there, and the bias stays small elsewhere (less
     // peter panning). See ShadowSettings::cull for why planes are exempt.
-    draw_scene(request.shadow.cull, planes);
+    // Only what reaches into this view: a sphere beside a point light is
+    // in one or two of its six faces, and each face it is drawn into
+    // shades all its vertices. (Past a few dozen objects, the test costs
+    // more than it saves: all are drawn.)
+    constexpr std::size_t kObjectsTestedPerView = 64;
+    std::vector<bool> in_view = drawn;
+    if (in_view.size() <= kObjectsTestedPerView)
+      for (std::size_t i = 0; i < in_view.size(); ++i)
+        in_view[i] = in_view[i] && !caster_texels(light.views[layer], light.layer_size, {mesh.bounds[i]}).empty();
+    draw_scene(request.shadow.cull, in_view);
   }
   shadow_.holds_plan = true;
   shadow_.plan = light;
@@ -435,7 +453,8 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   glClearDepth(0.0);
   glDepthFunc(GL_GREATER);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  draw_scene(CullMode::None, whole_planes);
+  std::vector<bool> objects = drawn_objects(whole_planes);
+  draw_scene(CullMode::None, objects);
   if (shadowable + unshadowable > 0) {
     glBindVertexArray(display_.cells_vertex_array.id());
     draw_indices(0, shadowable);

@@ -124,9 +124,11 @@ class ShadowRenderer {
   /// buffers, textures and framebuffers of the last frame, so that those
   /// released are freed now, not at the next request.
   void unbind_released();
-  // Every object; the planes only where `planes` says so (one flag per
-  // Mesh::planes entry; empty: all of them).
-  void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& planes = {});
+  // The objects `objects` marks (one flag per scene object; empty: all).
+  void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects = {});
+  // One flag per scene object: all of them but the planes `planes` leaves
+  // out (one flag per Mesh::planes entry; empty: none).
+  std::vector<bool> drawn_objects(const std::vector<bool>& planes) const;
   // The scene's planes that the shadow pass for `light` draws: all of them
   // for the depth output (it shows what the light sees), else those that
   // can shadow something (plane_can_shadow).

@@ -197,6 +197,40 @@ TEST(Scene, PlanesComeLastEachWithTheRangeOfTheOtherObjectsHeights) {
     EXPECT_EQ(world_position(mesh, i).y, 3.0);
 }
 
+TEST(Scene, EveryObjectsTrianglesAreOneRangeInIndexOrder) {
+  Scene scene;
+  SceneObject floor, box, ball;
+  floor.type = SceneObject::Type::Plane;
+  floor.size = {4, 0, 4};
+  box.center = {0, 1, 0};
+  ball.type = SceneObject::Type::Sphere;
+  ball.center = {2, 1, 0};
+  SceneObject open = mesh_object(test::box_model({0.5f, 0.5f, 0.5f}, false), "open");
+  open.center = {-2, 1, 0};
+  scene.objects = {floor, open, box, ball};
+  const Mesh mesh = tessellate(scene);
+  ASSERT_EQ(mesh.object_ranges.size(), 4u);
+  // Closed (the box, the ball), then open (the open model, the floor).
+  const std::size_t order[] = {2, 3, 1, 0};
+  std::uint32_t next = 0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const ObjectRange& r = mesh.object_ranges[k];
+    EXPECT_EQ(r.object, order[k]);
+    EXPECT_EQ(r.first_index, next);
+    next += r.index_count;
+    // Each range holds that object's triangles: its vertices lie in its bounds.
+    const Aabb& b = mesh.bounds[r.object];
+    for (std::uint32_t i = r.first_index; i < r.first_index + r.index_count; ++i) {
+      const glm::dvec3 p = world_position(mesh, i);
+      EXPECT_TRUE(p.x >= b.min.x - 1e-5 && p.x <= b.max.x + 1e-5 && p.y >= b.min.y - 1e-5 && p.y <= b.max.y + 1e-5)
+          << "object " << r.object;
+    }
+  }
+  EXPECT_EQ(next, mesh.indices.size());
+  EXPECT_EQ(mesh.object_ranges[2].first_index, mesh.closed_index_count);
+  EXPECT_EQ(mesh.object_ranges[3].first_index, mesh.planes[0].first_index);
+}
+
 TEST(Scene, AMirroringOrNonUniformTransformKeepsMeshesWoundOutwardWithTrueNormals) {
   for (const glm::dvec3 scale : {glm::dvec3(1, 1, 1), glm::dvec3(3, 0.5, 1), glm::dvec3(-1, 1, 1), glm::dvec3(2, -3, -0.5)}) {
     SceneObject o = mesh_object(test::box_model({0.5f, 0.5f, 0.5f}), "box");
