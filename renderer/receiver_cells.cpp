@@ -91,20 +91,36 @@ Aabb view_rect_on_plane(const ShadowView& view, int layer_size, const TexelRect&
   return out;
 }
 
+namespace {
+
+// Adds to `regions` where on the plane at height y `view` holds a point
+// whose texel lies within `rect` widened by `margin` texels.
+void add_region(std::vector<Aabb>& regions, const ShadowView& view, int layer_size, TexelRect rect, double margin,
+                double y) {
+  if (rect.empty()) return;
+  rect.min -= margin;
+  rect.max += margin;
+  const Aabb region = view_rect_on_plane(view, layer_size, rect, y);
+  if (!region.empty()) regions.push_back(region);
+}
+
+}  // namespace
+
 std::vector<Aabb> shadowable_regions(double y, const ShadowPlan& light, const std::vector<Aabb>& casters,
                                      double margin_texels) {
   std::vector<Aabb> regions;
-  for (const ShadowView& view : light.views) {
-    if (view.empty) continue;
-    for (const Aabb& caster : casters) {
-      TexelRect rect = caster_texels(view, light.layer_size, {caster});
-      if (rect.empty()) continue;
-      rect.min -= margin_texels;
-      rect.max += margin_texels;
-      const Aabb region = view_rect_on_plane(view, light.layer_size, rect, y);
-      if (!region.empty()) regions.push_back(region);
-    }
-  }
+  for (const ShadowView& view : light.views)
+    if (!view.empty)
+      for (const Aabb& caster : casters)
+        add_region(regions, view, light.layer_size, caster_texels(view, light.layer_size, {caster}), margin_texels, y);
+  return regions;
+}
+
+std::vector<Aabb> view_regions(double y, const ShadowPlan& light, const std::vector<TexelRect>& view_rects,
+                               double margin_texels) {
+  std::vector<Aabb> regions;
+  for (std::size_t i = 0; i < light.views.size() && i < view_rects.size(); ++i)
+    if (!light.views[i].empty) add_region(regions, light.views[i], light.layer_size, view_rects[i], margin_texels, y);
   return regions;
 }
 

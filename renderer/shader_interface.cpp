@@ -56,13 +56,21 @@ std::string DisplayVariant::defines() const {
   return d.str();
 }
 
+DisplayVariant without_shadows(const DisplayVariant& v) {
+  DisplayVariant lit;
+  lit.shadows = false;
+  lit.direct_light = v.direct_light;
+  lit.shadow_output = v.shadow_output;
+  lit.perspective = v.perspective;
+  return lit;
+}
+
 DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& plan) {
   DisplayVariant v;
   v.direct_light = plan.direct_light;
-  v.shadows = request.shadow.enabled && plan.direct_light;
   v.shadow_output = request.output == Output::Shadow;
   v.perspective = plan.perspective;
-  if (!v.shadows) return v;
+  if (!(request.shadow.enabled && plan.direct_light)) return without_shadows(v);
   const ShadowSettings& s = request.shadow;
   v.cube = plan.layout == ShadowLayout::Cube;
   v.view_count = int(plan.views.size());
@@ -73,15 +81,6 @@ DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& p
   v.filter_reach = filter_reach_texels(s);
   v.filter_read = filter_read_texels(s);
   return v;
-}
-
-DisplayVariant without_shadows(const DisplayVariant& v) {
-  DisplayVariant lit;
-  lit.shadows = false;
-  lit.direct_light = v.direct_light;
-  lit.shadow_output = v.shadow_output;
-  lit.perspective = v.perspective;
-  return lit;
 }
 
 FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const glm::dvec3& origin,

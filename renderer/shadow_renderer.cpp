@@ -1,6 +1,7 @@
 #include "shadow_renderer.hpp"
 
 #include <algorithm>
+#include <map>
 #include <chrono>
 #include <cstddef>
 #include <stdexcept>
@@ -400,44 +401,57 @@ bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const Shado
          shadow_.planes == planes && cleared_enough && plan_covers(shadow_.plan, light);
 }
 
-std::size_t ShadowRenderer::upload_plane_cells(const RenderRequest& request, const ShadowPlan& light,
-                                               const std::vector<bool>& planes, std::vector<bool>& whole_planes,
-                                               std::size_t& unshadowable) {
+ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest& request, const ShadowPlan& light,
+                                                             const std::vector<bool>& planes,
+                                                             const std::vector<TexelRect>& view_casters) {
   const Mesh& mesh = scene().mesh;
-  whole_planes.assign(mesh.planes.size(), true);
-  // The seeds' bias moves the point along its normal before it is looked up:
-  // such frames draw every plane whole.
-  if (!request.shadow.bias.automatic) return unshadowable = 0;
+  CellDraws draws;
+  draws.whole_planes.assign(mesh.planes.size(), true);
+  // The seeds' bias moves the point along its normal before it is looked
+  // up: such frames draw every plane whole. So do scenes of many planes,
+  // whose regions would cost more to find than they save.
+  constexpr std::size_t kMaxPlanesInCells = 8;
+  if (!request.shadow.bias.automatic || mesh.planes.size() > kMaxPlanesInCells) return draws;
   const std::vector<Aabb> drawn = casters(planes);
   const double margin = double(filter_read_texels(request.shadow)) + 1.0;
+  // One region per view and caster, or past that many pairs one per view
+  // around all its casters (looser, and as cheap for a thousand casters).
+  constexpr std::size_t kMaxRegionPairs = 128;
+  const bool per_caster = drawn.size() * light.views.size() <= kMaxRegionPairs;
   CellTriangles cells;
+  std::map<double, std::vector<Aabb>> regions_at;  // by plane height
   for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
     const PlaneRange& plane = mesh.planes[i];
     // A plane in the map is a caster: all of it can be shadowed.
     if (planes[i]) continue;
-    const PlaneCells grid =
-        plane_cells(mesh.bounds[plane.object], shadowable_regions(plane.height, light, drawn, margin));
-    append_cell_triangles(grid, plane.height, plane.color, mesh.origin, cells);
-    whole_planes[i] = false;
+    auto at = regions_at.find(plane.height);
+    if (at == regions_at.end())
+      at = regions_at
+               .emplace(plane.height, per_caster ? shadowable_regions(plane.height, light, drawn, margin)
+                                                 : view_regions(plane.height, light, view_casters, margin))
+               .first;
+    append_cell_triangles(plane_cells(mesh.bounds[plane.object], at->second), plane.height, plane.color,
+                          mesh.origin, cells);
+    draws.whole_planes[i] = false;
   }
+  draws.shadowable = cells.shadowable.size();
+  draws.unshadowable = cells.unshadowable.size();
+  if (draws.shadowable + draws.unshadowable == 0) return draws;
   std::vector<std::uint32_t> indices = std::move(cells.shadowable);
   indices.insert(indices.end(), cells.unshadowable.begin(), cells.unshadowable.end());
-  unshadowable = cells.unshadowable.size();
-  if (indices.empty()) return 0;
   glNamedBufferData(display_.cell_vertices.id(), GLsizeiptr(cells.vertices.size() * sizeof(Vertex)),
                     cells.vertices.data(), GL_STREAM_DRAW);
   glNamedBufferData(display_.cell_indices.id(), GLsizeiptr(indices.size() * sizeof(std::uint32_t)), indices.data(),
                     GL_STREAM_DRAW);
-  return indices.size() - unshadowable;
+  return draws;
 }
 
 void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light,
-                                      const std::vector<bool>& planes) {
+                                      const std::vector<bool>& planes, const std::vector<TexelRect>& casters) {
   resize_display(request.width, request.height);
   const DisplayVariant variant = display_variant(request, light);
-  std::vector<bool> whole_planes;
-  std::size_t shadowable = 0, unshadowable = 0;
-  if (variant.shadows) shadowable = upload_plane_cells(request, light, planes, whole_planes, unshadowable);
+  CellDraws cells;
+  if (variant.shadows) cells = upload_plane_cells(request, light, planes, casters);
   glUseProgram(display_.programs.get(variant.defines()).id());
   if (variant.shadows) glBindTextureUnit(0, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
@@ -453,14 +467,13 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   glClearDepth(0.0);
   glDepthFunc(GL_GREATER);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  std::vector<bool> objects = drawn_objects(whole_planes);
-  draw_scene(CullMode::None, objects);
-  if (shadowable + unshadowable > 0) {
+  draw_scene(CullMode::None, drawn_objects(cells.whole_planes));
+  if (cells.shadowable + cells.unshadowable > 0) {
     glBindVertexArray(display_.cells_vertex_array.id());
-    draw_indices(0, shadowable);
-    if (unshadowable > 0) {
+    draw_indices(0, cells.shadowable);
+    if (cells.unshadowable > 0) {
       glUseProgram(display_.programs.get(without_shadows(variant).defines()).id());
-      draw_indices(shadowable, unshadowable);
+      draw_indices(cells.shadowable, cells.unshadowable);
     }
   }
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
@@ -540,7 +553,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
   if (depth_output)
     run_depth_preview(light, request.shadow.map_size, request.depth_bits);
   else
-    run_display_pass(request, light, planes);
+    run_display_pass(request, light, planes, casters);
   glFinish();
   result.timings.main_ms = elapsed_ms(main_start);
 

@@ -125,6 +125,9 @@ class ShadowRenderer {
   /// released are freed now, not at the next request.
   void unbind_released();
   // The objects `objects` marks (one flag per scene object; empty: all).
+  // Closed objects scattered over more than a few runs are all drawn in one
+  // call; what is drawn outside the view leaves no texel. Planes are drawn
+  // exactly as marked.
   void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects = {});
   // One flag per scene object: all of them but the planes `planes` leaves
   // out (one flag per Mesh::planes entry; empty: none).
@@ -143,12 +146,18 @@ class ShadowRenderer {
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
                        const std::vector<TexelRect>& casters);
   bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes) const;
-  void run_display_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes);
+  void run_display_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
+                        const std::vector<TexelRect>& casters);
+  // The main pass's planes: drawn whole (one flag per Mesh::planes entry),
+  // or as cells whose indices (shadowable first) are in display_.cell_indices.
+  struct CellDraws {
+    std::vector<bool> whole_planes;
+    std::size_t shadowable = 0, unshadowable = 0;
+  };
   // Uploads the cells of the planes the shadow pass leaves out (planes[i]
-  // false) and returns how many indices are shadowable; fills
-  // `whole_planes` with the planes still drawn whole.
-  std::size_t upload_plane_cells(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
-                                 std::vector<bool>& whole_planes, std::size_t& unshadowable);
+  // false); `casters`: caster_rects, one per view.
+  CellDraws upload_plane_cells(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
+                               const std::vector<TexelRect>& casters);
   void run_depth_preview(const ShadowPlan& light, int image_size, int bits);
   Image read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth = 8);
 

@@ -63,7 +63,8 @@ TEST(ReceiverCells, ATexelRectangleOfAPerspectiveViewWidensWithDistance) {
   EXPECT_NEAR(at_5.max.x, 1.0, 1e-9);
   EXPECT_NEAR(at_0.max.x, 2.0, 1e-9);
   EXPECT_NEAR(at_0.min.z, -2.0, 1e-9);
-  EXPECT_TRUE(view_rect_on_plane(v, 100, centre, 10.2).empty());  // nearer than near
+  EXPECT_TRUE(view_rect_on_plane(v, 100, centre, 9.7).empty());   // nearer than near (depth 0.3)
+  EXPECT_TRUE(view_rect_on_plane(v, 100, centre, 10.2).empty());  // behind the eye
 }
 
 TEST(ReceiverCells, NoRegionIsOneLitCellAndARegionCutsThePlaneInNine) {
@@ -105,6 +106,31 @@ TEST(ReceiverCells, ManyRegionsAreMergedButEveryOneStaysShadowable) {
   EXPECT_FALSE(cell_of(99, -99));  // far from all of them
 }
 
+TEST(ReceiverCells, OneRegionPerViewAroundAllItsCastersHoldsThePerCasterOnes) {
+  RenderRequest r;
+  const BuiltinScene* s = find_builtin_scene("three-cubes");
+  r.scene.objects = s->objects;
+  r.camera.position = s->camera_position;
+  r.camera.target = s->camera_target;
+  r.light.position = s->light_position;
+  const ShadowPlan plan = plan_shadow(r);
+  const Mesh mesh = tessellate(r.scene);
+  std::vector<Aabb> casters(mesh.bounds.begin() + 1, mesh.bounds.end());  // all but the floor
+  std::vector<TexelRect> view_rects;
+  for (const ShadowView& v : plan.views) view_rects.push_back(caster_texels(v, plan.layer_size, casters));
+  const std::vector<Aabb> per_caster = shadowable_regions(-0.5, plan, casters, 4.0);
+  const std::vector<Aabb> per_view = view_regions(-0.5, plan, view_rects, 4.0);
+  ASSERT_FALSE(per_caster.empty());
+  ASSERT_FALSE(per_view.empty());
+  for (const Aabb& c : per_caster) {
+    bool held = false;
+    for (const Aabb& v : per_view)
+      held = held || (v.min.x <= c.min.x + 1e-9 && v.min.z <= c.min.z + 1e-9 && c.max.x <= v.max.x + 1e-9 &&
+                      c.max.z <= v.max.z + 1e-9);
+    EXPECT_TRUE(held);
+  }
+}
+
 // The property the main pass relies on: a floor point whose texel in some
 // view that holds it lies within a caster's rectangle (and the filter's
 // reach) is in a shadowable cell. Checked on a grid of floor points for a
@@ -124,11 +150,18 @@ void expect_every_readable_point_shadowable(RenderRequest r) {
   const std::size_t columns = cells.x_cuts.size() - 1;
   int readable = 0, unshadowable_cells = 0;
   for (bool s : cells.shadowable) unshadowable_cells += !s;
+  // A grid over the floor, and a finer one over the middle, where the
+  // casters' rectangles end (0.02 units: about a texel of the finest view).
+  std::vector<glm::dvec3> points;
   constexpr int kSteps = 400;
-  for (int a = 0; a <= kSteps; ++a) {
-    for (int b = 0; b <= kSteps; ++b) {
-      const glm::dvec3 p{bounds.min.x + (bounds.max.x - bounds.min.x) * a / kSteps, floor.height,
-                         bounds.min.z + (bounds.max.z - bounds.min.z) * b / kSteps};
+  for (int a = 0; a <= kSteps; ++a)
+    for (int b = 0; b <= kSteps; ++b)
+      points.push_back({bounds.min.x + (bounds.max.x - bounds.min.x) * a / kSteps, floor.height,
+                        bounds.min.z + (bounds.max.z - bounds.min.z) * b / kSteps});
+  for (int a = -200; a <= 200; ++a)
+    for (int b = -200; b <= 200; ++b) points.push_back({0.02 * a + 0.007, floor.height, 0.02 * b + 0.003});
+  for (const glm::dvec3& p : points) {
+    {
       bool reads_a_caster = false;
       for (const ShadowView& view : plan.views) {
         if (view.empty) continue;
@@ -177,7 +210,8 @@ TEST(ReceiverCells, EveryFloorPointThatCanReadACasterIsInAShadowableCell) {
   expect_every_readable_point_shadowable(sun);
   RenderRequest cone = builtin("three-cubes");  // one cone from high above
   cone.light.projection = LightProjection::Perspective;
-  cone.light.position = {0.0, 12.0, 0.5};
+  cone.light.position = {0.5, 40.0, 0.5};
+  ASSERT_EQ(plan_shadow(cone).layout, ShadowLayout::Single);
   expect_every_readable_point_shadowable(cone);
   RenderRequest faces = builtin("three-cubes");  // six faces, amid the cubes
   faces.light.projection = LightProjection::Perspective;

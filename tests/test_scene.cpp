@@ -222,7 +222,8 @@ TEST(Scene, EveryObjectsTrianglesAreOneRangeInIndexOrder) {
     const Aabb& b = mesh.bounds[r.object];
     for (std::uint32_t i = r.first_index; i < r.first_index + r.index_count; ++i) {
       const glm::dvec3 p = world_position(mesh, i);
-      EXPECT_TRUE(p.x >= b.min.x - 1e-5 && p.x <= b.max.x + 1e-5 && p.y >= b.min.y - 1e-5 && p.y <= b.max.y + 1e-5)
+      EXPECT_TRUE(p.x >= b.min.x - 1e-5 && p.x <= b.max.x + 1e-5 && p.y >= b.min.y - 1e-5 &&
+                  p.y <= b.max.y + 1e-5 && p.z >= b.min.z - 1e-5 && p.z <= b.max.z + 1e-5)
           << "object " << r.object;
     }
   }

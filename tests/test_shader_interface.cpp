@@ -55,6 +55,22 @@ TEST(DisplayVariant, SwitchesThatCannotMatterDoNotMakeANewProgram) {
   EXPECT_EQ(display_variant(pcss, plan_shadow(pcss)).filter_reach, kPcssSearchTexels + 1);
 }
 
+TEST(DisplayVariant, CellsNoShadowCanFallOnUseTheProgramOfAFrameWithoutShadows) {
+  for (const bool shadow_output : {false, true}) {
+    RenderRequest frame = default_frame(), off = default_frame();
+    frame.shadow.filter = ShadowFilter::Pcss;
+    frame.light.size = 1.0;
+    frame.light.projection = off.light.projection = LightProjection::Perspective;
+    off.shadow.enabled = false;
+    if (shadow_output) frame.output = off.output = Output::Shadow;
+    const DisplayVariant lit = without_shadows(display_variant(frame, plan_shadow(frame)));
+    EXPECT_FALSE(lit.shadows);
+    EXPECT_EQ(lit.shadow_output, shadow_output);
+    EXPECT_TRUE(lit.perspective);
+    EXPECT_EQ(lit.defines(), display_variant(off, plan_shadow(off)).defines());
+  }
+}
+
 TEST(DisplayVariant, APointLightAllAroundItsObjectsUsesTheCube) {
   RenderRequest r = default_frame();
   r.light.projection = LightProjection::Perspective;
