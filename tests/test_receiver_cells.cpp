@@ -106,13 +106,20 @@ TEST(ReceiverCells, ManyRegionsAreMergedButEveryOneStaysShadowable) {
   EXPECT_FALSE(cell_of(99, -99));  // far from all of them
 }
 
-TEST(ReceiverCells, OneRegionPerViewAroundAllItsCastersHoldsThePerCasterOnes) {
+// A built-in scene as its own defaults show it.
+RenderRequest builtin(const char* name) {
   RenderRequest r;
-  const BuiltinScene* s = find_builtin_scene("three-cubes");
+  const BuiltinScene* s = find_builtin_scene(name);
+  r.scene.name = s->name;
   r.scene.objects = s->objects;
   r.camera.position = s->camera_position;
   r.camera.target = s->camera_target;
   r.light.position = s->light_position;
+  return r;
+}
+
+TEST(ReceiverCells, OneRegionPerViewAroundAllItsCastersHoldsThePerCasterOnes) {
+  const RenderRequest r = builtin("three-cubes");
   const ShadowPlan plan = plan_shadow(r);
   const Mesh mesh = tessellate(r.scene);
   std::vector<Aabb> casters(mesh.bounds.begin() + 1, mesh.bounds.end());  // all but the floor
@@ -189,17 +196,6 @@ void expect_every_readable_point_shadowable(RenderRequest r) {
   // Not vacuous: some of the floor reads a caster, and some cells need not.
   EXPECT_GT(readable, 0);
   EXPECT_GT(unshadowable_cells, 0);
-}
-
-RenderRequest builtin(const char* name) {
-  RenderRequest r;
-  const BuiltinScene* s = find_builtin_scene(name);
-  r.scene.name = s->name;
-  r.scene.objects = s->objects;
-  r.camera.position = s->camera_position;
-  r.camera.target = s->camera_target;
-  r.light.position = s->light_position;
-  return r;
 }
 
 TEST(ReceiverCells, EveryFloorPointThatCanReadACasterIsInAShadowableCell) {
