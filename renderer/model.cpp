@@ -36,6 +36,53 @@ std::array<std::uint32_t, 3> position_key(const glm::vec3& p) {
   return key;
 }
 
+// Union-find root of welded vertex v, halving paths as it goes.
+std::uint32_t shell_root(std::vector<std::uint32_t>& parent, std::uint32_t v) {
+  while (parent[v] != v) v = parent[v] = parent[parent[v]];
+  return v;
+}
+
+// Whether each shell (vertices joined by triangles) of a watertight,
+// consistently wound surface winds counter-clockwise seen from outside: its
+// signed volume, the sum of a . (b x c) over its triangles, is positive.
+// Positions are taken relative to one vertex of the shell, which leaves a
+// closed surface's volume unchanged and keeps the products small.
+// Triangles with two equal welded corners are left out, as by the edge test.
+bool every_shell_faces_out(const std::vector<ModelPart>& parts,
+                           const std::vector<std::vector<std::uint32_t>>& welded, std::uint32_t vertex_count) {
+  std::vector<std::uint32_t> parent(vertex_count);
+  for (std::uint32_t v = 0; v < vertex_count; ++v) parent[v] = v;
+  std::vector<glm::dvec3> position(vertex_count);
+  for (std::size_t p = 0; p < parts.size(); ++p)
+    for (std::size_t v = 0; v < parts[p].positions.size(); ++v) position[welded[p][v]] = parts[p].positions[v];
+  // Calls f(a, b, c) with the welded corners of every triangle with area.
+  const auto for_each_triangle = [&](const auto& f) {
+    for (std::size_t p = 0; p < parts.size(); ++p) {
+      const std::vector<std::uint32_t>& indices = parts[p].indices;
+      for (std::size_t t = 0; t + 2 < indices.size(); t += 3) {
+        const std::uint32_t a = welded[p][indices[t]], b = welded[p][indices[t + 1]], c = welded[p][indices[t + 2]];
+        if (a != b && b != c && c != a) f(a, b, c);
+      }
+    }
+  };
+  std::vector<bool> used(vertex_count, false);
+  for_each_triangle([&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    const std::uint32_t root = shell_root(parent, a);
+    parent[shell_root(parent, b)] = root;
+    parent[shell_root(parent, c)] = root;
+    used[a] = true;
+  });
+  std::vector<double> volume(vertex_count, 0.0);
+  for_each_triangle([&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    const std::uint32_t root = shell_root(parent, a);
+    const glm::dvec3 o = position[root];
+    volume[root] += glm::dot(position[a] - o, glm::cross(position[b] - o, position[c] - o));
+  });
+  for (std::uint32_t v = 0; v < vertex_count; ++v)
+    if (used[v] && volume[shell_root(parent, v)] <= 0.0) return false;
+  return true;
+}
+
 }  // namespace
 
 bool is_closed(const std::vector<ModelPart>& parts) {
@@ -85,7 +132,9 @@ bool is_closed(const std::vector<ModelPart>& parts) {
     const std::uint64_t reverse = (e << 32) | (e >> 32);
     if (!std::binary_search(edges.begin(), edges.end(), reverse)) return false;
   }
-  return true;
+  edges.clear();
+  edges.shrink_to_fit();
+  return every_shell_faces_out(parts, welded, id + 1);
 }
 
 std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& positions,

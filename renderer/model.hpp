@@ -40,13 +40,19 @@ struct TriangleModel {
   std::size_t bytes() const;
 };
 
-/// True when the triangles form closed, consistently wound surfaces: every
-/// edge is shared by exactly two triangles that run along it in opposite
-/// directions. Vertices are welded by exact position (glTF splits vertices
-/// at hard edges and colour seams), across parts. Triangles with two equal
-/// welded corners are ignored (they have no area and cast no shadow). An
-/// empty model is not closed. Time O(n log n), memory about 16 bytes per
-/// triangle corner.
+/// True when the triangles form closed, consistently wound surfaces that
+/// face out: every edge is shared by exactly two triangles that run along it
+/// in opposite directions, and every shell (triangles joined by vertices)
+/// encloses a positive volume, so that it winds counter-clockwise seen from
+/// outside. Only then is a face that looks away from the eye hidden behind
+/// one of its own shell's faces that looks toward it, which is what lets the
+/// shadow pass cull front faces and the main pass back faces. (A hollow
+/// solid's inner shell faces into the cavity, so it is not closed: drawn
+/// two-sided, only slower.) Vertices are welded by exact position (glTF
+/// splits vertices at hard edges and colour seams), across parts. Triangles
+/// with two equal welded corners are ignored (they have no area and cast no
+/// shadow). An empty model is not closed. Time O(n log n), memory about 16
+/// bytes per triangle corner.
 bool is_closed(const std::vector<ModelPart>& parts);
 
 /// Area-weighted vertex normals of one indexed triangle list: each

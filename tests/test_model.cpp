@@ -54,6 +54,34 @@ TEST(Model, ACubeWithOneFlippedFaceIsNotClosed) {
   EXPECT_FALSE(is_closed({part}));
 }
 
+// Every triangle reversed: watertight and consistently wound, but each
+// face looks into the solid. Culled as a closed mesh, it would show its
+// inside to the camera and keep its lit side out of the shadow map.
+TEST(Model, AnInsideOutCubeIsNotClosed) {
+  ModelPart part = cube_part();
+  for (std::size_t t = 0; t < part.indices.size(); t += 3) std::swap(part.indices[t + 1], part.indices[t + 2]);
+  EXPECT_FALSE(is_closed({part}));
+}
+
+TEST(Model, TwoCubesAreClosedOnlyIfBothFaceOut) {
+  const ModelPart cube = cube_part();
+  ModelPart moved = cube;
+  for (glm::vec3& p : moved.positions) p += glm::vec3(3.0f, 0.0f, 0.0f);
+  EXPECT_TRUE(is_closed({cube, moved}));
+  // The second cube inside out: the two shells' volumes would cancel in one
+  // sum; each shell is judged on its own.
+  for (std::size_t t = 0; t < moved.indices.size(); t += 3) std::swap(moved.indices[t + 1], moved.indices[t + 2]);
+  EXPECT_FALSE(is_closed({cube, moved}));
+  // A big outward cube around a small inward one (a hollow solid): not
+  // closed either; the inner shell faces into the cavity.
+  ModelPart big = cube_part();
+  for (glm::vec3& p : big.positions) p *= 4.0f;
+  ModelPart cavity = cube_part();
+  for (std::size_t t = 0; t < cavity.indices.size(); t += 3) std::swap(cavity.indices[t + 1], cavity.indices[t + 2]);
+  EXPECT_FALSE(is_closed({big, cavity}));
+  EXPECT_TRUE(is_closed({big}));
+}
+
 TEST(Model, AnEdgeSharedByThreeTrianglesIsNotClosed) {
   ModelPart part = cube_part();
   // A fin inside the cube on the edge 0-1 (which two faces already share).
