@@ -3,7 +3,8 @@
 // `umbra-bench --speed` can say what Umbra's accuracy costs against it.
 //
 // One 2D depth map, one light box that holds the whole scene's bounds,
-// front faces culled for closed meshes, the seeds' slope bias and 3x3 PCF of
+// front faces of closed meshes culled in the depth pass and back faces in the
+// main pass, the seeds' slope bias and 3x3 PCF of
 // nearest-texel comparisons, Blinn-Phong with Umbra's own lighting formula.
 // None of Umbra's cleverness: no fitting to the camera, no cascades or cube
 // faces, no receiver-plane depth, no map reuse between frames.

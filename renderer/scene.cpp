@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
@@ -289,6 +290,19 @@ Mesh tessellate(const Scene& scene) {
   }
   mesh.open_index_count = std::uint32_t(mesh.indices.size()) - mesh.closed_index_count;
   return mesh;
+}
+
+bool closed_meshes_seen_from_outside(const Mesh& mesh, const Camera& camera, double aspect) {
+  const double tan_half = std::tan(glm::radians(camera.fov_y_deg) * 0.5);
+  const double reach = camera.near_plane * std::sqrt(1.0 + tan_half * tan_half * (1.0 + aspect * aspect));
+  for (const ObjectRange& range : mesh.object_ranges) {
+    if (range.first_index >= mesh.closed_index_count || range.index_count == 0) continue;
+    const Aabb& box = mesh.bounds[range.object];
+    const glm::dvec3 outside = glm::max(glm::max(box.min - camera.position, camera.position - box.max), 0.0);
+    // A hair of slack for the rounding of the bounds and of the clip test.
+    if (glm::length(outside) <= reach * 1.001) return false;
+  }
+  return true;
 }
 
 }  // namespace umbra

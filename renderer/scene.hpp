@@ -111,4 +111,14 @@ struct Mesh {
 
 Mesh tessellate(const Scene& scene);
 
+/// Whether the camera sees every closed mesh from outside: no closed
+/// object's bounds come within reach of the eye, the distance to the near
+/// plane's corners (aspect = width / height). A closed mesh's faces look out
+/// (is_closed), so from outside each face that looks away from the eye lies
+/// behind one of its own faces that looks toward it: the main pass may cull
+/// back faces, which spares shading pixels that are drawn over anyway. From
+/// inside a box, or with the near plane cutting into one, its back faces are
+/// what the camera sees.
+bool closed_meshes_seen_from_outside(const Mesh& mesh, const Camera& camera, double aspect);
+
 }  // namespace umbra

@@ -467,7 +467,14 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   glClearDepth(0.0);
   glDepthFunc(GL_GREATER);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  draw_scene(CullMode::None, drawn_objects(cells.whole_planes));
+  // A box's far faces, drawn before its near ones, would be shaded in full
+  // and then drawn over: with the camera outside every closed mesh they
+  // are culled (about a sixth of a box scene's main pass on llvmpipe).
+  const CullMode closed_cull =
+      closed_meshes_seen_from_outside(scene().mesh, request.camera, double(request.width) / request.height)
+          ? CullMode::Back
+          : CullMode::None;
+  draw_scene(closed_cull, drawn_objects(cells.whole_planes));
   if (cells.shadowable + cells.unshadowable > 0) {
     glBindVertexArray(display_.cells_vertex_array.id());
     draw_indices(0, cells.shadowable);

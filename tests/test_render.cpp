@@ -168,6 +168,34 @@ TEST(Renderer, AnyRatioOfFarToNearDrawsWhatTheExactReferenceSees) {
   }
 }
 
+// The main pass culls a closed mesh's back faces only while the camera is
+// outside it: from inside a box, or with the near plane cutting into one,
+// its back faces are what the camera sees (and what the exact reference
+// hits). The box is blue and the floor red, so a pixel says which it shows.
+TEST(Renderer, FromInsideABoxOrThroughItsNearClippedFaceTheBoxIsSeen) {
+  const char* scene = R"("scene": {"objects": [
+      {"type": "plane", "center": [0, 0, 0], "size": [20, 20], "color": [0.9, 0.2, 0.1]},
+      {"type": "box", "center": [0, 1, 0], "size": [2, 2, 2], "color": [0.1, 0.2, 0.9]}]})";
+  for (const char* camera : {R"("position": [0.3, 1.2, 0.4], "target": [0, 1, -1])",
+                             R"("position": [0, 1, 1.05], "target": [0, 1, 0], "near": 0.2)",
+                             R"("position": [0, 1, 4], "target": [0, 1, 0])"}) {
+    const RenderRequest r = request(std::string(R"({"width": 96, "height": 64, "output": "color", )") + scene +
+                                    R"(, "camera": {)" + camera + "}}");
+    const RenderResult frame = render(r);
+    const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+    std::size_t box = 0, shown_as_box = 0;
+    for (int y = 0; y < r.height; ++y)
+      for (int x = 0; x < r.width; ++x) {
+        if (exact[std::size_t(y) * r.width + x].object != 1) continue;
+        const std::uint8_t* p = frame.image.at(x, y);
+        ++box;
+        shown_as_box += p[2] > p[0];
+      }
+    EXPECT_GT(box, std::size_t(r.width) * r.height / 4) << camera;
+    EXPECT_GE(double(shown_as_box), 0.99 * double(box)) << camera;
+  }
+}
+
 TEST(Renderer, NoShadowsMeansNoDarkPixelOnTheFloor) {
   const RenderRequest r = request(R"({"width": 240, "height": 136, "output": "shadow", "shadow": {"enabled": false}})");
   const RenderResult result = render(r);

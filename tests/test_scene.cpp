@@ -197,6 +197,37 @@ TEST(Scene, PlanesComeLastEachWithTheRangeOfTheOtherObjectsHeights) {
     EXPECT_EQ(world_position(mesh, i).y, 3.0);
 }
 
+TEST(Scene, ClosedMeshesAreSeenFromOutsideUnlessTheEyeOrTheNearPlaneReachesOne) {
+  Scene scene;
+  SceneObject floor, box;
+  floor.type = SceneObject::Type::Plane;
+  floor.size = {20, 0, 20};
+  box.center = {0, 1, 0};
+  box.size = {2, 2, 2};
+  SceneObject open = mesh_object(test::box_model({1.0f, 1.0f, 1.0f}, false), "open");
+  open.center = {5, 1, 0};
+  scene.objects = {floor, box, open};
+  const Mesh mesh = tessellate(scene);
+  Camera camera;
+  camera.position = {0, 1, 6};
+  EXPECT_TRUE(closed_meshes_seen_from_outside(mesh, camera, 16.0 / 9.0));
+  camera.position = {0.5, 1.5, 0.5};  // inside the box
+  EXPECT_FALSE(closed_meshes_seen_from_outside(mesh, camera, 16.0 / 9.0));
+  // Outside by 0.05, but the near plane's corners reach 0.1 x sqrt(1 +
+  // tan^2(22.5 deg) (1 + aspect^2)) = 0.113 ahead: the near plane may cut
+  // into the box.
+  camera.position = {0, 1, 1.05};
+  EXPECT_FALSE(closed_meshes_seen_from_outside(mesh, camera, 1.0));
+  camera.near_plane = 0.01;
+  EXPECT_TRUE(closed_meshes_seen_from_outside(mesh, camera, 1.0));
+  // Inside the open model and above the floor: those are drawn two-sided
+  // whatever the camera does.
+  camera.position = {5, 1, 0};
+  EXPECT_TRUE(closed_meshes_seen_from_outside(mesh, camera, 1.0));
+  camera.position = {0, 0, 5};
+  EXPECT_TRUE(closed_meshes_seen_from_outside(mesh, camera, 1.0));
+}
+
 TEST(Scene, EveryObjectsTrianglesAreOneRangeInIndexOrder) {
   Scene scene;
   SceneObject floor, box, ball;
