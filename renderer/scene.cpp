@@ -277,8 +277,6 @@ Mesh tessellate(const Scene& scene) {
     PlaneRange range;
     range.object = i;
     record(i, [&] { builder.plane(o); });
-    range.first_index = mesh.object_ranges.back().first_index;
-    range.index_count = mesh.object_ranges.back().index_count;
     range.height = o.center.y;
     range.color = o.color;
     for (std::size_t j = 0; j < scene.objects.size(); ++j) {

@@ -70,9 +70,7 @@ struct Vertex {
 /// against it: enough to tell, for any light, whether the plane can shadow
 /// anything (plane_can_shadow in light_math.hpp).
 struct PlaneRange {
-  std::size_t object = 0;  ///< its index in Scene::objects
-  std::uint32_t first_index = 0;
-  std::uint32_t index_count = 0;
+  std::size_t object = 0;  ///< its index in Scene::objects (its triangles: Mesh::object_ranges)
   double height = 0.0;  ///< world y of the plane (planes are horizontal)
   glm::dvec3 color{0.0};  ///< its colour (the main pass may draw it in cells)
   /// The lowest and highest world y of every other object: its bounds, or

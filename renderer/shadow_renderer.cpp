@@ -1,9 +1,9 @@
 #include "shadow_renderer.hpp"
 
 #include <algorithm>
-#include <map>
 #include <chrono>
 #include <cstddef>
+#include <map>
 #include <stdexcept>
 
 #include "gl/program.hpp"

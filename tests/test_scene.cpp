@@ -1,6 +1,8 @@
 // Scenes and meshes: bounds, winding, built-ins.
 #include <gtest/gtest.h>
 
+#include <stdexcept>
+
 #include <glm/geometric.hpp>
 
 #include "mesh_instance.hpp"
@@ -9,6 +11,13 @@
 
 namespace umbra {
 namespace {
+
+// The triangles of scene object `object`.
+const ObjectRange& range_of(const Mesh& mesh, std::size_t object) {
+  for (const ObjectRange& r : mesh.object_ranges)
+    if (r.object == object) return r;
+  throw std::out_of_range("no range for that object");
+}
 
 TEST(Scene, BuiltinsExistWithTheirObjects) {
   ASSERT_NE(find_builtin_scene("cube-on-plane"), nullptr);
@@ -68,8 +77,8 @@ TEST(Scene, PlanesComeAfterClosedMeshesAndFaceUp) {
   EXPECT_FLOAT_EQ(v.normal[1], 1.0f);
   // The floor's own range, its height, and where the cube lies against it.
   ASSERT_EQ(mesh.planes.size(), 1u);
-  EXPECT_EQ(mesh.planes[0].first_index, 36u);
-  EXPECT_EQ(mesh.planes[0].index_count, 6u);
+  EXPECT_EQ(range_of(mesh, mesh.planes[0].object).first_index, 36u);
+  EXPECT_EQ(range_of(mesh, mesh.planes[0].object).index_count, 6u);
   EXPECT_EQ(mesh.planes[0].height, -0.5);
   EXPECT_EQ(mesh.planes[0].lowest_other, -0.5);
   EXPECT_EQ(mesh.planes[0].highest_other, 0.5);
@@ -185,15 +194,17 @@ TEST(Scene, PlanesComeLastEachWithTheRangeOfTheOtherObjectsHeights) {
   const Mesh mesh = tessellate(scene);
   ASSERT_EQ(mesh.planes.size(), 2u);
   // The open model first, then the floor and the roof in the scene's order.
-  EXPECT_EQ(mesh.planes[0].first_index, mesh.closed_index_count + 30u);
-  EXPECT_EQ(mesh.planes[1].first_index, mesh.planes[0].first_index + 6u);
-  EXPECT_EQ(mesh.planes[1].first_index + 6u, mesh.closed_index_count + mesh.open_index_count);
+  const ObjectRange& floor_range = range_of(mesh, mesh.planes[0].object);
+  const ObjectRange& roof_range = range_of(mesh, mesh.planes[1].object);
+  EXPECT_EQ(floor_range.first_index, mesh.closed_index_count + 30u);
+  EXPECT_EQ(roof_range.first_index, floor_range.first_index + 6u);
+  EXPECT_EQ(roof_range.first_index + 6u, mesh.closed_index_count + mesh.open_index_count);
   EXPECT_EQ(mesh.planes[0].height, 0.0);
   EXPECT_EQ(mesh.planes[0].lowest_other, 0.5);   // the box's bottom
   EXPECT_EQ(mesh.planes[0].highest_other, 5.5);  // the open model's top
   EXPECT_EQ(mesh.planes[1].height, 3.0);
   EXPECT_EQ(mesh.planes[1].lowest_other, 0.0);  // the floor
-  for (std::uint32_t i = mesh.planes[1].first_index; i < mesh.planes[1].first_index + 6u; ++i)
+  for (std::uint32_t i = roof_range.first_index; i < roof_range.first_index + 6u; ++i)
     EXPECT_EQ(world_position(mesh, i).y, 3.0);
 }
 
@@ -260,7 +271,7 @@ TEST(Scene, EveryObjectsTrianglesAreOneRangeInIndexOrder) {
   }
   EXPECT_EQ(next, mesh.indices.size());
   EXPECT_EQ(mesh.object_ranges[2].first_index, mesh.closed_index_count);
-  EXPECT_EQ(mesh.object_ranges[3].first_index, mesh.planes[0].first_index);
+  EXPECT_EQ(mesh.object_ranges[3].object, mesh.planes[0].object);
 }
 
 TEST(Scene, AMirroringOrNonUniformTransformKeepsMeshesWoundOutwardWithTrueNormals) {
