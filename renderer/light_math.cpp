@@ -102,44 +102,81 @@ int filter_read_texels(const ShadowSettings& shadow) {
   return 1;
 }
 
-TexelRect caster_texels(const ShadowView& view, int layer_size, const std::vector<Aabb>& casters) {
-  const double size = double(layer_size);
-  const glm::dmat4 to_clip = view.view_projection();
-  TexelRect r{glm::dvec2(1e300), glm::dvec2(-1e300)};
+namespace {
+
+// Grows `r` (texel units, unrounded) by the image in `view`'s layer of the
+// part of `box` that the view draws.
+void add_box_texels(const glm::dmat4& to_clip, double size, const Aabb& box, TexelRect& r) {
+  if (box.empty()) return;
   const auto add = [&](const glm::dvec4& clip) {
     const glm::dvec2 texel = (glm::dvec2(clip) / clip.w * 0.5 + 0.5) * size;
     r.min = glm::min(r.min, texel);
     r.max = glm::max(r.max, texel);
   };
-  for (const Aabb& box : casters) {
-    if (box.empty()) continue;
-    std::array<glm::dvec4, 8> clips;
-    // Corners inside the layer's sides and in front of the eye; corners
-    // beyond each side (x < -w, x > w, y < -w, y > w) or at or behind it.
-    bool inside = true;
-    std::array<int, 5> beyond{};
-    const std::vector<glm::dvec3> corners = box.corners();
-    for (std::size_t i = 0; i < 8; ++i) {
-      const glm::dvec4 c = to_clip * glm::dvec4(corners[i], 1.0);
-      clips[i] = c;
-      inside = inside && c.w > 0.0 && std::abs(c.x) <= c.w && std::abs(c.y) <= c.w;
-      beyond[0] += c.x < -c.w, beyond[1] += c.x > c.w, beyond[2] += c.y < -c.w, beyond[3] += c.y > c.w;
-      beyond[4] += c.w <= 0.0;
-    }
-    // A box wholly in front of the eye projects within its corners' image.
-    // One wholly beyond a side, or behind the eye, draws nothing here. One
-    // that straddles a side or reaches behind a point light's eye is cut to
-    // the view's frustum first: only that part is drawn.
-    if (inside) {
-      for (const glm::dvec4& c : clips) add(c);
-    } else if (std::find(beyond.begin(), beyond.end(), 8) == beyond.end()) {
-      for (const glm::dvec3& p : frustum_box_intersection(to_clip, box)) add(to_clip * glm::dvec4(p, 1.0));
-    }
+  std::array<glm::dvec4, 8> clips;
+  // Corners inside the layer's sides and in front of the eye; corners
+  // beyond each side (x < -w, x > w, y < -w, y > w) or at or behind it.
+  bool inside = true;
+  std::array<int, 5> beyond{};
+  const std::vector<glm::dvec3> corners = box.corners();
+  for (std::size_t i = 0; i < 8; ++i) {
+    const glm::dvec4 c = to_clip * glm::dvec4(corners[i], 1.0);
+    clips[i] = c;
+    inside = inside && c.w > 0.0 && std::abs(c.x) <= c.w && std::abs(c.y) <= c.w;
+    beyond[0] += c.x < -c.w, beyond[1] += c.x > c.w, beyond[2] += c.y < -c.w, beyond[3] += c.y > c.w;
+    beyond[4] += c.w <= 0.0;
   }
+  // A box wholly in front of the eye projects within its corners' image.
+  // One wholly beyond a side, or behind the eye, draws nothing here. One
+  // that straddles a side or reaches behind a point light's eye is cut to
+  // the view's frustum first: only that part is drawn.
+  if (inside) {
+    for (const glm::dvec4& c : clips) add(c);
+  } else if (std::find(beyond.begin(), beyond.end(), 8) == beyond.end()) {
+    for (const glm::dvec3& p : frustum_box_intersection(to_clip, box)) add(to_clip * glm::dvec4(p, 1.0));
+  }
+}
+
+constexpr TexelRect kNoTexels{glm::dvec2(1e300), glm::dvec2(-1e300)};
+
+// Whole texels, one more on each side for rounding, within the layer.
+TexelRect rounded_out(TexelRect r, double size) {
   if (!(r.min.x <= r.max.x && r.min.y <= r.max.y)) return TexelRect{};
   r.min = glm::clamp(glm::floor(r.min) - 1.0, 0.0, size);
   r.max = glm::clamp(glm::ceil(r.max) + 1.0, 0.0, size);
   return r;
+}
+
+}  // namespace
+
+TexelRect caster_texels(const ShadowView& view, int layer_size, const std::vector<Aabb>& casters) {
+  const glm::dmat4 to_clip = view.view_projection();
+  TexelRect r = kNoTexels;
+  for (const Aabb& box : casters) add_box_texels(to_clip, double(layer_size), box, r);
+  return rounded_out(r, double(layer_size));
+}
+
+CasterTexels caster_texels_by_view(const ShadowPlan& plan, const std::vector<Aabb>& bounds,
+                                   const std::vector<bool>& drawn) {
+  const double size = double(plan.layer_size);
+  CasterTexels table;
+  for (const ShadowView& view : plan.views) {
+    const glm::dmat4 to_clip = view.view_projection();
+    std::vector<TexelRect>& row = table.by_object.emplace_back(bounds.size());
+    TexelRect all = kNoTexels;
+    // An empty view's layer is neither cleared nor drawn: nothing there.
+    for (std::size_t i = 0; i < bounds.size() && !view.empty; ++i) {
+      if (!drawn[i]) continue;
+      TexelRect r = kNoTexels;
+      add_box_texels(to_clip, size, bounds[i], r);
+      row[i] = rounded_out(r, size);
+      if (row[i].empty()) continue;
+      all.min = glm::min(all.min, row[i].min);
+      all.max = glm::max(all.max, row[i].max);
+    }
+    table.by_view.push_back(all.min.x <= all.max.x ? all : TexelRect{});
+  }
+  return table;
 }
 
 // ---------------------------------------------------------------------------

@@ -163,6 +163,23 @@ struct TexelRect {
 /// there is no caster or none reaches into the view.
 TexelRect caster_texels(const ShadowView& view, int layer_size, const std::vector<Aabb>& casters);
 
+/// Where each object reaches into each view's layer, found once per frame
+/// for all who ask: the shadow pass (which layers to clear, which objects
+/// to draw into each), the main pass (which points may be shadowed at all)
+/// and the floor's cells (where they must look up the map).
+struct CasterTexels {
+  /// [view][object]: caster_texels of that object's bounds alone; empty for
+  /// an object the shadow pass leaves out, and throughout an empty view.
+  std::vector<std::vector<TexelRect>> by_object;
+  /// [view]: the bounding rectangle of its row, which is caster_texels of
+  /// all drawn objects at once (rounding outward commutes with the union).
+  std::vector<TexelRect> by_view;
+};
+/// `bounds` and `drawn`: one per object (drawn: whether the shadow pass
+/// draws it).
+CasterTexels caster_texels_by_view(const ShadowPlan& plan, const std::vector<Aabb>& bounds,
+                                   const std::vector<bool>& drawn);
+
 /// Plans the light's views for `request` (light placed by light_at at request.time).
 ///
 /// fit "fixed": the seeds' single ortho(+-h, +-h, near, far) or

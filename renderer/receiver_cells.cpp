@@ -106,13 +106,12 @@ void add_region(std::vector<Aabb>& regions, const ShadowView& view, int layer_si
 
 }  // namespace
 
-std::vector<Aabb> shadowable_regions(double y, const ShadowPlan& light, const std::vector<Aabb>& casters,
-                                     double margin_texels) {
+std::vector<Aabb> shadowable_regions(double y, const ShadowPlan& light,
+                                     const std::vector<std::vector<TexelRect>>& rects, double margin_texels) {
   std::vector<Aabb> regions;
-  for (const ShadowView& view : light.views)
-    if (!view.empty)
-      for (const Aabb& caster : casters)
-        add_region(regions, view, light.layer_size, caster_texels(view, light.layer_size, {caster}), margin_texels, y);
+  for (std::size_t i = 0; i < light.views.size() && i < rects.size(); ++i)
+    if (!light.views[i].empty)
+      for (const TexelRect& rect : rects[i]) add_region(regions, light.views[i], light.layer_size, rect, margin_texels, y);
   return regions;
 }
 

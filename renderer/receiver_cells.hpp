@@ -31,15 +31,16 @@ inline constexpr int kMaxReceiverRegions = 6;
 Aabb view_rect_on_plane(const ShadowView& view, int layer_size, const TexelRect& rect, double y);
 
 /// Where on the horizontal plane at height `y` a point may read a texel
-/// that one of `casters` (world bounds) covers in some view of `light`,
-/// reading up to `margin_texels` around its own texel: one x/z box per
-/// view and caster that meet.
-std::vector<Aabb> shadowable_regions(double y, const ShadowPlan& light, const std::vector<Aabb>& casters,
-                                     double margin_texels);
+/// that a caster covers in some view of `light`, reading up to
+/// `margin_texels` around its own texel: one x/z box per view and caster
+/// that meet. `rects`: each caster's texels in each view
+/// (CasterTexels::by_object).
+std::vector<Aabb> shadowable_regions(double y, const ShadowPlan& light,
+                                     const std::vector<std::vector<TexelRect>>& rects, double margin_texels);
 
-/// The same around `view_rects`, one per view of `light` (caster_rects:
-/// around all of its casters at once): looser than one region per caster,
-/// and as cheap for a thousand casters as for one.
+/// The same around `view_rects`, one per view of `light` (CasterTexels::
+/// by_view: around all of its casters at once): looser than one region per
+/// caster, and as cheap for a thousand casters as for one.
 std::vector<Aabb> view_regions(double y, const ShadowPlan& light, const std::vector<TexelRect>& view_rects,
                                double margin_texels);
 

@@ -305,22 +305,8 @@ std::vector<bool> ShadowRenderer::casting_planes(const RenderRequest& request, c
   return planes;
 }
 
-std::vector<Aabb> ShadowRenderer::casters(const std::vector<bool>& planes) const {
-  const Mesh& mesh = scene().mesh;
-  const std::vector<bool> drawn = drawn_objects(planes);
-  std::vector<Aabb> bounds;
-  for (std::size_t i = 0; i < mesh.bounds.size(); ++i)
-    if (drawn[i]) bounds.push_back(mesh.bounds[i]);
-  return bounds;
-}
-
-std::vector<TexelRect> ShadowRenderer::caster_rects(const ShadowPlan& light, const std::vector<bool>& planes) const {
-  const std::vector<Aabb> drawn = casters(planes);
-  std::vector<TexelRect> rects;
-  // An empty view's layer is neither cleared nor drawn: nothing there.
-  for (const ShadowView& view : light.views)
-    rects.push_back(view.empty ? TexelRect{} : caster_texels(view, light.layer_size, drawn));
-  return rects;
+CasterTexels ShadowRenderer::caster_table(const ShadowPlan& light, const std::vector<bool>& planes) const {
+  return caster_texels_by_view(light, scene().mesh.bounds, drawn_objects(planes));
 }
 
 void ShadowRenderer::upload_frame_block(const RenderRequest& request, const ShadowPlan& light,
@@ -330,7 +316,7 @@ void ShadowRenderer::upload_frame_block(const RenderRequest& request, const Shad
 }
 
 void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowPlan& light,
-                                     const std::vector<bool>& planes, const std::vector<TexelRect>& casters) {
+                                     const std::vector<bool>& planes, const CasterTexels& casters) {
   resize_shadow_map(light.layer_size, int(light.views.size()));
   const GLuint framebuffer = shadow_.framebuffer.id();
   glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
@@ -345,19 +331,17 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   // a layer of a few objects costs once the floor is left out.
   const bool whole_layers = request.output == Output::Depth;
   const int margin = clear_margin_texels(request.shadow);
-  const std::vector<bool> drawn = drawn_objects(planes);
-  const Mesh& mesh = scene().mesh;
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     // An empty view (no object reaches into it) holds no receiver either,
     // so the main pass never reads its layer: it is not even cleared (the
     // depth preview clears it before showing it). Nor is a layer that no
     // drawn object reaches: the main pass sees its rectangle empty.
-    if (light.views[layer].empty || (!whole_layers && casters[layer].empty())) continue;
+    if (light.views[layer].empty || (!whole_layers && casters.by_view[layer].empty())) continue;
     glNamedFramebufferTextureLayer(framebuffer, GL_DEPTH_ATTACHMENT, shadow_.depth_map.id(), 0, GLint(layer));
     if (whole_layers) {
       glClear(GL_DEPTH_BUFFER_BIT);
     } else {
-      const TexelRect& c = casters[layer];
+      const TexelRect& c = casters.by_view[layer];
       const int x0 = std::max(0, int(c.min.x) - margin), y0 = std::max(0, int(c.min.y) - margin);
       const int x1 = std::min(light.layer_size, int(c.max.x) + margin);
       const int y1 = std::min(light.layer_size, int(c.max.y) + margin);
@@ -372,13 +356,9 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
     // peter panning). See ShadowSettings::cull for why planes are exempt.
     // Only what reaches into this view: a sphere beside a point light is
     // in one or two of its six faces, and each face it is drawn into
-    // shades all its vertices. (Past a few dozen objects, the test costs
-    // more than it saves: all are drawn.)
-    constexpr std::size_t kObjectsTestedPerView = 64;
-    std::vector<bool> in_view = drawn;
-    if (in_view.size() <= kObjectsTestedPerView)
-      for (std::size_t i = 0; i < in_view.size(); ++i)
-        in_view[i] = in_view[i] && !caster_texels(light.views[layer], light.layer_size, {mesh.bounds[i]}).empty();
+    // shades all its vertices.
+    std::vector<bool> in_view;
+    for (const TexelRect& object : casters.by_object[layer]) in_view.push_back(!object.empty());
     draw_scene(request.shadow.cull, in_view);
   }
   shadow_.holds_plan = true;
@@ -403,7 +383,7 @@ bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const Shado
 
 ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest& request, const ShadowPlan& light,
                                                              const std::vector<bool>& planes,
-                                                             const std::vector<TexelRect>& view_casters) {
+                                                             const CasterTexels& casters) {
   const Mesh& mesh = scene().mesh;
   CellDraws draws;
   draws.whole_planes.assign(mesh.planes.size(), true);
@@ -412,12 +392,14 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
   // whose regions would cost more to find than they save.
   constexpr std::size_t kMaxPlanesInCells = 8;
   if (!request.shadow.bias.automatic || mesh.planes.size() > kMaxPlanesInCells) return draws;
-  const std::vector<Aabb> drawn = casters(planes);
   const double margin = double(filter_read_texels(request.shadow)) + 1.0;
   // One region per view and caster, or past that many pairs one per view
   // around all its casters (looser, and as cheap for a thousand casters).
   constexpr std::size_t kMaxRegionPairs = 128;
-  const bool per_caster = drawn.size() * light.views.size() <= kMaxRegionPairs;
+  std::size_t pairs = 0;
+  for (const std::vector<TexelRect>& row : casters.by_object)
+    pairs += std::size_t(std::count_if(row.begin(), row.end(), [](const TexelRect& r) { return !r.empty(); }));
+  const bool per_caster = pairs <= kMaxRegionPairs;
   CellTriangles cells;
   std::map<double, std::vector<Aabb>> regions_at;  // by plane height
   for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
@@ -427,8 +409,8 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
     auto at = regions_at.find(plane.height);
     if (at == regions_at.end())
       at = regions_at
-               .emplace(plane.height, per_caster ? shadowable_regions(plane.height, light, drawn, margin)
-                                                 : view_regions(plane.height, light, view_casters, margin))
+               .emplace(plane.height, per_caster ? shadowable_regions(plane.height, light, casters.by_object, margin)
+                                                 : view_regions(plane.height, light, casters.by_view, margin))
                .first;
     append_cell_triangles(plane_cells(mesh.bounds[plane.object], at->second), plane.height, plane.color,
                           mesh.origin, cells);
@@ -447,7 +429,7 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
 }
 
 void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light,
-                                      const std::vector<bool>& planes, const std::vector<TexelRect>& casters) {
+                                      const std::vector<bool>& planes, const CasterTexels& casters) {
   resize_display(request.width, request.height);
   const DisplayVariant variant = display_variant(request, light);
   CellDraws cells;
@@ -540,8 +522,8 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
     light = shadow_.plan;
     result.shadow_reused = true;
   }
-  const std::vector<TexelRect> casters = caster_rects(light, planes);
-  upload_frame_block(request, light, casters);
+  const CasterTexels casters = caster_table(light, planes);
+  upload_frame_block(request, light, casters.by_view);
   if (needs_map) {
     if (!result.shadow_reused) {
       const auto start = Clock::now();

@@ -136,18 +136,15 @@ class ShadowRenderer {
   // for the depth output (it shows what the light sees), else those that
   // can shadow something (plane_can_shadow).
   std::vector<bool> casting_planes(const RenderRequest& request, const ShadowPlan& light) const;
-  // The bounds of the objects the shadow pass draws: all but the planes
-  // that `planes` leaves out.
-  std::vector<Aabb> casters(const std::vector<bool>& planes) const;
-  // Per view of `light`, the texels of its layer that the objects drawn
-  // can cover.
-  std::vector<TexelRect> caster_rects(const ShadowPlan& light, const std::vector<bool>& planes) const;
+  // Where each object the shadow pass draws (all but the planes that
+  // `planes` leaves out) reaches into each view of `light`: once per frame.
+  CasterTexels caster_table(const ShadowPlan& light, const std::vector<bool>& planes) const;
   void upload_frame_block(const RenderRequest& request, const ShadowPlan& light, const std::vector<TexelRect>& casters);
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
-                       const std::vector<TexelRect>& casters);
+                       const CasterTexels& casters);
   bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes) const;
   void run_display_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
-                        const std::vector<TexelRect>& casters);
+                        const CasterTexels& casters);
   // The main pass's planes: drawn whole (one flag per Mesh::planes entry),
   // or as cells whose indices (shadowable first) are in display_.cell_indices.
   struct CellDraws {
@@ -155,9 +152,9 @@ class ShadowRenderer {
     std::size_t shadowable = 0, unshadowable = 0;
   };
   // Uploads the cells of the planes the shadow pass leaves out (planes[i]
-  // false); `casters`: caster_rects, one per view.
+  // false).
   CellDraws upload_plane_cells(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
-                               const std::vector<TexelRect>& casters);
+                               const CasterTexels& casters);
   void run_depth_preview(const ShadowPlan& light, int image_size, int bits);
   Image read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth = 8);
 

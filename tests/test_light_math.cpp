@@ -242,6 +242,42 @@ TEST(CasterTexels, TheRectangleAroundWhatAViewCanDraw) {
   }
 }
 
+// The per-frame table: each object's rectangle is caster_texels of it
+// alone, and each view's is exactly caster_texels of all drawn objects at
+// once, for cascades and for cube faces (whose empty views stay empty).
+TEST(CasterTexels, TheTablePerObjectAndPerViewAgreesWithTheRectanglesItReplaces) {
+  for (const LightProjection projection : {LightProjection::Orthographic, LightProjection::Perspective}) {
+    RenderRequest r = request_with_light(projection == LightProjection::Perspective ? glm::dvec3(0, 1.2, 0)
+                                                                                     : glm::dvec3(-2, 4, -1),
+                                         projection);
+    const ShadowPlan plan = plan_shadow(r);
+    const Mesh mesh = tessellate(r.scene);
+    std::vector<bool> drawn(mesh.bounds.size(), true);
+    drawn[1] = false;  // one object left out, as a plane under the scene is
+    std::vector<Aabb> casters;
+    for (std::size_t i = 0; i < drawn.size(); ++i)
+      if (drawn[i]) casters.push_back(mesh.bounds[i]);
+    const CasterTexels table = caster_texels_by_view(plan, mesh.bounds, drawn);
+    ASSERT_EQ(table.by_view.size(), plan.views.size());
+    ASSERT_EQ(table.by_object.size(), plan.views.size());
+    int non_empty = 0;
+    for (std::size_t v = 0; v < plan.views.size(); ++v) {
+      const ShadowView& view = plan.views[v];
+      const TexelRect all = view.empty ? TexelRect{} : caster_texels(view, plan.layer_size, casters);
+      EXPECT_EQ(table.by_view[v].min, all.min) << v;
+      EXPECT_EQ(table.by_view[v].max, all.max) << v;
+      for (std::size_t i = 0; i < drawn.size(); ++i) {
+        const TexelRect one =
+            view.empty || !drawn[i] ? TexelRect{} : caster_texels(view, plan.layer_size, {mesh.bounds[i]});
+        EXPECT_EQ(table.by_object[v][i].min, one.min) << v << " " << i;
+        EXPECT_EQ(table.by_object[v][i].max, one.max) << v << " " << i;
+        non_empty += !one.empty();
+      }
+    }
+    EXPECT_GT(non_empty, 1);
+  }
+}
+
 TEST(PointLight, NarrowConeWhenEverythingIsBelowIt) {
   // A point light high above: the whole scene is within a narrow cone.
   RenderRequest r = request_with_light({0, 40, 0}, LightProjection::Perspective);

@@ -122,11 +122,11 @@ TEST(ReceiverCells, OneRegionPerViewAroundAllItsCastersHoldsThePerCasterOnes) {
   const RenderRequest r = builtin("three-cubes");
   const ShadowPlan plan = plan_shadow(r);
   const Mesh mesh = tessellate(r.scene);
-  std::vector<Aabb> casters(mesh.bounds.begin() + 1, mesh.bounds.end());  // all but the floor
-  std::vector<TexelRect> view_rects;
-  for (const ShadowView& v : plan.views) view_rects.push_back(caster_texels(v, plan.layer_size, casters));
-  const std::vector<Aabb> per_caster = shadowable_regions(-0.5, plan, casters, 4.0);
-  const std::vector<Aabb> per_view = view_regions(-0.5, plan, view_rects, 4.0);
+  std::vector<bool> drawn(mesh.bounds.size(), true);
+  drawn[0] = false;  // all but the floor
+  const CasterTexels table = caster_texels_by_view(plan, mesh.bounds, drawn);
+  const std::vector<Aabb> per_caster = shadowable_regions(-0.5, plan, table.by_object, 4.0);
+  const std::vector<Aabb> per_view = view_regions(-0.5, plan, table.by_view, 4.0);
   ASSERT_FALSE(per_caster.empty());
   ASSERT_FALSE(per_view.empty());
   for (const Aabb& c : per_caster) {
@@ -149,11 +149,14 @@ void expect_every_readable_point_shadowable(RenderRequest r) {
   const PlaneRange& floor = mesh.planes[0];
   ASSERT_FALSE(plane_can_shadow(floor, plan));
   std::vector<Aabb> casters;
+  std::vector<bool> drawn(mesh.bounds.size(), true);
+  drawn[floor.object] = false;
   for (std::size_t i = 0; i < mesh.bounds.size(); ++i)
-    if (i != floor.object) casters.push_back(mesh.bounds[i]);
+    if (drawn[i]) casters.push_back(mesh.bounds[i]);
   const double margin = filter_read_texels(r.shadow) + 1.0;
   const Aabb bounds = mesh.bounds[floor.object];
-  const PlaneCells cells = plane_cells(bounds, shadowable_regions(floor.height, plan, casters, margin));
+  const PlaneCells cells =
+      plane_cells(bounds, shadowable_regions(floor.height, plan, caster_texels_by_view(plan, mesh.bounds, drawn).by_object, margin));
   const std::size_t columns = cells.x_cuts.size() - 1;
   int readable = 0, unshadowable_cells = 0;
   for (bool s : cells.shadowable) unshadowable_cells += !s;
