@@ -260,7 +260,7 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
      << "- Command: `" << options.command_line << "`\n"
      << "- Plain: the seeds' algorithm written plainly (`bench/plain_frame.cpp`): one map_size^2 depth map, one "
         "light box holding the scene's bounds (a 90 degree cone for a point light), front faces of closed meshes "
-        "culled, bias max(0.05 (1 - N.L), 0.005), 3x3 PCF; it ignores light.size. Umbra: the scene file's request "
+        "culled in the map and back faces in the main pass, bias max(0.05 (1 - N.L), 0.005), 3x3 PCF; it ignores light.size. Umbra: the scene file's request "
         "at its defaults, only the image size changed. Both at the request's map size.\n"
      << "- Time: median of " << options.frames << " frames each, after one warm-up frame each, plain and Umbra "
      << "frames interleaved; frame i at the scene's time + (i + 1) x " << kTimeStep << " s, so the light moves and "
