@@ -36,51 +36,24 @@ std::array<std::uint32_t, 3> position_key(const glm::vec3& p) {
   return key;
 }
 
-// Union-find root of welded vertex v, halving paths as it goes.
-std::uint32_t shell_root(std::vector<std::uint32_t>& parent, std::uint32_t v) {
+// Union-find root of element v, halving paths as it goes.
+std::uint32_t root_of(std::vector<std::uint32_t>& parent, std::uint32_t v) {
   while (parent[v] != v) v = parent[v] = parent[parent[v]];
   return v;
 }
 
-// Whether each shell (vertices joined by triangles) of a watertight,
-// consistently wound surface winds counter-clockwise seen from outside: its
-// signed volume, the sum of a . (b x c) over its triangles, is positive.
-// Positions are taken relative to one vertex of the shell, which leaves a
-// closed surface's volume unchanged and keeps the products small.
-// Triangles with two equal welded corners are left out, as by the edge test.
-bool every_shell_faces_out(const std::vector<ModelPart>& parts,
-                           const std::vector<std::vector<std::uint32_t>>& welded, std::uint32_t vertex_count) {
-  std::vector<std::uint32_t> parent(vertex_count);
-  for (std::uint32_t v = 0; v < vertex_count; ++v) parent[v] = v;
-  std::vector<glm::dvec3> position(vertex_count);
-  for (std::size_t p = 0; p < parts.size(); ++p)
-    for (std::size_t v = 0; v < parts[p].positions.size(); ++v) position[welded[p][v]] = parts[p].positions[v];
-  // Calls f(a, b, c) with the welded corners of every triangle with area.
-  const auto for_each_triangle = [&](const auto& f) {
-    for (std::size_t p = 0; p < parts.size(); ++p) {
-      const std::vector<std::uint32_t>& indices = parts[p].indices;
-      for (std::size_t t = 0; t + 2 < indices.size(); t += 3) {
-        const std::uint32_t a = welded[p][indices[t]], b = welded[p][indices[t + 1]], c = welded[p][indices[t + 2]];
-        if (a != b && b != c && c != a) f(a, b, c);
-      }
+// Calls f(a, b, c) with the welded corners of every triangle with area
+// (two equal welded corners: none), in the same order every time.
+template <typename F>
+void for_each_welded_triangle(const std::vector<ModelPart>& parts,
+                              const std::vector<std::vector<std::uint32_t>>& welded, const F& f) {
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    const std::vector<std::uint32_t>& indices = parts[p].indices;
+    for (std::size_t t = 0; t + 2 < indices.size(); t += 3) {
+      const std::uint32_t a = welded[p][indices[t]], b = welded[p][indices[t + 1]], c = welded[p][indices[t + 2]];
+      if (a != b && b != c && c != a) f(a, b, c);
     }
-  };
-  std::vector<bool> used(vertex_count, false);
-  for_each_triangle([&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-    const std::uint32_t root = shell_root(parent, a);
-    parent[shell_root(parent, b)] = root;
-    parent[shell_root(parent, c)] = root;
-    used[a] = true;
-  });
-  std::vector<double> volume(vertex_count, 0.0);
-  for_each_triangle([&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-    const std::uint32_t root = shell_root(parent, a);
-    const glm::dvec3 o = position[root];
-    volume[root] += glm::dot(position[a] - o, glm::cross(position[b] - o, position[c] - o));
-  });
-  for (std::uint32_t v = 0; v < vertex_count; ++v)
-    if (used[v] && volume[shell_root(parent, v)] <= 0.0) return false;
-  return true;
+  }
 }
 
 }  // namespace
@@ -102,39 +75,73 @@ bool is_closed(const std::vector<ModelPart>& parts) {
   std::sort(corners.begin(), corners.end(), [](const Corner& a, const Corner& b) { return a.key < b.key; });
   std::vector<std::vector<std::uint32_t>> welded(parts.size());
   for (std::size_t p = 0; p < parts.size(); ++p) welded[p].resize(parts[p].positions.size());
-  std::uint32_t id = 0;
+  std::vector<glm::dvec3> position;  // per welded id
   for (std::size_t i = 0; i < corners.size(); ++i) {
-    if (i > 0 && corners[i].key != corners[i - 1].key) ++id;
-    welded[corners[i].part][corners[i].vertex] = id;
+    if (i == 0 || corners[i].key != corners[i - 1].key)
+      position.push_back(parts[corners[i].part].positions[corners[i].vertex]);
+    welded[corners[i].part][corners[i].vertex] = std::uint32_t(position.size() - 1);
   }
   corners.clear();
   corners.shrink_to_fit();
 
-  // Every directed edge, as from << 32 | to.
-  std::vector<std::uint64_t> edges;
-  for (std::size_t p = 0; p < parts.size(); ++p) {
-    const std::vector<std::uint32_t>& indices = parts[p].indices;
-    for (std::size_t t = 0; t + 2 < indices.size(); t += 3) {
-      const std::uint32_t a = welded[p][indices[t]], b = welded[p][indices[t + 1]], c = welded[p][indices[t + 2]];
-      if (a == b || b == c || c == a) continue;
-      edges.push_back(std::uint64_t(a) << 32 | b);
-      edges.push_back(std::uint64_t(b) << 32 | c);
-      edges.push_back(std::uint64_t(c) << 32 | a);
-    }
-  }
+  // Every directed edge (from << 32 | to) and the triangle it belongs to.
+  struct Edge {
+    std::uint64_t key;
+    std::uint32_t triangle;
+  };
+  std::vector<Edge> edges;
+  std::uint32_t triangles = 0;
+  for_each_welded_triangle(parts, welded, [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    edges.push_back({std::uint64_t(a) << 32 | b, triangles});
+    edges.push_back({std::uint64_t(b) << 32 | c, triangles});
+    edges.push_back({std::uint64_t(c) << 32 | a, triangles});
+    ++triangles;
+  });
   if (edges.empty()) return false;
-  std::sort(edges.begin(), edges.end());
+  const auto by_key = [](const Edge& e, const Edge& f) { return e.key < f.key; };
+  std::sort(edges.begin(), edges.end(), by_key);
   // A directed edge twice: two triangles run the same way along it (a
   // flipped neighbour, or more than two triangles on one edge).
-  if (std::adjacent_find(edges.begin(), edges.end()) != edges.end()) return false;
-  // Each edge's opposite must be there too: else the edge is a border.
-  for (std::uint64_t e : edges) {
-    const std::uint64_t reverse = (e << 32) | (e >> 32);
-    if (!std::binary_search(edges.begin(), edges.end(), reverse)) return false;
+  if (std::adjacent_find(edges.begin(), edges.end(), [](const Edge& e, const Edge& f) { return e.key == f.key; }) !=
+      edges.end())
+    return false;
+  // Each edge's opposite must be there too, else the edge is a border. The
+  // two triangles on an edge belong to one shell: shells are joined by
+  // edges, not by a vertex two of them may merely touch at.
+  std::vector<std::uint32_t> shell(triangles);
+  for (std::uint32_t t = 0; t < triangles; ++t) shell[t] = t;
+  for (const Edge& e : edges) {
+    const Edge reverse{(e.key << 32) | (e.key >> 32), 0};
+    const auto it = std::lower_bound(edges.begin(), edges.end(), reverse, by_key);
+    if (it == edges.end() || it->key != reverse.key) return false;
+    shell[root_of(shell, e.triangle)] = root_of(shell, it->triangle);
   }
   edges.clear();
   edges.shrink_to_fit();
-  return every_shell_faces_out(parts, welded, id + 1);
+
+  // Each shell must face out: wound counter-clockwise seen from outside, its
+  // signed volume (the sum of a . (b x c) over its triangles) is positive.
+  // An inside-out shell is not closed: culling front faces in the shadow
+  // pass would drop the faces that look out, and culling back faces in the
+  // main pass would show its inside. Positions are taken relative to one
+  // corner of the shell's root triangle, which leaves a closed surface's
+  // volume unchanged and keeps the products small.
+  std::vector<double> volume(triangles, 0.0);
+  std::vector<glm::dvec3> shell_origin(triangles);
+  std::uint32_t t = 0;
+  for_each_welded_triangle(parts, welded, [&](std::uint32_t a, std::uint32_t, std::uint32_t) {
+    if (root_of(shell, t) == t) shell_origin[t] = position[a];
+    ++t;
+  });
+  t = 0;
+  for_each_welded_triangle(parts, welded, [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    const std::uint32_t root = root_of(shell, t++);
+    const glm::dvec3& o = shell_origin[root];
+    volume[root] += glm::dot(position[a] - o, glm::cross(position[b] - o, position[c] - o));
+  });
+  for (std::uint32_t k = 0; k < triangles; ++k)
+    if (shell[k] == k && volume[k] <= 0.0) return false;
+  return true;
 }
 
 std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& positions,

@@ -42,7 +42,7 @@ struct TriangleModel {
 
 /// True when the triangles form closed, consistently wound surfaces that
 /// face out: every edge is shared by exactly two triangles that run along it
-/// in opposite directions, and every shell (triangles joined by vertices)
+/// in opposite directions, and every shell (triangles joined by edges)
 /// encloses a positive volume, so that it winds counter-clockwise seen from
 /// outside. Only then is a face that looks away from the eye hidden behind
 /// one of its own shell's faces that looks toward it, which is what lets the
@@ -51,7 +51,7 @@ struct TriangleModel {
 /// two-sided, only slower.) Vertices are welded by exact position (glTF
 /// splits vertices at hard edges and colour seams), across parts. Triangles
 /// with two equal welded corners are ignored (they have no area and cast no
-/// shadow). An empty model is not closed. Time O(n log n), memory about 16
+/// shadow). An empty model is not closed. Time O(n log n), memory about 24
 /// bytes per triangle corner.
 bool is_closed(const std::vector<ModelPart>& parts);
 

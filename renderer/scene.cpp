@@ -297,8 +297,10 @@ bool closed_meshes_seen_from_outside(const Mesh& mesh, const Camera& camera, dou
     if (range.first_index >= mesh.closed_index_count || range.index_count == 0) continue;
     const Aabb& box = mesh.bounds[range.object];
     const glm::dvec3 outside = glm::max(glm::max(box.min - camera.position, camera.position - box.max), 0.0);
-    // A hair of slack for the rounding of the bounds and of the clip test.
-    if (glm::length(outside) <= reach * 1.001) return false;
+    // Slack for rounding: of the near plane's reach, and of float positions
+    // relative to the mesh origin, whose error grows with the scene's size.
+    const double slack = 1e-3 * reach + 1e-6 * (glm::length(camera.position - mesh.origin) + glm::length(box.extent()));
+    if (glm::length(outside) <= reach + slack) return false;
   }
   return true;
 }

@@ -259,22 +259,29 @@ void ShadowRenderer::resize_depth_preview(int size, int bits) {
 void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects) {
   const Mesh& mesh = scene().mesh;
   glBindVertexArray(scene().vertex_array.id());
-  // Runs of consecutive objects to draw, one call each, closed meshes apart.
+  // Runs of consecutive objects to draw, one call each: closed meshes, open
+  // models and planes apart (in that order in the index buffer).
   using Run = std::pair<std::uint32_t, std::uint32_t>;  // first index, count
-  std::vector<Run> closed, open;
+  std::vector<bool> is_plane(mesh.bounds.size(), false);
+  for (const PlaneRange& plane : mesh.planes) is_plane[plane.object] = true;
+  std::uint32_t planes_start = mesh.closed_index_count + mesh.open_index_count;
+  std::vector<Run> closed, open_models, planes;
   for (const ObjectRange& r : mesh.object_ranges) {
+    if (is_plane[r.object]) planes_start = std::min(planes_start, r.first_index);
     if ((!objects.empty() && !objects[r.object]) || r.index_count == 0) continue;
-    std::vector<Run>& runs = r.first_index < mesh.closed_index_count ? closed : open;
+    std::vector<Run>& runs = r.first_index < mesh.closed_index_count ? closed : is_plane[r.object] ? planes : open_models;
     if (!runs.empty() && runs.back().first + runs.back().second == r.first_index)
       runs.back().second += r.index_count;
     else
       runs.emplace_back(r.first_index, r.index_count);
   }
   // Many scattered objects (a thousand spheres, some in the view): one call
-  // for all closed meshes costs less than hundreds; those outside the view
-  // draw nothing. (Planes are open, and their flags are always kept.)
-  constexpr std::size_t kMaxClosedRuns = 16;
-  if (closed.size() > kMaxClosedRuns) closed = {Run{0, mesh.closed_index_count}};
+  // for all of their kind costs less than hundreds; those outside the view
+  // draw nothing. Planes keep their flags: a plane left out of the shadow
+  // pass must stay out, and there are few of them.
+  constexpr std::size_t kMaxRuns = 16;
+  if (closed.size() > kMaxRuns) closed = {Run{0, mesh.closed_index_count}};
+  if (open_models.size() > kMaxRuns) open_models = {Run{mesh.closed_index_count, planes_start - mesh.closed_index_count}};
   if (!closed.empty()) {
     if (closed_mesh_cull == CullMode::None) {
       glDisable(GL_CULL_FACE);
@@ -287,7 +294,8 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
   // A plane or an open model has one side: culling it could drop it from
   // the pass entirely.
   glDisable(GL_CULL_FACE);
-  for (const Run& run : open) draw_indices(run.first, run.second);
+  for (const Run& run : open_models) draw_indices(run.first, run.second);
+  for (const Run& run : planes) draw_indices(run.first, run.second);
 }
 
 std::vector<bool> ShadowRenderer::drawn_objects(const std::vector<bool>& planes) const {

@@ -126,8 +126,8 @@ class ShadowRenderer {
   void unbind_released();
   // The objects `objects` marks (one flag per scene object; empty: all).
   // Closed objects scattered over more than a few runs are all drawn in one
-  // call; what is drawn outside the view leaves no texel. Planes are drawn
-  // exactly as marked.
+  // call, and so are open models; what is drawn outside the view leaves no
+  // texel. Planes are drawn exactly as marked.
   void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects = {});
   // One flag per scene object: all of them but the planes `planes` leaves
   // out (one flag per Mesh::planes entry; empty: none).

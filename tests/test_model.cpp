@@ -80,6 +80,13 @@ TEST(Model, TwoCubesAreClosedOnlyIfBothFaceOut) {
   for (std::size_t t = 0; t < cavity.indices.size(); t += 3) std::swap(cavity.indices[t + 1], cavity.indices[t + 2]);
   EXPECT_FALSE(is_closed({big, cavity}));
   EXPECT_TRUE(is_closed({big}));
+  // A small inside-out cube touching the unit cube at one corner: shells
+  // are joined by edges, so the shared vertex does not make them one shell
+  // whose volumes would sum to a positive one.
+  ModelPart touching = cube_part();
+  for (glm::vec3& p : touching.positions) p = p * 0.5f + glm::vec3(0.75f);  // its lowest corner at (0.5, 0.5, 0.5)
+  for (std::size_t t = 0; t < touching.indices.size(); t += 3) std::swap(touching.indices[t + 1], touching.indices[t + 2]);
+  EXPECT_FALSE(is_closed({cube, touching}));
 }
 
 TEST(Model, AnEdgeSharedByThreeTrianglesIsNotClosed) {

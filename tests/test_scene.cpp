@@ -224,11 +224,14 @@ TEST(Scene, ClosedMeshesAreSeenFromOutsideUnlessTheEyeOrTheNearPlaneReachesOne) 
   EXPECT_TRUE(closed_meshes_seen_from_outside(mesh, camera, 16.0 / 9.0));
   camera.position = {0.5, 1.5, 0.5};  // inside the box
   EXPECT_FALSE(closed_meshes_seen_from_outside(mesh, camera, 16.0 / 9.0));
-  // Outside by 0.05, but the near plane's corners reach 0.1 x sqrt(1 +
-  // tan^2(22.5 deg) (1 + aspect^2)) = 0.113 ahead: the near plane may cut
-  // into the box.
-  camera.position = {0, 1, 1.05};
+  // Outside by 0.108, farther than the near plane (0.1), but its corners
+  // reach 0.1 x sqrt(1 + tan^2(22.5 deg) (1 + aspect^2)) = 0.116 at aspect
+  // 1: the near plane may cut into the box.
+  camera.position = {0, 1, 1.108};
   EXPECT_FALSE(closed_meshes_seen_from_outside(mesh, camera, 1.0));
+  camera.position = {0, 1, 1.12};
+  EXPECT_TRUE(closed_meshes_seen_from_outside(mesh, camera, 1.0));
+  camera.position = {0, 1, 1.05};
   camera.near_plane = 0.01;
   EXPECT_TRUE(closed_meshes_seen_from_outside(mesh, camera, 1.0));
   // Inside the open model and above the floor: those are drawn two-sided
