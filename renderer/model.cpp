@@ -123,19 +123,16 @@ bool is_closed(const std::vector<ModelPart>& parts) {
   // signed volume (the sum of a . (b x c) over its triangles) is positive.
   // An inside-out shell is not closed: culling front faces in the shadow
   // pass would drop the faces that look out, and culling back faces in the
-  // main pass would show its inside. Positions are taken relative to one
-  // corner of the shell's root triangle, which leaves a closed surface's
+  // main pass would show its inside. Positions are taken relative to a
+  // corner of the shell's first triangle, which leaves a closed surface's
   // volume unchanged and keeps the products small.
   std::vector<double> volume(triangles, 0.0);
   std::vector<glm::dvec3> shell_origin(triangles);
+  std::vector<bool> has_origin(triangles, false);
   std::uint32_t t = 0;
-  for_each_welded_triangle(parts, welded, [&](std::uint32_t a, std::uint32_t, std::uint32_t) {
-    if (root_of(shell, t) == t) shell_origin[t] = position[a];
-    ++t;
-  });
-  t = 0;
   for_each_welded_triangle(parts, welded, [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
     const std::uint32_t root = root_of(shell, t++);
+    if (!has_origin[root]) shell_origin[root] = position[a], has_origin[root] = true;
     const glm::dvec3& o = shell_origin[root];
     volume[root] += glm::dot(position[a] - o, glm::cross(position[b] - o, position[c] - o));
   });

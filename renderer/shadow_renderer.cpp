@@ -264,10 +264,8 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
   using Run = std::pair<std::uint32_t, std::uint32_t>;  // first index, count
   std::vector<bool> is_plane(mesh.bounds.size(), false);
   for (const PlaneRange& plane : mesh.planes) is_plane[plane.object] = true;
-  std::uint32_t planes_start = mesh.closed_index_count + mesh.open_index_count;
   std::vector<Run> closed, open_models, planes;
   for (const ObjectRange& r : mesh.object_ranges) {
-    if (is_plane[r.object]) planes_start = std::min(planes_start, r.first_index);
     if ((!objects.empty() && !objects[r.object]) || r.index_count == 0) continue;
     std::vector<Run>& runs = r.first_index < mesh.closed_index_count ? closed : is_plane[r.object] ? planes : open_models;
     if (!runs.empty() && runs.back().first + runs.back().second == r.first_index)
@@ -281,7 +279,10 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
   // pass must stay out, and there are few of them.
   constexpr std::size_t kMaxRuns = 16;
   if (closed.size() > kMaxRuns) closed = {Run{0, mesh.closed_index_count}};
-  if (open_models.size() > kMaxRuns) open_models = {Run{mesh.closed_index_count, planes_start - mesh.closed_index_count}};
+  if (open_models.size() > kMaxRuns) {
+    const std::uint32_t end = open_models.back().first + open_models.back().second;
+    open_models = {Run{open_models.front().first, end - open_models.front().first}};  // no plane lies between
+  }
   if (!closed.empty()) {
     if (closed_mesh_cull == CullMode::None) {
       glDisable(GL_CULL_FACE);
