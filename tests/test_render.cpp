@@ -480,6 +480,27 @@ TEST(Renderer, AFrameReadsNothingThatAnEarlierFrameLeftInTheMap) {
   EXPECT_GT(lit_floor.size(), 320u * 180u / 4u);
   for (int i : lit_floor) ASSERT_GT(result.image.pixels[std::size_t(i)], 242) << "pixel " << i << " read a stale texel";
   expect_within_the_error_budget(measure_shadow_error(result.image, exact), 320u * 180u / 2u);
+
+  // A caster over most of the layer: the shadow pass clears all of it
+  // (cheaper than the rectangle there, on llvmpipe), and the frame reads
+  // nothing of the roof either.
+  render(request(roofed));
+  const RenderRequest slab = request(R"({"width": 320, "height": 180, "output": "shadow", "shadow": {"cascades": 1},
+      "camera": {"position": [0, 3, 1]},
+      "scene": {"objects": [{"type": "plane", "center": [0, -0.5, 0], "size": [50, 50]},
+                            {"type": "box", "center": [0, 0, 0], "size": [6, 0.2, 6]}]}})");
+  const ShadowPlan plan = plan_shadow(slab);
+  const TexelRect rect = caster_texels_by_view(plan, {object_bounds(slab.scene.objects[1])}, {true}).by_view[0];
+  ASSERT_GT((rect.max.x - rect.min.x) * (rect.max.y - rect.min.y), 0.5 * plan.layer_size * plan.layer_size);
+  const RenderResult slab_result = render(slab);
+  ASSERT_EQ(slab_result.shadow_views, under_roof.shadow_views) << "the same map, drawn again";
+  const std::vector<ExactPixel> slab_exact = cast_exact_pixels(slab);
+  // The slab's top reads the map all over (the floor's lit cells far from
+  // it do not read it at all).
+  const std::vector<int> lit_top = interior_pixels(slab, slab_exact, 1, 1.0);
+  EXPECT_GT(lit_top.size(), 320u * 180u / 8u);
+  for (int i : lit_top) ASSERT_GT(slab_result.image.pixels[std::size_t(i)], 242) << "pixel " << i << " read a stale texel";
+  expect_within_the_error_budget(measure_shadow_error(slab_result.image, slab_exact), 320u * 180u / 16u);
 }
 
 // Default settings against the exact reference (issue 3's thresholds: no
