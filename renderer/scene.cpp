@@ -5,6 +5,7 @@
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <glm/gtc/type_ptr.hpp>
 #include <glm/trigonometric.hpp>
 
 #include "builtin_models.hpp"
@@ -234,6 +235,21 @@ struct MeshBuilder {
   }
 };
 
+// Mesh::smooth_normal_span of the triangles in indices [0, count).
+double smooth_normal_span(const std::vector<Vertex>& vertices, const std::vector<std::uint32_t>& indices,
+                          std::uint32_t count) {
+  const auto position = [&](std::uint32_t i) { return glm::dvec3(glm::make_vec3(vertices[i].position)); };
+  const auto normal = [&](std::uint32_t i) { return glm::make_vec3(vertices[i].normal); };
+  double span = 0.0;
+  for (std::uint32_t t = 0; t + 2 < count; t += 3) {
+    const std::uint32_t a = indices[t], b = indices[t + 1], c = indices[t + 2];
+    if (normal(a) == normal(b) && normal(b) == normal(c)) continue;
+    span = std::max({span, glm::distance(position(a), position(b)), glm::distance(position(b), position(c)),
+                     glm::distance(position(c), position(a))});
+  }
+  return span;
+}
+
 }  // namespace
 
 Mesh tessellate(const Scene& scene) {
@@ -254,6 +270,7 @@ Mesh tessellate(const Scene& scene) {
     if (o.type == SceneObject::Type::Mesh && mesh_is_closed(o)) record(i, [&] { append_mesh_instance(o, mesh); });
   }
   mesh.closed_index_count = std::uint32_t(mesh.indices.size());
+  mesh.smooth_normal_span = smooth_normal_span(mesh.vertices, mesh.indices, mesh.closed_index_count);
   // Open surfaces (planes, open meshes: a terrain, a leaf) are never culled
   // in the shadow pass: culling either side would drop the side that faces
   // the light as a caster.

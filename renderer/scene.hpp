@@ -105,6 +105,12 @@ struct Mesh {
   /// Each object's triangles, in index order (so that a pass can leave
   /// out what it need not draw).
   std::vector<ObjectRange> object_ranges;
+  /// The longest edge of a closed mesh's triangle whose vertex normals
+  /// differ (a sphere's, a smooth model's); 0 when every closed triangle is
+  /// flat. Across such a triangle the interpolated normal turns, so whether
+  /// a point of it faces a point light is known from its vertices only to
+  /// within this distance (scene.vert's LIGHT_SIDE).
+  double smooth_normal_span = 0.0;
 };
 
 Mesh tessellate(const Scene& scene);

@@ -52,7 +52,8 @@ std::string DisplayVariant::defines() const {
     << "#define PCF_RADIUS " << pcf_radius << "\n"
     << "#define BIAS_AUTO " << int(bias_auto) << "\n"
     << "#define FILTER_REACH " << filter_reach << "\n"
-    << "#define FILTER_READ " << filter_read << "\n";
+    << "#define FILTER_READ " << filter_read << "\n"
+    << "#define LIGHT_SIDE " << light_side << "\n";
   return d.str();
 }
 
@@ -83,8 +84,9 @@ DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& p
   return v;
 }
 
-FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const glm::dvec3& origin,
+FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const Mesh& mesh,
                        const std::vector<TexelRect>& casters) {
+  const glm::dvec3& origin = mesh.origin;
   // Origin-relative float matrices: the translation by the origin is folded
   // in while still in double precision.
   const glm::dmat4 from_origin = glm::translate(glm::dmat4(1.0), origin);
@@ -119,6 +121,7 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   // directional light's angular diameter.
   b.light_size = float(plan.perspective ? request.light.size : sun_disc_tan_radius(request.light));
   b.map_size = float(plan.layer_size);
+  b.smooth_normal_span = plan.perspective ? float(mesh.smooth_normal_span) : 0.0f;
   int grid = 1;
   while (grid * grid < int(plan.views.size())) ++grid;
   b.preview_grid = grid;

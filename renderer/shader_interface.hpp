@@ -75,6 +75,9 @@ inline constexpr int kPcssFilterSamples = 32;
   MEMBER(float, light_size)                                                                        \
   /* Shadow map texels per side. */                                                               \
   MEMBER(float, map_size)                                                                          \
+  /* A point light: Mesh::smooth_normal_span, which LIGHT_SIDE's facing */                        \
+  /* test allows for (scene.vert); 0 for a directional light. */                                  \
+  MEMBER(float, smooth_normal_span)                                                                \
   /* Depth preview: the preview's side in pixels, and tiles per row. */                           \
   MEMBER(float, preview_size)                                                                      \
   MEMBER(int, preview_grid)
@@ -128,6 +131,11 @@ struct DisplayVariant {
   bool bias_auto = true;        // BIAS_AUTO: receiver plane vs the seeds' bias
   int filter_reach = 2;         // FILTER_REACH: see filter_reach_texels
   int filter_read = 3;          // FILTER_READ: see filter_read_texels
+  /// LIGHT_SIDE: closed meshes are drawn in two parts, split where their
+  /// points may start to face the light (scene.vert): 1 the part that may
+  /// face it, -1 the part that cannot (lit by ambient only, visibility 0),
+  /// 0 whole (everything else).
+  int light_side = 0;
 
   /// The #define lines that select this variant.
   std::string defines() const;
@@ -151,9 +159,9 @@ struct PreviewVariant {
 };
 
 /// The block's contents for `request` drawn with the light's views in
-/// `plan`, positions relative to `origin` (the mesh origin); `casters`: one
-/// per view, where its layer holds anything (caster_texels).
-FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const glm::dvec3& origin,
+/// `plan`, positions relative to mesh.origin; `casters`: one per view, where
+/// its layer holds anything (caster_texels).
+FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const Mesh& mesh,
                        const std::vector<TexelRect>& casters);
 
 /// What every program's source starts with: the GLSL version, the shared

@@ -270,7 +270,7 @@ void ShadowRenderer::resize_depth_preview(int size, int bits) {
   preview_.bits = bits;
 }
 
-void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects) {
+void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects, MeshPart part) {
   const Mesh& mesh = scene().mesh;
   glBindVertexArray(scene().vertex_array.id());
   // Runs of consecutive objects to draw, one call each: closed meshes, open
@@ -297,6 +297,8 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
     const std::uint32_t end = open_models.back().first + open_models.back().second;
     open_models = {Run{open_models.front().first, end - open_models.front().first}};  // no plane lies between
   }
+  if (part == MeshPart::Open) closed.clear();
+  if (part == MeshPart::Closed) open_models.clear(), planes.clear();
   if (!closed.empty()) {
     if (closed_mesh_cull == CullMode::None) {
       glDisable(GL_CULL_FACE);
@@ -334,7 +336,7 @@ CasterTexels ShadowRenderer::caster_table(const ShadowPlan& light, const std::ve
 
 void ShadowRenderer::upload_frame_block(const RenderRequest& request, const ShadowPlan& light,
                                         const std::vector<TexelRect>& casters) {
-  const FrameBlock block = frame_block(request, light, scene().mesh.origin, casters);
+  const FrameBlock block = frame_block(request, light, scene().mesh, casters);
   glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
 }
 
@@ -480,7 +482,30 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
       closed_meshes_seen_from_outside(scene().mesh, request.camera, double(request.width) / request.height)
           ? CullMode::Back
           : CullMode::None;
-  draw_scene(closed_cull, drawn_objects(cells.whole_planes));
+  const std::vector<bool> objects = drawn_objects(cells.whole_planes);
+  if (variant.shadows && closed_cull == CullMode::Back) {
+    // The faces of a closed mesh that turn from the light get no direct
+    // light, yet llvmpipe would run the whole shadow lookup for each of
+    // their pixels (it runs both sides of a branch): `contact-line`'s box
+    // face fills a third of the frame. So closed meshes are drawn in two
+    // parts (LIGHT_SIDE, scene.vert): with the lookup where a point may face
+    // the light, without it where none can. Their front faces only: a back
+    // face's normal would be turned to the camera in scene.frag.
+    DisplayVariant facing = variant;
+    facing.light_side = 1;
+    DisplayVariant away = without_shadows(variant);
+    away.light_side = -1;
+    glEnable(GL_CLIP_DISTANCE0);
+    glUseProgram(display_.programs.get(facing.defines()).id());
+    draw_scene(closed_cull, objects, MeshPart::Closed);
+    glUseProgram(display_.programs.get(away.defines()).id());
+    draw_scene(closed_cull, objects, MeshPart::Closed);
+    glDisable(GL_CLIP_DISTANCE0);
+    glUseProgram(display_.programs.get(variant.defines()).id());
+    draw_scene(closed_cull, objects, MeshPart::Open);
+  } else {
+    draw_scene(closed_cull, objects);
+  }
   if (cells.shadowable + cells.unshadowable > 0) {
     glBindVertexArray(display_.cells_vertex_array.id());
     draw_indices(0, cells.shadowable);

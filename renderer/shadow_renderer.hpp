@@ -124,11 +124,17 @@ class ShadowRenderer {
   /// buffers, textures and framebuffers of the last frame, so that those
   /// released are freed now, not at the next request.
   void unbind_released();
-  // The objects `objects` marks (one flag per scene object; empty: all).
-  // Closed objects scattered over more than a few runs are all drawn in one
-  // call, and so are open models; what is drawn outside the view leaves no
-  // texel. Planes are drawn exactly as marked.
-  void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects = {});
+  // Which of the scene's triangles a draw_scene call draws.
+  enum class MeshPart {
+    All,
+    Closed,  ///< closed meshes only (Mesh::closed_index_count)
+    Open,    ///< open models and planes only
+  };
+  // The objects `objects` marks (one flag per scene object; empty: all) in
+  // `part` of the mesh. Closed objects scattered over more than a few runs
+  // are all drawn in one call, and so are open models; what is drawn outside
+  // the view leaves no texel. Planes are drawn exactly as marked.
+  void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects = {}, MeshPart part = MeshPart::All);
   // One flag per scene object: all of them but the planes `planes` leaves
   // out (one flag per Mesh::planes entry; empty: none).
   std::vector<bool> drawn_objects(const std::vector<bool>& planes) const;

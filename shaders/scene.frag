@@ -9,8 +9,8 @@
 // Built once per variant (DisplayVariant in renderer/shader_interface.hpp,
 // which also declares the FrameBlock `u`): SHADOWS, DIRECT_LIGHT, OUTPUT_SHADOW,
 // LIGHT_PERSPECTIVE, LIGHT_CUBE, VIEW_COUNT, FILTER, PCF_RADIUS,
-// FILTER_REACH, FILTER_READ and BIAS_AUTO are #defines, so nothing below branches on a
-// uniform and every loop has a constant trip count.
+// FILTER_REACH, FILTER_READ, BIAS_AUTO and LIGHT_SIDE are #defines, so nothing below
+// branches on a uniform and every loop has a constant trip count.
 in vec3 v_position;  // relative to the mesh origin
 in vec3 v_normal;
 in vec3 v_color;
@@ -414,7 +414,10 @@ void main() {
   vec3 to_light = -u.light_direction.xyz;
 #endif
   float n_dot_l = dot(normal, to_light);
-#if SHADOWS
+#if LIGHT_SIDE < 0
+  // Drawn only where no point faces the light (scene.vert).
+  float visibility = 0.0;
+#elif SHADOWS
   // The triangle's true plane, for the shadow lookup (a sphere's interpolated
   // normal is not the plane the shadow pass rasterised). Derivatives are
   // taken here, outside any branch.

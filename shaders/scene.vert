@@ -24,4 +24,34 @@ void main() {
   v_light_eye = (u.light_view[0] * vec4(a_position, 1.0)).xyz;
 #endif
   gl_Position = u.camera_view_projection * vec4(a_position, 1.0);
+#if LIGHT_SIDE != 0
+  // A closed mesh seen from outside is drawn in two parts: where its points
+  // may face the light, with the shadow lookup, and where none can, without
+  // it (ShadowRenderer::run_display_pass). Clipping splits each triangle
+  // where `toward`, interpolated from its vertices, crosses 0; both parts
+  // use one `toward`, so the line is the same for both.
+  //
+  // scene.frag lights a point if dot(normal, light - p) > 0, with the normal
+  // interpolated. Towards a directional light that is linear across a
+  // triangle, so interpolating it from the vertices gives it exactly.
+  // Towards a point light it differs from the interpolation by
+  // sum_k w_k dot(n_k, p_k - p): no more than the triangle's longest edge
+  // where its normals differ (u.smooth_normal_span), and 0 where they are
+  // one. The 1e-4 terms are far above float rounding.
+#if LIGHT_PERSPECTIVE
+  vec3 to_light = u.light_position.xyz - a_position;
+  float scale = length(to_light);
+  float toward = dot(a_normal, to_light) + u.smooth_normal_span + 1e-4 * scale;
+#else
+  float scale = 1.0;
+  float toward = dot(a_normal, -u.light_direction.xyz) + 1e-4;
+#endif
+#if LIGHT_SIDE > 0
+  // A hair more than its share: the two parts overlap rather than leave a
+  // crack between them (where both draw, both give visibility 0).
+  gl_ClipDistance[0] = toward + 1e-4 * scale;
+#else
+  gl_ClipDistance[0] = -toward;
+#endif
+#endif
 }

@@ -135,5 +135,54 @@ TEST_P(MeshTwin, TheExactReferenceSeesTheMeshAsItsTwin) {
   EXPECT_EQ(error_output.pixels, error_image(shadow, mesh_exact).pixels);
 }
 
+// An octahedron whose vertex normals are a sphere's: 8 triangles, closed.
+std::shared_ptr<const TriangleModel> smooth_octahedron() {
+  ModelPart part;
+  part.positions = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  part.normals = part.positions;
+  for (std::uint32_t x : {0u, 1u})
+    for (std::uint32_t y : {2u, 3u})
+      for (std::uint32_t z : {4u, 5u}) {
+        // (x, y, z) faces out where an odd number of the signs is negative
+        // flips it: (b - a) x (c - a) = (sy sz, sx sz, sx sy).
+        const bool outward = (x == 0) == ((y == 2) == (z == 4));
+        part.indices.insert(part.indices.end(), {x, outward ? y : z, outward ? z : y});
+      }
+  auto model = std::make_shared<TriangleModel>();
+  model->parts.push_back(std::move(part));
+  finish_model(*model);
+  return model;
+}
+
+// The main pass draws a closed mesh in two parts: with the shadow lookup
+// where its points may face the light, without it (visibility 0) where none
+// can. A triangle is split where dot(normal, light - p) interpolated from
+// its vertices crosses 0, but scene.frag interpolates the normal, not the
+// product: across the octahedron's faces a point light lights points up to
+// 1 - |p|^2 (2/3 at a face's centre) past the vertices' line. The split
+// allows for it (Mesh::smooth_normal_span); without that those points came
+// out dark.
+TEST(MeshRender, ASmoothClosedMeshIsLitUpToItsInterpolatedTerminator) {
+  const ModelLookup lookup = test::lookup_of({{"sha256:octahedron", smooth_octahedron()}});
+  ASSERT_TRUE(lookup("sha256:octahedron")->model->closed);
+  const RenderRequest r = request(R"({"width": 320, "height": 180, "output": "shadow",
+      "camera": {"position": [0.5, 2.0, 4.0], "target": [0, 1.2, 0]},
+      "light": {"position": [3, 2, 1], "target": [0, 0, 0], "projection": "perspective"},
+      "scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [20, 20]},
+                            {"type": "mesh", "model": "sha256:octahedron", "position": [0, 1.2, 0]}]}})",
+                                  lookup);
+  const Image image = render(r).image;
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  int lit = 0, dark = 0;
+  for (std::size_t i = 0; i < exact.size(); ++i) {
+    const ExactPixel& p = exact[i];
+    if (!p.geometry || p.object != 1 || p.visibility != 1.0 || p.n_dot_l < 0.05) continue;
+    ++lit;
+    dark += image.pixels[i] < 128;
+  }
+  EXPECT_GT(lit, 2000);
+  EXPECT_LE(dark, lit / 200) << "of " << lit << " lit pixels";
+}
+
 }  // namespace
 }  // namespace umbra

@@ -85,6 +85,17 @@ TEST(GlProgram, EveryKindOfVariantBuildsWithTheBlockLayoutOfCxx) {
   DisplayVariant night;  // a sun below the horizon
   night.shadows = night.direct_light = false;
   variants.push_back(night);
+  // A closed mesh's two parts (scene.vert): towards a point light and a
+  // directional one.
+  for (bool perspective : {false, true}) {
+    DisplayVariant facing;
+    facing.perspective = perspective;
+    facing.light_side = 1;
+    DisplayVariant away = without_shadows(facing);
+    away.light_side = -1;
+    variants.push_back(facing);
+    variants.push_back(away);
+  }
   // Each builds, and build_program checks every FrameBlock member's offset.
   for (const DisplayVariant& v : variants) EXPECT_NO_THROW(programs.get(v.defines())) << v.defines();
   EXPECT_EQ(programs.size(), 4u);  // the most recently used four are kept

@@ -181,6 +181,26 @@ TEST(Scene, ClosedMeshesJoinTheCulledSectionAndOpenOnesThePlanes) {
   for (std::uint32_t i = mesh.closed_index_count; i < mesh.indices.size(); ++i) EXPECT_GT(world_position(mesh, i).x, 2.0);
 }
 
+TEST(Scene, TheSmoothNormalSpanIsTheLongestEdgeOfAClosedTriangleWhoseNormalsDiffer) {
+  Scene scene;
+  SceneObject box;  // flat faces: each triangle's normals are one
+  box.type = SceneObject::Type::Box;
+  box.size = {3, 3, 3};
+  SceneObject plane;  // open: drawn whole in the main pass, never split
+  plane.type = SceneObject::Type::Plane;
+  plane.size = {50, 1, 50};
+  scene.objects = {box, plane};
+  EXPECT_EQ(tessellate(scene).smooth_normal_span, 0.0);
+  SceneObject sphere;
+  sphere.type = SceneObject::Type::Sphere;
+  sphere.radius = 2.0;
+  sphere.center = {5, 0, 0};
+  scene.objects.push_back(sphere);
+  // 48 stacks by 96 slices: a triangle at the equator spans 2 sin(pi / 96)
+  // along each side and the diagonal between, r * 0.0925 in all.
+  EXPECT_NEAR(tessellate(scene).smooth_normal_span, 2.0 * 0.0925, 2.0 * 0.001);
+}
+
 TEST(Scene, PlanesComeLastEachWithTheRangeOfTheOtherObjectsHeights) {
   Scene scene;
   SceneObject floor, roof, box;

@@ -94,15 +94,19 @@ TEST(FrameBlock, HoldsEachViewRelativeToTheOrigin) {
   r.light.ambient = 0.25;
   const ShadowPlan plan = plan_shadow(r);
   const glm::dvec3 origin(10.0, -2.0, 3.0);
+  Mesh mesh;
+  mesh.origin = origin;
+  mesh.smooth_normal_span = 0.5;
   std::vector<TexelRect> casters(plan.views.size());  // nothing drawn
   // No rectangle: one that no filter, however far it reaches, can meet.
-  EXPECT_EQ(frame_block(r, plan, origin, casters).view_casters[0], glm::vec4(1e30f, 1e30f, -1e30f, -1e30f));
+  EXPECT_EQ(frame_block(r, plan, mesh, casters).view_casters[0], glm::vec4(1e30f, 1e30f, -1e30f, -1e30f));
   casters[0] = {{3.0, 4.0}, {50.0, 60.0}};
-  const FrameBlock b = frame_block(r, plan, origin, casters);
+  const FrameBlock b = frame_block(r, plan, mesh, casters);
   EXPECT_EQ(b.view_casters[0], glm::vec4(3.0f, 4.0f, 50.0f, 60.0f));
   EXPECT_EQ(b.map_size, float(plan.layer_size));
+  EXPECT_EQ(b.smooth_normal_span, 0.0f) << "a directional light's facing test is exact";
   casters.pop_back();
-  EXPECT_THROW(frame_block(r, plan, origin, casters), std::out_of_range);
+  EXPECT_THROW(frame_block(r, plan, mesh, casters), std::out_of_range);
   EXPECT_FLOAT_EQ(b.light_color_ambient.w, 0.25f);
   EXPECT_NEAR(b.light_size, std::tan(1.0 * M_PI / 180.0), 1e-7);
   EXPECT_NEAR(b.camera_position.x, r.camera.position.x - origin.x, 1e-6);
@@ -117,6 +121,9 @@ TEST(FrameBlock, HoldsEachViewRelativeToTheOrigin) {
     const glm::vec4 got = b.light_projection[i] * (b.light_view[i] * glm::vec4(glm::vec3(world - origin), 1.0f));
     for (int k = 0; k < 4; ++k) EXPECT_NEAR(got[k], expected[k], 1e-4) << "view " << i << " component " << k;
   }
+  r.light.projection = LightProjection::Perspective;
+  const ShadowPlan point = plan_shadow(r);
+  EXPECT_EQ(frame_block(r, point, mesh, std::vector<TexelRect>(point.views.size())).smooth_normal_span, 0.5f);
 }
 
 TEST(FramePrelude, DeclaresEveryBlockMemberAndTheSharedConstants) {
