@@ -72,6 +72,33 @@ CameraMatrices camera_matrices(const Camera& camera, int width, int height) {
   return m;
 }
 
+double screen_pixels_of(const Aabb& box, const Camera& camera, int width, int height) {
+  const double whole = double(width) * double(height);
+  if (box.empty()) return 0.0;
+  const CameraMatrices m = camera_matrices(camera, width, height);
+  const glm::dmat4 view_projection = m.projection * m.view;
+  glm::dvec2 low(1e300), high(-1e300);
+  for (int k = 0; k < 8; ++k) {
+    const glm::dvec3 corner{k & 1 ? box.max.x : box.min.x, k & 2 ? box.max.y : box.min.y,
+                            k & 4 ? box.max.z : box.min.z};
+    const glm::dvec4 clip = view_projection * glm::dvec4(corner, 1.0);
+    if (clip.w <= 0.0) return whole;
+    low = glm::min(low, glm::dvec2(clip) / clip.w);
+    high = glm::max(high, glm::dvec2(clip) / clip.w);
+  }
+  low = glm::clamp(low, -1.0, 1.0);
+  high = glm::clamp(high, -1.0, 1.0);
+  return (high.x - low.x) * 0.5 * width * (high.y - low.y) * 0.5 * height;
+}
+
+std::vector<bool> objects_split_by_the_light(const Mesh& mesh, const Camera& camera, int width, int height) {
+  std::vector<bool> split(mesh.bounds.size(), false);
+  for (const ObjectRange& r : mesh.object_ranges)
+    if (r.first_index < mesh.closed_index_count && r.index_count > 0)
+      split[r.object] = screen_pixels_of(mesh.bounds[r.object], camera, width, height) >= 4.0 * (r.index_count / 3);
+  return split;
+}
+
 glm::dmat4 reversed_depth_projection(const Camera& camera, int width, int height) {
   // glm::perspective's x, y and w; z_clip = n (f - d) / (f - n) for a point
   // at depth d, so z_clip / w = n (f - d) / (d (f - n)): 1 at d = n, 0 at d = f.

@@ -76,6 +76,20 @@ struct CameraMatrices {
 };
 CameraMatrices camera_matrices(const Camera& camera, int width, int height);
 
+/// The pixels of a width x height image that the box's projection by the
+/// camera can cover: the area of its bounding rectangle, clipped to the
+/// image; the whole image if the box reaches behind the camera's eye.
+double screen_pixels_of(const Aabb& box, const Camera& camera, int width, int height);
+
+/// One flag per scene object: whether the main pass draws it in two parts,
+/// split where its points may face the light (ShadowRenderer::
+/// run_display_pass). Only closed meshes are split, and only those that
+/// cover at least 4 pixels of the image per triangle: the split draws each
+/// triangle twice, which on llvmpipe costs about what the shadow lookup of
+/// one pixel does, so a fine mesh seen small (a 9,000-triangle sphere far
+/// off) would cost more than the pixels it spares.
+std::vector<bool> objects_split_by_the_light(const Mesh& mesh, const Camera& camera, int width, int height);
+
 /// The camera's projection with reversed depth for a clip volume of z in
 /// [0, w] (glClipControl's GL_ZERO_TO_ONE): window depth 1 at the near
 /// plane, 0 at the far plane. With a floating-point depth buffer this keeps

@@ -297,7 +297,6 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
     const std::uint32_t end = open_models.back().first + open_models.back().second;
     open_models = {Run{open_models.front().first, end - open_models.front().first}};  // no plane lies between
   }
-  if (part == MeshPart::Open) closed.clear();
   if (part == MeshPart::Closed) open_models.clear(), planes.clear();
   if (!closed.empty()) {
     if (closed_mesh_cull == CullMode::None) {
@@ -482,30 +481,37 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
       closed_meshes_seen_from_outside(scene().mesh, request.camera, double(request.width) / request.height)
           ? CullMode::Back
           : CullMode::None;
-  const std::vector<bool> objects = drawn_objects(cells.whole_planes);
-  if (variant.shadows && closed_cull == CullMode::Back) {
-    // The faces of a closed mesh that turn from the light get no direct
-    // light, yet llvmpipe would run the whole shadow lookup for each of
-    // their pixels (it runs both sides of a branch): `contact-line`'s box
-    // face fills a third of the frame. So closed meshes are drawn in two
-    // parts (LIGHT_SIDE, scene.vert): with the lookup where a point may face
-    // the light, without it where none can. Their front faces only: a back
-    // face's normal would be turned to the camera in scene.frag.
+  std::vector<bool> objects = drawn_objects(cells.whole_planes);
+  // The faces of a closed mesh that turn from the light get no direct
+  // light, yet llvmpipe would run the whole shadow lookup for each of
+  // their pixels (it runs both sides of a branch): `contact-line`'s box
+  // face fills a third of the frame. So closed meshes are drawn in two
+  // parts (LIGHT_SIDE, scene.vert): with the lookup where a point may face
+  // the light, without it where none can. Their front faces only: a back
+  // face's normal would be turned to the camera in scene.frag.
+  std::vector<bool> split;
+  if (variant.shadows && closed_cull == CullMode::Back)
+    split = objects_split_by_the_light(scene().mesh, request.camera, request.width, request.height);
+  if (std::find(split.begin(), split.end(), true) != split.end()) {
+    for (std::size_t i = 0; i < split.size(); ++i) {
+      split[i] = split[i] && objects[i];
+      objects[i] = objects[i] && !split[i];
+    }
     DisplayVariant facing = variant;
     facing.light_side = 1;
     DisplayVariant away = without_shadows(variant);
     away.light_side = -1;
     glEnable(GL_CLIP_DISTANCE0);
     glUseProgram(display_.programs.get(facing.defines()).id());
-    draw_scene(closed_cull, objects, MeshPart::Closed);
+    draw_scene(closed_cull, split, MeshPart::Closed);
     glUseProgram(display_.programs.get(away.defines()).id());
-    draw_scene(closed_cull, objects, MeshPart::Closed);
+    draw_scene(closed_cull, split, MeshPart::Closed);
     glDisable(GL_CLIP_DISTANCE0);
     glUseProgram(display_.programs.get(variant.defines()).id());
-    draw_scene(closed_cull, objects, MeshPart::Open);
-  } else {
-    draw_scene(closed_cull, objects);
   }
+  // (Past 16 runs of closed meshes draw_scene draws them all: those split
+  // above then fail the depth test.)
+  draw_scene(closed_cull, objects);
   if (cells.shadowable + cells.unshadowable > 0) {
     glBindVertexArray(display_.cells_vertex_array.id());
     draw_indices(0, cells.shadowable);

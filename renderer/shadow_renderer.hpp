@@ -128,7 +128,6 @@ class ShadowRenderer {
   enum class MeshPart {
     All,
     Closed,  ///< closed meshes only (Mesh::closed_index_count)
-    Open,    ///< open models and planes only
   };
   // The objects `objects` marks (one flag per scene object; empty: all) in
   // `part` of the mesh. Closed objects scattered over more than a few runs

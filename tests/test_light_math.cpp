@@ -72,6 +72,44 @@ INSTANTIATE_TEST_SUITE_P(
                                      glm::dvec3(0.0001, 5, 0), glm::dvec3(10, 0.35, 0),  // ~2 degrees high
                                      glm::dvec3(0, -3, 0.5))));                          // from below
 
+TEST(ScreenPixels, ABoxCoversItsProjectedRectangleCutToTheImage) {
+  Camera camera;
+  camera.position = {0, 0, 10};
+  camera.target = {0, 0, 0};
+  camera.fov_y_deg = 90.0;  // at distance 10: y in [-10, 10], x in [-20, 20], 5 pixels a unit
+  Aabb box;
+  box.extend({-1, -1, 0});
+  box.extend({1, 1, 0});
+  EXPECT_NEAR(screen_pixels_of(box, camera, 200, 100), 10.0 * 10.0, 1e-6);
+  box.extend({100, 0, 0});  // past the right edge (x = 20): cut there
+  EXPECT_NEAR(screen_pixels_of(box, camera, 200, 100), 105.0 * 10.0, 1e-6);
+  box.extend({0, 0, 20});  // behind the eye: the whole image
+  EXPECT_EQ(screen_pixels_of(box, camera, 200, 100), 200.0 * 100.0);
+  EXPECT_EQ(screen_pixels_of(Aabb{}, camera, 200, 100), 0.0);
+}
+
+TEST(LightSplit, OnlyClosedMeshesCoveringFourPixelsPerTriangleAreSplit) {
+  Scene scene;
+  SceneObject plane;
+  plane.type = SceneObject::Type::Plane;
+  plane.size = {20, 1, 20};
+  SceneObject box;
+  box.type = SceneObject::Type::Box;
+  box.center = {0, 0.5, 0};
+  SceneObject near_sphere;  // 9,024 triangles over ~100^2 pixels
+  near_sphere.type = SceneObject::Type::Sphere;
+  near_sphere.center = {0, 1, 3};
+  near_sphere.radius = 1.0;
+  SceneObject far_sphere = near_sphere;  // ... over ~20^2
+  far_sphere.center = {0, 1, -40};
+  scene.objects = {plane, box, near_sphere, far_sphere};
+  Camera camera;
+  camera.position = {0, 2, 8};
+  camera.target = {0, 1, 0};
+  EXPECT_EQ(objects_split_by_the_light(tessellate(scene), camera, 640, 360),
+            (std::vector<bool>{false, true, true, false}));
+}
+
 TEST(FrustumBoxIntersection, UnitCubeInsideAFrustumIsItself) {
   const glm::dmat4 vp = glm::ortho(-5.0, 5.0, -5.0, 5.0, -5.0, 5.0);
   Aabb box;
