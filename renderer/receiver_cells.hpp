@@ -15,6 +15,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <glm/vec2.hpp>
+
 #include "light_math.hpp"
 #include "scene.hpp"
 
@@ -24,25 +26,39 @@ namespace umbra {
 /// (2 * kMaxReceiverRegions + 1)^2 cells, two triangles each.
 inline constexpr int kMaxReceiverRegions = 6;
 
+/// A convex part of a horizontal plane: its corners' world (x, z), in
+/// counter-clockwise order in those coordinates; a point or a segment if
+/// it has no area.
+using PlanePolygon = std::vector<glm::dvec2>;
+
+/// The world x/z bounds of `polygon` on the plane at height y (min.y =
+/// max.y = y); empty for an empty polygon.
+Aabb bounds_on_plane(const PlanePolygon& polygon, double y);
+
 /// The part of the horizontal plane at world height `y` that `view` holds
 /// (within its near and far planes, a hair wider for rounding) where the
-/// point's texel in the view's layer (layer_size^2) lies within `rect`: its
-/// world x/z bounds (min.y = max.y = y); empty if there is none.
+/// point's texel in the view's layer (layer_size^2) lies within `rect`:
+/// a convex polygon, empty if there is none. A rectangle of a cube face
+/// beside a point light reaches across a floor as a wedge, whose bounding
+/// box can be most of the floor.
+PlanePolygon view_polygon_on_plane(const ShadowView& view, int layer_size, const TexelRect& rect, double y);
+
+/// view_polygon_on_plane's bounds.
 Aabb view_rect_on_plane(const ShadowView& view, int layer_size, const TexelRect& rect, double y);
 
 /// Where on the horizontal plane at height `y` a point may read a texel
 /// that a caster covers in some view of `light`, reading up to
-/// `margin_texels` around its own texel: one x/z box per view and caster
+/// `margin_texels` around its own texel: one polygon per view and caster
 /// that meet. `rects`: each caster's texels in each view
 /// (CasterTexels::by_object).
-std::vector<Aabb> shadowable_regions(double y, const ShadowPlan& light,
-                                     const std::vector<std::vector<TexelRect>>& rects, double margin_texels);
+std::vector<PlanePolygon> shadowable_regions(double y, const ShadowPlan& light,
+                                             const std::vector<std::vector<TexelRect>>& rects, double margin_texels);
 
 /// The same around `view_rects`, one per view of `light` (CasterTexels::
 /// by_view: around all of its casters at once): looser than one region per
 /// caster, and as cheap for a thousand casters as for one.
-std::vector<Aabb> view_regions(double y, const ShadowPlan& light, const std::vector<TexelRect>& view_rects,
-                               double margin_texels);
+std::vector<PlanePolygon> view_regions(double y, const ShadowPlan& light, const std::vector<TexelRect>& view_rects,
+                                       double margin_texels);
 
 /// A horizontal plane cut into a grid of cells.
 struct PlaneCells {
@@ -55,12 +71,20 @@ struct PlaneCells {
   std::vector<bool> shadowable;
 };
 
-/// `plane`'s bounds cut along the sides of `regions` (x/z boxes, as
-/// shadowable_regions gives): a cell is shadowable where it lies in one.
-/// Regions are clipped to the plane, overlapping ones merged, and past
-/// kMaxReceiverRegions the two whose merged box grows least are merged, so
-/// a cell may be marked shadowable needlessly, never the other way.
-PlaneCells plane_cells(const Aabb& plane, std::vector<Aabb> regions);
+/// `plane`'s bounds cut into cells: a cell is shadowable where it meets one
+/// of `regions` (as shadowable_regions gives).
+/// - The regions' bounding boxes are clipped to the plane, overlapping ones
+///   merged, and past kMaxReceiverRegions the two whose merged box grows
+///   least are merged; the plane is cut along their sides.
+/// - Merged boxes that their regions fill less than half of (wedges across
+///   a floor) are cut further, along a lattice of kRefinedCuts steps across
+///   them all, so that cells follow the regions more closely.
+/// So a cell may be marked shadowable needlessly, never the other way.
+PlaneCells plane_cells(const Aabb& plane, const std::vector<PlanePolygon>& regions);
+
+/// The steps of plane_cells' lattice across the boxes that their regions
+/// fill poorly: at most this many cuts more along each axis.
+inline constexpr int kRefinedCuts = 24;
 
 /// Cells' triangles for the main pass, positions relative to a mesh origin.
 struct CellTriangles {

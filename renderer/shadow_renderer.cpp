@@ -426,7 +426,7 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
     pairs += std::size_t(std::count_if(row.begin(), row.end(), [](const TexelRect& r) { return !r.empty(); }));
   const bool per_caster = pairs <= kMaxRegionPairs;
   CellTriangles cells;
-  std::map<double, std::vector<Aabb>> regions_at;  // by plane height
+  std::map<double, std::vector<PlanePolygon>> regions_at;  // by plane height
   for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
     const PlaneRange& plane = mesh.planes[i];
     // A plane in the map is a caster: all of it can be shadowed.
