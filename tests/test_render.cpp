@@ -481,21 +481,27 @@ TEST(Renderer, AFrameReadsNothingThatAnEarlierFrameLeftInTheMap) {
       "scene": {"objects": [{"type": "plane", "center": [0, -0.5, 0], "size": [50, 50]},
                             {"type": "box", "center": [0, 0, 0], "size": [1, 1, 1]},
                             {"type": "plane", "center": [0, 3, 0], "size": [400, 400]}]}})";
-  const RenderRequest seeds = request(R"({"width": 320, "height": 180, "output": "shadow", "shadow": {"cascades": 1}})");
-  const RenderResult under_roof = render(request(roofed));
-  ASSERT_EQ(under_roof.shadow_views, "single; views=1; size=2048");
-  const RenderResult result = render(seeds);
-  ASSERT_EQ(result.shadow_views, under_roof.shadow_views) << "the same map, drawn again";
-  const std::vector<ExactPixel> exact = cast_exact_pixels(seeds);
-  const std::vector<int> lit_floor = interior_pixels(seeds, exact, 0, 1.0);
-  EXPECT_GT(lit_floor.size(), 320u * 180u / 4u);
-  for (int i : lit_floor) ASSERT_GT(result.image.pixels[std::size_t(i)], 242) << "pixel " << i << " read a stale texel";
-  expect_within_the_error_budget(measure_shadow_error(result.image, exact), 320u * 180u / 2u);
+  // `frame` drawn right after the roofed one, into the same map: the
+  // interior lit pixels of `object` (more than min_lit) stay lit.
+  const auto expect_lit_after_the_roof = [&](const RenderRequest& frame, int object, std::size_t min_lit,
+                                             std::size_t min_measured) {
+    const RenderResult under_roof = render(request(roofed));
+    ASSERT_EQ(under_roof.shadow_views, "single; views=1; size=2048");
+    const RenderResult result = render(frame);
+    ASSERT_EQ(result.shadow_views, under_roof.shadow_views) << "the same map, drawn again";
+    const std::vector<ExactPixel> exact = cast_exact_pixels(frame);
+    const std::vector<int> lit = interior_pixels(frame, exact, object, 1.0);
+    EXPECT_GT(lit.size(), min_lit);
+    for (int i : lit) ASSERT_GT(result.image.pixels[std::size_t(i)], 242) << "pixel " << i << " read a stale texel";
+    expect_within_the_error_budget(measure_shadow_error(result.image, exact), min_measured);
+  };
+  // The seeds' frame: its lit floor.
+  expect_lit_after_the_roof(request(R"({"width": 320, "height": 180, "output": "shadow", "shadow": {"cascades": 1}})"),
+                            0, 320u * 180u / 4u, 320u * 180u / 2u);
 
   // A caster over most of the layer: the shadow pass clears all of it
-  // (cheaper than the rectangle there, on llvmpipe), and the frame reads
-  // nothing of the roof either.
-  render(request(roofed));
+  // (cheaper than the rectangle there, on llvmpipe). The slab's top reads
+  // the map all over (the floor's lit cells far from it do not read it).
   const RenderRequest slab = request(R"({"width": 320, "height": 180, "output": "shadow", "shadow": {"cascades": 1},
       "camera": {"position": [0, 3, 1]},
       "scene": {"objects": [{"type": "plane", "center": [0, -0.5, 0], "size": [50, 50]},
@@ -503,15 +509,7 @@ TEST(Renderer, AFrameReadsNothingThatAnEarlierFrameLeftInTheMap) {
   const ShadowPlan plan = plan_shadow(slab);
   const TexelRect rect = caster_texels_by_view(plan, {object_bounds(slab.scene.objects[1])}, {true}).by_view[0];
   ASSERT_GT((rect.max.x - rect.min.x) * (rect.max.y - rect.min.y), 0.5 * plan.layer_size * plan.layer_size);
-  const RenderResult slab_result = render(slab);
-  ASSERT_EQ(slab_result.shadow_views, under_roof.shadow_views) << "the same map, drawn again";
-  const std::vector<ExactPixel> slab_exact = cast_exact_pixels(slab);
-  // The slab's top reads the map all over (the floor's lit cells far from
-  // it do not read it at all).
-  const std::vector<int> lit_top = interior_pixels(slab, slab_exact, 1, 1.0);
-  EXPECT_GT(lit_top.size(), 320u * 180u / 8u);
-  for (int i : lit_top) ASSERT_GT(slab_result.image.pixels[std::size_t(i)], 242) << "pixel " << i << " read a stale texel";
-  expect_within_the_error_budget(measure_shadow_error(slab_result.image, slab_exact), 320u * 180u / 16u);
+  expect_lit_after_the_roof(slab, 1, 320u * 180u / 8u, 320u * 180u / 16u);
 }
 
 // Default settings against the exact reference (issue 3's thresholds: no
