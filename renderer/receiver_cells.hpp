@@ -22,8 +22,10 @@
 
 namespace umbra {
 
-/// The most regions plane_cells keeps apart (more are merged): at most
-/// (2 * kMaxReceiverRegions + 1)^2 cells, two triangles each.
+/// The most regions plane_cells keeps apart (more are merged): their sides
+/// cut the plane into at most (2 * kMaxReceiverRegions + 1)^2 cells, two
+/// triangles each, before the lattice (kRefinedCuts) cuts it further: at
+/// most 36^2 cells in all.
 inline constexpr int kMaxReceiverRegions = 6;
 
 /// A convex part of a horizontal plane: its corners' world (x, z), in

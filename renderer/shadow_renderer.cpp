@@ -291,7 +291,6 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
   // for all of their kind costs less than hundreds; those outside the view
   // draw nothing. Planes keep their flags: a plane left out of the shadow
   // pass must stay out, and there are few of them.
-  constexpr std::size_t kMaxRuns = 16;
   if (closed.size() > kMaxRuns) closed = {Run{0, mesh.closed_index_count}};
   if (open_models.size() > kMaxRuns) {
     const std::uint32_t end = open_models.back().first + open_models.back().second;
@@ -356,6 +355,11 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   // objects costs once the floor is left out.
   const bool whole_layers = request.output == Output::Depth;
   const int margin = clear_margin_texels(request.shadow);
+  // What the main pass sets and restores, set here too, so that a frame
+  // that ended early (a program that failed to build) leaves no trace:
+  // glClear's depth is far, and the shadow program writes no clip distance.
+  glClearDepth(1.0);
+  glDisable(GL_CLIP_DISTANCE0);
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     // An empty view (no object reaches into it) holds no receiver either,
     // so the main pass never reads its layer: it is not even cleared (the
@@ -492,6 +496,20 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   std::vector<bool> split;
   if (variant.shadows && closed_cull == CullMode::Back)
     split = objects_split_by_the_light(scene().mesh, request.camera, request.width, request.height);
+  std::size_t split_count = 0, unsplit_closed = 0;
+  for (const ObjectRange& r : scene().mesh.object_ranges) {
+    if (r.first_index >= scene().mesh.closed_index_count || !objects[r.object] || split.empty()) continue;
+    split[r.object] ? ++split_count : ++unsplit_closed;
+  }
+  // Past kMaxRuns draw_scene draws every closed mesh in one call: the split
+  // would then draw the unsplit ones too, or the last draw the split ones
+  // again. Counting objects, not runs, errs towards fewer draws.
+  if (split_count > kMaxRuns && unsplit_closed > 0) {
+    for (const ObjectRange& r : scene().mesh.object_ranges)
+      if (r.first_index < scene().mesh.closed_index_count) split[r.object] = true;
+  } else if (unsplit_closed > kMaxRuns) {
+    split.clear();
+  }
   if (std::find(split.begin(), split.end(), true) != split.end()) {
     for (std::size_t i = 0; i < split.size(); ++i) {
       split[i] = split[i] && objects[i];
@@ -509,8 +527,6 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
     glDisable(GL_CLIP_DISTANCE0);
     glUseProgram(display_.programs.get(variant.defines()).id());
   }
-  // (Past 16 runs of closed meshes draw_scene draws them all: those split
-  // above then fail the depth test.)
   draw_scene(closed_cull, objects);
   if (cells.shadowable + cells.unshadowable > 0) {
     glBindVertexArray(display_.cells_vertex_array.id());

@@ -124,6 +124,9 @@ class ShadowRenderer {
   /// buffers, textures and framebuffers of the last frame, so that those
   /// released are freed now, not at the next request.
   void unbind_released();
+  // Runs of closed meshes, and of open models, that draw_scene draws with a
+  // call each; past that many, all of their kind in one call.
+  static constexpr std::size_t kMaxRuns = 16;
   // Which of the scene's triangles a draw_scene call draws.
   enum class MeshPart {
     All,

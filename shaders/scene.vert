@@ -47,9 +47,12 @@ void main() {
   float toward = dot(a_normal, -u.light_direction.xyz) + 1e-4;
 #endif
 #if LIGHT_SIDE > 0
-  // A hair more than its share: the two parts overlap rather than leave a
-  // crack between them (where both draw, both give visibility 0).
-  gl_ClipDistance[0] = toward + 1e-4 * scale;
+  // More than its share: the two parts overlap rather than leave a crack
+  // where their clipped edges snap apart (where both draw, both give
+  // visibility 0). 1e-2 is a band a hundredth of a radius wide on a
+  // sphere: far more than llvmpipe's 1/256-pixel snapping at any size on
+  // screen that is split, and little more of it looked up.
+  gl_ClipDistance[0] = toward + 1e-2 * scale;
 #else
   gl_ClipDistance[0] = -toward;
 #endif

@@ -96,11 +96,11 @@ TEST(LightSplit, OnlyClosedMeshesCoveringFourPixelsPerTriangleAreSplit) {
   SceneObject box;
   box.type = SceneObject::Type::Box;
   box.center = {0, 0.5, 0};
-  SceneObject near_sphere;  // 9,024 triangles over ~100^2 pixels
+  SceneObject near_sphere;  // 9,024 triangles over ~45,000 pixels (36,096 needed)
   near_sphere.type = SceneObject::Type::Sphere;
   near_sphere.center = {0, 1, 3};
   near_sphere.radius = 1.0;
-  SceneObject far_sphere = near_sphere;  // ... over ~20^2
+  SceneObject far_sphere = near_sphere;  // ... over a few hundred
   far_sphere.center = {0, 1, -40};
   scene.objects = {plane, box, near_sphere, far_sphere};
   Camera camera;

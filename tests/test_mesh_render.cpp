@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "light_math.hpp"
 #include "model_support.hpp"
 #include "ray_cast.hpp"
 #include "render_support.hpp"
@@ -171,6 +172,8 @@ TEST(MeshRender, ASmoothClosedMeshIsLitUpToItsInterpolatedTerminator) {
       "scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [20, 20]},
                             {"type": "mesh", "model": "sha256:octahedron", "position": [0, 1.2, 0]}]}})",
                                   lookup);
+  ASSERT_TRUE(objects_split_by_the_light(tessellate(r.scene), r.camera, r.width, r.height)[1])
+      << "the octahedron is drawn in two parts";
   const Image image = render(r).image;
   const std::vector<ExactPixel> exact = cast_exact_pixels(r);
   int lit = 0, dark = 0;
