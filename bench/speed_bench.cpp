@@ -148,9 +148,10 @@ SpeedRow measure_scene(RenderService& service, PlainFrameRenderer& plain, const 
   RenderRequest shadow_request = base;
   shadow_request.output = Output::Shadow;
   const RenderResult umbra_shadow = service.submit(shadow_request).get();
-  row.umbra.error = measure_shadow_error(umbra_shadow.image, exact);
+  const PixelCoverageOf finer = exact_pixel_coverage(base);
+  row.umbra.error = measure_shadow_error(umbra_shadow.image, exact, finer);
   row.views = umbra_shadow.shadow_views;
-  row.plain.error = measure_shadow_error(plain.render(base, true).image, exact);
+  row.plain.error = measure_shadow_error(plain.render(base, true).image, exact, finer);
 
   // Artifacts over the light's orbit: a seam or speckle that shows at some
   // moments of the panel's Play and not at the scene's own time.
@@ -158,8 +159,10 @@ SpeedRow measure_scene(RenderService& service, PlainFrameRenderer& plain, const 
     RenderRequest moment = shadow_request;
     moment.time = orbit_sweep_time(k, options.sweep);
     const std::vector<ExactPixel> exact_then = cast_exact_pixels(moment);
-    const double umbra_artifacts = measure_shadow_error(service.submit(moment).get().image, exact_then).artifacts;
-    const double plain_artifacts = measure_shadow_error(plain.render(moment, true).image, exact_then).artifacts;
+    const PixelCoverageOf finer_then = exact_pixel_coverage(moment);
+    const double umbra_artifacts =
+        measure_shadow_error(service.submit(moment).get().image, exact_then, finer_then).artifacts;
+    const double plain_artifacts = measure_shadow_error(plain.render(moment, true).image, exact_then, finer_then).artifacts;
     if (umbra_artifacts > row.umbra_sweep_artifacts)
       row.umbra_sweep_artifacts = umbra_artifacts, row.umbra_sweep_worst_time = moment.time;
     if (plain_artifacts > row.plain_sweep_artifacts)
@@ -268,8 +271,9 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
         "(wall clock with glFinish); s+m+r = the median of each stage on its own. ratio = Umbra ms / plain ms.\n"
      << "- Error: the shadow output at the scene's own time against the exact ray-cast reference "
         "(`renderer/shadow_error.hpp`); wrong = share of measured pixels with |v - v_exact| > 0.5; artifacts = "
-        "share of interior pixels (exactly lit or dark, over 3 px from any shadow edge, silhouette or crease) off "
-        "by more than 0.1.\n"
+        "share of interior pixels (exactly lit or dark, over 3 px from any shadow edge, silhouette or crease, "
+        "an edge between pixel centres included: 4 x 4 samples per pixel around each candidate) off by more than "
+        "0.1.\n"
      << "- Orbit sweep: the artifacts of the shadow output at " << options.sweep << " light angles spread evenly "
      << "over one turn of the default orbit (t = k x " << kOrbitTurnSeconds << " / " << options.sweep
      << " s), each against its own exact reference; the worst time of each (- where every angle had none).\n";

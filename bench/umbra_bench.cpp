@@ -117,7 +117,7 @@ std::vector<Technique> techniques_for(const RenderRequest& base, const Options& 
 }
 
 Row measure(RenderService& service, const Options& options, const std::string& scene, const Technique& technique,
-            const std::vector<ExactPixel>& exact, bool perspective) {
+            const std::vector<ExactPixel>& exact, const PixelCoverageOf& finer, bool perspective) {
   json overrides = technique.overrides(perspective);
   overrides["width"] = options.width;
   overrides["height"] = options.height;
@@ -125,7 +125,7 @@ Row measure(RenderService& service, const Options& options, const std::string& s
   RenderRequest request = load_scene_request(options.scenes_dir, scene, overrides);
   Row row{scene, technique, "", 0.0, 0.0, {}};
   const RenderResult shadow = service.submit(request).get();
-  row.error = measure_shadow_error(shadow.image, exact);
+  row.error = measure_shadow_error(shadow.image, exact, finer);
   row.views = shadow.shadow_views;
 
   request.output = Output::Color;
@@ -330,9 +330,10 @@ int run(int argc, char** argv) {
     const RenderRequest base = load_scene_request(options.scenes_dir, scene,
                                                   {{"width", options.width}, {"height", options.height}, {"output", "shadow"}});
     const std::vector<ExactPixel> exact = cast_exact_pixels(base);
+    const PixelCoverageOf finer = exact_pixel_coverage(base);
     const bool perspective = base.light.projection == LightProjection::Perspective;
     for (const Technique& t : techniques_for(base, options)) {
-      Row row = measure(service, options, scene, t, exact, perspective);
+      Row row = measure(service, options, scene, t, exact, finer, perspective);
       std::printf("%-20s %-24s %-24s %9.2f %9.2f %9.5f %8s %8s %8s %8s\n", scene.c_str(), t.label().c_str(),
                   row.views.c_str(), row.median_ms, row.median_shadow_ms, row.error.mae, percent(row.error.wrong).c_str(),
                   percent(row.error.false_shadow).c_str(), percent(row.error.false_light).c_str(),
@@ -406,7 +407,8 @@ void write_reports(const std::vector<Row>& rows, const Options& options, const s
      << "- Error: the `shadow` output against the exact ray-cast reference (`renderer/shadow_error.hpp`): "
         "`wrong` = share of measured pixels with |v - v_exact| > 0.5, split into false shadow and false light; "
         "`artifacts` = share of interior pixels (exactly lit or dark, over 3 px from any shadow edge, silhouette or "
-        "crease) off by more than 0.1.\n"
+        "crease, an edge between pixel centres included: 4 x 4 samples per pixel around each candidate) off by "
+        "more than 0.1.\n"
      << "- `seeds-fixed`: the seeds' frustum (ortho +-10, or a 90 degree cone; near 1, far 7.5) and bias "
         "max(0.05 (1 - N.L), 0.005); the seeds' own configuration is `seeds-fixed pcf r1 1024`. "
         "`scene`: Umbra's fit and automatic bias.\n\n"

@@ -5,6 +5,7 @@
 // the GL output is judged against.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -109,6 +110,20 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
 double exact_visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
                         const RayHit& surface);
 
+/// The exact visibility over one pixel's area, sampled finer than its centre
+/// (kCoverageSamples^2 points spread over the pixel).
+enum class PixelCoverage : std::uint8_t {
+  unknown,  ///< not asked for, or no sample saw geometry
+  dark,     ///< every sample that saw geometry is exactly in shadow (0)
+  lit,      ///< ... exactly lit (1)
+  mixed,    ///< anything else: a shadow edge or a penumbra crosses the pixel
+};
+/// Samples per pixel side of a PixelCoverage (4 x 4 points per pixel).
+inline constexpr int kCoverageSamples = 4;
+/// Given a width x height mask (row 0 at the top), the PixelCoverage of
+/// each pixel marked non-zero; the others may stay unknown.
+using PixelCoverageOf = std::function<std::vector<PixelCoverage>(const std::vector<std::uint8_t>& which)>;
+
 /// One camera ray per pixel centre, as the rasterizer samples them.
 struct ExactPixel {
   bool geometry = false;  ///< the ray hit something (between camera near and far)
@@ -128,6 +143,15 @@ struct ExactPixel {
 /// left does not keep cores busy for minutes.
 std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request,
                                           const std::function<bool()>& stop_requested = nullptr);
+
+/// The request's PixelCoverageOf, for measure_shadow_error: each pixel asked
+/// for is sampled at kCoverageSamples^2 points (x + (i + 0.5) / k, y +
+/// (j + 0.5) / k), each judged as cast_exact_pixels judges a centre, on all
+/// hardware threads. The function holds a copy of the request and builds
+/// its rays when called; `stop_requested` is asked as cast_exact_pixels
+/// asks it (CastStopped).
+PixelCoverageOf exact_pixel_coverage(const RenderRequest& request,
+                                     const std::function<bool()>& stop_requested = nullptr);
 
 /// The "exact" output: round(255 * v) per pixel, 255 where no geometry.
 Image exact_image(const std::vector<ExactPixel>& pixels, int width, int height);

@@ -390,8 +390,17 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
       return overran;
     };
     std::vector<ExactPixel> pixels;
+    RenderResult result;
+    double cast_ms = 0.0;
     try {
       pixels = cast_exact_pixels(request, stop);
+      cast_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+      if (request.output == Output::Error) {
+        if (!shadow) shadow = rendered.get();
+        // Artifact candidates are sampled finer (shadow_error.hpp), under
+        // the same stop as the cast.
+        result.error = measure_shadow_error(shadow->image, pixels, exact_pixel_coverage(request, stop));
+      }
     } catch (const CastStopped&) {
       if (overran) {
         impl->overran_count.fetch_add(1);
@@ -409,11 +418,10 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
       throw ClientGone();
     }
     const Image exact = exact_image(pixels, request.width, request.height);
-    const double cast_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    RenderResult result;
     if (request.output == Output::Error) {
-      result = shadow ? std::move(*shadow) : rendered.get();
-      result.error = measure_shadow_error(result.image, pixels);
+      const std::optional<ShadowError> error = result.error;
+      result = std::move(*shadow);
+      result.error = error;
       result.image = error_image(result.image, exact);
     } else {
       result.image = exact;  // no GL pass ran: shadow, main and read-back stay 0

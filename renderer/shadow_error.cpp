@@ -49,7 +49,8 @@ std::vector<std::uint8_t> near_edges(const std::vector<ExactPixel>& exact, int w
 
 }  // namespace
 
-ShadowError measure_shadow_error(const Image& rendered, const std::vector<ExactPixel>& exact) {
+ShadowError measure_shadow_error(const Image& rendered, const std::vector<ExactPixel>& exact,
+                                 const PixelCoverageOf& finer) {
   ShadowError e;
   const int w = rendered.width, h = rendered.height;
   std::size_t wrong = 0, false_shadow = 0, false_light = 0, artifacts = 0;
@@ -60,6 +61,9 @@ ShadowError measure_shadow_error(const Image& rendered, const std::vector<ExactP
     return n.geometry && n.object == object;
   };
   const std::vector<std::uint8_t> near_edge = near_edges(exact, w, h);
+  // Interior pixels off by more than kArtifactError, judged by the centres
+  // alone; with `finer` they are looked at more closely below.
+  std::vector<std::size_t> candidates;
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const ExactPixel& p = exact[std::size_t(y) * w + x];
@@ -79,8 +83,37 @@ ShadowError measure_shadow_error(const Image& rendered, const std::vector<ExactP
       // pixel skipped above is itself marked near an edge.
       if (!near_edge[std::size_t(y) * w + x] && (p.visibility == 0.0 || p.visibility == 1.0)) {
         ++e.interior_pixels;
-        if (std::abs(d) > kArtifactError) ++artifacts;
+        if (std::abs(d) > kArtifactError) candidates.push_back(std::size_t(y) * w + x);
       }
+    }
+  }
+  if (!finer || candidates.empty()) {
+    artifacts = candidates.size();
+  } else {
+    // Sample finer every pixel within kArtifactMargin of a candidate, then
+    // keep the candidates whose whole neighbourhood is covered by their own
+    // exact value.
+    const int r = kArtifactMargin;
+    std::vector<std::uint8_t> which(exact.size(), 0);
+    for (const std::size_t i : candidates) {
+      const int cx = int(i % w), cy = int(i / w);
+      for (int y = std::max(0, cy - r); y <= std::min(h - 1, cy + r); ++y)
+        for (int x = std::max(0, cx - r); x <= std::min(w - 1, cx + r); ++x) which[std::size_t(y) * w + x] = 1;
+    }
+    const std::vector<PixelCoverage> coverage = finer(which);
+    for (const std::size_t i : candidates) {
+      const int cx = int(i % w), cy = int(i / w);
+      const PixelCoverage own = exact[i].visibility == 0.0 ? PixelCoverage::dark : PixelCoverage::lit;
+      bool uniform = true;
+      for (int y = std::max(0, cy - r); uniform && y <= std::min(h - 1, cy + r); ++y)
+        for (int x = std::max(0, cx - r); uniform && x <= std::min(w - 1, cx + r); ++x) {
+          const PixelCoverage c = coverage[std::size_t(y) * w + x];
+          uniform = c == own || c == PixelCoverage::unknown;
+        }
+      if (uniform)
+        ++artifacts;
+      else
+        --e.interior_pixels;  // an edge between pixel centres: not interior after all
     }
   }
   if (e.pixels > 0) {

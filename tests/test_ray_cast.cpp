@@ -14,6 +14,7 @@
 #include "model_support.hpp"
 #include "ray_cast.hpp"
 #include "scene.hpp"
+#include "shadow_error.hpp"
 
 namespace umbra {
 namespace {
@@ -184,6 +185,75 @@ TEST(ExactImages, ErrorIsRedForFalseShadowAndBlueForFalseLight) {
   EXPECT_EQ(e.pixels[2], 0);
   EXPECT_EQ(e.pixels[3], 0);
   EXPECT_EQ(e.pixels[5], 255);  // pixel 1 blue
+}
+
+// A bar's thin shadow line that runs exactly between two rows of pixel
+// centres: the centres all see the floor lit, so the exact image shows no
+// edge there, but the line covers a sixth of each of those pixels. The
+// finer coverage sees it (shadow_error.hpp: such a line is no artifact).
+RenderRequest shadow_line_between_pixel_centres() {
+  RenderRequest r;
+  r.width = 64;
+  r.height = 36;
+  r.scene.objects = {plane_object(glm::dvec3(0.0), 20.0),
+                     // Its shadow: z in [-2.02 + 2 * 0.99, -1.98 + 2 * 1.01] = [-0.04, 0.04].
+                     box_object({0.0, 1.0, -2.0}, {8.0, 0.02, 0.04})};
+  r.light.position = {0.0, 10.0, -20.0};  // orthographic: z moves 2 per unit of height
+  r.light.target = glm::dvec3(0.0);
+  // Straight down, image up = -z: z = 0 is the line between rows 17 and 18,
+  // whose centres lie half a pixel (8.28 / 36 / 2 = 0.115 units) off it,
+  // and the samples nearest it 0.029; the bar itself is seen 2.2 units up,
+  // 9.7 pixels off.
+  r.camera.position = {0.0, 10.0, 0.0};
+  r.camera.target = glm::dvec3(0.0);
+  r.camera.up = {0.0, 0.0, -1.0};
+  return r;
+}
+
+TEST(ExactPixelCoverage, SeesAShadowLineThatMissesEveryPixelCentre) {
+  const RenderRequest r = shadow_line_between_pixel_centres();
+  const std::vector<ExactPixel> centres = cast_exact_pixels(r);
+  std::vector<std::uint8_t> which(centres.size(), 0);
+  const auto at = [&r](int x, int y) { return std::size_t(y) * r.width + x; };
+  for (int x = 20; x < 44; ++x)
+    for (const int y : {10, 17, 18, 26}) which[at(x, y)] = 1;
+  const std::vector<PixelCoverage> coverage = exact_pixel_coverage(r)(which);
+  ASSERT_EQ(coverage.size(), centres.size());
+  for (int x = 20; x < 44; ++x) {
+    for (const int y : {17, 18}) {
+      ASSERT_TRUE(centres[at(x, y)].geometry);
+      EXPECT_EQ(centres[at(x, y)].object, 0) << x << "," << y;
+      EXPECT_EQ(centres[at(x, y)].visibility, 1.0) << x << "," << y;
+      EXPECT_EQ(coverage[at(x, y)], PixelCoverage::mixed) << x << "," << y;
+    }
+    // Away from the line and the bar: the floor, lit all over.
+    for (const int y : {10, 26}) EXPECT_EQ(coverage[at(x, y)], PixelCoverage::lit) << x << "," << y;
+  }
+  // Pixels not asked for are not sampled.
+  EXPECT_EQ(coverage[at(0, 0)], PixelCoverage::unknown);
+  EXPECT_EQ(coverage[at(30, 17 - 3)], PixelCoverage::unknown);
+}
+
+// A render that shows the line (PCF over a fine map gives the covered fifth
+// as 0.7 at the centres either side) has no artifact there: with the finer
+// coverage those pixels are near an edge, as the image shows; the centres
+// alone called 2 x 24 of them artifacts.
+TEST(ExactPixelCoverage, ALineBetweenPixelCentresIsNoArtifact) {
+  const RenderRequest r = shadow_line_between_pixel_centres();
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  Image rendered = exact_image(exact, r.width, r.height);
+  for (int x = 20; x < 44; ++x)
+    for (const int y : {17, 18}) rendered.pixels[std::size_t(y) * r.width + x] = 178;
+  const ShadowError by_centres = measure_shadow_error(rendered, exact);
+  EXPECT_GE(by_centres.artifacts * by_centres.interior_pixels, 48.0 - 0.5);
+  const ShadowError finer = measure_shadow_error(rendered, exact, exact_pixel_coverage(r));
+  EXPECT_EQ(finer.artifacts, 0.0);
+  EXPECT_LE(finer.interior_pixels, by_centres.interior_pixels - 48);
+  EXPECT_GT(finer.interior_pixels, 0u);
+  // A real artifact beside it, in the floor's lit interior, is still one.
+  rendered.pixels[std::size_t(8) * r.width + 32] = 100;
+  const ShadowError with_speck = measure_shadow_error(rendered, exact, exact_pixel_coverage(r));
+  EXPECT_DOUBLE_EQ(with_speck.artifacts * with_speck.interior_pixels, 1.0);
 }
 
 // The hierarchy must answer exactly as testing every object in order:
