@@ -144,11 +144,12 @@ SpeedRow measure_scene(RenderService& service, PlainFrameRenderer& plain, const 
       load_scene_request(options.scenes_dir, scene, {{"width", size.width}, {"height", size.height}});
 
   // Accuracy, at the scene's own time.
-  const std::vector<ExactPixel> exact = cast_exact_pixels(base);
+  const ExactView view(base);
+  const std::vector<ExactPixel> exact = view.pixels();
   RenderRequest shadow_request = base;
   shadow_request.output = Output::Shadow;
   const RenderResult umbra_shadow = service.submit(shadow_request).get();
-  const PixelCoverageOf finer = exact_pixel_coverage(base);
+  const PixelCoverageOf finer = view.coverage_of();
   row.umbra.error = measure_shadow_error(umbra_shadow.image, exact, finer);
   row.views = umbra_shadow.shadow_views;
   row.plain.error = measure_shadow_error(plain.render(base, true).image, exact, finer);
@@ -158,8 +159,9 @@ SpeedRow measure_scene(RenderService& service, PlainFrameRenderer& plain, const 
   for (int k = 0; k < options.sweep; ++k) {
     RenderRequest moment = shadow_request;
     moment.time = orbit_sweep_time(k, options.sweep);
-    const std::vector<ExactPixel> exact_then = cast_exact_pixels(moment);
-    const PixelCoverageOf finer_then = exact_pixel_coverage(moment);
+    const ExactView view_then(moment);
+    const std::vector<ExactPixel> exact_then = view_then.pixels();
+    const PixelCoverageOf finer_then = view_then.coverage_of();
     const double umbra_artifacts =
         measure_shadow_error(service.submit(moment).get().image, exact_then, finer_then).artifacts;
     const double plain_artifacts = measure_shadow_error(plain.render(moment, true).image, exact_then, finer_then).artifacts;

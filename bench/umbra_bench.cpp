@@ -329,8 +329,9 @@ int run(int argc, char** argv) {
   for (const std::string& scene : scenes) {
     const RenderRequest base = load_scene_request(options.scenes_dir, scene,
                                                   {{"width", options.width}, {"height", options.height}, {"output", "shadow"}});
-    const std::vector<ExactPixel> exact = cast_exact_pixels(base);
-    const PixelCoverageOf finer = exact_pixel_coverage(base);
+    const ExactView view(base);
+    const std::vector<ExactPixel> exact = view.pixels();
+    const PixelCoverageOf finer = view.coverage_of();
     const bool perspective = base.light.projection == LightProjection::Perspective;
     for (const Technique& t : techniques_for(base, options)) {
       Row row = measure(service, options, scene, t, exact, finer, perspective);

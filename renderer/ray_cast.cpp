@@ -354,51 +354,10 @@ double exact_visibility(const RenderRequest& request, const glm::dvec3& light_po
 
 namespace {
 
-// The request's camera and light over its scene's rays: the exact reference
-// at any point of the image.
-class ExactView {
- public:
-  ExactView(const RenderRequest& request, const std::function<bool()>& stop_requested)
-      : request_(request),
-        inverse_(inverse_view_projection(request)),
-        light_(light_at(request.light, request.time)),
-        rays_(request.scene, stop_requested) {}
-
-  // The reference at image point (px, py) in pixels from the top-left
-  // corner: a pixel's centre is (x + 0.5, y + 0.5).
-  ExactPixel at(double px, double py) const {
-    ExactPixel pixel;
-    const double nx = px / request_.width * 2.0 - 1.0;
-    const double ny = 1.0 - py / request_.height * 2.0;
-    const glm::dvec4 near_h = inverse_ * glm::dvec4(nx, ny, -1.0, 1.0);
-    const glm::dvec4 far_h = inverse_ * glm::dvec4(nx, ny, 1.0, 1.0);
-    const glm::dvec3 near_p = glm::dvec3(near_h) / near_h.w;
-    const glm::dvec3 far_p = glm::dvec3(far_h) / far_h.w;
-    const glm::dvec3 dir = glm::normalize(far_p - near_p);
-    // The camera sees between its near and far planes, as GL clips.
-    const double t_far = glm::length(far_p - near_p);
-    const auto hit = rays_.cast(near_p, dir, 0.0, t_far);
-    if (!hit) return pixel;
-    pixel.geometry = true;
-    pixel.object = hit->object;
-    pixel.normal = glm::vec3(hit->normal);
-    pixel.n_dot_l = glm::dot(hit->normal, direction_to_light(request_.light, light_.position, hit->point));
-    // A sun below the horizon lights nothing directly (LightState::direct).
-    pixel.visibility = light_.direct ? exact_visibility(rays_, request_, light_.position, *hit) : 0.0;
-    return pixel;
-  }
-
- private:
-  static glm::dmat4 inverse_view_projection(const RenderRequest& request) {
-    const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
-    return glm::inverse(camera.projection * camera.view);
-  }
-
-  const RenderRequest& request_;
-  const glm::dmat4 inverse_;
-  const LightState light_;
-  const RayScene rays_;
-};
+glm::dmat4 inverse_view_projection(const RenderRequest& request) {
+  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
+  return glm::inverse(camera.projection * camera.view);
+}
 
 // Calls row(y) for every y in [0, height) on all hardware threads, asking
 // stop_requested (if given) before each row; throws CastStopped once it
@@ -426,15 +385,15 @@ void for_each_row(int height, const std::function<bool()>& stop_requested, const
 
 // How kCoverageSamples^2 samples over pixel (x, y) see the light; stops
 // sampling once both a lit and an unlit sample were seen.
-PixelCoverage coverage_of(const ExactView& view, int x, int y) {
-  bool dark = false, lit = false, partial = false;
+PixelCoverage coverage_of_pixel(const ExactView& view, int x, int y) {
+  bool dark = false, lit = false;
   for (int j = 0; j < kCoverageSamples; ++j) {
     for (int i = 0; i < kCoverageSamples; ++i) {
       const ExactPixel p = view.at(x + (i + 0.5) / kCoverageSamples, y + (j + 0.5) / kCoverageSamples);
       if (!p.geometry) continue;
+      const bool partial = p.visibility != 0.0 && p.visibility != 1.0;
       dark |= p.visibility == 0.0;
       lit |= p.visibility == 1.0;
-      partial |= p.visibility != 0.0 && p.visibility != 1.0;
       if (partial || (dark && lit)) return PixelCoverage::mixed;
     }
   }
@@ -443,29 +402,66 @@ PixelCoverage coverage_of(const ExactView& view, int x, int y) {
 
 }  // namespace
 
-std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request, const std::function<bool()>& stop_requested) {
-  const int width = request.width;
-  std::vector<ExactPixel> pixels(std::size_t(width) * request.height);
-  const ExactView view(request, stop_requested);
-  for_each_row(request.height, stop_requested, [&](int y) {
-    for (int x = 0; x < width; ++x) pixels[std::size_t(y) * width + x] = view.at(x + 0.5, y + 0.5);
+ExactView::ExactView(const RenderRequest& request, const std::function<bool()>& stop_requested)
+    : request_(request),
+      inverse_(inverse_view_projection(request)),
+      light_(light_at(request.light, request.time)),
+      rays_(request.scene, stop_requested) {}
+
+ExactPixel ExactView::at(double px, double py) const {
+  ExactPixel pixel;
+  const double nx = px / request_.width * 2.0 - 1.0;
+  const double ny = 1.0 - py / request_.height * 2.0;
+  const glm::dvec4 near_h = inverse_ * glm::dvec4(nx, ny, -1.0, 1.0);
+  const glm::dvec4 far_h = inverse_ * glm::dvec4(nx, ny, 1.0, 1.0);
+  const glm::dvec3 near_p = glm::dvec3(near_h) / near_h.w;
+  const glm::dvec3 far_p = glm::dvec3(far_h) / far_h.w;
+  const glm::dvec3 dir = glm::normalize(far_p - near_p);
+  // The camera sees between its near and far planes, as GL clips.
+  const double t_far = glm::length(far_p - near_p);
+  const auto hit = rays_.cast(near_p, dir, 0.0, t_far);
+  if (!hit) return pixel;
+  pixel.geometry = true;
+  pixel.object = hit->object;
+  pixel.normal = glm::vec3(hit->normal);
+  pixel.n_dot_l = glm::dot(hit->normal, direction_to_light(request_.light, light_.position, hit->point));
+  // A sun below the horizon lights nothing directly (LightState::direct).
+  pixel.visibility = light_.direct ? exact_visibility(rays_, request_, light_.position, *hit) : 0.0;
+  return pixel;
+}
+
+std::vector<ExactPixel> ExactView::pixels(const std::function<bool()>& stop_requested) const {
+  const int width = request_.width;
+  std::vector<ExactPixel> pixels(std::size_t(width) * request_.height);
+  for_each_row(request_.height, stop_requested, [&](int y) {
+    for (int x = 0; x < width; ++x) pixels[std::size_t(y) * width + x] = at(x + 0.5, y + 0.5);
   });
   return pixels;
 }
 
-PixelCoverageOf exact_pixel_coverage(const RenderRequest& request, const std::function<bool()>& stop_requested) {
-  return [request, stop_requested](const std::vector<std::uint8_t>& which) {
-    const int width = request.width;
-    std::vector<PixelCoverage> coverage(std::size_t(width) * request.height, PixelCoverage::unknown);
-    const ExactView view(request, stop_requested);
-    for_each_row(request.height, stop_requested, [&](int y) {
-      for (int x = 0; x < width; ++x) {
-        const std::size_t i = std::size_t(y) * width + x;
-        if (which[i]) coverage[i] = coverage_of(view, x, y);
-      }
-    });
-    return coverage;
-  };
+std::vector<PixelCoverage> ExactView::coverage(const std::vector<std::uint8_t>& which,
+                                               const std::function<bool()>& stop_requested) const {
+  const int width = request_.width;
+  const std::size_t size = std::size_t(width) * request_.height;
+  if (which.size() != size)
+    throw std::invalid_argument("ExactView::coverage: the mask has " + std::to_string(which.size()) +
+                                " pixels, the view " + std::to_string(size));
+  std::vector<PixelCoverage> coverage(size, PixelCoverage::unknown);
+  for_each_row(request_.height, stop_requested, [&](int y) {
+    for (int x = 0; x < width; ++x) {
+      const std::size_t i = std::size_t(y) * width + x;
+      if (which[i]) coverage[i] = coverage_of_pixel(*this, x, y);
+    }
+  });
+  return coverage;
+}
+
+PixelCoverageOf ExactView::coverage_of(const std::function<bool()>& stop_requested) const {
+  return [this, stop_requested](const std::vector<std::uint8_t>& which) { return coverage(which, stop_requested); };
+}
+
+std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request, const std::function<bool()>& stop_requested) {
+  return ExactView(request, stop_requested).pixels(stop_requested);
 }
 
 Image exact_image(const std::vector<ExactPixel>& pixels, int width, int height) {

@@ -12,9 +12,11 @@
 #include <stdexcept>
 #include <vector>
 
+#include <glm/mat4x4.hpp>
 #include <glm/vec3.hpp>
 
 #include "image.hpp"
+#include "light_math.hpp"
 #include "request.hpp"
 #include "scene.hpp"
 
@@ -124,7 +126,7 @@ inline constexpr int kCoverageSamples = 4;
 /// each pixel marked non-zero; the others may stay unknown.
 using PixelCoverageOf = std::function<std::vector<PixelCoverage>(const std::vector<std::uint8_t>& which)>;
 
-/// One camera ray per pixel centre, as the rasterizer samples them.
+/// The exact reference at one point of the image: what one camera ray finds.
 struct ExactPixel {
   bool geometry = false;  ///< the ray hit something (between camera near and far)
   int object = -1;
@@ -136,22 +138,46 @@ struct ExactPixel {
   glm::vec3 normal{0.0f};
 };
 
-/// Every pixel of the request's camera view (width x height, row 0 at the
-/// top), using all hardware threads. `stop_requested`, if given, is asked
-/// while mesh BVHs are built and between rows (from those threads): once it
-/// answers true the cast ends and throws CastStopped, so a client that has
-/// left does not keep cores busy for minutes.
+/// The request's camera and light over its scene's rays: the exact
+/// reference at any point of the image. The mesh BVHs are built (or taken
+/// from the cache) once, in the constructor, which asks `stop_requested`
+/// during those builds (CastStopped). `request` must outlive the view.
+class ExactView {
+ public:
+  explicit ExactView(const RenderRequest& request, const std::function<bool()>& stop_requested = nullptr);
+
+  /// The reference at image point (px, py), in pixels from the top-left
+  /// corner: a pixel's centre is (x + 0.5, y + 0.5). Thread-safe.
+  ExactPixel at(double px, double py) const;
+
+  /// One camera ray per pixel centre, as the rasterizer samples them: every
+  /// pixel of the view (width x height, row 0 at the top), using all
+  /// hardware threads. `stop_requested`, if given, is asked between rows
+  /// (from those threads, one at a time): once it answers true the cast
+  /// ends and throws CastStopped, so a client that has left does not keep
+  /// cores busy for minutes.
+  std::vector<ExactPixel> pixels(const std::function<bool()>& stop_requested = nullptr) const;
+
+  /// The PixelCoverage of each pixel marked non-zero in `which` (width x
+  /// height): kCoverageSamples^2 points (x + (i + 0.5) / k, y + (j + 0.5) /
+  /// k), each judged as pixels() judges a centre; on all threads, asking
+  /// `stop_requested` as pixels() does. Throws std::invalid_argument if
+  /// `which` is not width x height.
+  std::vector<PixelCoverage> coverage(const std::vector<std::uint8_t>& which,
+                                      const std::function<bool()>& stop_requested = nullptr) const;
+  /// coverage() as measure_shadow_error takes it; it refers to this view.
+  PixelCoverageOf coverage_of(const std::function<bool()>& stop_requested = nullptr) const;
+
+ private:
+  const RenderRequest& request_;
+  const glm::dmat4 inverse_;  // of the camera's projection * view
+  const LightState light_;
+  const RayScene rays_;
+};
+
+/// ExactView(request, stop_requested).pixels(stop_requested).
 std::vector<ExactPixel> cast_exact_pixels(const RenderRequest& request,
                                           const std::function<bool()>& stop_requested = nullptr);
-
-/// The request's PixelCoverageOf, for measure_shadow_error: each pixel asked
-/// for is sampled at kCoverageSamples^2 points (x + (i + 0.5) / k, y +
-/// (j + 0.5) / k), each judged as cast_exact_pixels judges a centre, on all
-/// hardware threads. The function holds a copy of the request and builds
-/// its rays when called; `stop_requested` is asked as cast_exact_pixels
-/// asks it (CastStopped).
-PixelCoverageOf exact_pixel_coverage(const RenderRequest& request,
-                                     const std::function<bool()>& stop_requested = nullptr);
 
 /// The "exact" output: round(255 * v) per pixel, 255 where no geometry.
 Image exact_image(const std::vector<ExactPixel>& pixels, int width, int height);

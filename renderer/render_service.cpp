@@ -382,24 +382,29 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
     // that runs past max_run_time for a client that stays: the estimate
     // admitted it, but a busy machine or a scene the estimate misjudged must
     // not hold the cores without bound.
-    const auto run_until = start + impl->limits.max_run_time;
+    auto run_until = start + impl->limits.max_run_time;
     bool overran = false;
-    const auto stop = [&client_gone, &overran, run_until] {
+    const auto stop = [&client_gone, &overran, &run_until] {
       if (client_gone && client_gone()) return true;
       overran = std::chrono::steady_clock::now() > run_until;
       return overran;
     };
     std::vector<ExactPixel> pixels;
     RenderResult result;
-    double cast_ms = 0.0;
+    std::chrono::steady_clock::duration cast_time{};
     try {
-      pixels = cast_exact_pixels(request, stop);
-      cast_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+      const ExactView view(request, stop);
+      pixels = view.pixels(stop);
+      cast_time = std::chrono::steady_clock::now() - start;
       if (request.output == Output::Error) {
         if (!shadow) shadow = rendered.get();
-        // Artifact candidates are sampled finer (shadow_error.hpp), under
-        // the same stop as the cast.
-        result.error = measure_shadow_error(shadow->image, pixels, exact_pixel_coverage(request, stop));
+        // Artifact candidates are sampled finer (shadow_error.hpp) with the
+        // same view, under what is left of max_run_time: the wait for the
+        // GL frame above is not the cast's, and the finer look is.
+        const auto finer_start = std::chrono::steady_clock::now();
+        run_until = finer_start + (impl->limits.max_run_time - cast_time);
+        result.error = measure_shadow_error(shadow->image, pixels, view.coverage_of(stop));
+        cast_time += std::chrono::steady_clock::now() - finer_start;
       }
     } catch (const CastStopped&) {
       if (overran) {
@@ -426,7 +431,7 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
     } else {
       result.image = exact;  // no GL pass ran: shadow, main and read-back stay 0
     }
-    result.timings.ray_cast_ms = cast_ms;
+    result.timings.ray_cast_ms = std::chrono::duration<double, std::milli>(cast_time).count();
     return result;
   });
 }

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
+#include <string>
 
 #include <glm/geometric.hpp>
 
@@ -62,7 +64,11 @@ ShadowError measure_shadow_error(const Image& rendered, const std::vector<ExactP
   };
   const std::vector<std::uint8_t> near_edge = near_edges(exact, w, h);
   // Interior pixels off by more than kArtifactError, judged by the centres
-  // alone; with `finer` they are looked at more closely below.
+  // alone; with `finer` they are looked at more closely below, unless their
+  // neighbourhoods would cover more than kFinerShare of the image (they do
+  // once there are that many of them: then they are only counted).
+  const std::size_t finer_budget = std::max(exact.size() / kFinerShare, kFinerPixels);
+  std::size_t centre_artifacts = 0;
   std::vector<std::size_t> candidates;
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
@@ -83,24 +89,38 @@ ShadowError measure_shadow_error(const Image& rendered, const std::vector<ExactP
       // pixel skipped above is itself marked near an edge.
       if (!near_edge[std::size_t(y) * w + x] && (p.visibility == 0.0 || p.visibility == 1.0)) {
         ++e.interior_pixels;
-        if (std::abs(d) > kArtifactError) candidates.push_back(std::size_t(y) * w + x);
+        if (std::abs(d) > kArtifactError && ++centre_artifacts <= finer_budget && finer)
+          candidates.push_back(std::size_t(y) * w + x);
       }
     }
   }
-  if (!finer || candidates.empty()) {
-    artifacts = candidates.size();
-  } else {
-    // Sample finer every pixel within kArtifactMargin of a candidate, then
-    // keep the candidates whose whole neighbourhood is covered by their own
-    // exact value.
-    const int r = kArtifactMargin;
-    std::vector<std::uint8_t> which(exact.size(), 0);
+  const bool look_finer = finer && centre_artifacts > 0 && centre_artifacts <= finer_budget;
+  // The neighbourhoods to sample finer: every pixel within kArtifactMargin
+  // of a candidate.
+  const int r = kArtifactMargin;
+  std::vector<std::uint8_t> which;
+  std::size_t to_sample = 0;
+  if (look_finer) {
+    which.assign(exact.size(), 0);
     for (const std::size_t i : candidates) {
       const int cx = int(i % w), cy = int(i / w);
       for (int y = std::max(0, cy - r); y <= std::min(h - 1, cy + r); ++y)
-        for (int x = std::max(0, cx - r); x <= std::min(w - 1, cx + r); ++x) which[std::size_t(y) * w + x] = 1;
+        for (int x = std::max(0, cx - r); x <= std::min(w - 1, cx + r); ++x) {
+          std::uint8_t& marked = which[std::size_t(y) * w + x];
+          to_sample += marked == 0;
+          marked = 1;
+        }
     }
+  }
+  if (!look_finer || to_sample > finer_budget) {
+    artifacts = centre_artifacts;  // the centres' verdict: an upper bound
+  } else {
+    // A candidate is an artifact only if its whole neighbourhood is
+    // covered by its own exact value (or by no geometry at all).
     const std::vector<PixelCoverage> coverage = finer(which);
+    if (coverage.size() != exact.size())
+      throw std::invalid_argument("measure_shadow_error: the finer coverage has " + std::to_string(coverage.size()) +
+                                  " pixels, the image " + std::to_string(exact.size()));
     for (const std::size_t i : candidates) {
       const int cx = int(i % w), cy = int(i / w);
       const PixelCoverage own = exact[i].visibility == 0.0 ? PixelCoverage::dark : PixelCoverage::lit;

@@ -217,7 +217,7 @@ TEST(ExactPixelCoverage, SeesAShadowLineThatMissesEveryPixelCentre) {
   const auto at = [&r](int x, int y) { return std::size_t(y) * r.width + x; };
   for (int x = 20; x < 44; ++x)
     for (const int y : {10, 17, 18, 26}) which[at(x, y)] = 1;
-  const std::vector<PixelCoverage> coverage = exact_pixel_coverage(r)(which);
+  const std::vector<PixelCoverage> coverage = ExactView(r).coverage(which);
   ASSERT_EQ(coverage.size(), centres.size());
   for (int x = 20; x < 44; ++x) {
     for (const int y : {17, 18}) {
@@ -246,13 +246,15 @@ TEST(ExactPixelCoverage, ALineBetweenPixelCentresIsNoArtifact) {
     for (const int y : {17, 18}) rendered.pixels[std::size_t(y) * r.width + x] = 178;
   const ShadowError by_centres = measure_shadow_error(rendered, exact);
   EXPECT_GE(by_centres.artifacts * by_centres.interior_pixels, 48.0 - 0.5);
-  const ShadowError finer = measure_shadow_error(rendered, exact, exact_pixel_coverage(r));
+  const ExactView view(r);
+  const ShadowError finer = measure_shadow_error(rendered, exact, view.coverage_of());
   EXPECT_EQ(finer.artifacts, 0.0);
   EXPECT_LE(finer.interior_pixels, by_centres.interior_pixels - 48);
   EXPECT_GT(finer.interior_pixels, 0u);
-  // A real artifact beside it, in the floor's lit interior, is still one.
-  rendered.pixels[std::size_t(8) * r.width + 32] = 100;
-  const ShadowError with_speck = measure_shadow_error(rendered, exact, exact_pixel_coverage(r));
+  // A real artifact beside it, in the floor's lit interior (the bar is
+  // seen around row 8), is still one.
+  rendered.pixels[std::size_t(28) * r.width + 32] = 100;
+  const ShadowError with_speck = measure_shadow_error(rendered, exact, view.coverage_of());
   EXPECT_DOUBLE_EQ(with_speck.artifacts * with_speck.interior_pixels, 1.0);
 }
 

@@ -195,5 +195,62 @@ TEST(ShadowArtifacts, TheOtherMeasuresAreAsTheyWere) {
   EXPECT_DOUBLE_EQ(e.artifacts, 2.0 / 240.0);
 }
 
+// The finer look (measure_shadow_error's `finer`) is asked about exactly the
+// 7 x 7 neighbourhood of each candidate, and a candidate next to a pixel an
+// edge crosses is neither an artifact nor interior.
+TEST(ShadowError, TheFinerLookSamplesTheCandidatesNeighbourhoodsOnly) {
+  constexpr int kSide = 20;
+  ExactPixel lit;
+  lit.geometry = true;
+  lit.object = 0;
+  lit.n_dot_l = 0.8;
+  lit.normal = {0.0f, 1.0f, 0.0f};
+  const std::vector<ExactPixel> exact(kSide * kSide, lit);
+  Image rendered{kSide, kSide, 1, std::vector<std::uint8_t>(kSide * kSide, 255)};
+  rendered.pixels[5 * kSide + 5] = 0;    // candidate (5, 5)
+  rendered.pixels[14 * kSide + 14] = 0;  // candidate (14, 14)
+  std::vector<std::uint8_t> asked;
+  const auto finer = [&](const std::vector<std::uint8_t>& which) {
+    asked = which;
+    std::vector<PixelCoverage> coverage(which.size(), PixelCoverage::lit);
+    coverage[12 * kSide + 16] = PixelCoverage::mixed;  // within 3 px of (14, 14)
+    return coverage;
+  };
+  const ShadowError centres = measure_shadow_error(rendered, exact);
+  const ShadowError e = measure_shadow_error(rendered, exact, finer);
+  EXPECT_EQ(centres.artifacts * centres.interior_pixels, 2.0);
+  EXPECT_EQ(e.artifacts * e.interior_pixels, 1.0);
+  EXPECT_EQ(e.interior_pixels, centres.interior_pixels - 1);
+  ASSERT_EQ(asked.size(), exact.size());
+  for (int y = 0; y < kSide; ++y)
+    for (int x = 0; x < kSide; ++x) {
+      const bool near_one = (std::abs(x - 5) <= 3 && std::abs(y - 5) <= 3) || (std::abs(x - 14) <= 3 && std::abs(y - 14) <= 3);
+      EXPECT_EQ(asked[y * kSide + x] != 0, near_one) << x << "," << y;
+    }
+}
+
+// Past kFinerPixels (and 1 / kFinerShare of the image) of neighbourhoods the
+// finer look is not taken: the centres' verdict stands, and the cost stays
+// bounded whatever the render.
+TEST(ShadowError, ManyCandidatesKeepTheCentresVerdict) {
+  constexpr int kSide = 100;
+  ExactPixel lit;
+  lit.geometry = true;
+  lit.object = 0;
+  lit.n_dot_l = 0.8;
+  lit.normal = {0.0f, 1.0f, 0.0f};
+  const std::vector<ExactPixel> exact(kSide * kSide, lit);
+  const Image dark{kSide, kSide, 1, std::vector<std::uint8_t>(kSide * kSide, 0)};
+  bool asked = false;
+  const auto finer = [&](const std::vector<std::uint8_t>& which) {
+    asked = true;
+    return std::vector<PixelCoverage>(which.size(), PixelCoverage::mixed);
+  };
+  const ShadowError e = measure_shadow_error(dark, exact, finer);
+  EXPECT_FALSE(asked);
+  EXPECT_EQ(e.interior_pixels, std::size_t(kSide * kSide));
+  EXPECT_EQ(e.artifacts, 1.0);
+}
+
 }  // namespace
 }  // namespace umbra
