@@ -195,17 +195,23 @@ TEST(ShadowArtifacts, TheOtherMeasuresAreAsTheyWere) {
   EXPECT_DOUBLE_EQ(e.artifacts, 2.0 / 240.0);
 }
 
-// The finer look (measure_shadow_error's `finer`) is asked about exactly the
-// 7 x 7 neighbourhood of each candidate, and a candidate next to a pixel an
-// edge crosses is neither an artifact nor interior.
-TEST(ShadowError, TheFinerLookSamplesTheCandidatesNeighbourhoodsOnly) {
-  constexpr int kSide = 20;
+// A side x side view of one flat object, exactly lit everywhere, with no
+// edge, silhouette or crease: every pixel is interior.
+std::vector<ExactPixel> lit_floor(int side) {
   ExactPixel lit;
   lit.geometry = true;
   lit.object = 0;
   lit.n_dot_l = 0.8;
   lit.normal = {0.0f, 1.0f, 0.0f};
-  const std::vector<ExactPixel> exact(kSide * kSide, lit);
+  return std::vector<ExactPixel>(std::size_t(side) * side, lit);
+}
+
+// The finer look (measure_shadow_error's `finer`) is asked about exactly the
+// 7 x 7 neighbourhood of each candidate, and a candidate next to a pixel an
+// edge crosses is neither an artifact nor interior.
+TEST(ShadowError, TheFinerLookSamplesTheCandidatesNeighbourhoodsOnly) {
+  constexpr int kSide = 20;
+  const std::vector<ExactPixel> exact = lit_floor(kSide);
   Image rendered{kSide, kSide, 1, std::vector<std::uint8_t>(kSide * kSide, 255)};
   rendered.pixels[5 * kSide + 5] = 0;    // candidate (5, 5)
   rendered.pixels[14 * kSide + 14] = 0;  // candidate (14, 14)
@@ -234,12 +240,7 @@ TEST(ShadowError, TheFinerLookSamplesTheCandidatesNeighbourhoodsOnly) {
 // bounded whatever the render.
 TEST(ShadowError, ManyCandidatesKeepTheCentresVerdict) {
   constexpr int kSide = 100;
-  ExactPixel lit;
-  lit.geometry = true;
-  lit.object = 0;
-  lit.n_dot_l = 0.8;
-  lit.normal = {0.0f, 1.0f, 0.0f};
-  const std::vector<ExactPixel> exact(kSide * kSide, lit);
+  const std::vector<ExactPixel> exact = lit_floor(kSide);
   const Image dark{kSide, kSide, 1, std::vector<std::uint8_t>(kSide * kSide, 0)};
   bool asked = false;
   const auto finer = [&](const std::vector<std::uint8_t>& which) {
