@@ -390,7 +390,7 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
       return overran;
     };
     std::vector<ExactPixel> pixels;
-    RenderResult result;
+    std::optional<ShadowError> error;
     std::chrono::steady_clock::duration cast_time{};
     try {
       const ExactView view(request, stop);
@@ -403,7 +403,7 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
         // GL frame above is not the cast's, and the finer look is.
         const auto finer_start = std::chrono::steady_clock::now();
         run_until = finer_start + (impl->limits.max_run_time - cast_time);
-        result.error = measure_shadow_error(shadow->image, pixels, view.coverage_of(stop));
+        error = measure_shadow_error(shadow->image, pixels, view.coverage_of(stop));
         cast_time += std::chrono::steady_clock::now() - finer_start;
       }
     } catch (const CastStopped&) {
@@ -423,8 +423,8 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
       throw ClientGone();
     }
     const Image exact = exact_image(pixels, request.width, request.height);
+    RenderResult result;
     if (request.output == Output::Error) {
-      const std::optional<ShadowError> error = result.error;
       result = std::move(*shadow);
       result.error = error;
       result.image = error_image(result.image, exact);

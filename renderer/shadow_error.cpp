@@ -95,22 +95,25 @@ ShadowError measure_shadow_error(const Image& rendered, const std::vector<ExactP
     }
   }
   const bool look_finer = finer && centre_artifacts > 0 && centre_artifacts <= finer_budget;
-  // The neighbourhoods to sample finer: every pixel within kArtifactMargin
-  // of a candidate.
-  const int r = kArtifactMargin;
+  // Calls visit(index) for each pixel within kArtifactMargin (Chebyshev) of
+  // pixel i, clipped to the image, until visit answers false.
+  const auto for_each_near = [w, h](std::size_t i, auto&& visit) {
+    const int r = kArtifactMargin, cx = int(i % w), cy = int(i / w);
+    for (int y = std::max(0, cy - r); y <= std::min(h - 1, cy + r); ++y)
+      for (int x = std::max(0, cx - r); x <= std::min(w - 1, cx + r); ++x)
+        if (!visit(std::size_t(y) * w + x)) return;
+  };
+  // The neighbourhoods to sample finer.
   std::vector<std::uint8_t> which;
   std::size_t to_sample = 0;
   if (look_finer) {
     which.assign(exact.size(), 0);
-    for (const std::size_t i : candidates) {
-      const int cx = int(i % w), cy = int(i / w);
-      for (int y = std::max(0, cy - r); y <= std::min(h - 1, cy + r); ++y)
-        for (int x = std::max(0, cx - r); x <= std::min(w - 1, cx + r); ++x) {
-          std::uint8_t& marked = which[std::size_t(y) * w + x];
-          to_sample += marked == 0;
-          marked = 1;
-        }
-    }
+    for (const std::size_t i : candidates)
+      for_each_near(i, [&](std::size_t n) {
+        to_sample += which[n] == 0;
+        which[n] = 1;
+        return true;
+      });
   }
   if (!look_finer || to_sample > finer_budget) {
     artifacts = centre_artifacts;  // the centres' verdict: an upper bound
@@ -122,14 +125,12 @@ ShadowError measure_shadow_error(const Image& rendered, const std::vector<ExactP
       throw std::invalid_argument("measure_shadow_error: the finer coverage has " + std::to_string(coverage.size()) +
                                   " pixels, the image " + std::to_string(exact.size()));
     for (const std::size_t i : candidates) {
-      const int cx = int(i % w), cy = int(i / w);
       const PixelCoverage own = exact[i].visibility == 0.0 ? PixelCoverage::dark : PixelCoverage::lit;
       bool uniform = true;
-      for (int y = std::max(0, cy - r); uniform && y <= std::min(h - 1, cy + r); ++y)
-        for (int x = std::max(0, cx - r); uniform && x <= std::min(w - 1, cx + r); ++x) {
-          const PixelCoverage c = coverage[std::size_t(y) * w + x];
-          uniform = c == own || c == PixelCoverage::unknown;
-        }
+      for_each_near(i, [&](std::size_t n) {
+        uniform = coverage[n] == own || coverage[n] == PixelCoverage::unknown;
+        return uniform;
+      });
       if (uniform)
         ++artifacts;
       else
