@@ -15,6 +15,8 @@
 // Prints a table as it goes and writes STEM.md and STEM.json under --out.
 #include "speed_bench.hpp"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -43,6 +45,17 @@ using nlohmann::json;
 // Seconds of animation between measured frames: the default orbit (20
 // degrees per second) turns the light 7.4 degrees per frame.
 constexpr double kTimeStep = 0.37;
+// glibc's malloc: blocks of at least kMmapThreshold bytes are mapped afresh
+// and unmapped when freed, and free memory at the heap's top past
+// kTrimThreshold is given back. Left alone, glibc raises both as large
+// blocks are freed, so llvmpipe's per-draw scratch (tens of megabytes for
+// a 100k-triangle mesh) is page-faulted in anew each frame or not,
+// depending on what ran before: the plain teapot's frame took 133 ms
+// before an orbit sweep had run and 35 ms after it. Fixed at the values
+// glibc's own rule ends at, both renderers' frames cost the same whatever
+// the run's history.
+constexpr int kMmapThreshold = 32 << 20;
+constexpr int kTrimThreshold = 2 * kMmapThreshold;
 // The scene whose stage times the summary quotes.
 constexpr const char* kDefaultScene = "seeds";
 
@@ -269,7 +282,8 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
         "at its defaults, only the image size changed. Both at the request's map size.\n"
      << "- Time: median of " << options.frames << " frames each, after one warm-up frame each, plain and Umbra "
      << "frames interleaved; frame i at the scene's time + (i + 1) x " << kTimeStep << " s, so the light moves and "
-     << "every frame draws its shadow map. ms = shadow + main pass + read-back from each renderer's own timings "
+     << "every frame draws its shadow map; malloc's mmap and trim thresholds fixed at " << (kMmapThreshold >> 20)
+     << " and " << (kTrimThreshold >> 20) << " MiB, so that no frame's cost depends on what the run allocated before. ms = shadow + main pass + read-back from each renderer's own timings "
         "(wall clock with glFinish); s+m+r = the median of each stage on its own. ratio = Umbra ms / plain ms.\n"
      << "- Error: the shadow output at the scene's own time against the exact ray-cast reference "
         "(`renderer/shadow_error.hpp`); wrong = share of measured pixels with |v - v_exact| > 0.5; artifacts = "
@@ -393,6 +407,8 @@ int run_speed(int argc, char** argv) {
   const std::vector<std::string> scenes =
       options.only_scenes.empty() ? scene_file_names(options.scenes_dir) : options.only_scenes;
 
+  mallopt(M_MMAP_THRESHOLD, kMmapThreshold);
+  mallopt(M_TRIM_THRESHOLD, kTrimThreshold);
   RenderService service;
   // On this (the main) thread, with its own context beside the service's.
   PlainFrameRenderer plain;
