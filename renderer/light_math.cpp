@@ -174,6 +174,17 @@ TexelRect rounded_out(TexelRect r, double size) {
   return r;
 }
 
+// The bounding rectangle of the non-empty `rects`; empty if none is.
+TexelRect bounding_rect(const std::vector<TexelRect>& rects) {
+  TexelRect all = kNoTexels;
+  for (const TexelRect& r : rects) {
+    if (r.empty()) continue;
+    all.min = glm::min(all.min, r.min);
+    all.max = glm::max(all.max, r.max);
+  }
+  return all.min.x <= all.max.x ? all : TexelRect{};
+}
+
 }  // namespace
 
 TexelRect caster_texels(const ShadowView& view, int layer_size, const std::vector<Aabb>& casters) {
@@ -190,18 +201,14 @@ CasterTexels caster_texels_by_view(const ShadowPlan& plan, const std::vector<Aab
   for (const ShadowView& view : plan.views) {
     const glm::dmat4 to_clip = view.view_projection();
     std::vector<TexelRect>& row = table.by_object.emplace_back(bounds.size());
-    TexelRect all = kNoTexels;
     // An empty view's layer is neither cleared nor drawn: nothing there.
     for (std::size_t i = 0; i < bounds.size() && !view.empty; ++i) {
       if (!drawn[i]) continue;
       TexelRect r = kNoTexels;
       add_box_texels(to_clip, size, bounds[i], r);
       row[i] = rounded_out(r, size);
-      if (row[i].empty()) continue;
-      all.min = glm::min(all.min, row[i].min);
-      all.max = glm::max(all.max, row[i].max);
     }
-    table.by_view.push_back(all.min.x <= all.max.x ? all : TexelRect{});
+    table.by_view.push_back(bounding_rect(row));
   }
   return table;
 }
@@ -606,6 +613,80 @@ bool view_covers(const ShadowView& have, const ShadowView& want, bool perspectiv
 }
 
 }  // namespace
+
+namespace {
+
+// Whether orthographic view `v` holds world point p with `reach` texels of
+// its `size`^2 layer to spare on every side, as choose_view in scene.frag
+// asks, with one texel and a hair of depth more for float rounding there.
+bool holds_with_reach(const ShadowView& v, int size, int reach, const glm::dvec3& p) {
+  const glm::dvec3 ndc = transform(v.view_projection(), p);  // orthographic: w = 1
+  const double xy_limit = 1.0 - 2.0 * double(reach + 1) / size;
+  return std::abs(ndc.x) <= xy_limit && std::abs(ndc.y) <= xy_limit && std::abs(ndc.z) <= 1.0 - 1e-5;
+}
+
+// Whether every point that `object` can darken through view `k` lies in
+// an earlier view (see drop_casters_held_by_earlier_cascades).
+bool held_by_earlier_cascades(const ShadowPlan& plan, std::size_t k, const Extent& object,
+                              const std::vector<Extent>& extents, const std::vector<Aabb>& bounds,
+                              double prism_far, int read) {
+  const ShadowView& view = plan.views[k];
+  // The object's shadow prism: its rectangle grown by what the filter reads
+  // in view k (one texel more for rounding), from its nearest point away
+  // from the light to `prism_far`, past the deepest point of the scene.
+  const glm::dvec2 grow = double(read + 1) * view.texel_size;
+  const glm::dvec2 lo = glm::dvec2(object.min) - grow, hi = glm::dvec2(object.max) + grow;
+  const glm::dmat4 prism = glm::ortho(lo.x, hi.x, lo.y, hi.y, -object.max.z, prism_far) * view.view;
+  for (std::size_t b = 0; b < bounds.size(); ++b) {
+    const Extent& e = extents[b];
+    if (e.empty() || e.max.x < lo.x || e.min.x > hi.x || e.max.y < lo.y || e.min.y > hi.y || e.min.z > object.max.z)
+      continue;
+    const std::vector<glm::dvec3> piece = frustum_box_intersection(prism, bounds[b]);
+    if (piece.empty()) continue;
+    // The piece is convex, as is what a view holds: all its corners in one
+    // earlier view put all of it there.
+    bool held = false;
+    for (std::size_t j = 0; j < k && !held; ++j) {
+      if (plan.views[j].empty) continue;
+      held = std::all_of(piece.begin(), piece.end(), [&](const glm::dvec3& p) {
+        return holds_with_reach(plan.views[j], plan.layer_size, read, p);
+      });
+    }
+    if (!held) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void drop_casters_held_by_earlier_cascades(const ShadowPlan& plan, const std::vector<Aabb>& bounds,
+                                           const std::vector<bool>& candidates, int read_texels,
+                                           CasterTexels& table) {
+  if (plan.layout != ShadowLayout::Cascades || plan.views.size() < 2) return;
+  const glm::dmat4& light_view = plan.views[0].view;
+  std::vector<Extent> extents(bounds.size());
+  double deepest = kInfinity;  // the lowest light eye z of the scene
+  for (std::size_t b = 0; b < bounds.size(); ++b) {
+    if (bounds[b].empty()) continue;
+    for (const glm::dvec3& corner : bounds[b].corners()) extents[b].extend(transform(light_view, corner));
+    deepest = std::min(deepest, extents[b].min.z);
+  }
+  if (deepest == kInfinity) return;
+  for (std::size_t i = 0; i < bounds.size() && i < candidates.size(); ++i) {
+    if (!candidates[i] || extents[i].empty()) continue;
+    // Past the deepest point by a margin, so that the prism's far face cuts
+    // no box.
+    const double prism_far = -deepest + 1e-3 * std::max(extents[i].max.z - deepest, 1e-30);
+    for (std::size_t k = 1; k < plan.views.size() && k < table.by_object.size(); ++k) {
+      TexelRect& rect = table.by_object[k][i];
+      if (rect.empty() || plan.views[k].empty) continue;
+      if (held_by_earlier_cascades(plan, k, extents[i], extents, bounds, prism_far, read_texels))
+        rect = TexelRect{};
+    }
+  }
+  for (std::size_t k = 0; k < table.by_object.size() && k < table.by_view.size(); ++k)
+    table.by_view[k] = bounding_rect(table.by_object[k]);
+}
 
 bool plane_can_shadow(const PlaneRange& plane, const ShadowPlan& plan) {
   // > 0: the light is above the plane, whose shadow falls below it.

@@ -328,8 +328,21 @@ std::vector<bool> ShadowRenderer::casting_planes(const RenderRequest& request, c
   return planes;
 }
 
-CasterTexels ShadowRenderer::caster_table(const ShadowPlan& light, const std::vector<bool>& planes) const {
-  return caster_texels_by_view(light, scene().mesh.bounds, drawn_objects(planes));
+CasterTexels ShadowRenderer::caster_table(const RenderRequest& request, const ShadowPlan& light,
+                                          const std::vector<bool>& planes) const {
+  const Mesh& mesh = scene().mesh;
+  CasterTexels table = caster_texels_by_view(light, mesh.bounds, drawn_objects(planes));
+  if (request.output == Output::Depth || light.layout != ShadowLayout::Cascades) return table;
+  // Only meshes whose triangles cost more to draw again than the test
+  // costs (a few microseconds per box near them), and only as many as
+  // draw_scene draws one by one.
+  std::vector<bool> heavy(mesh.bounds.size(), false);
+  std::size_t count = 0;
+  for (const ObjectRange& r : mesh.object_ranges)
+    if (r.index_count / 3 >= kHeavyTriangles) heavy[r.object] = true, ++count;
+  if (count == 0 || count > kMaxRuns) return table;
+  drop_casters_held_by_earlier_cascades(light, mesh.bounds, heavy, filter_read_texels(request.shadow), table);
+  return table;
 }
 
 void ShadowRenderer::upload_frame_block(const RenderRequest& request, const ShadowPlan& light,
@@ -593,7 +606,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
     light = shadow_.plan;
     result.shadow_reused = true;
   }
-  const CasterTexels casters = caster_table(light, planes);
+  const CasterTexels casters = caster_table(request, light, planes);
   upload_frame_block(request, light, casters.by_view);
   if (needs_map) {
     if (!result.shadow_reused) {

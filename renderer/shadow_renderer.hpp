@@ -127,6 +127,9 @@ class ShadowRenderer {
   // Runs of closed meshes, and of open models, that draw_scene draws with a
   // call each; past that many, all of their kind in one call.
   static constexpr std::size_t kMaxRuns = 16;
+  // Triangles from which an object is worth leaving out of a cascade it
+  // shadows nothing in: on llvmpipe about 0.4 ms of a shadow pass.
+  static constexpr std::size_t kHeavyTriangles = 4096;
   // Which of the scene's triangles a draw_scene call draws.
   enum class MeshPart {
     All,
@@ -146,7 +149,11 @@ class ShadowRenderer {
   std::vector<bool> casting_planes(const RenderRequest& request, const ShadowPlan& light) const;
   // Where each object the shadow pass draws (all but the planes that
   // `planes` leaves out) reaches into each view of `light`: once per frame.
-  CasterTexels caster_table(const ShadowPlan& light, const std::vector<bool>& planes) const;
+  // Heavy meshes are left out of cascades where they shadow nothing
+  // (drop_casters_held_by_earlier_cascades), except for the depth output,
+  // which shows whole layers.
+  CasterTexels caster_table(const RenderRequest& request, const ShadowPlan& light,
+                            const std::vector<bool>& planes) const;
   void upload_frame_block(const RenderRequest& request, const ShadowPlan& light, const std::vector<TexelRect>& casters);
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
                        const CasterTexels& casters);

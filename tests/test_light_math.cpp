@@ -316,6 +316,105 @@ TEST(CasterTexels, TheTablePerObjectAndPerViewAgreesWithTheRectanglesItReplaces)
   }
 }
 
+// What drop_casters_held_by_earlier_cascades rests on, checked by
+// sampling rather than by its convex clipping: every sampled scene point
+// within the filter's read of an object's rectangle in cascade k and
+// farther from the light than the object's nearest point is looked up (as
+// scene.frag's choose_view picks) in another cascade than k, wherever the
+// object was left out of k.
+int view_chosen_for(const ShadowPlan& plan, int reach, const glm::dvec3& p) {
+  int fallback = -1;
+  for (std::size_t i = 0; i < plan.views.size(); ++i) {
+    const glm::dvec3 ndc = glm::dvec3(plan.views[i].view_projection() * glm::dvec4(p, 1.0));
+    if (std::abs(ndc.x) > 1.0 || std::abs(ndc.y) > 1.0 || std::abs(ndc.z) > 1.0) continue;
+    const glm::dvec2 texel = (glm::dvec2(ndc) * 0.5 + 0.5) * double(plan.layer_size);
+    const bool with_reach = texel.x >= reach && texel.y >= reach && texel.x <= plan.layer_size - reach &&
+                            texel.y <= plan.layer_size - reach;
+    if (with_reach) return int(i);
+    if (fallback < 0) fallback = int(i);
+  }
+  return fallback;
+}
+
+// Points on a grid through each box (a flat box, a floor, gets a finer one).
+std::vector<glm::dvec3> grid_points(const std::vector<Aabb>& boxes) {
+  std::vector<glm::dvec3> points;
+  for (const Aabb& b : boxes) {
+    const glm::dvec3 e = b.extent();
+    const bool flat = e.y < 1e-6 * std::max(e.x, e.z);
+    const int n = flat ? 400 : 24, ny = flat ? 0 : 24;
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; j <= ny; ++j)
+        for (int k = 0; k <= n; ++k)
+          points.push_back(b.min + e * glm::dvec3(double(i) / n, ny == 0 ? 0.5 : double(j) / ny, double(k) / n));
+  }
+  return points;
+}
+
+TEST(CascadeCasters, AnObjectIsLeftOutOfACascadeOnlyWhereItShadowsNothingThatLooksItUp) {
+  int dropped = 0, kept_though_the_first_holds_it = 0, sampled = 0;
+  for (const char* scene : {"teapot", "three-cubes"}) {
+    for (double time = 0.0; time < 18.0; time += 1.5) {
+      RenderRequest r = request_with_light({-2.0, 4.0, -1.0}, LightProjection::Orthographic, scene);
+      r.time = time;
+      r.width = 960;
+      r.height = 540;
+      const ShadowPlan plan = plan_shadow(r);
+      if (plan.layout != ShadowLayout::Cascades) continue;
+      const Mesh mesh = tessellate(r.scene);
+      const std::vector<bool> all(mesh.bounds.size(), true);
+      const CasterTexels before = caster_texels_by_view(plan, mesh.bounds, all);
+      CasterTexels after = before;
+      const int read = filter_read_texels(r.shadow), reach = filter_reach_texels(r.shadow);
+      drop_casters_held_by_earlier_cascades(plan, mesh.bounds, all, read, after);
+      const std::vector<glm::dvec3> points = grid_points(mesh.bounds);
+      const glm::dmat4& light_view = plan.views[0].view;
+      for (std::size_t k = 0; k < plan.views.size(); ++k) {
+        // by_view is the bounding rectangle of what is left in its row.
+        std::vector<Aabb> left;
+        for (std::size_t i = 0; i < mesh.bounds.size(); ++i)
+          if (!after.by_object[k][i].empty()) left.push_back(mesh.bounds[i]);
+        const TexelRect rect = plan.views[k].empty ? TexelRect{} : caster_texels(plan.views[k], plan.layer_size, left);
+        EXPECT_EQ(after.by_view[k].min, rect.min) << scene << " t=" << time << " view " << k;
+        EXPECT_EQ(after.by_view[k].max, rect.max) << scene << " t=" << time << " view " << k;
+        for (std::size_t i = 0; i < mesh.bounds.size(); ++i) {
+          if (k == 0) {
+            EXPECT_EQ(after.by_object[0][i].min, before.by_object[0][i].min);  // the first cascade keeps all
+            EXPECT_EQ(after.by_object[0][i].max, before.by_object[0][i].max);
+            continue;
+          }
+          if (before.by_object[k][i].empty()) continue;
+          Aabb extent;  // the object in light eye space
+          for (const glm::dvec3& c : mesh.bounds[i].corners()) extent.extend(glm::dvec3(light_view * glm::dvec4(c, 1.0)));
+          if (!after.by_object[k][i].empty()) {
+            bool first_holds_it = true;
+            for (const glm::dvec3& c : mesh.bounds[i].corners())
+              first_holds_it = first_holds_it && view_chosen_for(plan, reach, c) == 0;
+            kept_though_the_first_holds_it += first_holds_it;
+            continue;
+          }
+          ++dropped;
+          const glm::dvec2 grow = double(read) * plan.views[k].texel_size;
+          for (const glm::dvec3& p : points) {
+            const glm::dvec3 e = glm::dvec3(light_view * glm::dvec4(p, 1.0));
+            if (e.x < extent.min.x - grow.x || e.x > extent.max.x + grow.x || e.y < extent.min.y - grow.y ||
+                e.y > extent.max.y + grow.y || e.z > extent.max.z)
+              continue;
+            ++sampled;
+            EXPECT_NE(view_chosen_for(plan, reach, p), int(k))
+                << scene << " t=" << time << ": object " << i << " was left out of view " << k << ", which point "
+                << p.x << "," << p.y << "," << p.z << " is looked up in";
+          }
+        }
+      }
+    }
+  }
+  // Both answers occur, and the drops were checked at many points.
+  EXPECT_GT(dropped, 0);
+  EXPECT_GT(kept_though_the_first_holds_it, 0);
+  EXPECT_GT(sampled, 1000);
+}
+
 TEST(PointLight, NarrowConeWhenEverythingIsBelowIt) {
   // A point light high above: the whole scene is within a narrow cone.
   RenderRequest r = request_with_light({0, 40, 0}, LightProjection::Perspective);
