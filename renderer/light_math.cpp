@@ -618,11 +618,17 @@ namespace {
 
 // Whether orthographic view `v` holds world point p with `reach` texels of
 // its `size`^2 layer to spare on every side, as choose_view in scene.frag
-// asks, with one texel and a hair of depth more for float rounding there.
+// asks, with room for the shader's float rounding: one texel across, and
+// in depth 1e-3 of the range (a cascade's far plane lies 1e-3 of its
+// range past its receivers) plus what float loses on eye depths as large
+// as the near and far planes' (the eye space is centred on the light, not
+// on the cascade).
 bool holds_with_reach(const ShadowView& v, int size, int reach, const glm::dvec3& p) {
   const glm::dvec3 ndc = transform(v.view_projection(), p);  // orthographic: w = 1
   const double xy_limit = 1.0 - 2.0 * double(reach + 1) / size;
-  return std::abs(ndc.x) <= xy_limit && std::abs(ndc.y) <= xy_limit && std::abs(ndc.z) <= 1.0 - 1e-5;
+  const double range = std::max(v.far_plane - v.near_plane, 1e-300);
+  const double z_limit = 1.0 - 1e-3 - 4e-6 * std::max(std::abs(v.near_plane), std::abs(v.far_plane)) / range;
+  return std::abs(ndc.x) <= xy_limit && std::abs(ndc.y) <= xy_limit && std::abs(ndc.z) <= z_limit;
 }
 
 // Whether every point that `object` can darken through view `k` lies in
@@ -659,33 +665,38 @@ bool held_by_earlier_cascades(const ShadowPlan& plan, std::size_t k, const Exten
 
 }  // namespace
 
-void drop_casters_held_by_earlier_cascades(const ShadowPlan& plan, const std::vector<Aabb>& bounds,
-                                           const std::vector<bool>& candidates, int read_texels,
+bool drop_casters_held_by_earlier_cascades(const ShadowPlan& plan, const std::vector<Aabb>& bounds,
+                                           const std::vector<bool>& candidates, const ShadowSettings& shadow,
                                            CasterTexels& table) {
-  if (plan.layout != ShadowLayout::Cascades || plan.views.size() < 2) return;
+  if (plan.layout != ShadowLayout::Cascades || plan.views.size() < 2 || !shadow.bias.automatic) return false;
+  const int read = filter_read_texels(shadow);
   const glm::dmat4& light_view = plan.views[0].view;
   std::vector<Extent> extents(bounds.size());
-  double deepest = kInfinity;  // the lowest light eye z of the scene
+  Extent scene;  // all of it, in light eye space
   for (std::size_t b = 0; b < bounds.size(); ++b) {
     if (bounds[b].empty()) continue;
     for (const glm::dvec3& corner : bounds[b].corners()) extents[b].extend(transform(light_view, corner));
-    deepest = std::min(deepest, extents[b].min.z);
+    scene.extend(extents[b]);
   }
-  if (deepest == kInfinity) return;
+  if (scene.empty()) return false;
+  // The prism's far face lies past the deepest point of the scene by a
+  // margin, so that it cuts no box and never meets the near face.
+  const double prism_far = -scene.min.z + 1e-3 * std::max(glm::length(scene.extent()), 1e-300);
+  bool dropped = false;
   for (std::size_t i = 0; i < bounds.size() && i < candidates.size(); ++i) {
     if (!candidates[i] || extents[i].empty()) continue;
-    // Past the deepest point by a margin, so that the prism's far face cuts
-    // no box.
-    const double prism_far = -deepest + 1e-3 * std::max(extents[i].max.z - deepest, 1e-30);
     for (std::size_t k = 1; k < plan.views.size() && k < table.by_object.size(); ++k) {
       TexelRect& rect = table.by_object[k][i];
       if (rect.empty() || plan.views[k].empty) continue;
-      if (held_by_earlier_cascades(plan, k, extents[i], extents, bounds, prism_far, read_texels))
+      if (held_by_earlier_cascades(plan, k, extents[i], extents, bounds, prism_far, read)) {
         rect = TexelRect{};
+        dropped = true;
+      }
     }
   }
   for (std::size_t k = 0; k < table.by_object.size() && k < table.by_view.size(); ++k)
     table.by_view[k] = bounding_rect(table.by_object[k]);
+  return dropped;
 }
 
 bool plane_can_shadow(const PlaneRange& plane, const ShadowPlan& plan) {

@@ -199,18 +199,21 @@ CasterTexels caster_texels_by_view(const ShadowPlan& plan, const std::vector<Aab
 /// point up in the first cascade that holds it with the filter's reach to
 /// spare (scene.frag's choose_view), so cascade k reads an object's texels
 /// only for points that no earlier cascade holds. The points an object can
-/// darken through cascade k lie within the filter's read (`read_texels`,
-/// filter_read_texels) of its light-space rectangle there, farther from
-/// the light than its nearest point, and inside one of the scene's
-/// `bounds`. Where each such piece of every box lies in one earlier cascade
-/// with `read_texels` to spare (at least the reach of any filter that reads
-/// no further, so a map drawn this way serves any frame whose filter reads
-/// no further), cascade k need not hold the object. A 100,000-triangle
-/// teapot that the first of two cascades holds whole is then drawn once,
-/// not twice. Only for ShadowLayout::Cascades, whose views share one light
-/// eye space; other plans are left as they are.
-void drop_casters_held_by_earlier_cascades(const ShadowPlan& plan, const std::vector<Aabb>& bounds,
-                                           const std::vector<bool>& candidates, int read_texels,
+/// darken through cascade k lie within the filter's read
+/// (filter_read_texels(shadow)) of its light-space rectangle there,
+/// farther from the light than its nearest point, and inside one of the
+/// scene's `bounds`. Where each such piece of every box lies in one earlier
+/// cascade with the read to spare (at least the reach of any filter that
+/// reads no further, so a map drawn this way serves any frame whose filter
+/// reads no further), cascade k need not hold the object. A
+/// 100,000-triangle teapot that the first of two cascades holds whole is
+/// then drawn once, not twice. Only for ShadowLayout::Cascades, whose views
+/// share one light eye space, and only with the automatic bias: the seeds'
+/// bias looks a point up beside itself, up to normal_offset texels along
+/// its normal (a frame with it must not reuse a map drawn with drops).
+/// Returns whether anything was taken out.
+bool drop_casters_held_by_earlier_cascades(const ShadowPlan& plan, const std::vector<Aabb>& bounds,
+                                           const std::vector<bool>& candidates, const ShadowSettings& shadow,
                                            CasterTexels& table);
 
 /// Plans the light's views for `request` (light placed by light_at at request.time).

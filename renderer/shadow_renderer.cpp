@@ -334,14 +334,14 @@ CasterTexels ShadowRenderer::caster_table(const RenderRequest& request, const Sh
   CasterTexels table = caster_texels_by_view(light, mesh.bounds, drawn_objects(planes));
   if (request.output == Output::Depth || light.layout != ShadowLayout::Cascades) return table;
   // Only meshes whose triangles cost more to draw again than the test
-  // costs (a few microseconds per box near them), and only as many as
-  // draw_scene draws one by one.
+  // costs (a few microseconds per box near them), and at most kMaxRuns of
+  // them (draw_scene may draw more in one call, dropped or not).
   std::vector<bool> heavy(mesh.bounds.size(), false);
   std::size_t count = 0;
   for (const ObjectRange& r : mesh.object_ranges)
     if (r.index_count / 3 >= kHeavyTriangles) heavy[r.object] = true, ++count;
   if (count == 0 || count > kMaxRuns) return table;
-  drop_casters_held_by_earlier_cascades(light, mesh.bounds, heavy, filter_read_texels(request.shadow), table);
+  drop_casters_held_by_earlier_cascades(light, mesh.bounds, heavy, request.shadow, table);
   return table;
 }
 
@@ -410,6 +410,7 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   shadow_.planes = planes;
   shadow_.whole_layers = whole_layers;
   shadow_.clear_margin = margin;
+  shadow_.automatic_bias = request.shadow.bias.automatic;
 }
 
 bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light,
@@ -419,8 +420,13 @@ bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const Shado
   const bool cleared_enough =
       shadow_.whole_layers ||
       (request.output != Output::Depth && clear_margin_texels(request.shadow) <= shadow_.clear_margin);
+  // The depth output draws every object into every layer; a map drawn
+  // with the automatic bias may lack some (caster_table).
+  const bool drawn_for_lookups_like_these =
+      shadow_.whole_layers || !shadow_.automatic_bias || request.shadow.bias.automatic;
   return shadow_.holds_plan && shadow_.scene_key == current_scene_key() && shadow_.cull == request.shadow.cull &&
-         shadow_.planes == planes && cleared_enough && plan_covers(shadow_.plan, light);
+         shadow_.planes == planes && cleared_enough && drawn_for_lookups_like_these &&
+         plan_covers(shadow_.plan, light);
 }
 
 ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest& request, const ShadowPlan& light,

@@ -79,6 +79,11 @@ class ShadowRenderer {
     // rectangles with this many texels around them.
     bool whole_layers = false;
     int clear_margin = 0;
+    // Drawn for a frame with the automatic bias, so heavy meshes may be
+    // missing from cascades where that frame's lookups cannot see them
+    // (drop_casters_held_by_earlier_cascades); a frame with the seeds'
+    // bias looks further and must not reuse it.
+    bool automatic_bias = false;
   };
   // The camera's view, into an offscreen colour + depth framebuffer.
   struct DisplayPass {

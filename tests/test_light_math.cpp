@@ -366,7 +366,7 @@ TEST(CascadeCasters, AnObjectIsLeftOutOfACascadeOnlyWhereItShadowsNothingThatLoo
       const CasterTexels before = caster_texels_by_view(plan, mesh.bounds, all);
       CasterTexels after = before;
       const int read = filter_read_texels(r.shadow), reach = filter_reach_texels(r.shadow);
-      drop_casters_held_by_earlier_cascades(plan, mesh.bounds, all, read, after);
+      drop_casters_held_by_earlier_cascades(plan, mesh.bounds, all, r.shadow, after);
       const std::vector<glm::dvec3> points = grid_points(mesh.bounds);
       const glm::dmat4& light_view = plan.views[0].view;
       for (std::size_t k = 0; k < plan.views.size(); ++k) {
@@ -413,6 +413,60 @@ TEST(CascadeCasters, AnObjectIsLeftOutOfACascadeOnlyWhereItShadowsNothingThatLoo
   EXPECT_GT(dropped, 0);
   EXPECT_GT(kept_though_the_first_holds_it, 0);
   EXPECT_GT(sampled, 1000);
+}
+
+// Two cascades made by hand under a light straight above a unit cube on a
+// floor: the first `half_width` either way of the cube's axis and
+// `far_plane` deep (the floor lies 10 from the light), the second 4 either
+// way. Both 256^2 texels.
+ShadowPlan two_cascades(double half_width, double far_plane) {
+  ShadowPlan plan;
+  plan.layout = ShadowLayout::Cascades;
+  plan.layer_size = 256;
+  const glm::dmat4 view = glm::lookAt(glm::dvec3(0.0, 10.0, 0.0), glm::dvec3(0.0), glm::dvec3(0.0, 0.0, -1.0));
+  for (const auto& [half, far] : {std::pair{half_width, far_plane}, std::pair{4.0, 20.0}}) {
+    ShadowView v;
+    v.view = view;
+    v.near_plane = 1.0;
+    v.far_plane = far;
+    v.projection = glm::ortho(-half, half, -half, half, 1.0, far);
+    v.texel_size = glm::dvec2(2.0 * half / plan.layer_size);
+    plan.views.push_back(v);
+  }
+  return plan;
+}
+
+// Where the margins lie: with 3x3 PCF (which reads 3 texels around a point)
+// the cube's prism in the second cascade reaches 0.5 + 4 x 8/256 = 0.625
+// from its axis, and the first cascade holds a point with the read to
+// spare within 1 - 2 x 4/256 of its half width: a half width of 0.66
+// holds the prism, 0.635 does not. In depth, the floor must lie inside
+// the first cascade's far plane by more than 1e-3 of clip depth (0.0045
+// of 9 units here).
+TEST(CascadeCasters, TheMarginsAreTheFiltersReadAndItsReach) {
+  const std::vector<Aabb> bounds = {Aabb{{-0.5, 0.0, -0.5}, {0.5, 1.0, 0.5}}, Aabb{{-20.0, 0.0, -20.0}, {20.0, 0.0, 20.0}}};
+  const std::vector<bool> cube_only = {true, false};
+  const ShadowSettings pcf;  // the defaults: 3x3 PCF, automatic bias
+  ASSERT_EQ(filter_read_texels(pcf), 3);
+  const auto cube_left_in_second = [&](const ShadowPlan& plan, const ShadowSettings& shadow) {
+    CasterTexels table = caster_texels_by_view(plan, bounds, {true, true});
+    EXPECT_FALSE(table.by_object[1][0].empty());
+    const bool dropped = drop_casters_held_by_earlier_cascades(plan, bounds, cube_only, shadow, table);
+    EXPECT_FALSE(table.by_object[0][0].empty()) << "the first cascade keeps everything";
+    EXPECT_FALSE(table.by_object[1][1].empty()) << "only candidates are taken out";
+    EXPECT_EQ(dropped, table.by_object[1][0].empty());
+    return !table.by_object[1][0].empty();
+  };
+  EXPECT_FALSE(cube_left_in_second(two_cascades(0.66, 12.0), pcf));
+  EXPECT_TRUE(cube_left_in_second(two_cascades(0.635, 12.0), pcf)) << "the prism reaches past what it holds";
+  EXPECT_TRUE(cube_left_in_second(two_cascades(0.66, 10.003), pcf)) << "the floor under it is too near the far plane";
+  ShadowSettings hard = pcf;
+  hard.filter = ShadowFilter::Hard;  // reads 1 texel: 0.5 + 2 x 8/256 = 0.5625 within 1 - 4/256 of 0.6
+  EXPECT_FALSE(cube_left_in_second(two_cascades(0.6, 12.0), hard));
+  EXPECT_TRUE(cube_left_in_second(two_cascades(0.6, 12.0), pcf));
+  ShadowSettings seeds_bias = pcf;
+  seeds_bias.bias.automatic = false;  // looks a point up beside itself: nothing is taken out
+  EXPECT_TRUE(cube_left_in_second(two_cascades(0.66, 12.0), seeds_bias));
 }
 
 TEST(PointLight, NarrowConeWhenEverythingIsBelowIt) {
