@@ -612,10 +612,6 @@ bool view_covers(const ShadowView& have, const ShadowView& want, bool perspectiv
   return true;
 }
 
-}  // namespace
-
-namespace {
-
 // Whether orthographic view `v` holds world point p with `reach` texels of
 // its `size`^2 layer to spare on every side, as choose_view in scene.frag
 // asks, with room for the shader's float rounding: one texel across, and
