@@ -43,31 +43,6 @@ void merge_overlapping(std::vector<Aabb>& boxes) {
   }
 }
 
-// Andrew's monotone chain: the hull of `points` counter-clockwise in
-// (x, z), without repeated or collinear points.
-PlanePolygon convex_hull(std::vector<glm::dvec2> points) {
-  std::sort(points.begin(), points.end(), [](const glm::dvec2& a, const glm::dvec2& b) {
-    return a.x < b.x || (a.x == b.x && a.y < b.y);
-  });
-  points.erase(std::unique(points.begin(), points.end()), points.end());
-  if (points.size() < 3) return points;
-  const auto turn = [](const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
-    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
-  };
-  PlanePolygon hull(2 * points.size());
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < points.size(); ++i) {  // lower chain
-    while (k >= 2 && turn(hull[k - 2], hull[k - 1], points[i]) <= 0.0) --k;
-    hull[k++] = points[i];
-  }
-  for (std::size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {  // upper chain
-    while (k >= lower && turn(hull[k - 2], hull[k - 1], points[i]) <= 0.0) --k;
-    hull[k++] = points[i];
-  }
-  hull.resize(k - 1);  // the last point is the first
-  return hull;
-}
-
 // Whether the convex polygon and the x/z box [low, high] widened by `slack`
 // (narrowed, if negative) meet: separated only along the box's axes or one
 // of the polygon's edge normals.
@@ -91,15 +66,6 @@ bool polygon_meets_box(const PlanePolygon& polygon, glm::dvec2 low, glm::dvec2 h
   return true;
 }
 
-double polygon_area(const PlanePolygon& polygon) {
-  double twice = 0.0;
-  for (std::size_t i = 0; i < polygon.size(); ++i) {
-    const glm::dvec2 a = polygon[i], b = polygon[(i + 1) % polygon.size()];
-    twice += a.x * b.y - b.x * a.y;
-  }
-  return 0.5 * std::abs(twice);
-}
-
 std::vector<double> cuts(double low, double high, const std::vector<Aabb>& boxes, int axis) {
   std::vector<double> c{low, high};
   for (const Aabb& b : boxes) {
@@ -112,6 +78,56 @@ std::vector<double> cuts(double low, double high, const std::vector<Aabb>& boxes
 }
 
 }  // namespace
+
+double polygon_area(const PlanePolygon& polygon) {
+  double twice = 0.0;
+  for (std::size_t i = 0; i < polygon.size(); ++i) {
+    const glm::dvec2 a = polygon[i], b = polygon[(i + 1) % polygon.size()];
+    twice += a.x * b.y - b.x * a.y;
+  }
+  return 0.5 * std::abs(twice);
+}
+
+// Andrew's monotone chain.
+PlanePolygon convex_hull(std::vector<glm::dvec2> points) {
+  std::sort(points.begin(), points.end(), [](const glm::dvec2& a, const glm::dvec2& b) {
+    return a.x < b.x || (a.x == b.x && a.y < b.y);
+  });
+  points.erase(std::unique(points.begin(), points.end()), points.end());
+  if (points.size() < 3) return points;
+  const auto turn = [](const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+  };
+  PlanePolygon hull(2 * points.size());
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {  // lower chain
+    while (k >= 2 && turn(hull[k - 2], hull[k - 1], points[i]) <= 0.0) --k;
+    hull[k++] = points[i];
+  }
+  for (std::size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {  // upper chain
+    while (k >= lower && turn(hull[k - 2], hull[k - 1], points[i]) <= 0.0) --k;
+    hull[k++] = points[i];
+  }
+  hull.resize(k - 1);  // the last point is the first
+  return hull;
+}
+
+// Sutherland-Hodgman against the four sides.
+PlanePolygon clipped(PlanePolygon polygon, const glm::dvec2& low, const glm::dvec2& high) {
+  for (int side = 0; side < 4 && !polygon.empty(); ++side) {
+    const int axis = side % 2;
+    const double bound = side < 2 ? low[axis] : high[axis];
+    const auto inside = [&](const glm::dvec2& p) { return side < 2 ? p[axis] >= bound : p[axis] <= bound; };
+    PlanePolygon out;
+    for (std::size_t i = 0; i < polygon.size(); ++i) {
+      const glm::dvec2 a = polygon[i], b = polygon[(i + 1) % polygon.size()];
+      if (inside(a)) out.push_back(a);
+      if (inside(a) != inside(b)) out.push_back(a + (b - a) * ((bound - a[axis]) / (b[axis] - a[axis])));
+    }
+    polygon = std::move(out);
+  }
+  return polygon;
+}
 
 PlanePolygon view_polygon_on_plane(const ShadowView& view, int layer_size, const TexelRect& rect, double y) {
   if (rect.empty()) return {};
@@ -171,24 +187,6 @@ void add_region(std::vector<PlanePolygon>& regions, const ShadowView& view, int 
   rect.max += margin;
   PlanePolygon region = view_polygon_on_plane(view, layer_size, rect, y);
   if (!region.empty()) regions.push_back(std::move(region));
-}
-
-// The part of `polygon` with low <= (x, z) <= high (Sutherland-Hodgman
-// against the four sides).
-PlanePolygon clipped(PlanePolygon polygon, const glm::dvec2& low, const glm::dvec2& high) {
-  for (int side = 0; side < 4 && !polygon.empty(); ++side) {
-    const int axis = side % 2;
-    const double bound = side < 2 ? low[axis] : high[axis];
-    const auto inside = [&](const glm::dvec2& p) { return side < 2 ? p[axis] >= bound : p[axis] <= bound; };
-    PlanePolygon out;
-    for (std::size_t i = 0; i < polygon.size(); ++i) {
-      const glm::dvec2 a = polygon[i], b = polygon[(i + 1) % polygon.size()];
-      if (inside(a)) out.push_back(a);
-      if (inside(a) != inside(b)) out.push_back(a + (b - a) * ((bound - a[axis]) / (b[axis] - a[axis])));
-    }
-    polygon = std::move(out);
-  }
-  return polygon;
 }
 
 }  // namespace
@@ -336,6 +334,23 @@ void append_cell_triangles(const PlaneCells& cells, double y, const glm::dvec3& 
       auto& to = cells.shadowable[j * (columns - 1) + i] ? out.shadowable : out.unshadowable;
       to.insert(to.end(), {a, b, c, a, c, d});
     }
+  }
+}
+
+void append_polygon_triangles(const std::vector<PlanePolygon>& polygons, double y, const glm::dvec3& color,
+                              const glm::dvec3& origin, CellTriangles& out, std::vector<std::uint32_t>& indices) {
+  for (const PlanePolygon& polygon : polygons) {
+    const auto first = std::uint32_t(out.vertices.size());
+    for (const glm::dvec2& q : polygon) {
+      const glm::dvec3 p = glm::dvec3(q.x, y, q.y) - origin;
+      out.vertices.push_back({{float(p.x), float(p.y), float(p.z)},
+                              {0.0f, 1.0f, 0.0f},
+                              {float(color.x), float(color.y), float(color.z)}});
+    }
+    // Counter-clockwise in (x, z) is clockwise seen from above, as a cell's
+    // (-x, +z), (+x, +z), (+x, -z) is: the fan runs backwards.
+    for (std::uint32_t i = 1; i + 1 < polygon.size(); ++i)
+      indices.insert(indices.end(), {first, first + i + 1, first + i});
   }
 }
 

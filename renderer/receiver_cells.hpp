@@ -33,6 +33,17 @@ inline constexpr int kMaxReceiverRegions = 6;
 /// it has no area.
 using PlanePolygon = std::vector<glm::dvec2>;
 
+/// The convex hull of `points`, counter-clockwise in (x, z), without
+/// repeated or collinear points (fewer than three points come back as
+/// they are, duplicates removed).
+PlanePolygon convex_hull(std::vector<glm::dvec2> points);
+
+/// The part of convex `polygon` with low <= (x, z) <= high.
+PlanePolygon clipped(PlanePolygon polygon, const glm::dvec2& low, const glm::dvec2& high);
+
+/// The area of a simple polygon (either winding).
+double polygon_area(const PlanePolygon& polygon);
+
 /// The world x/z bounds of `polygon` on the plane at height y (min.y =
 /// max.y = y); empty for an empty polygon.
 Aabb bounds_on_plane(const PlanePolygon& polygon, double y);
@@ -93,6 +104,7 @@ struct CellTriangles {
   std::vector<Vertex> vertices;
   std::vector<std::uint32_t> shadowable;    ///< indices of the shadowable cells
   std::vector<std::uint32_t> unshadowable;  ///< and of the others
+  std::vector<std::uint32_t> dark;          ///< of the umbras (append_dark_triangles)
 };
 
 /// Appends `cells` of the plane at height `y` to `out`: each cell two
@@ -100,5 +112,17 @@ struct CellTriangles {
 /// gl_FrontFacing tells the sides apart as before.
 void append_cell_triangles(const PlaneCells& cells, double y, const glm::dvec3& color, const glm::dvec3& origin,
                            CellTriangles& out);
+
+/// Appends `polygons` (convex, counter-clockwise in x/z) of the plane at
+/// height `y` to out.vertices, and their triangles' indices to `indices`
+/// (one of out's lists): fans wound as the cells are.
+void append_polygon_triangles(const std::vector<PlanePolygon>& polygons, double y, const glm::dvec3& color,
+                              const glm::dvec3& origin, CellTriangles& out, std::vector<std::uint32_t>& indices);
+
+/// The same into out.dark (umbras_on_plane's polygons).
+inline void append_dark_triangles(const std::vector<PlanePolygon>& polygons, double y, const glm::dvec3& color,
+                                  const glm::dvec3& origin, CellTriangles& out) {
+  append_polygon_triangles(polygons, y, color, origin, out, out.dark);
+}
 
 }  // namespace umbra

@@ -1,6 +1,7 @@
 // What one render job hands back.
 #pragma once
 
+#include <cstddef>
 #include <optional>
 #include <string>
 
@@ -24,6 +25,10 @@ struct RenderResult {
   bool shadow_reused = false;
   /// The scene's meshes had to be uploaded (not among the cached scenes).
   bool scene_uploaded = false;
+  /// Umbras the main pass drew dark without the shadow lookup
+  /// (renderer/umbras.hpp): where a box or sphere hides a light of no size
+  /// from a floor.
+  std::size_t umbras = 0;
 };
 
 }  // namespace umbra

@@ -8,6 +8,7 @@
 
 #include "gl/program.hpp"
 #include "receiver_cells.hpp"
+#include "umbras.hpp"
 #include "shader_interface.hpp"
 
 namespace umbra {
@@ -155,7 +156,8 @@ std::uint64_t ShadowRenderer::shadow_map_bytes() const {
 }
 
 std::uint64_t ShadowRenderer::display_bytes() const {
-  return std::uint64_t(display_.width) * std::uint64_t(display_.height) * (4 + 4);  // RGBA8 + 32F depth
+  // RGBA8, and 32F depth with an 8-bit stencil (llvmpipe stores the pair in 8 bytes)
+  return std::uint64_t(display_.width) * std::uint64_t(display_.height) * (4 + 8);
 }
 
 std::uint64_t ShadowRenderer::depth_preview_bytes() const {
@@ -245,10 +247,12 @@ void ShadowRenderer::resize_display(int width, int height) {
   display_.color = gl::create_renderbuffer();
   display_.depth = gl::create_renderbuffer();
   glNamedRenderbufferStorage(display_.color.id(), GL_RGBA8, width, height);
-  glNamedRenderbufferStorage(display_.depth.id(), GL_DEPTH_COMPONENT32F, width, height);
+  // The stencil marks the umbras drawn dark (run_display_pass).
+  glNamedRenderbufferStorage(display_.depth.id(), GL_DEPTH32F_STENCIL8, width, height);
   display_.framebuffer = gl::create_framebuffer();
   glNamedFramebufferRenderbuffer(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, display_.color.id());
-  glNamedFramebufferRenderbuffer(display_.framebuffer.id(), GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, display_.depth.id());
+  glNamedFramebufferRenderbuffer(display_.framebuffer.id(), GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER,
+                                 display_.depth.id());
   if (glCheckNamedFramebufferStatus(display_.framebuffer.id(), GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw std::runtime_error("display framebuffer incomplete");
   display_.width = width;
@@ -448,26 +452,53 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
   for (const std::vector<TexelRect>& row : casters.by_object)
     pairs += std::size_t(std::count_if(row.begin(), row.end(), [](const TexelRect& r) { return !r.empty(); }));
   const bool per_caster = pairs <= kMaxRegionPairs;
+  // Under a light of no size, the umbras of boxes and spheres are drawn
+  // dark without the lookup (umbras.hpp), so far inside that the lookup
+  // would have found every texel it reads shadowed.
+  const bool umbras = request.light.size == 0.0;
   CellTriangles cells;
   std::map<double, std::vector<PlanePolygon>> regions_at;  // by plane height
   for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
     const PlaneRange& plane = mesh.planes[i];
     // A plane in the map is a caster: all of it can be shadowed.
     if (planes[i]) continue;
-    auto at = regions_at.find(plane.height);
-    if (at == regions_at.end())
-      at = regions_at
-               .emplace(plane.height, per_caster ? shadowable_regions(plane.height, light, casters.by_object, margin)
-                                                 : view_regions(plane.height, light, casters.by_view, margin))
-               .first;
-    append_cell_triangles(plane_cells(mesh.bounds[plane.object], at->second), plane.height, plane.color,
-                          mesh.origin, cells);
+    const Aabb& bounds = mesh.bounds[plane.object];
+    PlaneDraw draw;
+    draw.dark.first = cells.dark.size();
+    draw.lookup.first = cells.shadowable.size();
+    draw.lit.first = cells.unshadowable.size();
+    if (umbras) {
+      const std::vector<PlanePolygon> dark = umbras_on_plane(bounds, light, request.scene.objects, margin);
+      append_dark_triangles(dark, plane.height, plane.color, mesh.origin, cells);
+      draws.umbras += dark.size();
+    }
+    // The lookup where an object's shadow may reach, the rest of the plane
+    // lit: as the shadows of the objects' bounds, or as cells.
+    if (const std::optional<std::vector<PlanePolygon>> shadows =
+            shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, margin)) {
+      append_polygon_triangles(*shadows, plane.height, plane.color, mesh.origin, cells, cells.shadowable);
+      append_cell_triangles(plane_cells(bounds, {}), plane.height, plane.color, mesh.origin, cells);
+    } else {
+      auto at = regions_at.find(plane.height);
+      if (at == regions_at.end())
+        at = regions_at
+                 .emplace(plane.height, per_caster ? shadowable_regions(plane.height, light, casters.by_object, margin)
+                                                   : view_regions(plane.height, light, casters.by_view, margin))
+                 .first;
+      append_cell_triangles(plane_cells(bounds, at->second), plane.height, plane.color, mesh.origin, cells);
+    }
+    draw.dark.count = cells.dark.size() - draw.dark.first;
+    draw.lookup.count = cells.shadowable.size() - draw.lookup.first;
+    draw.lit.count = cells.unshadowable.size() - draw.lit.first;
+    draws.planes.push_back(draw);
     draws.whole_planes[i] = false;
   }
-  draws.shadowable = cells.shadowable.size();
-  draws.unshadowable = cells.unshadowable.size();
-  if (draws.shadowable + draws.unshadowable == 0) return draws;
-  std::vector<std::uint32_t> indices = std::move(cells.shadowable);
+  if (draws.planes.empty()) return draws;
+  // One index buffer: every plane's umbras, then the lookups, then the lit.
+  std::vector<std::uint32_t> indices = std::move(cells.dark);
+  for (PlaneDraw& draw : draws.planes) draw.lookup.first += indices.size();
+  indices.insert(indices.end(), cells.shadowable.begin(), cells.shadowable.end());
+  for (PlaneDraw& draw : draws.planes) draw.lit.first += indices.size();
   indices.insert(indices.end(), cells.unshadowable.begin(), cells.unshadowable.end());
   glNamedBufferData(display_.cell_vertices.id(), GLsizeiptr(cells.vertices.size() * sizeof(Vertex)),
                     cells.vertices.data(), GL_STREAM_DRAW);
@@ -476,7 +507,7 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
   return draws;
 }
 
-void ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light,
+std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light,
                                       const std::vector<bool>& planes, const CasterTexels& casters) {
   resize_display(request.width, request.height);
   const DisplayVariant variant = display_variant(request, light);
@@ -496,7 +527,8 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   glClearDepth(0.0);
   glDepthFunc(GL_GREATER);
-  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  glClearStencil(0);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
   // A box's far faces, drawn before its near ones, would be shaded in full
   // and then drawn over: with the camera outside every closed mesh they
   // are culled (about a sixth of a box scene's main pass on llvmpipe).
@@ -547,17 +579,47 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const Shadow
     glUseProgram(display_.programs.get(variant.defines()).id());
   }
   draw_scene(closed_cull, objects);
-  if (cells.shadowable + cells.unshadowable > 0) {
+  if (!cells.planes.empty()) {
+    // Plane by plane: its umbras with the program of a light that reaches
+    // no surface, then the lookup where a shadow may reach, then the rest
+    // lit. The umbras and lookups mark the stencil with the plane's own
+    // value where they are drawn, and what follows them on that plane
+    // skips those pixels: coplanar, the depth test could go either way,
+    // and llvmpipe skips the shader for a block of pixels that the early
+    // stencil test rejects (not for the lanes a branch masks off).
+    DisplayVariant dark = without_shadows(variant);
+    dark.direct_light = false;
+    const GLuint dark_program = display_.programs.get(dark.defines()).id();
+    const GLuint lookup_program = display_.programs.get(variant.defines()).id();
+    const GLuint lit_program = display_.programs.get(without_shadows(variant).defines()).id();
     glBindVertexArray(display_.cells_vertex_array.id());
-    draw_indices(0, cells.shadowable);
-    if (cells.unshadowable > 0) {
-      glUseProgram(display_.programs.get(without_shadows(variant).defines()).id());
-      draw_indices(cells.shadowable, cells.unshadowable);
+    glEnable(GL_STENCIL_TEST);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+    GLint plane_value = 0;
+    for (const PlaneDraw& draw : cells.planes) {
+      ++plane_value;
+      if (draw.dark.count > 0) {
+        glStencilFunc(GL_ALWAYS, plane_value, 0xFF);
+        glUseProgram(dark_program);
+        draw_indices(draw.dark.first, draw.dark.count);
+      }
+      glStencilFunc(GL_NOTEQUAL, plane_value, 0xFF);
+      if (draw.lookup.count > 0) {
+        glUseProgram(lookup_program);
+        draw_indices(draw.lookup.first, draw.lookup.count);
+      }
+      if (draw.lit.count > 0) {
+        glUseProgram(lit_program);
+        draw_indices(draw.lit.first, draw.lit.count);
+      }
     }
+    glDisable(GL_STENCIL_TEST);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
   }
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
   glClearDepth(1.0);
   glDepthFunc(GL_LESS);
+  return cells.umbras;
 }
 
 void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size, int bits) {
@@ -632,7 +694,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
   if (depth_output)
     run_depth_preview(light, request.shadow.map_size, request.depth_bits);
   else
-    run_display_pass(request, light, planes, casters);
+    result.umbras = run_display_pass(request, light, planes, casters);
   glFinish();
   result.timings.main_ms = elapsed_ms(main_start);
 

@@ -89,7 +89,7 @@ class ShadowRenderer {
   struct DisplayPass {
     gl::ProgramVariants programs{"scene.vert", "scene.frag", kKeptVariants};  // per DisplayVariant
     gl::Renderbuffer color;  // RGBA8
-    gl::Renderbuffer depth;  // DEPTH_COMPONENT32F
+    gl::Renderbuffer depth;  // DEPTH32F_STENCIL8
     gl::Framebuffer framebuffer;
     int width = 0, height = 0;
     // The planes that cast nothing, drawn as cells (receiver_cells.hpp):
@@ -163,13 +163,23 @@ class ShadowRenderer {
   void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
                        const CasterTexels& casters);
   bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes) const;
-  void run_display_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
-                        const CasterTexels& casters);
+  // Returns how many umbras it drew dark (umbras.hpp).
+  std::size_t run_display_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
+                               const CasterTexels& casters);
   // The main pass's planes: drawn whole (one flag per Mesh::planes entry),
-  // or as cells whose indices (shadowable first) are in display_.cell_indices.
+  // or in parts whose indices are in display_.cell_indices: per plane, its
+  // umbras drawn dark, the parts drawn with the lookup (cells, or the
+  // shadows of the objects' bounds), and those drawn lit.
+  struct IndexRange {
+    std::size_t first = 0, count = 0;
+  };
+  struct PlaneDraw {
+    IndexRange dark, lookup, lit;
+  };
   struct CellDraws {
     std::vector<bool> whole_planes;
-    std::size_t shadowable = 0, unshadowable = 0;
+    std::vector<PlaneDraw> planes;  // at most 8: each marks the stencil with its own value
+    std::size_t umbras = 0;         // polygons drawn dark
   };
   // Uploads the cells of the planes the shadow pass leaves out (planes[i]
   // false).

@@ -20,6 +20,7 @@
 #include "scene_files.hpp"
 #include "shader_interface.hpp"
 #include "shadow_error.hpp"
+#include "umbras.hpp"
 
 namespace umbra {
 namespace {
@@ -514,6 +515,59 @@ TEST(Renderer, AFrameReadsNothingThatAnEarlierFrameLeftInTheMap) {
 
 // Default settings against the exact reference (issue 3's thresholds: no
 // acne, no lost shadows): the built-in scenes with either projection ...
+// Where a box or sphere hides a light of no size from the floor, the floor
+// is drawn dark without the lookup (umbras.hpp). On contact-line (the
+// camera in the box's shadow), at every floor pixel whose four corners all
+// see the floor inside an umbra, the frame and the exact reference are both
+// 0; so they are at the box's foot, where the map's back faces let the
+// lookup leak light. A light with a size draws no umbra.
+TEST(Renderer, TheFloorInAnUmbraIsDrawnDarkAsTheExactReferenceHasIt) {
+  const RenderRequest r =
+      load_scene_request(UMBRA_SCENES_DIR, "contact-line", {{"width", 320}, {"height", 180}, {"output", "shadow"}});
+  const RenderResult result = render(r);
+  EXPECT_EQ(result.umbras, 1u);
+  const ShadowPlan plan = plan_shadow(r);
+  const Mesh mesh = tessellate(r.scene);
+  ASSERT_EQ(mesh.planes.size(), 1u);
+  const PlaneRange& floor = mesh.planes[0];
+  const std::vector<PlanePolygon> umbras = umbras_on_plane(mesh.bounds[floor.object], plan, r.scene.objects,
+                                                           filter_read_texels(r.shadow) + 1.0);
+  ASSERT_EQ(umbras.size(), 1u);
+  const CameraMatrices camera = camera_matrices(r.camera, r.width, r.height);
+  const glm::dmat4 to_world = glm::inverse(camera.projection * camera.view);
+  // Where the camera ray through image point (x, y) (pixels, y down) meets
+  // the floor, if in the umbra.
+  const auto in_umbra = [&](double x, double y) {
+    const glm::dvec2 ndc(2.0 * x / r.width - 1.0, 1.0 - 2.0 * y / r.height);
+    const glm::dvec4 near = to_world * glm::dvec4(ndc, -1.0, 1.0), far = to_world * glm::dvec4(ndc, 1.0, 1.0);
+    const glm::dvec3 a = glm::dvec3(near) / near.w, b = glm::dvec3(far) / far.w;
+    if ((a.y - floor.height) * (b.y - floor.height) > 0.0) return false;
+    const glm::dvec3 p = a + (b - a) * ((floor.height - a.y) / (b.y - a.y));
+    const PlanePolygon& u = umbras[0];
+    for (std::size_t i = 0; i < u.size(); ++i) {
+      const glm::dvec2 e = u[(i + 1) % u.size()] - u[i];
+      if (e.x * (p.z - u[i].y) - e.y * (p.x - u[i].x) <= 0.0) return false;
+    }
+    return true;
+  };
+  const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+  int checked = 0;
+  for (int y = 0; y < r.height; ++y)
+    for (int x = 0; x < r.width; ++x) {
+      const std::size_t i = std::size_t(y) * r.width + x;
+      if (!exact[i].geometry || exact[i].object != int(floor.object)) continue;
+      if (!(in_umbra(x, y) && in_umbra(x + 1, y) && in_umbra(x, y + 1) && in_umbra(x + 1, y + 1))) continue;
+      ++checked;
+      EXPECT_EQ(exact[i].visibility, 0.0) << "floor pixel " << x << ", " << y;
+      EXPECT_EQ(int(result.image.pixels[i]), 0) << "floor pixel " << x << ", " << y;
+    }
+  EXPECT_GT(checked, 320 * 180 / 4) << "the umbra covers much of contact-line's frame";
+
+  RenderRequest soft = r;
+  soft.light.size = 0.1;
+  EXPECT_EQ(render(soft).umbras, 0u);
+}
+
 class DefaultsMatchTheExactReference : public testing::TestWithParam<std::tuple<const char*, const char*>> {};
 
 TEST_P(DefaultsMatchTheExactReference, WithinTheErrorBudget) {

@@ -1,0 +1,210 @@
+#include "umbras.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include <glm/geometric.hpp>
+#include <glm/mat4x4.hpp>
+#include <glm/vec4.hpp>
+
+namespace umbra {
+
+namespace {
+
+// A texel's neighbour `reach` texels away along both axes is reach * sqrt 2
+// texels from it.
+constexpr double kDiagonal = 1.4142135623730951;
+
+// Where the light's ray through `p` meets the plane at height y: along the
+// direction, or from the point light through p (p below the light).
+glm::dvec2 projected(const ShadowPlan& light, const glm::dvec3& p, double y) {
+  const glm::dvec3 ray = light.perspective ? p - light.position : light.direction;
+  const glm::dvec3 at = p + ray * ((y - p.y) / ray.y);
+  return {at.x, at.z};
+}
+
+PlanePolygon shadow_of(const ShadowPlan& light, const std::vector<glm::dvec3>& points, double y) {
+  std::vector<glm::dvec2> on_plane;
+  on_plane.reserve(points.size());
+  for (const glm::dvec3& p : points) on_plane.push_back(projected(light, p, y));
+  return convex_hull(std::move(on_plane));
+}
+
+// Whether `view` holds every corner of `region` (on the plane at height y),
+// and so all of it, with `reach` texels to spare.
+bool holds_with_reach(const ShadowView& view, int layer_size, const PlanePolygon& region, double y, double reach) {
+  const glm::dmat4 view_projection = view.view_projection();
+  for (const glm::dvec2& q : region) {
+    const glm::dvec4 clip = view_projection * glm::dvec4(q.x, y, q.y, 1.0);
+    if (!(clip.w > 0.0)) return false;
+    const glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
+    const glm::dvec2 texel = (glm::dvec2(ndc) * 0.5 + 0.5) * double(layer_size);
+    if (!(std::abs(ndc.z) <= 1.0) || !(texel.x >= reach && texel.y >= reach) ||
+        !(texel.x <= layer_size - reach && texel.y <= layer_size - reach))
+      return false;
+  }
+  return !region.empty();
+}
+
+// Whether no point of `points` that `view` holds across lies before its
+// near plane: a view whose near plane cuts an object has only its far part
+// in its layer. (A far plane that cuts it lies past every point the view
+// serves, and the part of the object in front of those points is kept.)
+bool near_plane_keeps(const ShadowView& view, const std::vector<glm::dvec3>& points) {
+  const glm::dmat4 view_projection = view.view_projection();
+  for (const glm::dvec3& p : points) {
+    const glm::dvec4 clip = view_projection * glm::dvec4(p, 1.0);
+    if (!(clip.w > 0.0)) continue;
+    const glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
+    if (std::abs(ndc.x) <= 1.0 && std::abs(ndc.y) <= 1.0 && !(ndc.z >= -1.0)) return false;
+  }
+  return true;
+}
+
+// The world size of the texels the main pass may read for points whose
+// shadow comes through `points` (an object) and falls in `region`: the
+// largest texel of the views that may serve the region, at the distance of
+// the farthest point for a perspective light. None if one of those views
+// cuts the object with its near plane: the lookup would not find the
+// object in every texel it reads.
+std::optional<double> texel_size_for(const ShadowPlan& light, const std::vector<glm::dvec3>& points,
+                                     const PlanePolygon& region, double y, double reach) {
+  double texel = 0.0;
+  if (light.perspective) {
+    // A cube face or cone: a texel's angle is largest at the view's centre,
+    // where it is texel_size.x (per unit of distance).
+    double farthest = 0.0;
+    for (const glm::dvec3& p : points) farthest = std::max(farthest, glm::distance(p, light.position));
+    for (const ShadowView& view : light.views) {
+      if (!near_plane_keeps(view, points)) return std::nullopt;
+      texel = std::max(texel, view.texel_size.x * farthest);
+    }
+    return texel;
+  }
+  // The main pass reads a point from the first view that holds it with the
+  // filter's reach: no view after one that holds all of the region. (A
+  // part of the region that no view holds is out of the camera's sight.)
+  for (const ShadowView& view : light.views) {
+    if (!near_plane_keeps(view, points)) return std::nullopt;
+    texel = std::max({texel, view.texel_size.x, view.texel_size.y});
+    if (holds_with_reach(view, light.layer_size, region, y, reach + 1.0)) break;
+  }
+  return texel;
+}
+
+}  // namespace
+
+std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, double low, double high) {
+  std::vector<glm::dvec3> points;
+  if (object.type == SceneObject::Type::Box) {
+    const glm::dvec3 half = 0.5 * object.size - margin;
+    const double bottom = std::max(object.center.y - half.y, low), top = std::min(object.center.y + half.y, high);
+    if (!(half.x > 0.0 && half.y > 0.0 && half.z > 0.0 && bottom < top)) return points;
+    for (int i = 0; i < 8; ++i) {
+      const glm::dvec3 corner = rotate_y({i & 1 ? half.x : -half.x, 0.0, i & 2 ? half.z : -half.z}, object.rotation_y_deg);
+      points.emplace_back(object.center.x + corner.x, i & 4 ? top : bottom, object.center.z + corner.z);
+    }
+  } else if (object.type == SceneObject::Type::Sphere) {
+    const double radius = object.radius - margin;
+    if (!(radius > 0.0)) return points;
+    // Rings of 16 points on the sphere at five latitudes, and where the
+    // slab's faces cut it: their hull lies inside the sphere and the slab.
+    std::vector<double> heights{low, high};
+    for (const double degrees : {-60.0, -30.0, 0.0, 30.0, 60.0})
+      heights.push_back(object.center.y + radius * std::sin(degrees * 3.14159265358979323846 / 180.0));
+    for (const double h : heights) {
+      const double dy = h - object.center.y;
+      if (!(h >= low && h <= high && std::abs(dy) < radius)) continue;
+      const double ring = std::sqrt(radius * radius - dy * dy);
+      for (int k = 0; k < 16; ++k) {
+        const double angle = k * (2.0 * 3.14159265358979323846 / 16.0);
+        points.emplace_back(object.center.x + ring * std::cos(angle), h, object.center.z + ring * std::sin(angle));
+      }
+    }
+  }
+  return points;
+}
+
+std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& light,
+                                          const std::vector<SceneObject>& objects, double reach_texels) {
+  std::vector<PlanePolygon> umbras;
+  const double y = plane.min.y;
+  const bool from_above = light.perspective ? light.position.y > y : light.direction.y < 0.0;
+  if (plane.empty() || light.views.empty() || !from_above) return umbras;
+  const double high =
+      light.perspective ? y + 0.75 * (light.position.y - y) : std::numeric_limits<double>::infinity();
+  for (const SceneObject& object : objects) {
+    if (umbras.size() >= kMaxUmbras) break;
+    const std::vector<glm::dvec3> whole = points_inside(object, 0.0, y, high);
+    if (whole.size() < 2) continue;
+    const std::optional<double> texel = texel_size_for(light, whole, shadow_of(light, whole, y), y, reach_texels);
+    if (!texel) continue;
+    const double margin = reach_texels * kDiagonal * *texel;
+    if (!(margin > 0.0)) continue;
+    PlanePolygon umbra = clipped(shadow_of(light, points_inside(object, margin, y, high), y),
+                                 {plane.min.x, plane.min.z}, {plane.max.x, plane.max.z});
+    if (umbra.size() >= 3 && polygon_area(umbra) > 0.0) umbras.push_back(std::move(umbra));
+  }
+  return umbras;
+}
+
+std::optional<std::vector<PlanePolygon>> shadow_bounds_on_plane(const Aabb& plane, std::size_t plane_object,
+                                                                const ShadowPlan& light, const std::vector<Aabb>& bounds,
+                                                                double reach_texels) {
+  const double y = plane.min.y;
+  const bool from_above = light.perspective ? light.position.y > y : light.direction.y < 0.0;
+  if (plane.empty() || light.views.empty() || !from_above || bounds.size() > kMaxUmbras + 1) return std::nullopt;
+  const auto texel_of = [](const ShadowView& view) { return std::max(view.texel_size.x, view.texel_size.y); };
+  double largest_texel = 0.0;  // orthographic: world units; perspective: per unit of distance
+  for (const ShadowView& view : light.views) largest_texel = std::max(largest_texel, texel_of(view));
+  std::vector<PlanePolygon> shadows;
+  for (std::size_t i = 0; i < bounds.size(); ++i) {
+    if (i == plane_object || bounds[i].empty()) continue;
+    double farthest = 1.0;
+    if (light.perspective) {
+      farthest = 0.0;
+      for (const glm::dvec3& corner : bounds[i].corners())
+        farthest = std::max(farthest, glm::distance(corner, light.position));
+    }
+    bool bounded = true;
+    // The object's bounds grown by `texel` texels' reach, cast onto the
+    // plane and cut to it; empty if nothing of it is above the plane.
+    const auto shadow_with = [&](double texel) {
+      const double margin = reach_texels * kDiagonal * texel * farthest;
+      Aabb grown = bounds[i];
+      grown.min -= margin;
+      grown.max += margin;
+      // What lies below the plane (the margin aside) is behind every
+      // point of it: its texels' depths are past the plane's.
+      grown.min.y = std::max(grown.min.y, y - margin);
+      if (grown.max.y < grown.min.y) return PlanePolygon{};
+      if (light.perspective && !(grown.max.y < light.position.y)) {
+        bounded = false;
+        return PlanePolygon{};
+      }
+      return clipped(shadow_of(light, grown.corners(), y), {plane.min.x, plane.min.z}, {plane.max.x, plane.max.z});
+    };
+    PlanePolygon shadow = shadow_with(largest_texel);
+    if (!bounded) return std::nullopt;
+    if (!light.perspective && shadow.size() >= 3) {
+      // Every point of that shadow is read from the first view that holds
+      // all of it with the reach, or an earlier one: only their texels
+      // matter, and points outside the shadow they give read no texel of
+      // the object in any view.
+      double texel = 0.0;
+      for (const ShadowView& view : light.views) {
+        texel = std::max(texel, texel_of(view));
+        if (holds_with_reach(view, light.layer_size, shadow, y, reach_texels + 1.0)) {
+          shadow = shadow_with(texel);
+          break;
+        }
+      }
+    }
+    if (shadow.size() >= 3 && polygon_area(shadow) > 0.0) shadows.push_back(std::move(shadow));
+  }
+  return shadows;
+}
+
+}  // namespace umbra

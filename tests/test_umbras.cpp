@@ -1,0 +1,289 @@
+// Where a floor is certainly dark or certainly lit (umbras.hpp), checked by
+// casting the rays of the texels the main pass would read, without a GPU.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <string>
+
+#include <glm/ext/matrix_clip_space.hpp>
+#include <glm/ext/matrix_transform.hpp>
+#include <glm/geometric.hpp>
+#include <glm/mat4x4.hpp>
+#include <glm/matrix.hpp>
+
+#include "light_math.hpp"
+#include "ray_cast.hpp"
+#include "receiver_cells.hpp"
+#include "scene.hpp"
+#include "umbras.hpp"
+
+namespace umbra {
+namespace {
+
+// contact-line's floor and turned box, with a ball beside it: under the sun
+// at `time`, or under a point light at `point_light` (x, y, z) if given.
+RenderRequest floor_box_ball(double time, std::optional<glm::dvec3> point_light = std::nullopt) {
+  RenderRequest r;
+  SceneObject floor;
+  floor.type = SceneObject::Type::Plane;
+  floor.size = {20.0, 0.0, 20.0};
+  SceneObject box;
+  box.center = {0.0, 0.5, 0.0};
+  box.rotation_y_deg = 20.0;
+  SceneObject ball;
+  ball.type = SceneObject::Type::Sphere;
+  ball.center = {1.8, 0.4, -0.6};
+  ball.radius = 0.4;
+  r.scene.objects = {floor, box, ball};
+  r.camera.position = {2.6, 2.6, 3.2};
+  r.camera.target = {0.0, 0.3, 0.0};
+  r.light.position = {-3.0, 2.0, -2.0};
+  r.time = time;
+  if (point_light) {
+    r.light.projection = LightProjection::Perspective;
+    r.light.position = *point_light;
+  }
+  return r;
+}
+
+// The main pass's choice of view for point p (shaders/scene.frag's
+// choose_view): a cube face by p's major axis from the light; else the
+// first view that holds p with the filter's reach, else the first that
+// holds it at all. -1 if none does.
+int view_for(const ShadowPlan& plan, const glm::dvec3& p, int reach) {
+  if (plan.layout == ShadowLayout::Cube) {
+    const glm::dvec3 d = p - plan.position;
+    const glm::dvec3 a = glm::abs(d);
+    const int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
+    return 2 * axis + (d[axis] < 0.0 ? 1 : 0);
+  }
+  int fallback = -1;
+  for (std::size_t i = 0; i < plan.views.size(); ++i) {
+    const glm::dvec4 clip = plan.views[i].view_projection() * glm::dvec4(p, 1.0);
+    const glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
+    if (!(clip.w > 0.0 && std::abs(ndc.x) <= 1.0 && std::abs(ndc.y) <= 1.0 && std::abs(ndc.z) <= 1.0)) continue;
+    const glm::dvec2 texel = (glm::dvec2(ndc) * 0.5 + 0.5) * double(plan.layer_size);
+    if (glm::all(glm::greaterThanEqual(texel, glm::dvec2(reach))) &&
+        glm::all(glm::lessThanEqual(texel, glm::dvec2(plan.layer_size - reach))))
+      return int(i);
+    if (fallback < 0) fallback = int(i);
+  }
+  return fallback;
+}
+
+// What the texel `offset` texels from point p's own, in view `view`, looks
+// at: its ray from the view's near plane, where that ray meets the plane at
+// height y, and the first thing it hits before that (if anything).
+struct TexelRay {
+  double plane_t = 0.0;          // along the ray, to the plane
+  std::optional<RayHit> before;  // first hit short of the plane
+  double texel_world = 0.0;      // the texel's world size where the ray meets the plane
+};
+TexelRay texel_ray(const RenderRequest& r, const ShadowPlan& plan, int view, const glm::dvec3& p,
+                   const glm::dvec2& offset, double y) {
+  const ShadowView& v = plan.views[std::size_t(view)];
+  const glm::dmat4 view_projection = v.view_projection();
+  const glm::dvec4 clip = view_projection * glm::dvec4(p, 1.0);
+  const glm::dvec2 ndc = glm::dvec2(clip) / clip.w + offset * (2.0 / plan.layer_size);
+  const glm::dmat4 to_world = glm::inverse(view_projection);
+  const glm::dvec4 near = to_world * glm::dvec4(ndc, -1.0, 1.0), far = to_world * glm::dvec4(ndc, 1.0, 1.0);
+  const glm::dvec3 origin = glm::dvec3(near) / near.w;
+  const glm::dvec3 direction = glm::normalize(glm::dvec3(far) / far.w - origin);
+  TexelRay out;
+  out.plane_t = (y - origin.y) / direction.y;
+  out.texel_world = plan.perspective ? v.texel_size.x * glm::distance(plan.position, origin + direction * out.plane_t)
+                                     : std::max(v.texel_size.x, v.texel_size.y);
+  out.before = cast_ray(r.scene, origin, direction, 0.0, out.plane_t * (1.0 - 1e-9));
+  return out;
+}
+
+// Whether q lies inside the convex polygon (counter-clockwise), its edges
+// included.
+bool inside(const PlanePolygon& polygon, const glm::dvec2& q) {
+  for (std::size_t i = 0; i < polygon.size(); ++i) {
+    const glm::dvec2 a = polygon[i], b = polygon[(i + 1) % polygon.size()];
+    if ((b.x - a.x) * (q.y - a.y) - (b.y - a.y) * (q.x - a.x) < 0.0) return false;
+  }
+  return true;
+}
+
+// Points spread over a convex polygon: mixes of two neighbouring corners
+// and the centroid, a hair inside.
+std::vector<glm::dvec2> points_over(const PlanePolygon& polygon) {
+  glm::dvec2 centroid(0.0);
+  for (const glm::dvec2& q : polygon) centroid += q / double(polygon.size());
+  std::vector<glm::dvec2> points;
+  for (std::size_t i = 0; i < polygon.size(); ++i)
+    for (int a = 0; a <= 4; ++a)
+      for (int b = 0; a + b <= 4; ++b) {
+        const glm::dvec2 mix =
+            polygon[i] * (a / 4.0) + polygon[(i + 1) % polygon.size()] * (b / 4.0) + centroid * ((4 - a - b) / 4.0);
+        points.push_back(centroid + (mix - centroid) * (1.0 - 1e-9));
+      }
+  return points;
+}
+
+// The lights every test below is run under: the sun at four points of its
+// orbit, and point lights above the objects and lower than the box's top.
+std::vector<RenderRequest> lit_scenes() {
+  std::vector<RenderRequest> scenes;
+  for (double time : {0.0, 4.0, 9.0, 13.5}) scenes.push_back(floor_box_ball(time));
+  for (const glm::dvec3& light : {glm::dvec3(0.3, 1.5, 0.2), glm::dvec3(-2.0, 3.0, 1.0), glm::dvec3(1.5, 0.9, 1.5)})
+    scenes.push_back(floor_box_ball(0.0, light));
+  return scenes;
+}
+
+// Every point of an umbra is dark in the exact reference, and every texel
+// that the filter reads around it sees an object in front of the floor,
+// by more than the lookup's bias: the lookup would have returned 0.
+TEST(Umbras, EveryTexelTheFilterReadsAroundAnUmbraSeesAnObjectInFrontOfTheFloor) {
+  int umbras = 0, texels = 0;
+  for (const RenderRequest& r : lit_scenes()) {
+    const ShadowPlan plan = plan_shadow(r);
+    const Mesh mesh = tessellate(r.scene);
+    const PlaneRange& floor = mesh.planes.at(0);
+    const int read = filter_read_texels(r.shadow), reach = filter_reach_texels(r.shadow);
+    const glm::dvec3 light = light_at(r.light, r.time).position;
+    const std::string where = std::string(plan.perspective ? "point light" : "sun") + " t=" + std::to_string(r.time);
+    for (const PlanePolygon& umbra : umbras_on_plane(mesh.bounds[floor.object], plan, r.scene.objects, read + 1.0)) {
+      ++umbras;
+      for (const glm::dvec2& q : points_over(umbra)) {
+        const glm::dvec3 p(q.x, floor.height, q.y);
+        ASSERT_EQ(exact_visibility(r, light, p, {0.0, 1.0, 0.0}), 0.0) << where << ": " << q.x << ", " << q.y;
+        const int view = view_for(plan, p, reach);
+        ASSERT_GE(view, 0) << where;
+        for (int dy = -read; dy <= read; ++dy)
+          for (int dx = -read; dx <= read; ++dx) {
+            const TexelRay ray = texel_ray(r, plan, view, p, {dx, dy}, floor.height);
+            ++texels;
+            ASSERT_TRUE(ray.before.has_value())
+                << where << ": the texel (" << dx << ", " << dy << ") from " << q.x << ", " << q.y << " sees the floor";
+            EXPECT_GT(ray.plane_t - ray.before->t, 0.1 * ray.texel_world) << where;
+          }
+      }
+    }
+  }
+  EXPECT_GE(umbras, 12);
+  EXPECT_GT(texels, 50000);
+}
+
+// Just outside the shadow of each object's grown bounds, no texel the
+// filter reads sees anything but the floor: the lookup would have found
+// the point lit.
+TEST(Umbras, NoTexelReadFromOutsideTheShadowBoundsSeesAnObject) {
+  int points = 0, unbounded = 0;
+  for (const RenderRequest& r : lit_scenes()) {
+    const ShadowPlan plan = plan_shadow(r);
+    const Mesh mesh = tessellate(r.scene);
+    const PlaneRange& floor = mesh.planes.at(0);
+    const Aabb& plane = mesh.bounds[floor.object];
+    const int read = filter_read_texels(r.shadow), reach = filter_reach_texels(r.shadow);
+    const std::string where = std::string(plan.perspective ? "point light" : "sun") + " t=" + std::to_string(r.time);
+    const std::optional<std::vector<PlanePolygon>> shadows =
+        shadow_bounds_on_plane(plane, floor.object, plan, mesh.bounds, read + 1.0);
+    if (!shadows) {  // the point light below the box's top
+      ++unbounded;
+      continue;
+    }
+    ASSERT_EQ(shadows->size(), 2u) << where;
+    const auto outside_all = [&](const glm::dvec2& q) {
+      return std::none_of(shadows->begin(), shadows->end(), [&](const PlanePolygon& s) { return inside(s, q); });
+    };
+    // Points a hair outside each edge, at its ends and at five places
+    // along it.
+    for (const PlanePolygon& s : *shadows)
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        const glm::dvec2 a = s[i], b = s[(i + 1) % s.size()];
+        const glm::dvec2 outward = glm::normalize(glm::dvec2(b.y - a.y, a.x - b.x));
+        for (double f : {0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0}) {
+          const glm::dvec2 q = a + (b - a) * f + outward * 1e-6;
+          if (!outside_all(q) || q.x <= plane.min.x || q.x >= plane.max.x || q.y <= plane.min.z || q.y >= plane.max.z)
+            continue;
+          const glm::dvec3 p(q.x, floor.height, q.y);
+          const int view = view_for(plan, p, reach);
+          if (view < 0) continue;  // no view holds it: lit without a lookup
+          ++points;
+          for (int dy = -read; dy <= read; ++dy)
+            for (int dx = -read; dx <= read; ++dx) {
+              const TexelRay ray = texel_ray(r, plan, view, p, {dx, dy}, floor.height);
+              EXPECT_FALSE(ray.before.has_value())
+                  << where << ": the texel (" << dx << ", " << dy << ") from " << q.x << ", " << q.y << " sees object "
+                  << ray.before->object;
+            }
+        }
+      }
+  }
+  EXPECT_EQ(unbounded, 1);
+  EXPECT_GT(points, 100);
+}
+
+// A unit box straight under the sun: its umbra is its footprint less the
+// margin all round; the shadow of its bounds, its footprint plus the margin.
+TEST(Umbras, ABoxStraightUnderTheSunShadowsItsFootprint) {
+  RenderRequest r = floor_box_ball(0.0);
+  r.scene.objects.pop_back();  // no ball
+  r.scene.objects[1].rotation_y_deg = 0.0;
+  ShadowPlan plan;
+  plan.direction = {0.0, -1.0, 0.0};
+  plan.layer_size = 1000;
+  ShadowView view;  // straight down from y = 10 over [-10, 10]^2: texels of 0.02
+  view.view = glm::lookAt(glm::dvec3(0.0, 10.0, 0.0), glm::dvec3(0.0), glm::dvec3(0.0, 0.0, -1.0));
+  view.projection = glm::ortho(-10.0, 10.0, -10.0, 10.0, 0.0, 20.0);
+  view.texel_size = {0.02, 0.02};
+  plan.views = {view};
+  const Aabb plane = object_bounds(r.scene.objects[0]);
+  const double margin = 4.0 * std::sqrt(2.0) * 0.02;
+  const std::vector<PlanePolygon> umbras = umbras_on_plane(plane, plan, r.scene.objects, 4.0);
+  ASSERT_EQ(umbras.size(), 1u);
+  const Aabb u = bounds_on_plane(umbras[0], 0.0);
+  EXPECT_NEAR(u.min.x, -0.5 + margin, 1e-12);
+  EXPECT_NEAR(u.max.z, 0.5 - margin, 1e-12);
+  const std::vector<Aabb> bounds{plane, object_bounds(r.scene.objects[1])};
+  const std::optional<std::vector<PlanePolygon>> shadows = shadow_bounds_on_plane(plane, 0, plan, bounds, 4.0);
+  ASSERT_TRUE(shadows && shadows->size() == 1u);
+  const Aabb s = bounds_on_plane((*shadows)[0], 0.0);
+  EXPECT_NEAR(s.min.x, -0.5 - margin, 1e-12);
+  EXPECT_NEAR(s.max.z, 0.5 + margin, 1e-12);
+  // A light from under the floor reaches none of its top.
+  plan.direction = {0.0, 1.0, 0.0};
+  EXPECT_TRUE(umbras_on_plane(plane, plan, r.scene.objects, 4.0).empty());
+  EXPECT_FALSE(shadow_bounds_on_plane(plane, 0, plan, bounds, 4.0).has_value());
+}
+
+// Under a point light lower than the box's top, the box is cut at 3/4 of
+// the light's height: its umbra is bounded. The shadow of its bounds is
+// not, and the plane is left to the cells.
+TEST(Umbras, APointLightBelowABoxsTopLeavesThePlaneToTheCells) {
+  const RenderRequest r = floor_box_ball(0.0, glm::dvec3(1.5, 0.9, 1.5));
+  const ShadowPlan plan = plan_shadow(r);
+  const Mesh mesh = tessellate(r.scene);
+  const Aabb& plane = mesh.bounds[0];
+  const std::vector<PlanePolygon> umbras = umbras_on_plane(plane, plan, r.scene.objects, 4.0);
+  ASSERT_FALSE(umbras.empty());
+  for (const PlanePolygon& u : umbras)
+    for (const glm::dvec2& q : u) EXPECT_TRUE(std::isfinite(q.x) && std::isfinite(q.y));
+  EXPECT_FALSE(shadow_bounds_on_plane(plane, 0, plan, mesh.bounds, 4.0).has_value());
+}
+
+// Only boxes and spheres are known to be solid all through: a plane or a
+// mesh object gives no points inside it, and a box or sphere shrunk past
+// nothing, or cut to a slab it does not reach, none either.
+TEST(Umbras, OnlyBoxesAndSpheresHavePointsInside) {
+  SceneObject box;
+  box.size = {1.0, 2.0, 1.0};
+  EXPECT_EQ(points_inside(box, 0.1, -10.0, 10.0).size(), 8u);
+  EXPECT_TRUE(points_inside(box, 0.5, -10.0, 10.0).empty());
+  EXPECT_TRUE(points_inside(box, 0.0, 1.5, 10.0).empty());
+  SceneObject ball;
+  ball.type = SceneObject::Type::Sphere;
+  for (const glm::dvec3& p : points_inside(ball, 0.1, -10.0, 10.0)) EXPECT_LE(glm::length(p), 0.4 + 1e-12);
+  EXPECT_TRUE(points_inside(ball, 0.5, -10.0, 10.0).empty());
+  SceneObject plane;
+  plane.type = SceneObject::Type::Plane;
+  EXPECT_TRUE(points_inside(plane, 0.0, -10.0, 10.0).empty());
+}
+
+}  // namespace
+}  // namespace umbra
