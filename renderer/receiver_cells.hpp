@@ -105,6 +105,7 @@ struct CellTriangles {
   std::vector<std::uint32_t> shadowable;    ///< indices of the shadowable cells
   std::vector<std::uint32_t> unshadowable;  ///< and of the others
   std::vector<std::uint32_t> dark;          ///< of the umbras (append_dark_triangles)
+  std::vector<std::uint32_t> bounds;        ///< of the shadows of objects' bounds (shadow_bounds_on_plane)
 };
 
 /// Appends `cells` of the plane at height `y` to `out`: each cell two

@@ -453,8 +453,7 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
     pairs += std::size_t(std::count_if(row.begin(), row.end(), [](const TexelRect& r) { return !r.empty(); }));
   const bool per_caster = pairs <= kMaxRegionPairs;
   // Under a light of no size, the umbras of boxes and spheres are drawn
-  // dark without the lookup (umbras.hpp), so far inside that the lookup
-  // would have found every texel it reads shadowed.
+  // dark without the lookup (umbras.hpp).
   const bool umbras = request.light.size == 0.0;
   CellTriangles cells;
   std::map<double, std::vector<PlanePolygon>> regions_at;  // by plane height
@@ -465,41 +464,42 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
     const Aabb& bounds = mesh.bounds[plane.object];
     PlaneDraw draw;
     draw.dark.first = cells.dark.size();
-    draw.lookup.first = cells.shadowable.size();
-    draw.lit.first = cells.unshadowable.size();
+    draw.bounds.first = cells.bounds.size();
+    draw.shadowable.first = cells.shadowable.size();
+    draw.unshadowable.first = cells.unshadowable.size();
     if (umbras) {
       const std::vector<PlanePolygon> dark = umbras_on_plane(bounds, light, request.scene.objects, margin);
       append_dark_triangles(dark, plane.height, plane.color, mesh.origin, cells);
       draws.umbras += dark.size();
     }
-    // The lookup where an object's shadow may reach, the rest of the plane
-    // lit: as the shadows of the objects' bounds, or as cells.
     if (const std::optional<std::vector<PlanePolygon>> shadows =
-            shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, margin)) {
-      append_polygon_triangles(*shadows, plane.height, plane.color, mesh.origin, cells, cells.shadowable);
-      append_cell_triangles(plane_cells(bounds, {}), plane.height, plane.color, mesh.origin, cells);
-    } else {
-      auto at = regions_at.find(plane.height);
-      if (at == regions_at.end())
-        at = regions_at
-                 .emplace(plane.height, per_caster ? shadowable_regions(plane.height, light, casters.by_object, margin)
-                                                   : view_regions(plane.height, light, casters.by_view, margin))
-                 .first;
-      append_cell_triangles(plane_cells(bounds, at->second), plane.height, plane.color, mesh.origin, cells);
-    }
+            shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, margin))
+      append_polygon_triangles(*shadows, plane.height, plane.color, mesh.origin, cells, cells.bounds);
+    auto at = regions_at.find(plane.height);
+    if (at == regions_at.end())
+      at = regions_at
+               .emplace(plane.height, per_caster ? shadowable_regions(plane.height, light, casters.by_object, margin)
+                                                 : view_regions(plane.height, light, casters.by_view, margin))
+               .first;
+    append_cell_triangles(plane_cells(bounds, at->second), plane.height, plane.color, mesh.origin, cells);
     draw.dark.count = cells.dark.size() - draw.dark.first;
-    draw.lookup.count = cells.shadowable.size() - draw.lookup.first;
-    draw.lit.count = cells.unshadowable.size() - draw.lit.first;
+    draw.bounds.count = cells.bounds.size() - draw.bounds.first;
+    draw.shadowable.count = cells.shadowable.size() - draw.shadowable.first;
+    draw.unshadowable.count = cells.unshadowable.size() - draw.unshadowable.first;
     draws.planes.push_back(draw);
     draws.whole_planes[i] = false;
   }
   if (draws.planes.empty()) return draws;
-  // One index buffer: every plane's umbras, then the lookups, then the lit.
+  // One index buffer: every plane's umbras, then the shadows of the
+  // objects' bounds, then the shadowable cells, then the others.
   std::vector<std::uint32_t> indices = std::move(cells.dark);
-  for (PlaneDraw& draw : draws.planes) draw.lookup.first += indices.size();
-  indices.insert(indices.end(), cells.shadowable.begin(), cells.shadowable.end());
-  for (PlaneDraw& draw : draws.planes) draw.lit.first += indices.size();
-  indices.insert(indices.end(), cells.unshadowable.begin(), cells.unshadowable.end());
+  for (std::vector<std::uint32_t>* part : {&cells.bounds, &cells.shadowable, &cells.unshadowable}) {
+    for (PlaneDraw& draw : draws.planes) {
+      IndexRange& range = part == &cells.bounds ? draw.bounds : part == &cells.shadowable ? draw.shadowable : draw.unshadowable;
+      range.first += indices.size();
+    }
+    indices.insert(indices.end(), part->begin(), part->end());
+  }
   glNamedBufferData(display_.cell_vertices.id(), GLsizeiptr(cells.vertices.size() * sizeof(Vertex)),
                     cells.vertices.data(), GL_STREAM_DRAW);
   glNamedBufferData(display_.cell_indices.id(), GLsizeiptr(indices.size() * sizeof(std::uint32_t)), indices.data(),
@@ -580,13 +580,22 @@ std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const
   }
   draw_scene(closed_cull, objects);
   if (!cells.planes.empty()) {
-    // Plane by plane: its umbras with the program of a light that reaches
-    // no surface, then the lookup where a shadow may reach, then the rest
-    // lit. The umbras and lookups mark the stencil with the plane's own
-    // value where they are drawn, and what follows them on that plane
-    // skips those pixels: coplanar, the depth test could go either way,
-    // and llvmpipe skips the shader for a block of pixels that the early
-    // stencil test rejects (not for the lanes a branch masks off).
+    // Plane by plane, with the stencil (llvmpipe skips the shader for a
+    // block of pixels that the early stencil test rejects, not for lanes
+    // that a branch masks off):
+    // 1. the shadows of its objects' bounds, marked `near` and not drawn;
+    // 2. its umbras, with the program of a light that reaches no surface,
+    //    marked `dark` instead;
+    // 3. its shadowable cells with the lookup where marked `near`, then
+    //    lit where marked neither;
+    // 4. its other cells lit where not dark (an umbra never reaches them).
+    // The lookup's pixels are drawn from the cells' triangles, as without
+    // the marks, so it interpolates the same positions. The two marks
+    // differ in their lowest bit only, and each plane has its own pair:
+    // coplanar parts of different planes would not mark each other.
+    // Without the shadows of the bounds (a point light lower than an
+    // object's top), the lookup runs on every shadowable cell but the
+    // umbras.
     DisplayVariant dark = without_shadows(variant);
     dark.direct_light = false;
     const GLuint dark_program = display_.programs.get(dark.defines()).id();
@@ -594,27 +603,43 @@ std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const
     const GLuint lit_program = display_.programs.get(without_shadows(variant).defines()).id();
     glBindVertexArray(display_.cells_vertex_array.id());
     glEnable(GL_STENCIL_TEST);
-    glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
-    GLint plane_value = 0;
+    GLint plane_marks = 0;
     for (const PlaneDraw& draw : cells.planes) {
-      ++plane_value;
+      plane_marks += 2;
+      const GLint dark_mark = plane_marks, near_mark = plane_marks + 1;
+      const bool marked_near = draw.bounds.count > 0;
+      glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+      glUseProgram(dark_program);
+      if (marked_near) {
+        glStencilFunc(GL_ALWAYS, near_mark, 0xFF);
+        glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+        glDepthMask(GL_FALSE);
+        draw_indices(draw.bounds.first, draw.bounds.count);
+        glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+        glDepthMask(GL_TRUE);
+      }
       if (draw.dark.count > 0) {
-        glStencilFunc(GL_ALWAYS, plane_value, 0xFF);
-        glUseProgram(dark_program);
+        glStencilFunc(GL_ALWAYS, dark_mark, 0xFF);
         draw_indices(draw.dark.first, draw.dark.count);
       }
-      glStencilFunc(GL_NOTEQUAL, plane_value, 0xFF);
-      if (draw.lookup.count > 0) {
+      glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+      if (draw.shadowable.count > 0) {
+        marked_near ? glStencilFunc(GL_EQUAL, near_mark, 0xFF) : glStencilFunc(GL_NOTEQUAL, dark_mark, 0xFF);
         glUseProgram(lookup_program);
-        draw_indices(draw.lookup.first, draw.lookup.count);
+        draw_indices(draw.shadowable.first, draw.shadowable.count);
+        if (marked_near) {
+          glStencilFunc(GL_NOTEQUAL, dark_mark, 0xFE);  // neither mark
+          glUseProgram(lit_program);
+          draw_indices(draw.shadowable.first, draw.shadowable.count);
+        }
       }
-      if (draw.lit.count > 0) {
+      if (draw.unshadowable.count > 0) {
+        glStencilFunc(GL_NOTEQUAL, dark_mark, 0xFF);
         glUseProgram(lit_program);
-        draw_indices(draw.lit.first, draw.lit.count);
+        draw_indices(draw.unshadowable.first, draw.unshadowable.count);
       }
     }
     glDisable(GL_STENCIL_TEST);
-    glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
   }
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
   glClearDepth(1.0);

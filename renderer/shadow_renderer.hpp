@@ -168,17 +168,17 @@ class ShadowRenderer {
                                const CasterTexels& casters);
   // The main pass's planes: drawn whole (one flag per Mesh::planes entry),
   // or in parts whose indices are in display_.cell_indices: per plane, its
-  // umbras drawn dark, the parts drawn with the lookup (cells, or the
-  // shadows of the objects' bounds), and those drawn lit.
+  // umbras drawn dark, the shadows of its objects' bounds (only marked in
+  // the stencil), its shadowable cells and its other cells.
   struct IndexRange {
     std::size_t first = 0, count = 0;
   };
   struct PlaneDraw {
-    IndexRange dark, lookup, lit;
+    IndexRange dark, bounds, shadowable, unshadowable;
   };
   struct CellDraws {
     std::vector<bool> whole_planes;
-    std::vector<PlaneDraw> planes;  // at most 8: each marks the stencil with its own value
+    std::vector<PlaneDraw> planes;  // at most 8: each marks the stencil with its own pair of values
     std::size_t umbras = 0;         // polygons drawn dark
   };
   // Uploads the cells of the planes the shadow pass leaves out (planes[i]

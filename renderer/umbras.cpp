@@ -5,6 +5,7 @@
 #include <limits>
 #include <optional>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec4.hpp>
@@ -179,11 +180,29 @@ std::optional<std::vector<PlanePolygon>> shadow_bounds_on_plane(const Aabb& plan
       // What lies below the plane (the margin aside) is behind every
       // point of it: its texels' depths are past the plane's.
       grown.min.y = std::max(grown.min.y, y - margin);
-      if (grown.max.y < grown.min.y) return PlanePolygon{};
-      if (light.perspective && !(grown.max.y < light.position.y)) {
-        bounded = false;
-        return PlanePolygon{};
+      if (light.perspective && !(grown.max.y < light.position.y - 1e-9 * (light.position.y - y))) {
+        // Rays down from the light meet only what lies below it, but the
+        // shadow of what lies just below reaches ever further out: cut the
+        // bounds where theirs would fall past `far_out` (four times as far
+        // as any of the plane from the light's foot), off the plane
+        // anyway. Unless the light's foot is inside them (the shadow would
+        // surround it).
+        const glm::dvec2 foot(light.position.x, light.position.z);
+        const glm::dvec2 nearest = glm::clamp(foot, glm::dvec2(grown.min.x, grown.min.z), glm::dvec2(grown.max.x, grown.max.z));
+        const double inner = glm::distance(nearest, foot);
+        double far_out = 0.0;
+        for (const glm::dvec2 corner : {glm::dvec2(plane.min.x, plane.min.z), glm::dvec2(plane.max.x, plane.max.z),
+                                        glm::dvec2(plane.min.x, plane.max.z), glm::dvec2(plane.max.x, plane.min.z)})
+          far_out = std::max(far_out, 4.0 * glm::distance(corner, foot));
+        if (!(inner > 0.0)) {
+          bounded = false;
+          return PlanePolygon{};
+        }
+        // A point at height h and distance `inner` from the foot falls at
+        // inner * (light - y) / (light - h) from it.
+        grown.max.y = std::min(grown.max.y, light.position.y - (light.position.y - y) * inner / far_out);
       }
+      if (grown.max.y < grown.min.y) return PlanePolygon{};
       return clipped(shadow_of(light, grown.corners(), y), {plane.min.x, plane.min.z}, {plane.max.x, plane.max.z});
     };
     PlanePolygon shadow = shadow_with(largest_texel);

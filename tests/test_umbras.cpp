@@ -173,7 +173,7 @@ TEST(Umbras, EveryTexelTheFilterReadsAroundAnUmbraSeesAnObjectInFrontOfTheFloor)
 // filter reads sees anything but the floor: the lookup would have found
 // the point lit.
 TEST(Umbras, NoTexelReadFromOutsideTheShadowBoundsSeesAnObject) {
-  int points = 0, unbounded = 0;
+  int points = 0;
   for (const RenderRequest& r : lit_scenes()) {
     const ShadowPlan plan = plan_shadow(r);
     const Mesh mesh = tessellate(r.scene);
@@ -183,10 +183,7 @@ TEST(Umbras, NoTexelReadFromOutsideTheShadowBoundsSeesAnObject) {
     const std::string where = std::string(plan.perspective ? "point light" : "sun") + " t=" + std::to_string(r.time);
     const std::optional<std::vector<PlanePolygon>> shadows =
         shadow_bounds_on_plane(plane, floor.object, plan, mesh.bounds, read + 1.0);
-    if (!shadows) {  // the point light below the box's top
-      ++unbounded;
-      continue;
-    }
+    ASSERT_TRUE(shadows.has_value()) << where;
     ASSERT_EQ(shadows->size(), 2u) << where;
     const auto outside_all = [&](const glm::dvec2& q) {
       return std::none_of(shadows->begin(), shadows->end(), [&](const PlanePolygon& s) { return inside(s, q); });
@@ -215,7 +212,6 @@ TEST(Umbras, NoTexelReadFromOutsideTheShadowBoundsSeesAnObject) {
         }
       }
   }
-  EXPECT_EQ(unbounded, 1);
   EXPECT_GT(points, 100);
 }
 
@@ -254,8 +250,10 @@ TEST(Umbras, ABoxStraightUnderTheSunShadowsItsFootprint) {
 
 // Under a point light lower than the box's top, the box is cut at 3/4 of
 // the light's height: its umbra is bounded. The shadow of its bounds is
-// not, and the plane is left to the cells.
-TEST(Umbras, APointLightBelowABoxsTopLeavesThePlaneToTheCells) {
+// cut where it would fall four times as far out as the plane reaches, and
+// reaches the plane's edge. A light inside the bounds leaves the plane to
+// the cells.
+TEST(Umbras, APointLightBelowABoxsTopCastsItsShadowPastThePlanesEdge) {
   const RenderRequest r = floor_box_ball(0.0, glm::dvec3(1.5, 0.9, 1.5));
   const ShadowPlan plan = plan_shadow(r);
   const Mesh mesh = tessellate(r.scene);
@@ -264,7 +262,14 @@ TEST(Umbras, APointLightBelowABoxsTopLeavesThePlaneToTheCells) {
   ASSERT_FALSE(umbras.empty());
   for (const PlanePolygon& u : umbras)
     for (const glm::dvec2& q : u) EXPECT_TRUE(std::isfinite(q.x) && std::isfinite(q.y));
-  EXPECT_FALSE(shadow_bounds_on_plane(plane, 0, plan, mesh.bounds, 4.0).has_value());
+  const std::optional<std::vector<PlanePolygon>> shadows = shadow_bounds_on_plane(plane, 0, plan, mesh.bounds, 4.0);
+  ASSERT_TRUE(shadows && shadows->size() == 2u);
+  // The box's, away from the light (at +x +z): out to the plane's -x and -z edges.
+  const Aabb box_shadow = bounds_on_plane((*shadows)[0], 0.0);
+  EXPECT_EQ(box_shadow.min.x, plane.min.x);
+  EXPECT_EQ(box_shadow.min.z, plane.min.z);
+  const RenderRequest inside = floor_box_ball(0.0, glm::dvec3(0.0, 0.9, 0.0));
+  EXPECT_FALSE(shadow_bounds_on_plane(plane, 0, plan_shadow(inside), mesh.bounds, 4.0).has_value());
 }
 
 // Only boxes and spheres are known to be solid all through: a plane or a
