@@ -442,7 +442,6 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
   // The seeds' bias moves the point along its normal before it is looked
   // up: such frames draw every plane whole. So do scenes of many planes,
   // whose regions would cost more to find than they save.
-  constexpr std::size_t kMaxPlanesInCells = 8;
   if (!request.shadow.bias.automatic || mesh.planes.size() > kMaxPlanesInCells) return draws;
   const double margin = double(filter_read_texels(request.shadow)) + 1.0;
   // One region per view and caster, or past that many pairs one per view
@@ -473,8 +472,10 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
       draws.umbras += dark.size();
     }
     if (const std::optional<std::vector<PlanePolygon>> shadows =
-            shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, margin))
+            shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, margin)) {
       append_polygon_triangles(*shadows, plane.height, plane.color, mesh.origin, cells, cells.bounds);
+      draw.lookup_only_near = true;
+    }
     auto at = regions_at.find(plane.height);
     if (at == regions_at.end())
       at = regions_at
@@ -593,9 +594,9 @@ std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const
     // the marks, so it interpolates the same positions. The two marks
     // differ in their lowest bit only, and each plane has its own pair:
     // coplanar parts of different planes would not mark each other.
-    // Without the shadows of the bounds (a point light lower than an
-    // object's top), the lookup runs on every shadowable cell but the
-    // umbras.
+    // Without the shadows of the bounds (a point light whose foot is
+    // inside an object's bounds), the lookup runs on every shadowable cell
+    // but the umbras.
     DisplayVariant dark = without_shadows(variant);
     dark.direct_light = false;
     const GLuint dark_program = display_.programs.get(dark.defines()).id();
@@ -603,18 +604,26 @@ std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const
     const GLuint lit_program = display_.programs.get(without_shadows(variant).defines()).id();
     glBindVertexArray(display_.cells_vertex_array.id());
     glEnable(GL_STENCIL_TEST);
+    static_assert(2 * kMaxPlanesInCells + 1 <= 0xFF, "each plane's two marks fit in the 8-bit stencil");
     GLint plane_marks = 0;
     for (const PlaneDraw& draw : cells.planes) {
       plane_marks += 2;
       const GLint dark_mark = plane_marks, near_mark = plane_marks + 1;
-      const bool marked_near = draw.bounds.count > 0;
+      const bool marked_near = draw.lookup_only_near;
       glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
       glUseProgram(dark_program);
-      if (marked_near) {
+      if (draw.bounds.count > 0) {
+        // Marked whatever is in front: only this plane's draws below read
+        // the mark, and they test depth themselves. (With the depth test,
+        // a plane coplanar with one drawn before would be marked where its
+        // polygons lose to that plane by a rounding and drawn lit where its
+        // cells win.)
         glStencilFunc(GL_ALWAYS, near_mark, 0xFF);
         glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
         glDepthMask(GL_FALSE);
+        glDepthFunc(GL_ALWAYS);
         draw_indices(draw.bounds.first, draw.bounds.count);
+        glDepthFunc(GL_GREATER);
         glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
         glDepthMask(GL_TRUE);
       }

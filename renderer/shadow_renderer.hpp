@@ -175,7 +175,13 @@ class ShadowRenderer {
   };
   struct PlaneDraw {
     IndexRange dark, bounds, shadowable, unshadowable;
+    // The shadows of the objects' bounds were found (`bounds`, perhaps
+    // none): the shadowable cells need the lookup only inside them.
+    bool lookup_only_near = false;
   };
+  // Planes past that many are drawn whole: their regions would cost more to
+  // find than they save.
+  static constexpr std::size_t kMaxPlanesInCells = 8;
   struct CellDraws {
     std::vector<bool> whole_planes;
     std::vector<PlaneDraw> planes;  // at most 8: each marks the stencil with its own pair of values

@@ -35,6 +35,9 @@ namespace umbra {
 /// The most umbras umbras_on_plane gives (the others are left to the
 /// lookup, which draws them just as dark).
 inline constexpr std::size_t kMaxUmbras = 64;
+/// The most objects besides the plane whose shadow bounds
+/// shadow_bounds_on_plane finds (past that, the plane keeps its cells).
+inline constexpr std::size_t kMaxShadowBoundsObjects = 64;
 
 /// Points whose convex hull lies inside `object` shrunk by `margin` world
 /// units on every side and between world heights `low` and `high`: a
@@ -60,7 +63,10 @@ std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, 
 ///   point from the light), so that any ray that close to one through the
 ///   shrunk object passes through the object.
 /// - None for an object that a view which may serve its umbra cuts with its
-///   near plane: that view's layer lacks part of it.
+///   near plane (that view's layer lacks part of it), nor for one whose
+///   shadow a single view (the seeds' fixed light box, or a cone) does not
+///   hold all of with the reach to spare: the lookup reads nothing there.
+/// - None when the light grazes the plane by less than a microradian.
 /// - Under a point light, an object reaching up past 3/4 of the light's
 ///   height above the plane is cut there: its shadow reaches 4 times the
 ///   light's height out, not to infinity.
@@ -77,9 +83,15 @@ std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& l
 /// The texel is the largest of the views that may serve the shadow (as
 /// umbras_on_plane takes it); for a perspective light, a texel's angle
 /// times the object's farthest corner from the light.
-/// None (leave the plane to plane_cells) when the light is not above the
-/// plane, when an object's grown bounds reach up to a point light's
-/// height (its shadow has no bound), or past kMaxUmbras objects.
+/// - What lies at or above a point light's height is on no ray down from
+///   it. The shadow of what lies just below it reaches ever further out:
+///   the bounds are cut where theirs would fall four times further from
+///   the light's foot than any of the plane.
+/// - None (leave the plane to plane_cells) when the light is not above the
+///   plane (or grazes it by less than a microradian), when a point light's
+///   foot is inside an object's grown bounds (its shadow surrounds the
+///   foot), or past kMaxShadowBoundsObjects objects. An empty list: nothing
+///   can shadow the plane.
 std::optional<std::vector<PlanePolygon>> shadow_bounds_on_plane(const Aabb& plane, std::size_t plane_object,
                                                                 const ShadowPlan& light, const std::vector<Aabb>& bounds,
                                                                 double reach_texels);

@@ -135,9 +135,13 @@ std::vector<RenderRequest> lit_scenes() {
   return scenes;
 }
 
-// Every point of an umbra is dark in the exact reference, and every texel
-// that the filter reads around it sees an object in front of the floor,
-// by more than the lookup's bias: the lookup would have returned 0.
+// Every point of an umbra is dark in the exact reference, and the ray of
+// every texel that the filter reads around it meets an object in front of
+// the floor: the lookup finds it shadowed, wherever the object's surface
+// that the map holds lies along the ray. (The shadow pass culls front
+// faces, so at a box's foot that is the box's far side, on the floor: the
+// lookup lets light leak in there, and the umbra is right where it is
+// not.)
 TEST(Umbras, EveryTexelTheFilterReadsAroundAnUmbraSeesAnObjectInFrontOfTheFloor) {
   int umbras = 0, texels = 0;
   for (const RenderRequest& r : lit_scenes()) {
@@ -270,6 +274,66 @@ TEST(Umbras, APointLightBelowABoxsTopCastsItsShadowPastThePlanesEdge) {
   EXPECT_EQ(box_shadow.min.z, plane.min.z);
   const RenderRequest inside = floor_box_ball(0.0, glm::dvec3(0.0, 0.9, 0.0));
   EXPECT_FALSE(shadow_bounds_on_plane(plane, 0, plan_shadow(inside), mesh.bounds, 4.0).has_value());
+}
+
+// A sun grazing the floor by less than a microradian would cast shadows
+// millions of floor widths long, beyond what cutting them to the floor
+// keeps exact in double: no umbra, and the floor keeps its cells. A point
+// light whose foot is a hair from an object's bounds, whose shadow's cut
+// would round to the light's own height, the same.
+TEST(Umbras, ShadowsTooLongForDoublePrecisionAreLeftToTheLookup) {
+  RenderRequest r = floor_box_ball(0.0);
+  ShadowPlan plan = plan_shadow(r);
+  const Mesh mesh = tessellate(r.scene);
+  const Aabb& plane = mesh.bounds[0];
+  plan.direction = glm::normalize(glm::dvec3(1.0, -1e-17, 0.3));
+  EXPECT_TRUE(umbras_on_plane(plane, plan, r.scene.objects, 4.0).empty());
+  EXPECT_FALSE(shadow_bounds_on_plane(plane, 0, plan, mesh.bounds, 4.0).has_value());
+  plan.direction = glm::normalize(glm::dvec3(1.0, -1e-3, 0.3));
+  EXPECT_TRUE(shadow_bounds_on_plane(plane, 0, plan, mesh.bounds, 4.0).has_value());
+
+  // A tall box beside a point light at height 1 whose foot is 1e-15 from
+  // the box's side.
+  ShadowPlan point = plan_shadow(floor_box_ball(0.0, glm::dvec3(0.3, 1.5, 0.2)));
+  for (ShadowView& view : point.views) view.texel_size = {0.0, 0.0};
+  point.position = {0.5 + 1e-15, 1.0, 0.0};
+  const Aabb tall{{-0.5, 0.0, -0.5}, {0.5, 1.5, 0.5}};
+  EXPECT_FALSE(shadow_bounds_on_plane(plane, 0, point, {plane, tall}, 4.0).has_value());
+  point.position.x = 0.5 + 1e-3;
+  const std::optional<std::vector<PlanePolygon>> beside = shadow_bounds_on_plane(plane, 0, point, {plane, tall}, 4.0);
+  ASSERT_TRUE(beside && beside->size() == 1u);
+  EXPECT_EQ(bounds_on_plane((*beside)[0], 0.0).min.x, plane.min.x);  // away from the light, out to the edge
+}
+
+// A single view that does not hold all of an umbra (the seeds' fixed light
+// box, smaller than the shadow) would leave the lookup reading nothing
+// there, and one whose near plane cuts the object holds only part of it:
+// no umbra is drawn, so the frame shows what the lookup shows.
+TEST(Umbras, AFixedLightBoxThatCutsAShadowDrawsNoUmbra) {
+  RenderRequest r = floor_box_ball(0.0);
+  r.shadow.fit = FrustumFit::Fixed;
+  r.shadow.ortho_half_size = 0.8;
+  const ShadowPlan small = plan_shadow(r);
+  ASSERT_EQ(small.layout, ShadowLayout::Single);
+  const Mesh mesh = tessellate(r.scene);
+  EXPECT_TRUE(umbras_on_plane(mesh.bounds[0], small, r.scene.objects, 4.0).empty());
+  r.shadow.ortho_half_size = 10.0;
+  EXPECT_EQ(umbras_on_plane(mesh.bounds[0], plan_shadow(r), r.scene.objects, 4.0).size(), 2u);
+
+  // A fixed cone half a unit above the box's top: with its near plane
+  // nearer than the box, an umbra; with it past the box's nearest corner
+  // (0.36 along its axis), the layer lacks part of the box, and none.
+  RenderRequest cone = floor_box_ball(0.0, glm::dvec3(0.3, 1.5, 0.2));
+  cone.scene.objects.pop_back();  // no ball
+  cone.shadow.fit = FrustumFit::Fixed;
+  cone.light.fov_y_deg = 150.0;
+  cone.shadow.near_plane = 0.1;
+  cone.shadow.far_plane = 10.0;
+  const ShadowPlan near_enough = plan_shadow(cone);
+  ASSERT_EQ(near_enough.layout, ShadowLayout::Single);
+  EXPECT_EQ(umbras_on_plane(mesh.bounds[0], near_enough, cone.scene.objects, 4.0).size(), 1u);
+  cone.shadow.near_plane = 0.45;
+  EXPECT_TRUE(umbras_on_plane(mesh.bounds[0], plan_shadow(cone), cone.scene.objects, 4.0).empty());
 }
 
 // Only boxes and spheres are known to be solid all through: a plane or a
