@@ -212,7 +212,7 @@ RequestCost estimate_cost(const RenderRequest& request) {
       const std::uint64_t sample = request.depth_bits == 16 ? 2 : 1;
       bytes += 3 * map * sample;  // preview texture, read-back image, PNG
     } else {
-      bytes += pixels * 8;      // RGBA8 colour + 32-bit depth renderbuffers
+      bytes += pixels * 12;     // RGBA8 colour + 32F depth / 8-bit stencil (8 bytes in llvmpipe) renderbuffers
       bytes += 2 * pixels * 3;  // read-back image and its PNG
     }
   }
