@@ -144,6 +144,19 @@ std::optional<double> texel_size_for(const ShadowPlan& light, const std::vector<
   return texel;
 }
 
+// The corners of `plane`'s x/z rectangle moved out by `fraction` of its
+// larger side (in, if negative).
+constexpr double kEdgeHair = 1e-4;
+double plane_reach(const Aabb& plane, double fraction) {
+  return fraction * std::max(plane.max.x - plane.min.x, plane.max.z - plane.min.z);
+}
+glm::dvec2 plane_low(const Aabb& plane, double fraction) {
+  return glm::dvec2(plane.min.x, plane.min.z) - plane_reach(plane, fraction);
+}
+glm::dvec2 plane_high(const Aabb& plane, double fraction) {
+  return glm::dvec2(plane.max.x, plane.max.z) + plane_reach(plane, fraction);
+}
+
 // Whether the light comes down onto the plane at height y steeply enough
 // that shadows cast on it stay within reach of double precision: a sun
 // grazing it by less than a microradian casts them millions of widths
@@ -193,6 +206,9 @@ std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& l
   if (plane.empty() || light.views.empty() || !lights_plane_from_above(light, y)) return umbras;
   const double high =
       light.perspective ? y + 0.75 * (light.position.y - y) : std::numeric_limits<double>::infinity();
+  // Cut a hair inside the plane's edge: drawn with float vertices, an umbra
+  // cut exactly to it could darken a pixel just past the plane.
+  const glm::dvec2 inner_low = plane_low(plane, -kEdgeHair), inner_high = plane_high(plane, -kEdgeHair);
   for (const SceneObject& object : objects) {
     if (umbras.size() >= kMaxUmbras) break;
     const std::vector<glm::dvec3> whole = points_inside(object, 0.0, y, high);
@@ -202,8 +218,8 @@ std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& l
     if (!texel) continue;
     const double margin = reach_texels * kDiagonal * *texel;
     if (!(margin > 0.0)) continue;
-    PlanePolygon umbra = clipped(shadow_of(light, points_inside(object, margin, y, high), y),
-                                 {plane.min.x, plane.min.z}, {plane.max.x, plane.max.z});
+    PlanePolygon umbra =
+        clipped(shadow_of(light, points_inside(object, margin, y, high), y), inner_low, inner_high);
     if (umbra.size() >= 3 && polygon_area(umbra) > 0.0) umbras.push_back(std::move(umbra));
   }
   return umbras;
@@ -216,6 +232,12 @@ std::optional<std::vector<PlanePolygon>> shadow_bounds_on_plane(const Aabb& plan
   if (plane.empty() || light.views.empty() || !lights_plane_from_above(light, y) ||
       bounds.size() > kMaxShadowBoundsObjects + 1)
     return std::nullopt;
+  // Cut a little past the plane's edge: drawn with float vertices, shadows
+  // cut exactly to it could leave unmarked a pixel on the edge that the
+  // plane's own cells cover, and draw it lit (a speckle where tiles of a
+  // floor overlap). The marks draw nothing, so past the edge they are
+  // harmless.
+  const glm::dvec2 outer_low = plane_low(plane, kEdgeHair * 10.0), outer_high = plane_high(plane, kEdgeHair * 10.0);
   const auto texel_of = [](const ShadowView& view) { return std::max(view.texel_size.x, view.texel_size.y); };
   double largest_texel = 0.0;  // orthographic: world units; perspective: per unit of distance
   for (const ShadowView& view : light.views) largest_texel = std::max(largest_texel, texel_of(view));
@@ -264,7 +286,7 @@ std::optional<std::vector<PlanePolygon>> shadow_bounds_on_plane(const Aabb& plan
         }
       }
       if (grown.max.y < grown.min.y) return PlanePolygon{};
-      return clipped(shadow_of(light, grown.corners(), y), {plane.min.x, plane.min.z}, {plane.max.x, plane.max.z});
+      return clipped(shadow_of(light, grown.corners(), y), outer_low, outer_high);
     };
     PlanePolygon shadow = shadow_with(largest_texel);
     if (!bounded) return std::nullopt;
