@@ -25,6 +25,9 @@ struct RenderResult {
   bool shadow_reused = false;
   /// The scene's meshes had to be uploaded (not among the cached scenes).
   bool scene_uploaded = false;
+  /// The frame allocated its shadow map: a size or layer count the kept one
+  /// lacks, or none was kept.
+  bool shadow_map_allocated = false;
   /// Umbras the main pass drew dark without the shadow lookup
   /// (renderer/umbras.hpp): where a box or sphere hides a light of no size
   /// from a floor.

@@ -278,8 +278,9 @@ struct RenderService::Impl {
         if (!renderer) make_renderer(context, renderer);
         // Room for this frame's peak and the ray casts running beside it:
         // what is kept goes first, so the request is not refused for it.
-        renderer->release_cached(
-            minus_or_zero(limits.memory_budget_bytes, job.peak_bytes + reserved_bytes.load()));
+        // What the frame draws into as it is counts in its peak already.
+        renderer->release_cached(minus_or_zero(limits.memory_budget_bytes + renderer->bytes_reused_by(job.request),
+                                               job.peak_bytes + reserved_bytes.load()));
         result = renderer->render(job.request);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);

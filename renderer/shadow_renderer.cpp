@@ -168,6 +168,18 @@ std::uint64_t ShadowRenderer::cached_bytes() const {
   return scenes_.bytes() + shadow_map_bytes() + display_bytes() + depth_preview_bytes();
 }
 
+std::uint64_t ShadowRenderer::bytes_reused_by(const RenderRequest& request) const {
+  std::uint64_t bytes = 0;
+  const ShadowPlan light = plan_shadow(request);
+  const bool needs_map = (request.shadow.enabled && light.direct_light) || request.output == Output::Depth;
+  // Only what the frame uses of a map with more layers than it needs.
+  if (needs_map && shadow_.size == light.layer_size && shadow_.layers >= int(light.views.size()))
+    bytes += std::uint64_t(light.layer_size) * std::uint64_t(light.layer_size) * light.views.size() * sizeof(float);
+  if (request.output != Output::Depth && display_.width == request.width && display_.height == request.height)
+    bytes += display_bytes();
+  return bytes;
+}
+
 std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
   if (cached_bytes() <= max_bytes) return cached_bytes();
   const std::uint64_t others = shadow_map_bytes() + display_bytes() + depth_preview_bytes();
@@ -214,6 +226,7 @@ void ShadowRenderer::resize_shadow_map(int size, int layers) {
   // Kept while it is big enough: a light that needs fewer views uses the
   // first layers.
   if (shadow_.size == size && shadow_.layers >= layers) return;
+  map_allocated_ = true;
   released_gl_bytes_ += shadow_map_bytes();
   shadow_.holds_plan = false;
   shadow_.depth_map = gl::create_texture(GL_TEXTURE_2D_ARRAY);
@@ -695,6 +708,7 @@ Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int
 
 RenderResult ShadowRenderer::render(const RenderRequest& request) {
   RenderResult result;
+  map_allocated_ = false;
   result.scene_uploaded = use_scene(request.scene);
   ShadowPlan light = plan_shadow(request);
   const bool depth_output = request.output == Output::Depth;
@@ -739,6 +753,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
     result.image = read_pixels(display_.framebuffer.id(), display_.width, display_.height,
                                request.output == Output::Shadow ? 1 : 3);
   result.timings.readback_ms = elapsed_ms(readback_start);
+  result.shadow_map_allocated = map_allocated_;
   return result;
 }
 

@@ -39,6 +39,12 @@ class ShadowRenderer {
   /// preview, the shadow map, the display framebuffer, and last the last
   /// scene. Returns cached_bytes() after.
   std::uint64_t release_cached(std::uint64_t max_bytes);
+  /// The part of cached_bytes() that `request`'s frame would draw into as it
+  /// is (a shadow map of its size with enough layers, framebuffers of its
+  /// size): its estimated peak (request_cost.hpp) counts that memory
+  /// already, so releasing it to make room for the frame would only
+  /// allocate it again (a 1 GiB map: seconds of page faults a frame).
+  std::uint64_t bytes_reused_by(const RenderRequest& request) const;
   /// Bytes of GL memory released since this renderer was made: render
   /// targets (shadow maps, display and preview framebuffers) and evicted
   /// scenes' buffers. llvmpipe (Mesa 22.3) keeps much of it until the GL
@@ -201,6 +207,7 @@ class ShadowRenderer {
   static constexpr std::size_t kCachedScenes = 8;
   std::uint64_t scene_cache_bytes_;
   std::uint64_t released_gl_bytes_ = 0;  // see released_gl_bytes()
+  bool map_allocated_ = false;           // this frame allocated its shadow map (RenderResult)
   // scenes_.evict_to, counting what goes in released_gl_bytes_.
   void evict_scenes_to(std::uint64_t max_bytes, std::size_t keep);
   ByteBoundedLru<SceneGeometry> scenes_;
