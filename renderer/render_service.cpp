@@ -278,9 +278,13 @@ struct RenderService::Impl {
         if (!renderer) make_renderer(context, renderer);
         // Room for this frame's peak and the ray casts running beside it:
         // what is kept goes first, so the request is not refused for it.
-        // What the frame draws into as it is counts in its peak already.
-        renderer->release_cached(minus_or_zero(limits.memory_budget_bytes + renderer->bytes_reused_by(job.request),
-                                               job.peak_bytes + reserved_bytes.load()));
+        // What the frame draws into as it is counts in its peak already;
+        // finding it plans the light (milliseconds for a thousand objects),
+        // so only when something would have to go.
+        const std::uint64_t needed = job.peak_bytes + reserved_bytes.load();
+        if (renderer->cached_bytes() > minus_or_zero(limits.memory_budget_bytes, needed))
+          renderer->release_cached(
+              minus_or_zero(limits.memory_budget_bytes + renderer->bytes_reused_by(job.request), needed));
         result = renderer->render(job.request);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);
