@@ -1,33 +1,93 @@
 #!/usr/bin/env bash
-# N umbra-servers on loopback behind HAProxy, in the foreground:
+# N umbra-servers on loopback behind HAProxy, in the foreground, supervised:
 #   scripts/cluster.sh N PORT [umbra-server flags...]
-# HAProxy listens on PORT (all addresses: put a firewall in front, or bind
-# it to one in deploy/haproxy.cfg); the servers on PORT+1 ... PORT+N, with
-# one --model-store folder (.cluster/models) so that a model uploaded to
-# any is found by every one. Ctrl-C or SIGTERM stops them all.
+# HAProxy listens on 127.0.0.1:PORT (UMBRA_CLUSTER_HOST=ADDRESS to listen
+# elsewhere, e.g. 0.0.0.0; see docs/operations.md#a-cluster-on-one-machine);
+# the servers on 127.0.0.1:PORT+1 ... PORT+N, with one --model-store folder
+# so that a model uploaded to any is found by every one.
+#
+# A server or HAProxy that exits (killed, crashed, drained by a SIGTERM sent
+# to it alone) is started again after a backoff: 1 s, doubling up to 30 s,
+# back to 1 s once it has run for a minute. The others keep serving
+# meanwhile, and HAProxy sends nothing to a server until its health check
+# passes. Only Ctrl-C or SIGTERM to this script stops them all: each server
+# drains (answers what it has received) and exits.
+#
+# Environment (all optional):
+#   UMBRA_CLUSTER_DIR   state folder: haproxy.cfg, models/, and NAME.pid holding
+#                       the current PID of render1..renderN and haproxy
+#                       (default .cluster in the repository)
+#   UMBRA_SERVER        the umbra-server binary (default build/server/umbra-server,
+#                       built first if missing)
+#   UMBRA_CLUSTER_HOST  HAProxy's listening address (default 127.0.0.1)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-count="${1:?usage: scripts/cluster.sh N PORT [umbra-server flags...]}"
-port="${2:?usage: scripts/cluster.sh N PORT [umbra-server flags...]}"
+usage="usage: scripts/cluster.sh N PORT [umbra-server flags...]"
+count="${1:?$usage}"
+port="${2:?$usage}"
 shift 2
-bash scripts/install-deps.sh --cluster
-[ -x build/server/umbra-server ] || bash scripts/build.sh
-mkdir -p .cluster/models
-config=.cluster/haproxy.cfg
+if ! [[ "$count" =~ ^[1-9][0-9]?$ ]] || ! [[ "$port" =~ ^[1-9][0-9]*$ ]] || ((port + count > 65535)); then
+  echo "$usage (N 1..99, PORT+N at most 65535)" >&2
+  exit 2
+fi
+dir="${UMBRA_CLUSTER_DIR:-.cluster}"
+server="${UMBRA_SERVER:-build/server/umbra-server}"
+host="${UMBRA_CLUSTER_HOST:-127.0.0.1}"
+
+bash scripts/install-deps.sh --cluster >/dev/null
+[ -x "$server" ] || bash scripts/build.sh
+# Debian puts haproxy in /usr/sbin, which a user's PATH may lack.
+haproxy="$(command -v haproxy || echo /usr/sbin/haproxy)"
+mkdir -p "$dir/models"
+dir="$(cd "$dir" && pwd)"
+config="$dir/haproxy.cfg"
 cp deploy/haproxy.cfg "$config"
-pids=()
+for i in $(seq 1 "$count"); do
+  echo "    server render$i 127.0.0.1:$((port + i))" >>"$config"
+done
+
+# supervise NAME COMMAND...: runs COMMAND in the background, writes its PID
+# to $dir/NAME.pid, and starts it again whenever it exits, until this
+# subshell gets SIGTERM: then it passes the signal on, waits for COMMAND to
+# finish (a server drains first) and exits.
+supervise() {
+  local name=$1
+  shift
+  local child="" stopping=0 backoff=1 started status
+  trap 'stopping=1; [ -z "$child" ] || kill -TERM "$child" 2>/dev/null || true' TERM
+  while [ "$stopping" = 0 ]; do
+    started=$SECONDS
+    "$@" &
+    child=$!
+    echo "$child" >"$dir/$name.pid"
+    status=0
+    wait "$child" || status=$?
+    # A trapped signal ends `wait` early: wait for the child itself.
+    while kill -0 "$child" 2>/dev/null; do wait "$child" || true; done
+    [ "$stopping" = 0 ] || break
+    if ((SECONDS - started >= 60)); then backoff=1; fi
+    echo "cluster: $name exited (status $status) after $((SECONDS - started)) s; starting it again in $backoff s" >&2
+    sleep "$backoff" &
+    wait $! || true
+    backoff=$((backoff * 2 > 30 ? 30 : backoff * 2))
+  done
+  rm -f "$dir/$name.pid"
+}
+
+supervisors=()
 stop() {
   trap - INT TERM EXIT
-  kill -TERM "${pids[@]}" 2>/dev/null || true
-  wait 2>/dev/null || true
+  echo "cluster: stopping (each server answers what it has received first)" >&2
+  kill -TERM "${supervisors[@]}" 2>/dev/null || true
+  wait || true
 }
 trap stop INT TERM EXIT
 for i in $(seq 1 "$count"); do
-  build/server/umbra-server --port $((port + i)) --model-store .cluster/models --quiet "$@" &
-  pids+=($!)
-  echo "    server render$i 127.0.0.1:$((port + i))" >> "$config"
+  supervise "render$i" "$server" --port $((port + i)) --model-store "$dir/models" --quiet "$@" &
+  supervisors+=($!)
 done
-UMBRA_BIND=":$port" UMBRA_DIR="$PWD/deploy" haproxy -f "$config" -db &
-pids+=($!)
-echo "cluster: $count umbra-servers behind HAProxy on http://localhost:$port/ (Ctrl-C stops them)"
-wait -n "${pids[@]}"
+UMBRA_BIND="$host:$port" UMBRA_DIR="$PWD/deploy" supervise haproxy "$haproxy" -f "$config" -db &
+supervisors+=($!)
+echo "cluster: $count umbra-servers behind HAProxy on http://$host:$port/ (Ctrl-C stops them)"
+# Every supervisor runs until stop(); this `wait` ends only on a signal.
+wait || true

@@ -1,9 +1,11 @@
-// Umbra behind the real HAProxy, configured by deploy/haproxy.cfg as
-// scripts/cluster.sh runs it: three servers sharing a --model-store folder,
-// sixteen clients for a while, one server killed (SIGKILL) and started
-// again, another drained (SIGTERM) and started again. Every client must get
-// a whole PNG, or a 503 with Retry-After only when every server is full:
-// no connection error, no 502 or 504, nothing cut short.
+// scripts/cluster.sh as users run it: three umbra-servers behind the real
+// HAProxy (deploy/haproxy.cfg), sharing a --model-store folder, sixteen
+// clients for a while; one server killed (SIGKILL) and another drained
+// (SIGTERM), each signal sent to that server alone. The script must start
+// each again while the others keep serving, and every client must get a
+// whole PNG, or a 503 with Retry-After only when every server is full: no
+// connection error, no 502 or 504, nothing cut short. Then SIGTERM to the
+// script alone stops everything.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,8 +16,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <memory>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -32,7 +34,6 @@
 #include <nlohmann/json.hpp>
 
 #include "gltf_builder.hpp"
-#include "server_process.hpp"
 
 namespace umbra {
 namespace {
@@ -40,7 +41,6 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
-using umbra::testing::ServerProcess;
 
 // A port no one listens on now (the kernel's pick, released at once).
 int free_port() {
@@ -55,26 +55,88 @@ int free_port() {
   return ntohs(address.sin_port);
 }
 
-// HAProxy in the foreground, its output in a file; stopped when destroyed.
-struct Balancer {
+// True if something accepts connections on 127.0.0.1:port.
+bool listening(int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  address.sin_port = htons(std::uint16_t(port));
+  const bool connected = connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0;
+  close(fd);
+  return connected;
+}
+
+// The umbra-server process started with `--port port`, found in /proc as
+// an operator finds it (pgrep -f), whatever the script records; -1 if none.
+pid_t server_on_port(int port) {
+  const std::string wanted = "--port" + std::string(1, '\0') + std::to_string(port) + std::string(1, '\0');
+  for (const auto& entry : fs::directory_iterator("/proc")) {
+    const std::string name = entry.path().filename();
+    if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+    std::ifstream in(entry.path() / "cmdline", std::ios::binary);
+    const std::string cmdline((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (cmdline.find("umbra-server") != std::string::npos && cmdline.find(wanted) != std::string::npos)
+      return pid_t(std::stol(name));
+  }
+  return -1;
+}
+
+// `bash scripts/cluster.sh N PORT --quiet` in its own process group, its
+// output in a file; stopped (SIGTERM to the script, then SIGKILL to the
+// whole group if it has not ended in a minute) when destroyed.
+struct ClusterScript {
   pid_t pid = -1;
-  Balancer(const fs::path& config, int port, const fs::path& log) {
+  fs::path dir, log;
+  int exit_code = -1;
+  ClusterScript(int servers, int port, const fs::path& state) : dir(state), log(state / "cluster.log") {
     pid = fork();
     if (pid == 0) {
+      setpgid(0, 0);
       const int out = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       dup2(out, 1);
       dup2(out, 2);
-      setenv("UMBRA_BIND", ("127.0.0.1:" + std::to_string(port)).c_str(), 1);
-      setenv("UMBRA_DIR", UMBRA_DEPLOY_DIR, 1);
-      execl(UMBRA_HAPROXY, UMBRA_HAPROXY, "-f", config.c_str(), "-db", static_cast<char*>(nullptr));
+      setenv("UMBRA_CLUSTER_DIR", dir.c_str(), 1);
+      setenv("UMBRA_SERVER", UMBRA_SERVER_BINARY, 1);
+      const std::string script = std::string(UMBRA_SOURCE_DIR) + "/scripts/cluster.sh";
+      execl("/bin/bash", "bash", script.c_str(), std::to_string(servers).c_str(), std::to_string(port).c_str(),
+            "--quiet", static_cast<char*>(nullptr));
       _exit(127);
     }
   }
-  ~Balancer() {
-    if (pid > 0) {
-      kill(pid, SIGTERM);
+  // The script's exit code once it has ended within `limit`, else -1.
+  int stop(std::chrono::seconds limit) {
+    if (pid <= 0) return exit_code;
+    kill(pid, SIGTERM);
+    const auto until = Clock::now() + limit;
+    int status = 0;
+    while (Clock::now() < until) {
+      if (waitpid(pid, &status, WNOHANG) == pid) {
+        exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        pid = -1;
+        return exit_code;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return -1;
+  }
+  ~ClusterScript() {
+    if (pid > 0 && stop(std::chrono::seconds(60)) < 0) {
+      kill(-pid, SIGKILL);
       waitpid(pid, nullptr, 0);
     }
+  }
+  // The PID the script wrote for `name` (render1.., haproxy), or -1.
+  pid_t pid_of(const std::string& name) const {
+    std::ifstream in(dir / (name + ".pid"));
+    pid_t p = -1;
+    return in >> p ? p : -1;
+  }
+  std::string output() const {
+    std::ifstream in(log);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
   }
 };
 
@@ -95,39 +157,31 @@ std::string cube_glb() {
   return b.glb();
 }
 
-TEST(Cluster, SixteenClientsLoseNothingWhileServersAreKilledAndDrained) {
+TEST(Cluster, TheScriptRestartsKilledAndDrainedServersAndSixteenClientsLoseNothing) {
   ASSERT_STRNE(UMBRA_HAPROXY, "") << "haproxy not found: bash scripts/install-deps.sh --cluster";
   const fs::path root = fs::temp_directory_path() / ("umbra-cluster-" + std::to_string(getpid()));
   fs::remove_all(root);
-  fs::create_directories(root / "models");
-  const int balancer_port = free_port();
-  std::vector<int> ports;
-  for (int i = 0; i < 3; ++i) ports.push_back(free_port());
-  // deploy/haproxy.cfg as it is, and one server line per server.
-  {
-    std::ifstream in(std::string(UMBRA_DEPLOY_DIR) + "/haproxy.cfg");
-    std::ofstream out(root / "haproxy.cfg");
-    out << in.rdbuf();
-    for (int i = 0; i < 3; ++i) out << "    server render" << i << " 127.0.0.1:" << ports[i] << "\n";
+  fs::create_directories(root);
+  // The balancer on `port`, the servers on port+1..port+3: four free ports.
+  int port = 0;
+  for (int tries = 0; tries < 50 && port == 0; ++tries) {
+    const int p = free_port();
+    if (p + 3 < 65536 && !listening(p + 1) && !listening(p + 2) && !listening(p + 3)) port = p;
   }
-  const auto start_server = [&](int i) {
-    return std::make_unique<ServerProcess>(
-        UMBRA_SERVER_BINARY, std::vector<std::string>{"--port", std::to_string(ports[i]), "--model-store",
-                                                      (root / "models").string(), "--quiet"});
-  };
-  std::vector<std::unique_ptr<ServerProcess>> servers;
-  for (int i = 0; i < 3; ++i) servers.push_back(start_server(i));
-  Balancer balancer(root / "haproxy.cfg", balancer_port, root / "haproxy.log");
-  // Until HAProxy listens and has seen every server up (checks every 250 ms
-  // while a server is down).
-  httplib::Client probe("127.0.0.1", balancer_port);
+  ASSERT_NE(port, 0);
+  const auto server_port = [&](int i) { return port + i; };  // render1 = port + 1
+  auto cluster = std::make_unique<ClusterScript>(3, port, root);
+  // Until HAProxy answers and every server answers on its own port.
+  httplib::Client probe("127.0.0.1", port);
   for (int tries = 0;; ++tries) {
     auto res = probe.Get("/api/health");
-    if (res && res->status == 200) break;
-    ASSERT_LT(tries, 100) << "HAProxy does not answer";
+    if (res && res->status == 200 && listening(server_port(1)) && listening(server_port(2)) &&
+        listening(server_port(3)))
+      break;
+    ASSERT_LT(tries, 600) << "the cluster does not answer:\n" << cluster->output();
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
-  std::this_thread::sleep_for(std::chrono::seconds(1));
+  std::this_thread::sleep_for(std::chrono::seconds(1));  // HAProxy's checks see every server up
 
   // An upload through the balancer: it lands on one server; the others
   // must find it in the shared folder.
@@ -145,7 +199,7 @@ TEST(Cluster, SixteenClientsLoseNothingWhileServersAreKilledAndDrained) {
                                                    {{"type", "mesh"}, {"model", model}, {"position", {0, 0.5, 0}}}}}}}}
                           .dump()}};
 #ifdef UMBRA_SANITIZED
-  const auto run_for = std::chrono::seconds(15);  // servers 3-4x slower: fewer requests, same events
+  const auto run_for = std::chrono::seconds(20);  // servers 3-4x slower: fewer requests, same events
 #else
   const auto run_for = std::chrono::seconds(30);
 #endif
@@ -158,7 +212,7 @@ TEST(Cluster, SixteenClientsLoseNothingWhileServersAreKilledAndDrained) {
   std::vector<std::thread> clients;
   for (int c = 0; c < 16; ++c) {
     clients.emplace_back([&, c] {
-      httplib::Client client("127.0.0.1", balancer_port);
+      httplib::Client client("127.0.0.1", port);
       client.set_read_timeout(60, 0);
       for (int k = c; running; ++k) {
         const auto& [path, body] = bodies[std::size_t(k) % bodies.size()];
@@ -181,20 +235,20 @@ TEST(Cluster, SixteenClientsLoseNothingWhileServersAreKilledAndDrained) {
       }
     });
   }
-  // The events, at fixed moments of the run.
+  // The events, at fixed moments of the run: signals to one server each,
+  // as an operator, the OOM killer or a crash would send them.
   const auto at = [&](double fraction) {
     std::this_thread::sleep_until(started + std::chrono::duration_cast<Clock::duration>(run_for * fraction));
   };
+  const pid_t killed = server_on_port(server_port(1)), drained = server_on_port(server_port(2));
+  ASSERT_GT(killed, 0);
+  ASSERT_GT(drained, 0);
+  EXPECT_EQ(cluster->pid_of("render1"), killed);  // the PIDs the script records are the servers'
+  EXPECT_EQ(cluster->pid_of("render2"), drained);
   at(0.25);
-  servers[0]->send_signal(SIGKILL);  // mid-render, most likely
-  servers[0]->wait();
-  at(0.4);
-  servers[0] = start_server(0);  // back, with nothing in memory
-  at(0.6);
-  servers[1]->send_signal(SIGTERM);  // drains: finishes what it has, then exits 0
-  EXPECT_EQ(servers[1]->wait(), 0) << servers[1]->log();
-  at(0.75);
-  servers[1] = start_server(1);
+  kill(killed, SIGKILL);  // mid-render, most likely
+  at(0.5);
+  kill(drained, SIGTERM);  // drains: finishes what it has, then exits 0
   at(1.0);
   running = false;
   for (auto& t : clients) t.join();
@@ -210,10 +264,26 @@ TEST(Cluster, SixteenClientsLoseNothingWhileServersAreKilledAndDrained) {
                 summary.c_str());
   EXPECT_TRUE(failures.empty()) << failures.size() << " requests failed, e.g. " << failures.front() << "\n" << summary;
   EXPECT_GE(outcomes["200"], 100) << summary;
-  // Server 0 started again with nothing in memory and no upload sent to
+
+  // Both servers were started again by the script, under new PIDs, and
+  // answer on their own ports; the drained one had exited 0.
+  const std::string log = cluster->output();
+  EXPECT_NE(log.find("render1 exited (status 137)"), std::string::npos) << log;
+  EXPECT_NE(log.find("render2 exited (status 0)"), std::string::npos) << log;
+  for (int i : {1, 2}) {
+    const pid_t now = server_on_port(server_port(i));
+    EXPECT_GT(now, 0);
+    EXPECT_EQ(cluster->pid_of("render" + std::to_string(i)), now);
+    EXPECT_NE(now, i == 1 ? killed : drained);
+    httplib::Client direct("127.0.0.1", server_port(i));
+    auto health = direct.Get("/api/health");
+    ASSERT_TRUE(health) << "render" << i << " was not started again:\n" << log;
+    EXPECT_EQ(health->status, 200);
+  }
+  // Server 1 started again with nothing in memory and no upload sent to
   // it: it can only hold the model by having loaded it from the folder to
   // render it for someone.
-  httplib::Client restarted("127.0.0.1", ports[0]);
+  httplib::Client restarted("127.0.0.1", server_port(1));
   auto held = restarted.Get("/api/models");
   ASSERT_TRUE(held);
   const json listed = json::parse(held->body);
@@ -221,6 +291,11 @@ TEST(Cluster, SixteenClientsLoseNothingWhileServersAreKilledAndDrained) {
   for (const json& m : listed["models"]) found |= m["id"] == model;
   EXPECT_TRUE(found) << "the restarted server never rendered the uploaded model:\n"
                      << held->body << "\n" << restarted.Get("/metrics")->body.substr(0, 3000);
+
+  // SIGTERM to the script stops all: it exits 0, and nothing listens.
+  EXPECT_EQ(cluster->stop(std::chrono::seconds(60)), 0) << cluster->output();
+  for (int i = 0; i <= 3; ++i) EXPECT_FALSE(listening(port + i)) << "port " << port + i << " still open";
+  cluster.reset();
   fs::remove_all(root);
 }
 
