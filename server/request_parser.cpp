@@ -655,6 +655,14 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
   // The light's projection decides the range of light.size: read it first.
   read_light(r.get("light"), q.light, sent);
   if (auto v = r.get("time")) q.time = read_number(*v, "time", -RequestLimits::kMaxTime, RequestLimits::kMaxTime);
+  // A sun's clock reads utc + time: that instant, not utc alone, must lie
+  // in the years the sun's position is computed for.
+  if (q.light.sun) {
+    const double clock = q.light.sun->utc_unix_s + q.time;
+    if (clock < RequestLimits::kMinSunUnixSeconds || clock >= RequestLimits::kMaxSunUnixSeconds)
+      reject("time", "light.sun.utc + time must lie in years 0001 to " + std::to_string(RequestLimits::kMaxSunYear) +
+                         " (UTC); it is " + format_utc(clock));
+  }
   read_shadow(r.get("shadow"), q.shadow, sent);
   // An area light with no filter named gets the filter that models it.
   if (q.light.size > 0.0 && !sent.count("shadow.filter")) q.shadow.filter = ShadowFilter::Pcss;

@@ -416,6 +416,24 @@ TEST(RequestParser, ABadSunInstantSaysWhatIsWrongWithIt) {
   EXPECT_TRUE(parse_render_request(R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "0001-01-01T00:00:00-01:00"}}})").ok());
 }
 
+// Issue 29, finding 9: utc alone was checked, so 5000-12-31 + 1e9 s (year
+// 5032) was rendered.
+TEST(RequestParser, TheSunsClockUtcPlusTimeStaysInTheSupportedYears) {
+  const std::string last_day = R"("light": {"sun": {"latitude": 0, "longitude": 0, "utc": "5000-12-31T00:00:00Z"}})";
+  const ParsedRequest past = parse_render_request("{" + last_day + R"(, "time": 1e9})");
+  ASSERT_FALSE(past.ok());
+  EXPECT_EQ(past.error.field, "time");
+  EXPECT_NE(past.error.message.find("light.sun.utc + time must lie in years 0001 to 5000 (UTC)"), std::string::npos)
+      << past.error.message;
+  EXPECT_TRUE(parse_render_request("{" + last_day + R"(, "time": 86399})").ok());
+  EXPECT_FALSE(parse_render_request("{" + last_day + R"(, "time": 86400})").ok());
+  const std::string first_day = R"("light": {"sun": {"latitude": 0, "longitude": 0, "utc": "0001-01-01T12:00:00Z"}})";
+  EXPECT_TRUE(parse_render_request("{" + first_day + R"(, "time": -43200})").ok());
+  EXPECT_FALSE(parse_render_request("{" + first_day + R"(, "time": -43201})").ok());
+  // Without a sun, time keeps its own range only.
+  EXPECT_TRUE(parse_render_request(R"({"time": 1e9})").ok());
+}
+
 TEST(RequestParser, ASunBelowTheHorizonReportsTheShadowSettingsUnusedAsShadowsOffWould) {
   const std::string night = R"("sun": {"latitude": 48.85, "longitude": 2.35, "utc": "2026-12-21T22:00:00Z"})";
   const std::string settings = R"("shadow": {"enabled": true, "map_size": 512, "filter": "pcss", "cull": "back", "cascades": 2})";
