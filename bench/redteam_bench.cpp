@@ -1,0 +1,482 @@
+// umbra-redteam-bench: the second red team's findings (issue 29), each
+// reproduced against a real umbra-server process as the red team did it,
+// with what the server answered, how long it took and what it held. Run it
+// on an older binary (--server PATH) to see the findings, on the current
+// one to see them closed. Writes bench/results/redteam.md.
+//
+//   umbra-redteam-bench [--server PATH] [--out FILE] [--seconds 10]
+//
+// --seconds: how long the non-reading clients' attack is probed.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/utsname.h>
+#include <unistd.h>
+
+#include <glm/vec3.hpp>
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+
+#include "gltf_builder.hpp"
+#include "server_process.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+using std::chrono::milliseconds;
+using umbra::testing::ServerProcess;
+
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::string machine() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line, model;
+  int cores = 0;
+  while (std::getline(in, line)) {
+    if (line.rfind("model name", 0) == 0 && model.empty()) model = line.substr(line.find(':') + 2);
+    if (line.rfind("processor", 0) == 0) ++cores;
+  }
+  utsname u{};
+  uname(&u);
+  return model + ", " + std::to_string(cores) + " cores, " + u.sysname + " " + u.release;
+}
+
+// ---- Models, built in code as the red team built them. ----
+
+// `count` 40 x 40 quads stacked 1 mm apart, one mesh: every pixel under
+// them is drawn `count` times.
+std::string stacked_quads(int count) {
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  for (int q = 0; q < count; ++q) {
+    const float y = 0.001f * float(q);
+    const std::uint32_t b = std::uint32_t(positions.size());
+    positions.insert(positions.end(), {{-20, y, -20}, {20, y, -20}, {20, y, 20}, {-20, y, 20}});
+    indices.insert(indices.end(), {b, b + 3, b + 2, b, b + 2, b + 1});
+  }
+  umbra::test::GltfBuilder g;
+  g.scene({g.node({{"mesh", g.mesh(g.vec3s(positions), g.indices_u32(indices))}})});
+  return g.glb();
+}
+
+// A side x side grid of quads instanced by `instances` nodes; `salt` moves
+// one vertex so that each call's file (and id) is distinct.
+std::string instanced_grid(int side, int instances, int salt) {
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  for (int z = 0; z <= side; ++z)
+    for (int x = 0; x <= side; ++x) positions.push_back({x * 0.01f, 0.0f, z * 0.01f});
+  positions[0].y = 1e-4f * float(salt);
+  for (int z = 0; z < side; ++z)
+    for (int x = 0; x < side; ++x) {
+      const std::uint32_t a = std::uint32_t(z * (side + 1) + x), b = a + 1, c = a + side + 1, d = c + 1;
+      indices.insert(indices.end(), {a, c, b, b, c, d});
+    }
+  umbra::test::GltfBuilder g;
+  const int mesh = g.mesh(g.vec3s(positions), g.indices_u32(indices));
+  std::vector<int> roots;
+  for (int i = 0; i < instances; ++i)
+    roots.push_back(g.node({{"mesh", mesh}, {"translation", {(i % 100) * 0.5, 0.0, (i / 100) * 0.5}}}));
+  g.scene(roots);
+  return g.glb();
+}
+
+// A unit cube and `padding` bytes of buffer no accessor reads: a large
+// upload that holds almost no geometry. `salt` makes each distinct.
+std::string padded_cube(std::size_t padding, int salt) {
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  umbra::test::unit_cube(positions, indices, 0.5f + 1e-3f * float(salt));
+  umbra::test::GltfBuilder g;
+  g.scene({g.node({{"mesh", g.mesh(g.vec3s(positions), g.indices_u32(indices))}})});
+  g.view(std::string(padding, '\0'));
+  return g.glb();
+}
+
+// ---- Rows. ----
+
+struct Row {
+  std::string finding, attack, answer;
+  double seconds = 0;
+  long peak_rss_mib = -1;
+};
+
+// The server's resident memory, sampled every 20 ms while `work` runs.
+template <class Work>
+long peak_rss_during(const ServerProcess& server, Work&& work) {
+  std::atomic<bool> done{false};
+  std::atomic<long> peak{server.resident_kib()};
+  std::thread sampler([&] {
+    while (!done) {
+      peak = std::max(peak.load(), server.resident_kib());
+      std::this_thread::sleep_for(milliseconds(20));
+    }
+  });
+  work();
+  done = true;
+  sampler.join();
+  return peak / 1024;
+}
+
+std::string status_of(const httplib::Result& r) {
+  if (!r) return "no answer (" + httplib::to_string(r.error()) + ")";
+  std::string s = std::to_string(r->status);
+  if (r->status >= 400) {
+    std::string message = r->body;
+    try {
+      message = json::parse(r->body).value("error", r->body);
+    } catch (...) {
+    }
+    if (message.size() > 90) message = message.substr(0, 90) + "...";
+    s += " \"" + message + "\"";
+  }
+  return s;
+}
+
+httplib::Client client_for(int port, int timeout_s = 600) {
+  httplib::Client c("127.0.0.1", port);
+  c.set_read_timeout(timeout_s, 0);
+  c.set_write_timeout(timeout_s, 0);
+  return c;
+}
+
+std::string upload_id(httplib::Client& c, const std::string& glb, std::string* answer = nullptr,
+                      const httplib::Headers& headers = {}) {
+  auto r = c.Post("/api/models", headers, glb, "model/gltf-binary");
+  if (answer) *answer = status_of(r);
+  if (!r || r->status != 201) return "";
+  return json::parse(r->body).value("id", "");
+}
+
+json mesh_scene(const std::vector<std::string>& models, int size) {
+  json objects = json::array({{{"type", "plane"}, {"size", {60, 60}}}});
+  for (const std::string& id : models) objects.push_back({{"type", "mesh"}, {"model", id}, {"position", {0, 0.5, 0}}});
+  return {{"width", size}, {"height", size}, {"scene", {{"objects", objects}}}};
+}
+
+// Finding 1: one small upload whose one mesh is thousands of layers deep.
+Row mesh_overdraw(const std::string& binary) {
+  Row row{"1. GL time", "4,000 stacked 40 x 40 quads (" + std::to_string(stacked_quads(4000).size() / 1024) +
+                            " KiB upload), then a 512 x 512 render of them; a 160 x 90 default render 1 s later",
+          ""};
+  ServerProcess server(binary, {"--quiet"});
+  auto c = client_for(server.port());
+  std::string answer;
+  const std::string id = upload_id(c, stacked_quads(4000), &answer);
+  if (id.empty()) return row.answer = "upload: " + answer, row;
+  std::string big, small;
+  double small_s = 0;
+  const auto start = Clock::now();
+  row.peak_rss_mib = peak_rss_during(server, [&] {
+    std::thread second([&] {
+      std::this_thread::sleep_for(std::chrono::seconds(1));
+      auto s = client_for(server.port());
+      const auto sent = Clock::now();
+      small = status_of(s.Post("/api/render", R"({"width": 160, "height": 90})", "application/json"));
+      small_s = seconds_since(sent);
+    });
+    big = status_of(c.Post("/api/render", mesh_scene({id}, 512).dump(), "application/json"));
+    row.seconds = seconds_since(start);
+    second.join();
+  });
+  char line[160];
+  std::snprintf(line, sizeof line, "; the small render: %s after %.1f s", small.c_str(), small_s);
+  row.answer = big + line;
+  return row;
+}
+
+// Finding 2: models in the store, each large once loaded, all named by one
+// small render.
+Row store_models_over_budget(const std::string& binary) {
+  constexpr int kModels = 4;
+  Row row{"2. memory", "", ""};
+  const fs::path store = fs::temp_directory_path() / ("umbra-redteam-store-" + std::to_string(getpid()));
+  fs::remove_all(store);
+  fs::create_directories(store);
+  std::vector<std::string> ids;
+  std::size_t upload_bytes = 0;
+  {
+    // Uploaded one by one to servers that each hold one, as behind a balancer.
+    for (int m = 0; m < kModels; ++m) {
+      ServerProcess uploader(binary, {"--quiet", "--model-store", store.string()});
+      auto c = client_for(uploader.port());
+      const std::string glb = instanced_grid(25, 10000, m);
+      upload_bytes = glb.size();
+      std::string answer;
+      ids.push_back(upload_id(c, glb, &answer));
+      if (ids.back().empty()) {
+        row.attack = std::to_string(kModels) + " distinct uploads of a 25 x 25 grid in 10,000 nodes";
+        row.answer = "upload " + std::to_string(m + 1) + ": " + answer;
+        fs::remove_all(store);
+        return row;
+      }
+    }
+  }
+  const std::string body = mesh_scene(ids, 64).dump();
+  row.attack = std::to_string(kModels) + " distinct uploads (" + std::to_string(upload_bytes / 1024) +
+               " KiB each: a 25 x 25 grid in 10,000 nodes) in a --model-store; a fresh server with " +
+               "--models-budget-mib 512 gets one " + std::to_string(body.size()) + "-byte render naming all";
+  ServerProcess server(binary, {"--quiet", "--model-store", store.string(), "--models-budget-mib", "512"});
+  auto c = client_for(server.port());
+  const auto start = Clock::now();
+  row.peak_rss_mib =
+      peak_rss_during(server, [&] { row.answer = status_of(c.Post("/api/render", body, "application/json")); });
+  row.seconds = seconds_since(start);
+  fs::remove_all(store);
+  return row;
+}
+
+// Finding 3: a model of many node instances.
+Row many_instances(const std::string& binary) {
+  const std::string glb = instanced_grid(10, 10000, 0);
+  Row row{"3. load time", "upload of a 10 x 10 grid in 10,000 nodes (" + std::to_string(glb.size() / 1024) + " KiB)", ""};
+  ServerProcess server(binary, {"--quiet"});
+  auto c = client_for(server.port());
+  const auto start = Clock::now();
+  row.peak_rss_mib = peak_rss_during(server, [&] { upload_id(c, glb, &row.answer); });
+  row.seconds = seconds_since(start);
+  return row;
+}
+
+int connect_small_buffer(int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  const int kib = 1024;
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &kib, sizeof kib);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(std::uint16_t(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// Finding 4: connections that ask for much and never read.
+Row non_readers(const std::string& binary, double seconds) {
+  Row row{"4. connections",
+          "256 connections with a 1 KiB receive buffer, 60 pipelined GET /api/openapi.json each, never read; " +
+              std::string("GET /api/health probed every 250 ms on a fresh connection"),
+          ""};
+  ServerProcess server(binary, {"--quiet"});
+  std::vector<int> fds;
+  std::string pipelined;
+  for (int k = 0; k < 60; ++k) pipelined += "GET /api/openapi.json HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  for (int i = 0; i < 256; ++i) {
+    const int fd = connect_small_buffer(server.port());
+    if (fd < 0) continue;
+    timeval one{1, 0};
+    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &one, sizeof one);
+    send(fd, pipelined.data(), pipelined.size(), MSG_NOSIGNAL);
+    fds.push_back(fd);
+  }
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  int probes = 0, answered = 0;
+  const auto start = Clock::now();
+  row.peak_rss_mib = peak_rss_during(server, [&] {
+    while (seconds_since(start) < seconds) {
+      auto c = client_for(server.port(), 5);
+      auto r = c.Get("/api/health");
+      ++probes;
+      answered += r && r->status == 200;
+      std::this_thread::sleep_for(milliseconds(250));
+    }
+  });
+  row.seconds = seconds_since(start);
+  for (int fd : fds) close(fd);
+  row.answer = std::to_string(answered) + " of " + std::to_string(probes) + " health probes answered 200";
+  return row;
+}
+
+// Finding 6: many large uploads into the shared folder.
+Row store_disk(const std::string& binary) {
+  constexpr int kUploads = 24;
+  const fs::path store = fs::temp_directory_path() / ("umbra-redteam-disk-" + std::to_string(getpid()));
+  fs::remove_all(store);
+  fs::create_directories(store);
+  Row row{"6. disk",
+          std::to_string(kUploads) + " distinct 64 MiB uploads (a cube and unread buffer bytes) to a server with " +
+              "--model-store and --model-store-max-gib 1",
+          ""};
+  {
+    ServerProcess server(binary,
+                         {"--quiet", "--model-store", store.string(), "--model-store-max-gib", "1", "--max-model-mib", "65"});
+    auto c = client_for(server.port());
+    int created = 0;
+    std::string last;
+    const auto start = Clock::now();
+    row.peak_rss_mib = peak_rss_during(server, [&] {
+      for (int k = 0; k < kUploads; ++k) created += !upload_id(c, padded_cube((std::size_t(64) << 20) - 4096, k), &last).empty();
+    });
+    row.seconds = seconds_since(start);
+    std::uintmax_t bytes = 0;
+    for (const auto& f : fs::recursive_directory_iterator(store))
+      if (f.is_regular_file()) bytes += f.file_size();
+    row.answer = std::to_string(created) + " x 201; the folder holds " + std::to_string(bytes >> 20) + " MiB";
+    if (created < kUploads) row.answer += "; last: " + last;
+  }
+  fs::remove_all(store);
+  return row;
+}
+
+// Finding 7: one client's uploads against another's model.
+Row eviction(const std::string& binary) {
+  const fs::path tokens = fs::temp_directory_path() / ("umbra-redteam-tokens-" + std::to_string(getpid()));
+  std::ofstream(tokens) << "token-of-alice render,upload\ntoken-of-mallory render,upload\n";
+  const std::string heavy = instanced_grid(25, 1000, 0);
+  Row row{"7. eviction",
+          "with --tokens, Alice uploads a cube; Mallory uploads 7 distinct " + std::to_string(heavy.size() / 1024) +
+              " KiB models (25 x 25 grid in 1,000 nodes) into the default 2 GiB budget; Alice renders her cube",
+          ""};
+  ServerProcess server(binary, {"--quiet", "--tokens", tokens.string()});
+  auto c = client_for(server.port());
+  const httplib::Headers alice{{"Authorization", "Bearer token-of-alice"}},
+      mallory{{"Authorization", "Bearer token-of-mallory"}};
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  umbra::test::unit_cube(positions, indices, 0.5f);
+  umbra::test::GltfBuilder g;
+  g.scene({g.node({{"mesh", g.mesh(g.vec3s(positions), g.indices_u32(indices))}})});
+  std::string answer;
+  const std::string cube = upload_id(c, g.glb(), &answer, alice);
+  if (cube.empty()) return row.answer = "Alice's upload: " + answer, fs::remove(tokens), row;
+  int accepted = 0;
+  std::string last;
+  const auto start = Clock::now();
+  row.peak_rss_mib = peak_rss_during(server, [&] {
+    for (int k = 0; k < 7; ++k) accepted += !upload_id(c, instanced_grid(25, 1000, k + 1), &last, mallory).empty();
+  });
+  row.seconds = seconds_since(start);
+  auto r = c.Post("/api/render", alice, mesh_scene({cube}, 64).dump(), "application/json");
+  row.answer = "Mallory: " + std::to_string(accepted) + " of 7 accepted (last: " + last + "); Alice's render: " +
+               status_of(r);
+  fs::remove(tokens);
+  return row;
+}
+
+// Finding 8: Host headers a browser under DNS rebinding, or no browser, sends.
+Row hosts(const std::string& binary) {
+  Row row{"8. Host", "POST /api/models and GET /metrics with Host: evil.example; GET /api/health with no Host, and with two", ""};
+  ServerProcess server(binary, {"--quiet"});
+  auto raw = [&](const std::string& head) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(std::uint16_t(server.port()));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    std::string answer;
+    if (connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0) {
+      send(fd, head.data(), head.size(), MSG_NOSIGNAL);
+      char buffer[4096];
+      for (ssize_t n; (n = recv(fd, buffer, sizeof buffer, 0)) > 0;) answer.append(buffer, std::size_t(n));
+    }
+    close(fd);
+    return answer.size() >= 12 ? answer.substr(9, 3) : std::string("no answer");
+  };
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  umbra::test::unit_cube(positions, indices, 0.5f);
+  umbra::test::GltfBuilder g;
+  g.scene({g.node({{"mesh", g.mesh(g.vec3s(positions), g.indices_u32(indices))}})});
+  const std::string glb = g.glb();
+  const auto start = Clock::now();
+  row.answer = "upload " +
+               raw("POST /api/models HTTP/1.1\r\nHost: evil.example\r\nConnection: close\r\nContent-Type: "
+                   "model/gltf-binary\r\nContent-Length: " +
+                   std::to_string(glb.size()) + "\r\n\r\n" + glb) +
+               ", metrics " + raw("GET /metrics HTTP/1.1\r\nHost: evil.example\r\nConnection: close\r\n\r\n") +
+               ", no Host " + raw("GET /api/health HTTP/1.1\r\nConnection: close\r\n\r\n") + ", two Hosts " +
+               raw("GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  row.seconds = seconds_since(start);
+  return row;
+}
+
+// Finding 9: a sun clock past the supported years.
+Row sun_clock(const std::string& binary) {
+  Row row{"9. sun clock", "light.sun.utc 5000-12-31T00:00:00Z with time 1e9 s (year 5032)", ""};
+  ServerProcess server(binary, {"--quiet"});
+  auto c = client_for(server.port());
+  const auto start = Clock::now();
+  row.answer = status_of(c.Post(
+      "/api/render",
+      R"({"width": 64, "height": 64, "time": 1e9, "light": {"sun": {"latitude": 0, "longitude": 0, "utc": "5000-12-31T00:00:00Z"}}})",
+      "application/json"));
+  row.seconds = seconds_since(start);
+  return row;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string binary = UMBRA_SERVER_BINARY;
+  std::string out = std::string(UMBRA_RESULTS_DIR) + "/redteam.md";
+  double seconds = 10;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--server" && i + 1 < argc)
+      binary = argv[++i];
+    else if (arg == "--out" && i + 1 < argc)
+      out = argv[++i];
+    else if (arg == "--seconds" && i + 1 < argc)
+      seconds = std::atof(argv[++i]);
+    else {
+      std::fprintf(stderr, "usage: umbra-redteam-bench [--server PATH] [--out FILE] [--seconds 10]\n");
+      return 2;
+    }
+  }
+  const std::vector<std::pair<const char*, std::function<Row()>>> findings = {
+      {"1", [&] { return mesh_overdraw(binary); }},      {"2", [&] { return store_models_over_budget(binary); }},
+      {"3", [&] { return many_instances(binary); }},     {"4", [&] { return non_readers(binary, seconds); }},
+      {"6", [&] { return store_disk(binary); }},         {"7", [&] { return eviction(binary); }},
+      {"8", [&] { return hosts(binary); }},              {"9", [&] { return sun_clock(binary); }},
+  };
+  std::vector<Row> rows;
+  for (const auto& [number, run] : findings) {
+    Row row;
+    try {
+      row = run();
+    } catch (const std::exception& e) {
+      // A flag the binary does not know: it exits before listening.
+      std::string why = e.what();
+      const auto unknown = why.find("unknown option");
+      row.finding = number;
+      row.answer = unknown != std::string::npos ? why.substr(unknown, why.find('\n', unknown) - unknown)
+                                                : "the server did not start";
+    }
+    std::fprintf(stderr, "%-16s %7.1f s  %6ld MiB  %s\n", row.finding.c_str(), row.seconds, row.peak_rss_mib,
+                 row.answer.c_str());
+    rows.push_back(row);
+  }
+  std::ostringstream md;
+  md << "# The second red team's findings (issue 29), reproduced\n\n"
+     << "`umbra-redteam-bench` on " << machine() << ", `" << binary << "`. Each row starts fresh servers at their "
+     << "defaults but for the flags it names. Finding 5 (the cluster script) is `tests/test_cluster.cpp`. "
+     << "Peak RSS: the server's resident memory, sampled every 20 ms while the attack ran.\n\n"
+     << "| finding | attack | answer | s | peak RSS MiB |\n|---|---|---|---:|---:|\n";
+  for (const Row& r : rows) {
+    char numbers[64];
+    std::snprintf(numbers, sizeof numbers, "%.1f | %s", r.seconds,
+                  r.peak_rss_mib < 0 ? "" : std::to_string(r.peak_rss_mib).c_str());
+    md << "| " << r.finding << " | " << r.attack << " | " << r.answer << " | " << numbers << " |\n";
+  }
+  std::ofstream(out) << md.str();
+  std::fprintf(stderr, "wrote %s\n", out.c_str());
+  return 0;
+}
