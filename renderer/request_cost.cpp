@@ -144,24 +144,6 @@ std::optional<glm::dvec3> view_eye(const glm::dmat4& view_projection) {
   return glm::inverse(rows) * -glm::dvec3(m[3][0], m[3][1], m[3][3]);
 }
 
-// How many layers deep a mesh object's triangles lie within its bounds,
-// seen along world direction `d` (any length): their projected area over
-// that of the bounds' parallelepiped. `to_model` is det(L) L^-1 for the
-// mesh transform's linear part L: a model-space area vector a projects
-// along d to world area |(to_model d) . a| (the cofactor of L maps area
-// vectors), and so does each face of the model's box.
-double mesh_layers_along(const TriangleModel& model, const glm::dmat3& to_model, const glm::dvec3& d) {
-  const glm::dvec3 m = to_model * d, e = model.bounds.extent();
-  const double box = std::abs(m.x) * e.y * e.z + std::abs(m.y) * e.x * e.z + std::abs(m.z) * e.x * e.y;
-  return box > 0.0 ? projected_area(model, m) / box : 0.0;
-}
-
-// Directions tried for bounds around a perspective eye, whose triangles may
-// face it from any side: the cube's faces, edges and corners (one sign each).
-const glm::dvec3 kAroundEyeDirections[] = {{1, 0, 0},  {0, 1, 0},  {0, 0, 1},  {1, 1, 0},  {1, -1, 0},
-                                           {1, 0, 1},  {1, 0, -1}, {0, 1, 1},  {0, 1, -1}, {1, 1, 1},
-                                           {1, 1, -1}, {1, -1, 1}, {-1, 1, 1}};
-
 // Whether the main pass will cull closed objects' back faces: the renderer
 // does when the eye is outside every closed object's bounds by the near
 // plane's reach (closed_meshes_seen_from_outside); here by twice that,
@@ -206,16 +188,10 @@ ViewLayers view_layers(const Scene& scene, const glm::dmat4& view_projection, bo
     const Coverage c = bounds_coverage(bounds, view_projection);
     const double share = c.around_eye ? 1.0 : c.share;
     if (share <= 0.0) continue;
-    const glm::dmat3 linear(mesh_transform(o));
-    const glm::dmat3 to_model = glm::determinant(linear) * glm::inverse(linear);
-    double layers = 0.0;
-    if (c.around_eye) {
-      layers = mesh_layers_along(*o.model, to_model, forward);
-      for (const glm::dvec3& d : kAroundEyeDirections) layers = std::max(layers, mesh_layers_along(*o.model, to_model, d));
-    } else {
-      const glm::dvec3 toward = eye ? bounds.center() - *eye : forward;
-      layers = mesh_layers_along(*o.model, to_model, toward == glm::dvec3(0.0) ? forward : toward);
-    }
+    // Bounds around a perspective eye: its triangles may face it from any side.
+    const glm::dvec3 toward = eye ? bounds.center() - *eye : forward;
+    double layers = c.around_eye ? mesh_deepest_layers(o, forward)
+                                 : mesh_layers_along(o, toward == glm::dvec3(0.0) ? forward : toward);
     // A closed surface faces each way with half its area: culling draws one half.
     if (closed_faces_culled && o.model->closed) layers *= 0.5;
     v.deepest_mesh = std::max(v.deepest_mesh, layers);
