@@ -1,5 +1,8 @@
 #include "mesh_instance.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/matrix.hpp>
@@ -32,6 +35,27 @@ Aabb mesh_surface_bounds(const SceneObject& o) {
   for (const ModelPart& part : o.model->parts)
     for (const glm::vec3& p : part.positions) b.extend(glm::dvec3(m * glm::dvec4(glm::dvec3(p), 1.0)));
   return b;
+}
+
+double mesh_layers_along(const SceneObject& o, const glm::dvec3& direction) {
+  if (!o.model || o.model->bounds.empty()) return 0.0;
+  // A model-space area vector a projects along d to world area
+  // |(det(L) L^-1 d) . a|: the cofactor of the transform's linear part L
+  // maps area vectors. So do the faces of the model's box.
+  const glm::dmat3 linear(mesh_transform(o));
+  const glm::dvec3 m = glm::determinant(linear) * (glm::inverse(linear) * direction);
+  const glm::dvec3 e = o.model->bounds.extent();
+  const double box = std::abs(m.x) * e.y * e.z + std::abs(m.y) * e.x * e.z + std::abs(m.z) * e.x * e.y;
+  return box > 0.0 ? projected_area(*o.model, m) / box : 0.0;
+}
+
+double mesh_deepest_layers(const SceneObject& o, const glm::dvec3& also) {
+  static const glm::dvec3 kDirections[] = {{1, 0, 0},  {0, 1, 0},  {0, 0, 1},  {1, 1, 0},  {1, -1, 0},
+                                           {1, 0, 1},  {1, 0, -1}, {0, 1, 1},  {0, 1, -1}, {1, 1, 1},
+                                           {1, 1, -1}, {1, -1, 1}, {-1, 1, 1}};
+  double layers = also == glm::dvec3(0.0) ? 0.0 : mesh_layers_along(o, also);
+  for (const glm::dvec3& d : kDirections) layers = std::max(layers, mesh_layers_along(o, d));
+  return layers;
 }
 
 bool mesh_is_closed(const SceneObject& o) { return o.model && o.model->closed; }

@@ -36,6 +36,20 @@ Aabb mesh_surface_bounds(const SceneObject& mesh);
 /// may the shadow pass cull its faces.
 bool mesh_is_closed(const SceneObject& mesh);
 
+/// How many layers deep the mesh's triangles lie within its bounds, seen
+/// along world direction `direction` (any length, either sign): their
+/// projected area (projected_area, model.hpp) over that of the model's box
+/// as transformed (a parallelepiped). Stacked quads seen face on are as
+/// many layers as quads; a closed convex model is 2 (1 with culling). 0
+/// for a model without area. O(the model's area_vectors).
+double mesh_layers_along(const SceneObject& mesh, const glm::dvec3& direction);
+
+/// The most of mesh_layers_along over 13 directions (the cube's faces,
+/// edges and corners) and `also` (unless zero): how deep the mesh may be
+/// where no one direction stands for the view (an eye inside its bounds),
+/// and what the renderer splits its draws by.
+double mesh_deepest_layers(const SceneObject& mesh, const glm::dvec3& also = glm::dvec3(0.0));
+
 std::uint64_t mesh_triangle_count(const SceneObject& mesh);
 std::uint64_t mesh_vertex_count(const SceneObject& mesh);
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <nettle/sha2.h>
 
@@ -21,7 +22,7 @@ std::size_t TriangleModel::bytes() const {
   for (const ModelPart& part : parts)
     n += (part.positions.capacity() + part.normals.capacity()) * sizeof(glm::vec3) +
          part.indices.capacity() * sizeof(std::uint32_t);
-  return n;
+  return n + area_vectors.capacity() * sizeof(glm::dvec3);
 }
 
 namespace {
@@ -157,6 +158,45 @@ std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& posit
   return normals;
 }
 
+namespace {
+
+constexpr int kBinsPerSide = 8;
+
+// Which of the 6 * kBinsPerSide^2 direction bins a non-zero vector falls in:
+// the cube face its largest component points to, then the cell of that face
+// that the vector crosses.
+std::size_t direction_bin(const glm::dvec3& v) {
+  const glm::dvec3 a = glm::abs(v);
+  const int axis = a.x >= a.y && a.x >= a.z ? 0 : a.y >= a.z ? 1 : 2;
+  const int face = 2 * axis + (v[axis] < 0.0 ? 1 : 0);
+  const double u = v[(axis + 1) % 3] / a[axis], w = v[(axis + 2) % 3] / a[axis];  // each in [-1, 1]
+  const auto cell = [](double t) { return std::clamp(int((t + 1.0) * 0.5 * kBinsPerSide), 0, kBinsPerSide - 1); };
+  return std::size_t((face * kBinsPerSide + cell(u)) * kBinsPerSide + cell(w));
+}
+
+}  // namespace
+
+std::vector<glm::dvec3> binned_area_vectors(const std::vector<ModelPart>& parts) {
+  std::vector<glm::dvec3> bins(6 * kBinsPerSide * kBinsPerSide, glm::dvec3(0.0));
+  for (const ModelPart& part : parts)
+    for (std::size_t t = 0; t + 2 < part.indices.size(); t += 3) {
+      const glm::dvec3 a(part.positions[part.indices[t]]), b(part.positions[part.indices[t + 1]]),
+          c(part.positions[part.indices[t + 2]]);
+      const glm::dvec3 area = 0.5 * glm::cross(b - a, c - a);
+      if (area == glm::dvec3(0.0) || !std::isfinite(glm::dot(area, area))) continue;
+      bins[direction_bin(area)] += area;
+    }
+  bins.erase(std::remove(bins.begin(), bins.end(), glm::dvec3(0.0)), bins.end());
+  bins.shrink_to_fit();
+  return bins;
+}
+
+double projected_area(const TriangleModel& model, const glm::dvec3& direction) {
+  double sum = 0.0;
+  for (const glm::dvec3& a : model.area_vectors) sum += std::abs(glm::dot(direction, a));
+  return sum;
+}
+
 void finish_model(TriangleModel& model) {
   model.bounds = Aabb{};
   for (ModelPart& part : model.parts) {
@@ -167,6 +207,7 @@ void finish_model(TriangleModel& model) {
   }
   model.parts.shrink_to_fit();
   model.closed = is_closed(model.parts);
+  model.area_vectors = binned_area_vectors(model.parts);
 }
 
 std::string model_id_for(std::string_view bytes) {

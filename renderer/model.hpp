@@ -33,6 +33,11 @@ struct TriangleModel {
   std::vector<ModelPart> parts;
   Aabb bounds;          ///< of every position; empty for a model without triangles
   bool closed = false;  ///< see is_closed(): set by finish_model()
+  /// The triangles' area vectors (normal times area, model space) summed
+  /// by direction (binned_area_vectors): set by finish_model(), read by the
+  /// cost estimate (projected_area) to count how deep the triangles overlap
+  /// in a view, which the bounds alone do not tell.
+  std::vector<glm::dvec3> area_vectors;
 
   std::size_t triangle_count() const;
   /// What the model holds in memory (its vectors' capacities and itself):
@@ -61,7 +66,23 @@ bool is_closed(const std::vector<ModelPart>& parts);
 std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& positions,
                                              const std::vector<std::uint32_t>& indices);
 
-/// Sets bounds and closed from the parts, and trims spare capacity.
+/// Each triangle's area vector ((b - a) x (c - a) / 2: its normal times its
+/// area), summed over bins of direction (the 6 faces of a cube of
+/// directions, 8 x 8 bins each; empty bins left out). Within a bin the
+/// vectors point within about 11 degrees of each other, so
+/// sum |d . bin| is sum |d . triangle| but for the few bins that straddle
+/// the plane normal to d. O(triangles), once per model.
+std::vector<glm::dvec3> binned_area_vectors(const std::vector<ModelPart>& parts);
+
+/// The area of the model's triangles projected along `direction` (model
+/// space; its length scales the result), each triangle counted once
+/// whichever way it faces: sum |direction . a| over area_vectors. What
+/// rasterising every triangle (no culling) along that direction fills,
+/// overlaps counted as often as they are drawn. O(area_vectors.size() <= 384).
+double projected_area(const TriangleModel& model, const glm::dvec3& direction);
+
+/// Sets bounds, closed and area_vectors from the parts, and trims spare
+/// capacity.
 void finish_model(TriangleModel& model);
 
 /// "sha256:" and the 64 lowercase hex digits of SHA-256(bytes): the id of

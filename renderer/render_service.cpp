@@ -50,11 +50,15 @@ struct RenderService::Impl {
     // Estimated peak bytes the GL thread must make room for (0 when a ray
     // cast's reservation covers it, see reserved_bytes).
     std::uint64_t peak_bytes = 0;
+    // The estimate's dominant part: what a frame cut short at max_run_time
+    // tells its client to lower.
+    CostPart dominant;
   };
 
   std::future<RenderResult> enqueue(RenderRequest request, bool holds_place, ClientGoneCheck client_gone,
-                                    std::uint64_t peak_bytes) {
-    Job job{std::move(request), {}, std::chrono::steady_clock::now(), holds_place, std::move(client_gone), peak_bytes};
+                                    std::uint64_t peak_bytes, CostPart dominant) {
+    Job job{std::move(request), {},        std::chrono::steady_clock::now(), holds_place, std::move(client_gone),
+            peak_bytes,         std::move(dominant)};
     std::future<RenderResult> result = job.promise.get_future();
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -114,6 +118,17 @@ struct RenderService::Impl {
                                  (map ? "lower shadow.map_size or shadow.cascades" : "lower width and height"),
                              map ? "shadow.map_size" : "width");
     }
+  }
+
+  // What a frame cut short at max_run_time answers: how long it ran, where
+  // it stopped, and the estimate's advice.
+  RunTimeExceeded frame_overran(const FrameCutShort& cut, std::chrono::steady_clock::time_point started,
+                                const CostPart& dominant) const {
+    const auto ran = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started);
+    return RunTimeExceeded("the frame ran past the limit of " + std::to_string(limits.max_run_time.count()) +
+                               " ms a request and was stopped (" + cut.what() + ", after " +
+                               std::to_string(ran.count()) + " ms); nothing of it is returned: " + dominant.advice,
+                           dominant.field);
   }
 
   // Throws if the job should not run: its client left, or it waited too long.
@@ -273,6 +288,7 @@ struct RenderService::Impl {
       }
       std::optional<RenderResult> result;
       std::exception_ptr error;
+      const auto started = std::chrono::steady_clock::now();
       try {
         check_still_wanted(job.queued, job.client_gone);
         if (!renderer) make_renderer(context, renderer);
@@ -285,10 +301,16 @@ struct RenderService::Impl {
         if (renderer->cached_bytes() > minus_or_zero(limits.memory_budget_bytes, needed))
           renderer->release_cached(
               minus_or_zero(limits.memory_budget_bytes + renderer->bytes_reused_by(job.request), needed));
-        result = renderer->render(job.request);
+        // The watchdog: the estimate admitted the frame, but one it
+        // misjudged, or a busy machine, must not hold the GL thread (and
+        // every request queued behind it, and a drain) without bound.
+        result = renderer->render(job.request, FrameWatch{started + limits.max_run_time});
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);
         frames.fetch_add(1);
+      } catch (const FrameCutShort& e) {
+        overran_count.fetch_add(1);
+        error = std::make_exception_ptr(frame_overran(e, started, job.dominant));
       } catch (...) {
         error = std::current_exception();
       }
@@ -338,17 +360,16 @@ std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGon
   const bool ray_cast = request.output == Output::Exact || request.output == Output::Error;
   const RequestCost cost = estimate_cost(request);
   impl_->check_budget(cost);
-  if (ray_cast)
-    return submit_reference(std::move(request), std::move(client_gone), cost.dominant().field, cost.peak_bytes);
+  if (ray_cast) return submit_reference(std::move(request), std::move(client_gone), cost.dominant(), cost.peak_bytes);
   impl_->reserve();
-  return impl_->enqueue(std::move(request), true, std::move(client_gone), cost.peak_bytes);
+  return impl_->enqueue(std::move(request), true, std::move(client_gone), cost.peak_bytes, cost.dominant());
 }
 
 // The exact reference needs no GL: it is ray cast on its own thread so the GL
 // thread keeps rendering. "error" also needs the GL "shadow" output. The
 // ray cast holds a place in the queue too, so that CPU work is bounded.
 std::future<RenderResult> RenderService::submit_reference(RenderRequest request, ClientGoneCheck client_gone,
-                                                         std::string dominant_field, std::uint64_t peak_bytes) {
+                                                         const CostPart& dominant, std::uint64_t peak_bytes) {
   impl_->reserve();
   // The whole request's peak, "error"'s GL frame included, is reserved
   // until the cast ends; its GL job then needs no room of its own.
@@ -357,8 +378,9 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
   if (request.output == Output::Error) {
     RenderRequest shadow = request;
     shadow.output = Output::Shadow;
-    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0);
+    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0, dominant);
   }
+  std::string dominant_field = dominant.field;
   Impl* impl = impl_.get();
   const auto queued = std::chrono::steady_clock::now();
   return std::async(std::launch::async, [impl, queued, request = std::move(request), rendered = std::move(rendered),

@@ -14,6 +14,7 @@
 
 #include "render_result.hpp"
 #include "request.hpp"
+#include "request_cost.hpp"
 
 namespace umbra {
 
@@ -36,17 +37,24 @@ struct ServiceLimits {
   /// together), > 0. More is refused before it is queued (RequestTooCostly).
   /// Default 4 s: the heaviest requests the tests and benchmarks make (a
   /// 4096^2 "shadow" with pcf_radius 8, about 3.2 s estimated) pass, the
-  /// 142 s one of issue 11 (about 45 s estimated) does not. A GL frame
-  /// cannot be stopped once drawing, so this is what bounds its time.
+  /// 142 s one of issue 11 (about 45 s estimated) does not. What it
+  /// admits, max_run_time bounds.
   std::chrono::milliseconds max_request_cost{4000};
   /// Most memory one request may be estimated to need at its peak, bytes,
   /// > 0. More is refused before it is queued. Default 2 GiB (the largest
   /// map the API allows, 4 layers of 8192^2 32-bit depth, is 1 GiB).
   std::uint64_t max_request_bytes = std::uint64_t(2) << 30;
-  /// Longest a ray cast ("exact", "error") may run once started,
-  /// milliseconds, > 0; checked between rows, so it ends within a row of
-  /// it (RunTimeExceeded). Default 8 s, twice the cost budget: room for an
-  /// estimate that was low or a machine that is busy.
+  /// Longest a request may run once started, milliseconds, > 0
+  /// (RunTimeExceeded). A ray cast ("exact", "error") is checked between
+  /// rows, so it ends within a row of it. A GL frame (the watchdog) is
+  /// checked between passes and between the chunks a deep mesh's draws are
+  /// split into (ShadowRenderer, about 20 ms each), so it holds the GL
+  /// thread for at most about this plus a chunk, plus the one draw or
+  /// upload in progress that the estimate priced (scene triangles, map
+  /// clears: at most max_request_cost of it). Default 8 s, twice the cost
+  /// budget: room for an estimate that was low or a machine that is busy.
+  /// With the queue's deadline it bounds a drain: every request already
+  /// queued is answered within deadline + max_run_time.
   std::chrono::milliseconds max_run_time{8000};
   /// Memory the renderer may hold, bytes, >= 64 MiB: what it keeps between
   /// requests (uploaded scenes, the shadow map, framebuffers: see
@@ -87,7 +95,8 @@ struct RequestTooCostly : std::runtime_error {
   /// The JSON field whose lowering helps most, e.g. "shadow.map_size".
   std::string field;
 };
-/// A ray cast ran past ServiceLimits::max_run_time and was stopped.
+/// A ray cast or a GL frame ran past ServiceLimits::max_run_time and was
+/// stopped; nothing of it is returned.
 struct RunTimeExceeded : std::runtime_error {
   RunTimeExceeded(const std::string& message, std::string field)
       : std::runtime_error(message), field(std::move(field)) {}
@@ -116,7 +125,7 @@ class RenderService {
   /// Queues a render; throws RequestTooCostly at once if its estimate is
   /// over the budget, QueueFull if the queue is full. The future holds the
   /// result, DeadlineExceeded if the job waited too long, RunTimeExceeded if
-  /// its ray cast ran too long, or the exception the renderer threw. `request` must be valid (see server/request_parser.hpp).
+  /// its frame or ray cast ran too long, or the exception the renderer threw. `request` must be valid (see server/request_parser.hpp).
   /// "exact" is ray cast on the CPU off the GL thread (its time is reported
   /// as `main`); "error" renders "shadow" on the GL thread, then compares.
   ///
@@ -147,8 +156,8 @@ class RenderService {
   std::uint64_t expired() const;
   /// Jobs dropped because their client disconnected before their turn.
   std::uint64_t abandoned() const;
-  /// Requests refused by the cost budget, and ray casts stopped at
-  /// max_run_time, since start.
+  /// Requests refused by the cost budget, and frames and ray casts stopped
+  /// at max_run_time, since start.
   std::uint64_t too_costly() const;
   std::uint64_t overran() const;
   /// Bytes the GL thread keeps between requests (ShadowRenderer::cached_bytes),
@@ -158,7 +167,7 @@ class RenderService {
 
  private:
   std::future<RenderResult> submit_reference(RenderRequest request, ClientGoneCheck client_gone,
-                                             std::string dominant_field, std::uint64_t peak_bytes);
+                                             const CostPart& dominant, std::uint64_t peak_bytes);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -2,11 +2,17 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
 #include <glm/vec4.hpp>
 
 #include "light_math.hpp"
 #include "mesh_instance.hpp"
+#include "model.hpp"
 #include "ray_cast.hpp"
 #include "scene.hpp"
 #include "shader_interface.hpp"
@@ -47,7 +53,17 @@ constexpr double kMsPerBvhTriangle = 6.0e-4;  // build: 99 k in 44..61 ms, 998 k
 // A mesh query and its transforms, per ray (two threads): 640x360 "exact"
 // 56..71 ms, with an area light (64 shadow rays a pixel) 835..920 ms.
 constexpr double kMsPerRayMeshTest = 7.0e-5;
-constexpr std::uint64_t kBvhBytesPerTriangle = 90;  // Embree's memory monitor, buffers included: 83..85
+constexpr std::uint64_t kBvhBytesPerTriangle = 90;
+// A mesh's layers past the first (ViewLayers::mesh_overdraw), measured with
+// issue 29's model: 4,000 stacked 40 x 40 quads (8,000 triangles), one
+// object, each layer nearer the eye and the light than the one before, so
+// every fragment is shaded. Large triangles cost less a fragment than a
+// sphere's small ones (kMsPerPixelLayer), but the shadow lookup runs for
+// each layer. Camera, 256^2 and 512^2, 8.1e7 and 3.2e8 fragments: pcf_radius
+// 0 and 1 1.1..2.4 s at 256^2, 4.9 s at 512^2; pcf_radius 8 10.6 s at 256^2.
+constexpr double kMsPerMeshFragment = 2.5e-5;  // plus kMsPerGather for each of its shadow-map reads
+// Map 2048^2 and 1024^2, 1.3e10 and 3.3e9 texels: 5.2 s and 1.24 s.
+constexpr double kMsPerMeshTexel = 5.0e-7;  // Embree's memory monitor, buffers included: 83..85
 
 // Mesh sizes, as tessellate() builds them (tests check the two agree).
 constexpr std::uint64_t kSphereStacks = 48, kSphereSlices = 96;
@@ -88,31 +104,100 @@ std::uint64_t scene_triangles(const Scene& scene) {
   return n;
 }
 
+namespace {
+
+// Where an object's bounds fall in a view: the share of the image their
+// projected rectangle covers (clipped to it), or around_eye when they reach
+// to or behind a perspective eye, where the projection wraps around.
+struct Coverage {
+  double share = 0.0;
+  bool around_eye = false;
+};
+
+Coverage bounds_coverage(const Aabb& bounds, const glm::dmat4& view_projection) {
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (const glm::dvec3& corner : bounds.corners()) {
+    const glm::dvec4 clip = view_projection * glm::dvec4(corner, 1.0);
+    if (!(clip.w > 1e-12)) return {0.0, true};
+    x0 = std::min(x0, clip.x / clip.w), x1 = std::max(x1, clip.x / clip.w);
+    y0 = std::min(y0, clip.y / clip.w), y1 = std::max(y1, clip.y / clip.w);
+  }
+  const double w = std::min(x1, 1.0) - std::max(x0, -1.0), h = std::min(y1, 1.0) - std::max(y0, -1.0);
+  return {w > 0.0 && h > 0.0 ? w * h / 4.0 : 0.0, false};
+}
+
+// The world direction along which a view's clip x and y stay 0: its
+// forward axis (either sign), orthographic or perspective.
+glm::dvec3 view_forward(const glm::dmat4& view_projection) {
+  const glm::dmat4& m = view_projection;  // column-major: m[column][row]
+  return glm::cross(glm::dvec3(m[0][0], m[1][0], m[2][0]), glm::dvec3(m[0][1], m[1][1], m[2][1]));
+}
+
+// A perspective view's eye, where clip x, y and w are all 0; none for an
+// orthographic view (w does not vary).
+std::optional<glm::dvec3> view_eye(const glm::dmat4& view_projection) {
+  const glm::dmat4& m = view_projection;
+  const glm::dvec3 row0(m[0][0], m[1][0], m[2][0]), row1(m[0][1], m[1][1], m[2][1]), row3(m[0][3], m[1][3], m[2][3]);
+  if (glm::length(row3) <= 1e-9 * glm::length(row0)) return std::nullopt;
+  const glm::dmat3 rows = glm::transpose(glm::dmat3(row0, row1, row3));
+  if (std::abs(glm::determinant(rows)) < 1e-300) return std::nullopt;
+  return glm::inverse(rows) * -glm::dvec3(m[3][0], m[3][1], m[3][3]);
+}
+
+// Whether the main pass will cull closed objects' back faces: the renderer
+// does when the eye is outside every closed object's bounds by the near
+// plane's reach (closed_meshes_seen_from_outside); here by twice that,
+// erring towards drawing every face.
+bool camera_culls_closed_faces(const RenderRequest& request) {
+  const Camera& camera = request.camera;
+  const double aspect = double(request.width) / double(request.height);
+  const double tan_half = std::tan(camera.fov_y_deg * 3.14159265358979323846 / 360.0);
+  const double reach = camera.near_plane * std::sqrt(1.0 + tan_half * tan_half * (1.0 + aspect * aspect));
+  for (const SceneObject& o : request.scene.objects) {
+    const bool closed = o.type == SceneObject::Type::Box || o.type == SceneObject::Type::Sphere ||
+                        (o.type == SceneObject::Type::Mesh && mesh_is_closed(o));
+    if (!closed) continue;
+    const Aabb box = object_bounds(o);
+    if (box.empty()) continue;
+    const glm::dvec3 outside = glm::max(glm::max(box.min - camera.position, camera.position - box.max), 0.0);
+    if (glm::length(outside) <= 2.0 * reach) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 double depth_complexity(const Scene& scene, const glm::dmat4& view_projection) {
   double sum = 0.0;
   for (const auto& o : scene.objects) {
-    const Aabb bounds = object_bounds(o);
-    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-    bool behind = false;
-    for (const glm::dvec3& corner : bounds.corners()) {
-      const glm::dvec4 clip = view_projection * glm::dvec4(corner, 1.0);
-      // At or behind a perspective eye the projection wraps around: count
-      // the whole view, the most such an object can cover.
-      if (!(clip.w > 1e-12)) {
-        behind = true;
-        break;
-      }
-      x0 = std::min(x0, clip.x / clip.w), x1 = std::max(x1, clip.x / clip.w);
-      y0 = std::min(y0, clip.y / clip.w), y1 = std::max(y1, clip.y / clip.w);
-    }
-    if (behind) {
-      sum += 1.0;
-      continue;
-    }
-    const double w = std::min(x1, 1.0) - std::max(x0, -1.0), h = std::min(y1, 1.0) - std::max(y0, -1.0);
-    if (w > 0.0 && h > 0.0) sum += w * h / 4.0;
+    // Bounds around a perspective eye count as the whole view, the most
+    // such an object can cover.
+    const Coverage c = bounds_coverage(object_bounds(o), view_projection);
+    sum += c.around_eye ? 1.0 : c.share;
   }
   return sum;
+}
+
+ViewLayers view_layers(const Scene& scene, const glm::dmat4& view_projection, bool closed_faces_culled) {
+  ViewLayers v;
+  const glm::dvec3 forward = view_forward(view_projection);
+  const std::optional<glm::dvec3> eye = view_eye(view_projection);
+  for (const SceneObject& o : scene.objects) {
+    if (o.type != SceneObject::Type::Mesh || !o.model || o.model->bounds.empty()) continue;
+    const Aabb bounds = object_bounds(o);
+    const Coverage c = bounds_coverage(bounds, view_projection);
+    const double share = c.around_eye ? 1.0 : c.share;
+    if (share <= 0.0) continue;
+    // Bounds around a perspective eye: its triangles may face it from any side.
+    const glm::dvec3 toward = eye ? bounds.center() - *eye : forward;
+    double layers = c.around_eye ? mesh_deepest_layers(o, forward)
+                                 : mesh_layers_along(o, toward == glm::dvec3(0.0) ? forward : toward);
+    // A closed surface faces each way with half its area: culling draws one half.
+    if (closed_faces_culled && o.model->closed) layers *= 0.5;
+    v.deepest_mesh = std::max(v.deepest_mesh, layers);
+    v.mesh_overdraw += share * std::max(0.0, layers - 1.0);
+  }
+  return v;
 }
 
 CostFactors cost_factors(const RenderRequest& request) {
@@ -130,11 +215,15 @@ CostFactors cost_factors(const RenderRequest& request) {
       const ShadowPlan plan = plan_shadow(request);
       const double layer_texels = double(plan.layer_size) * double(plan.layer_size);
       f.shadow_texels = layer_texels * double(plan.views.size());
+      const bool shadow_culls = request.shadow.cull != CullMode::None;
       for (const ShadowView& view : plan.views) {
         if (view.empty) continue;
         ++f.draws;
-        f.shadow_texel_layers +=
-            layer_texels * std::max(1.0, depth_complexity(request.scene, view.projection * view.view));
+        const glm::dmat4 view_projection = view.projection * view.view;
+        f.shadow_texel_layers += layer_texels * std::max(1.0, depth_complexity(request.scene, view_projection));
+        const ViewLayers meshes = view_layers(request.scene, view_projection, shadow_culls);
+        f.mesh_texel_layers += layer_texels * meshes.mesh_overdraw;
+        f.deepest_mesh = std::max(f.deepest_mesh, meshes.deepest_mesh);
       }
     }
     if (depth) {
@@ -146,6 +235,10 @@ CostFactors cost_factors(const RenderRequest& request) {
       f.pixels = image_pixels;
       f.gathers_per_pixel = gathers_per_pixel(request.shadow);
       f.pixel_layers = image_pixels * std::max(1.0, camera_layers);
+      const ViewLayers meshes =
+          view_layers(request.scene, camera.projection * camera.view, camera_culls_closed_faces(request));
+      f.mesh_pixel_layers = image_pixels * meshes.mesh_overdraw;
+      f.deepest_mesh = std::max(f.deepest_mesh, meshes.deepest_mesh);
     }
   }
   if (casts_rays) {
@@ -184,6 +277,13 @@ RequestCost estimate_cost(const RenderRequest& request) {
       {"pixels", f.pixels * kMsPerPixel + f.pixel_layers * kMsPerPixelLayer,
        request.output == Output::Depth ? "shadow.map_size" : "width",
        request.output == Output::Depth ? "lower shadow.map_size" : "lower width and height"},
+      {"mesh overdraw",
+       f.mesh_pixel_layers * (kMsPerMeshFragment + f.gathers_per_pixel * kMsPerGather) +
+           f.mesh_texel_layers * kMsPerMeshTexel,
+       "scene.objects",
+       "a model's triangles lie up to about " + std::to_string(std::llround(f.deepest_mesh)) +
+           " layers deep in a view, each layer drawn in turn: use models whose triangles overlap less, fewer "
+           "of them, or lower width and height and shadow.map_size"},
       {"shadow filter taps", f.pixels * f.gathers_per_pixel * kMsPerGather,
        request.shadow.filter == ShadowFilter::Pcf ? "shadow.pcf_radius" : "width",
        request.shadow.filter == ShadowFilter::Pcf ? "lower shadow.pcf_radius, or width and height"

@@ -39,6 +39,15 @@ struct CostFactors {
   /// Camera pixels times the camera's depth complexity: fragments
   /// rasterised and depth tested.
   double pixel_layers = 0.0;
+  /// Fragments of mesh objects beyond what their bounds count (ViewLayers::
+  /// mesh_overdraw): camera pixels, and shadow-map texels summed over the
+  /// non-empty views, times those extra layers. A model of 4,000 stacked
+  /// quads is 4,000 layers deep where its bounds count one.
+  double mesh_pixel_layers = 0.0;
+  double mesh_texel_layers = 0.0;
+  /// The deepest mesh in any of those views (ViewLayers::deepest_mesh), for
+  /// the advice.
+  double deepest_mesh = 0.0;
   /// Ray cast ("exact", "error"): camera rays (one per pixel) and shadow
   /// rays (one per pixel; 64 for an area light), and the objects a ray is
   /// tested against: the bounding-volume tree's depth plus the camera's
@@ -96,5 +105,22 @@ std::uint64_t scene_triangles(const Scene& scene);
 /// to clip space; bounds reaching behind a perspective eye count as
 /// covering the whole view.
 double depth_complexity(const Scene& scene, const glm::dmat4& view_projection);
+
+/// What a view rasterises beyond depth_complexity: a mesh object's bounds
+/// cover its share of the view once, but its triangles may lie many layers
+/// deep within them.
+struct ViewLayers {
+  /// Summed over mesh objects: the share of the view their bounds cover
+  /// times the layers of their triangles past the first. A mesh's layers
+  /// are its triangles' projected area (projected_area, model.hpp) over its
+  /// bounds' (a parallelepiped's), both along the direction from the eye
+  /// to it (an orthographic view's direction); for bounds around a
+  /// perspective eye, the most over 13 directions and the view's. Half
+  /// the area for a closed model whose faces the view culls.
+  double mesh_overdraw = 0.0;
+  /// The most layers of any one mesh object that the view reaches.
+  double deepest_mesh = 0.0;
+};
+ViewLayers view_layers(const Scene& scene, const glm::dmat4& view_projection, bool closed_faces_culled);
 
 }  // namespace umbra

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "gl/program.hpp"
+#include "mesh_instance.hpp"
 #include "receiver_cells.hpp"
 #include "umbras.hpp"
 #include "shader_interface.hpp"
@@ -139,6 +140,8 @@ bool ShadowRenderer::use_scene(const Scene& scene) {
   mesh.indices.clear();
   mesh.indices.shrink_to_fit();
   g.mesh = std::move(mesh);
+  for (const SceneObject& o : scene.objects)
+    g.deep_layers.push_back(o.type == SceneObject::Type::Mesh ? mesh_deepest_layers(o) : 0.0);
   const std::uint64_t bytes = std::uint64_t(vertex_count) * sizeof(Vertex) + std::uint64_t(index_count) * sizeof(std::uint32_t);
   scenes_.insert(std::move(key), std::move(g), bytes);
   evict_scenes_to(scene_cache_bytes_, 1);
@@ -321,13 +324,85 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
       glEnable(GL_CULL_FACE);
       glCullFace(closed_mesh_cull == CullMode::Front ? GL_FRONT : GL_BACK);
     }
-    for (const Run& run : closed) draw_indices(run.first, run.second);
+    for (const Run& run : closed) draw_scene_indices(run.first, run.second);
   }
   // A plane or an open model has one side: culling it could drop it from
   // the pass entirely.
   glDisable(GL_CULL_FACE);
-  for (const Run& run : open_models) draw_indices(run.first, run.second);
-  for (const Run& run : planes) draw_indices(run.first, run.second);
+  for (const Run& run : open_models) draw_scene_indices(run.first, run.second);
+  for (const Run& run : planes) draw_scene_indices(run.first, run.second);
+}
+
+void ShadowRenderer::begin_pass(double pixels, double fragments_per_chunk) {
+  pass_pixels_ = pixels;
+  chunk_fragments_ = fragments_per_chunk;
+}
+
+void ShadowRenderer::draw_scene_indices(std::size_t first, std::size_t count) {
+  const SceneGeometry& g = scene();
+  const std::vector<ObjectRange>& ranges = g.mesh.object_ranges;  // in index order
+  const std::size_t end = first + count;
+  std::size_t pending = first;  // drawn up to here
+  auto it = std::lower_bound(ranges.begin(), ranges.end(), first, [](const ObjectRange& r, std::size_t i) {
+    return std::size_t(r.first_index) + r.index_count <= i;
+  });
+  for (; it != ranges.end() && it->first_index < end; ++it) {
+    const double layers = g.deep_layers[it->object];
+    if (layers <= kDeepLayers || it->index_count < 3) continue;
+    const std::size_t from = std::max<std::size_t>(it->first_index, first);
+    const std::size_t to = std::min<std::size_t>(std::size_t(it->first_index) + it->index_count, end);
+    draw_indices(pending, from - pending);
+    // As if the mesh filled the view, each of its triangles equally deep:
+    // never more fragments a triangle than it can have.
+    const double triangles = double(it->index_count / 3);
+    const double fragments_per_triangle = layers * pass_pixels_ / triangles;
+    for (std::size_t at = from; at < to;) {
+      const double chunk_triangles = std::clamp(chunk_fragments_ / fragments_per_triangle, 1.0, triangles);
+      const std::size_t n = std::min(3 * std::size_t(chunk_triangles), to - at);
+      const auto start = Clock::now();
+      draw_indices(at, n);
+      wait_for_chunk(start);
+      at += n;
+    }
+    pending = to;
+  }
+  draw_indices(pending, end - pending);
+}
+
+void ShadowRenderer::wait_for_chunk(Clock::time_point chunk_start) {
+  // llvmpipe bins draws on this thread and rasterises them when flushed:
+  // only a fence shows how far it has got.
+  const GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  GLenum status = GL_TIMEOUT_EXPIRED;
+  while (status == GL_TIMEOUT_EXPIRED) status = glClientWaitSync(fence, GL_SYNC_FLUSH_COMMANDS_BIT, 100'000'000);
+  glDeleteSync(fence);
+  // The next chunk sized to take about kChunkMs: shrunk at once if this
+  // one took longer, grown at most twofold if it was quicker.
+  const double ms = std::max(elapsed_ms(chunk_start), 1e-3);
+  chunk_fragments_ *= std::min(2.0, kChunkMs / ms);
+  check_watch("a deep mesh's draws");
+}
+
+void ShadowRenderer::check_watch(const char* where) const {
+  if (Clock::now() > watch_.until) throw FrameCutShort(std::string("stopped during ") + where);
+}
+
+void ShadowRenderer::abandon_frame() {
+  glFinish();
+  shadow_.holds_plan = false;
+  // What run_display_pass and run_depth_preview set, as the constructor
+  // and the end of each pass leave it.
+  glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
+  glClearDepth(1.0);
+  glDepthFunc(GL_LESS);
+  glEnable(GL_DEPTH_TEST);
+  glDepthMask(GL_TRUE);
+  glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  glDisable(GL_STENCIL_TEST);
+  glStencilFunc(GL_ALWAYS, 0, 0xFF);
+  glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+  glDisable(GL_CLIP_DISTANCE0);
+  glDisable(GL_CULL_FACE);
 }
 
 std::vector<bool> ShadowRenderer::drawn_objects(const std::vector<bool>& planes) const {
@@ -371,6 +446,10 @@ void ShadowRenderer::upload_frame_block(const RenderRequest& request, const Shad
 void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowPlan& light,
                                      const std::vector<bool>& planes, const CasterTexels& casters) {
   resize_shadow_map(light.layer_size, int(light.views.size()));
+  // Whatever the map held is drawn over from here: a frame that stops
+  // half way must not leave it to be reused.
+  shadow_.holds_plan = false;
+  begin_pass(double(light.layer_size) * double(light.layer_size), kShadowChunkFragments);
   const GLuint framebuffer = shadow_.framebuffer.id();
   glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
   // The map has its own resolution: without its own viewport it would be
@@ -524,6 +603,7 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
 std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light,
                                       const std::vector<bool>& planes, const CasterTexels& casters) {
   resize_display(request.width, request.height);
+  begin_pass(double(request.width) * double(request.height), kMainChunkFragments);
   const DisplayVariant variant = display_variant(request, light);
   CellDraws cells;
   if (variant.shadows) cells = upload_plane_cells(request, light, planes, casters);
@@ -706,10 +786,21 @@ Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int
   return image;
 }
 
-RenderResult ShadowRenderer::render(const RenderRequest& request) {
+RenderResult ShadowRenderer::render(const RenderRequest& request, const FrameWatch& watch) {
+  watch_ = watch;
+  try {
+    return render_frame(request);
+  } catch (...) {
+    abandon_frame();
+    throw;
+  }
+}
+
+RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
   RenderResult result;
   map_allocated_ = false;
   result.scene_uploaded = use_scene(request.scene);
+  check_watch("the scene's upload");
   ShadowPlan light = plan_shadow(request);
   const bool depth_output = request.output == Output::Depth;
 
@@ -730,6 +821,7 @@ RenderResult ShadowRenderer::render(const RenderRequest& request) {
       run_shadow_pass(request, light, planes, casters);
       glFinish();
       result.timings.shadow_ms = elapsed_ms(start);
+      check_watch("the shadow pass");
     }
     const char* layout = light.layout == ShadowLayout::Cascades ? "cascades"
                          : light.layout == ShadowLayout::Cube   ? "cube"

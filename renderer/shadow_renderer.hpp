@@ -2,8 +2,10 @@
 // lights the scene from the camera with that texture, then read-back.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "byte_bounded_lru.hpp"
@@ -16,6 +18,20 @@
 
 namespace umbra {
 
+/// When a frame must give up: render() checks it between the chunks that a
+/// deep mesh's draws are split into (see draw_scene_indices) and between
+/// passes.
+struct FrameWatch {
+  std::chrono::steady_clock::time_point until = std::chrono::steady_clock::time_point::max();
+};
+
+/// render() gave up on a frame at its FrameWatch: nothing of it is
+/// returned, and the renderer is ready for the next one (the GL state
+/// restored, the half-drawn shadow map not reused).
+struct FrameCutShort : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 /// Call order: construct with a current GL 4.5 context, then render() any
 /// number of times, destroy before the context. Not thread-safe: it lives on
 /// the GL thread (see render_service.hpp).
@@ -27,8 +43,10 @@ class ShadowRenderer {
   explicit ShadowRenderer(std::uint64_t scene_cache_bytes = std::numeric_limits<std::uint64_t>::max());
 
   /// Renders `request` and reads the chosen output back. `request` must be
-  /// valid (as the request parser guarantees).
-  RenderResult render(const RenderRequest& request);
+  /// valid (as the request parser guarantees). Throws FrameCutShort once
+  /// past `watch.until` (checked between chunks and passes: a chunk is
+  /// about kChunkMs of work, so the frame ends within about that of it).
+  RenderResult render(const RenderRequest& request, const FrameWatch& watch = {});
 
   /// Bytes of GL memory kept between requests: cached scenes' buffers, the
   /// shadow map, the display framebuffer, the depth preview (as allocated:
@@ -65,6 +83,10 @@ class ShadowRenderer {
     gl::Buffer vertices;
     gl::Buffer indices;
     Mesh mesh;           // CPU copy: origin and index ranges (vertices cleared)
+    // Per object: how many layers deep its triangles may lie
+    // (mesh_deepest_layers; 0 for the analytic ones, which the cost
+    // estimate bounds by their bounds).
+    std::vector<double> deep_layers;
   };
   // Depth-only framebuffer seen from the light, one array layer per view.
   struct ShadowPass {
@@ -117,6 +139,7 @@ class ShadowRenderer {
   // for is a few hundred, each a large program on a software rasteriser.
   static constexpr std::size_t kKeptVariants = 24;
 
+  RenderResult render_frame(const RenderRequest& request);
   /// Makes `scene` the current one (scenes_.front()), uploading it unless a
   /// scene with the same content is cached; true if it was uploaded.
   bool use_scene(const Scene& scene);
@@ -141,6 +164,39 @@ class ShadowRenderer {
   // Triangles from which an object is worth leaving out of a cascade it
   // shadows nothing in: on llvmpipe about 0.4 ms of a shadow pass.
   static constexpr std::size_t kHeavyTriangles = 4096;
+  // A mesh more layers deep than this (mesh_deepest_layers) has its draws
+  // split into chunks of about kChunkMs each, the watch checked between
+  // them: one draw call of 4,000 stacked quads is seconds that llvmpipe
+  // cannot interrupt. Ordinary models are at most about 2 (a closed
+  // surface seen without culling), so their draws are never split.
+  static constexpr double kDeepLayers = 4.0;
+  static constexpr double kChunkMs = 20.0;
+  // The fragments a first chunk is sized for, assuming the deep mesh fills
+  // the view (so never too large): about kChunkMs on the reference machine
+  // (issue 29's stack: 2.5e-5 ms a camera fragment with PCF radius 1, 5e-7
+  // ms a shadow texel). Later chunks are sized by the time the earlier
+  // ones took.
+  static constexpr double kMainChunkFragments = 1 << 20;
+  static constexpr double kShadowChunkFragments = 1 << 25;
+  // The frame's watch, and the chunking state of the pass being drawn.
+  FrameWatch watch_;
+  double pass_pixels_ = 0.0;       // the pass's viewport
+  double chunk_fragments_ = 0.0;   // fragments a chunk is sized for, adapted to the time chunks take
+  // Draws indices [first, first + count) of the current scene: in one call
+  // unless they hold a deep mesh (kDeepLayers), whose triangles are drawn
+  // in chunks with wait_for_chunk() after each.
+  void draw_scene_indices(std::size_t first, std::size_t count);
+  // Starts a pass's chunking: `fragments_per_chunk` of a viewport of
+  // `pixels`.
+  void begin_pass(double pixels, double fragments_per_chunk);
+  // Waits for the GL to finish what was issued (a fence: llvmpipe draws
+  // when flushed), sizes the next chunk by the time this one took, and
+  // throws FrameCutShort if the watch has run out.
+  void wait_for_chunk(std::chrono::steady_clock::time_point chunk_start);
+  void check_watch(const char* where) const;
+  // After a frame that threw: what the passes set is set back, the map it
+  // may have half drawn is not reused.
+  void abandon_frame();
   // Which of the scene's triangles a draw_scene call draws.
   enum class MeshPart {
     All,

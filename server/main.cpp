@@ -45,8 +45,9 @@ void usage(std::FILE* out) {
                "  --max-request-mib N\n"
                "                  a request estimated to need more memory at its peak (MiB) gets 422, 1..1048576\n"
                "                  (default 2048)\n"
-               "  --max-run-ms N  an exact or error ray cast running longer is stopped with 503, 1..3600000\n"
-               "                  (default 8000)\n"
+               "  --max-run-ms N  the watchdog: a render running longer (a GL frame, checked between passes and between\n"
+               "                  the ~20 ms chunks a deep mesh is drawn in; an exact or error ray cast, between rows)\n"
+               "                  is stopped with 503 and nothing of it returned, 1..3600000 (default 8000)\n"
                "  --memory-mib N  memory budget of the renderer (MiB): caches are released to fit each request and\n"
                "                  after 1.5 s idle; a request needing more alone gets 422, 64..1048576 (default 2048)\n"
                "  --fresh-context-mib N\n"
@@ -74,7 +75,8 @@ void usage(std::FILE* out) {
                "                  used uploads, 1..1048576 (default 2048)\n"
                "  --quiet         no per-request log lines\n"
                "SIGINT or SIGTERM: stop accepting, close idle connections and requests still arriving, answer the requests\n"
-               "already received, exit 0 (a second one exits at once).\n");
+               "already received, exit 0 (a second one exits at once). Every render already received is answered within\n"
+               "--deadline-ms + --max-run-ms of the signal (18 s at the defaults), plus the chunk in progress.\n");
 }
 
 }  // namespace

@@ -140,7 +140,7 @@ std::string Metrics::exposition(const MetricsGauges& g) const {
        double(g.abandoned)},
       {"umbra_too_costly_total", "counter", "Requests refused with 422: estimated over the cost budget.",
        double(g.too_costly)},
-      {"umbra_overran_total", "counter", "Ray casts stopped at the run-time limit (503).", double(g.overran)},
+      {"umbra_overran_total", "counter", "Frames and ray casts stopped at the run-time limit (503).", double(g.overran)},
       {"umbra_queue_depth", "gauge", "Requests queued or being rendered.", double(g.queue_depth)},
       {"umbra_queue_capacity", "gauge", "Requests the queue holds before it answers 503.", double(g.queue_capacity)},
       {"umbra_scene_cache_bytes", "gauge", "Bytes of scenes the renderer keeps for reuse.", double(g.cached_bytes)},

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -141,6 +142,24 @@ inline void unit_cube(std::vector<glm::vec3>& positions, std::vector<std::uint32
              3, 7, 6, 3, 6, 2,   // +y
              0, 4, 7, 0, 7, 3,   // -x
              1, 2, 6, 1, 6, 5};  // +x
+}
+
+/// Issue 29's hostile model: `quads` squares of edge `size` facing +Y,
+/// stacked `spacing` apart (the first at y = 0), as a .glb of positions
+/// only (6 a quad, not indexed; normals from the loader): 4,000 of them
+/// are 288 KB, every pixel of the stack drawn 4,000 times.
+inline std::string stacked_quads_glb(int quads, float size = 40.0f, float spacing = 0.0005f) {
+  const float h = size / 2;
+  std::vector<glm::vec3> positions;
+  positions.reserve(std::size_t(quads) * 6);
+  for (int i = 0; i < quads; ++i) {
+    const float y = float(i) * spacing;
+    for (const auto& [x, z] : {std::pair{-h, h}, {h, h}, {h, -h}, {-h, h}, {h, -h}, {-h, -h}})
+      positions.push_back({x, y, z});
+  }
+  GltfBuilder b;
+  b.scene({b.node({{"mesh", b.mesh(b.vec3s(positions))}})});
+  return b.glb();
 }
 
 }  // namespace umbra::test

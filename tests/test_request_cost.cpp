@@ -10,6 +10,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 
+#include "gltf_builder.hpp"
 #include "gltf_loader.hpp"
 #include "model_support.hpp"
 #include "render_service.hpp"
@@ -193,6 +194,87 @@ TEST(RequestCost, DepthComplexityCountsOverlappingBounds) {
   around.objects = {box};
   const glm::dmat4 eye = glm::perspective(1.0, 1.0, 0.1, 10.0);
   EXPECT_NEAR(depth_complexity(around, eye), 1.0, 1e-9);
+}
+
+// A mesh's triangles, not its bounds, say how deep it is: a stack of n
+// quads seen from above is n layers where its bounds count one.
+TEST(RequestCost, ViewLayersCountAMeshByItsTrianglesProjectedArea) {
+  const LoadResult stack = load_gltf(test::stacked_quads_glb(100, 2.0f, 0.001f), {});
+  ASSERT_TRUE(stack.ok()) << stack.error;
+  SceneObject mesh;
+  mesh.type = SceneObject::Type::Mesh;
+  mesh.model = stack.model;
+  mesh.model_id = "stack";
+  Scene scene;
+  scene.objects = {mesh};
+  // Looking down -Y at a 2 x 2 view: the stack fills it, 100 deep.
+  const glm::dmat4 down = glm::ortho(-1.0, 1.0, -1.0, 1.0, -10.0, 10.0) *
+                          glm::lookAt(glm::dvec3(0, 5, 0), glm::dvec3(0), glm::dvec3(0, 0, -1));
+  EXPECT_NEAR(depth_complexity(scene, down), 1.0, 0.01) << "the bounds: one layer";
+  const ViewLayers layers = view_layers(scene, down, true);
+  EXPECT_NEAR(layers.deepest_mesh, 100.0, 1.0) << "open: culling spares nothing";
+  EXPECT_NEAR(layers.mesh_overdraw, 99.0, 1.0);
+  // Scaled to half its size in x and z, it covers a quarter of the view,
+  // still 100 deep; turned on its side, the view sees its edges.
+  scene.objects[0].mesh_scale = {0.5, 1.0, 0.5};
+  EXPECT_NEAR(view_layers(scene, down, true).mesh_overdraw, 99.0 / 4.0, 0.5);
+  scene.objects[0].mesh_scale = glm::dvec3(1.0);
+  scene.objects[0].rotation_deg = {90.0, 0.0, 0.0};
+  EXPECT_LT(view_layers(scene, down, true).mesh_overdraw, 1.0);
+  // A perspective eye inside the stack: every direction is tried.
+  scene.objects[0].rotation_deg = glm::dvec3(0.0);
+  const glm::dmat4 inside = glm::perspective(1.0, 1.0, 0.01, 10.0) *
+                            glm::lookAt(glm::dvec3(0, 0.05, 0), glm::dvec3(1, 0.05, 0), glm::dvec3(0, 1, 0));
+  EXPECT_NEAR(view_layers(scene, inside, true).deepest_mesh, 100.0, 1.0);
+
+  // A closed box: two layers along any direction, one when faces are culled.
+  scene.objects[0].model = test::box_model(glm::vec3(1.0f));
+  EXPECT_NEAR(view_layers(scene, down, false).deepest_mesh, 2.0, 1e-6);
+  EXPECT_NEAR(view_layers(scene, down, true).deepest_mesh, 1.0, 1e-6);
+  EXPECT_NEAR(view_layers(scene, down, true).mesh_overdraw, 0.0, 1e-6);
+}
+
+// Issue 29: one 288 KB upload of 4,000 stacked 40 x 40 quads rendered at
+// 512^2 was estimated at 18 ms by the bounds and held the GL thread for
+// 22.8 s. Its triangles' overdraw is what refuses it now, naming the
+// objects.
+TEST(RequestCost, IssueTwentyNinesStackedQuadsAreOverTheDefaultBudget) {
+  const std::string glb = test::stacked_quads_glb(4000);
+  EXPECT_EQ(glb.size() / 1000, 288u);
+  const LoadResult stack = load_gltf(glb, {});
+  ASSERT_TRUE(stack.ok()) << stack.error;
+  const ModelLookup models = test::lookup_of({{"stack", stack.model}});
+  const json body = {{"width", 512}, {"height", 512}, {"scene", {{"objects", {{{"type", "mesh"}, {"model", "stack"}}}}}}};
+  const ParsedRequest parsed = parse_render_request(body.dump(), Route::Render, models);
+  ASSERT_TRUE(parsed.ok()) << parsed.error.message;
+  const ServiceLimits limits;
+  const RequestCost cost = estimate_cost(*parsed.request);
+  EXPECT_GT(cost.total_ms, 2.0 * double(limits.max_request_cost.count()));
+  EXPECT_EQ(cost.dominant().name, "mesh overdraw");
+  EXPECT_EQ(cost.dominant().field, "scene.objects");
+  EXPECT_GT(cost.factors.deepest_mesh, 1000.0);
+  // Every other part together is what the bounds alone gave: well within.
+  EXPECT_LT(cost.total_ms - cost.dominant().ms, 0.05 * double(limits.max_request_cost.count()));
+  // A few quads of it are fine.
+  const LoadResult few = load_gltf(test::stacked_quads_glb(4), {});
+  ASSERT_TRUE(few.ok());
+  const ParsedRequest small = parse_render_request(body.dump(), Route::Render, test::lookup_of({{"stack", few.model}}));
+  ASSERT_TRUE(small.ok());
+  EXPECT_LT(estimate_cost(*small.request).total_ms, 0.25 * double(limits.max_request_cost.count()));
+}
+
+// The built-in models and the bench's mesh scenes: a few layers deep at
+// most, so their estimates stay close to what the bounds gave.
+TEST(RequestCost, OrdinaryModelsAreAFewLayersDeep) {
+  for (const std::string name : {"mesh-teapot", "mesh-torus-knot", "mesh-teapots-1m"})
+    for (const char* output : {"color", "shadow", "depth"}) {
+      const RequestCost cost = estimate_cost(load_scene_request(UMBRA_SCENES_DIR, name, {{"output", output}}));
+      const auto overdraw = std::find_if(cost.parts.begin(), cost.parts.end(),
+                                         [](const CostPart& p) { return p.name == "mesh overdraw"; });
+      ASSERT_NE(overdraw, cost.parts.end());
+      EXPECT_LT(cost.factors.deepest_mesh, 3.0) << name << " " << output;
+      EXPECT_LT(overdraw->ms, 0.25 * cost.total_ms) << name << " " << output;
+    }
 }
 
 // Raising any one factor never lowers the estimate, and raises it.
