@@ -116,6 +116,129 @@ TEST(ModelStore, ConcurrentUploadsAndLookupsStayWithinBudget) {
   EXPECT_LE(store.count(), 5u);
 }
 
+// --- Owners: one owner's uploads never evict another's models -------------
+
+// A store with room for `models` models of model_of(100), and a share of
+// `share` of them per owner.
+ModelStore::Limits room_for(std::size_t models, std::size_t share) {
+  const std::uint64_t each = model_of(100)->bytes();
+  ModelStore::Limits limits;
+  limits.max_bytes = models * each + each / 2;
+  limits.share_bytes = share * each + each / 2;
+  return limits;
+}
+
+// Adds a model of model_of(100) as `owner`'s upload, as the server does:
+// room reserved for it first, then the model held in it.
+ModelStore::Outcome upload(ModelStore& store, const std::string& owner, const std::string& id) {
+  auto model = model_of(100);
+  ModelStore::RoomResult room = store.reserve(owner, model->bytes());
+  switch (room.outcome) {
+    case ModelStore::Room::Made: return store.add_upload(id, std::move(model), room.reservation).outcome;
+    case ModelStore::Room::NoRoomNow: return ModelStore::Outcome::NoRoom;
+    default: return ModelStore::Outcome::TooLarge;
+  }
+}
+
+TEST(ModelStore, AnOwnersUploadsEvictOnlyItsOwnModelsWithinOthersShares) {
+  ModelStore store(room_for(4, 2));
+  ASSERT_EQ(upload(store, "alice", "sha256:a1"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "alice", "sha256:a2"), ModelStore::Outcome::Added);
+  // Bob uploads many: each new one drops his own least recently used.
+  for (int i = 0; i < 10; ++i)
+    ASSERT_EQ(upload(store, "bob", "sha256:b" + std::to_string(i)), ModelStore::Outcome::Added) << i;
+  EXPECT_NE(store.find("sha256:a1"), nullptr);
+  EXPECT_NE(store.find("sha256:a2"), nullptr);
+  EXPECT_NE(store.find("sha256:b9"), nullptr);
+  EXPECT_NE(store.find("sha256:b8"), nullptr);
+  EXPECT_EQ(store.find("sha256:b7"), nullptr);
+  EXPECT_LE(store.live_bytes(), store.max_bytes());
+  EXPECT_EQ(store.owner_bytes("alice"), 2 * model_of(100)->bytes());
+}
+
+TEST(ModelStore, RoomBorrowedPastAShareIsGivenBackToOtherOwners) {
+  ModelStore store(room_for(4, 2));
+  for (int i = 0; i < 4; ++i) ASSERT_EQ(upload(store, "alice", "sha256:a" + std::to_string(i)), ModelStore::Outcome::Added);
+  EXPECT_EQ(store.count(), 4u);  // the whole budget, twice her share: free room borrowed
+  ASSERT_EQ(upload(store, "bob", "sha256:b0"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "bob", "sha256:b1"), ModelStore::Outcome::Added);
+  // Her least recently used went, down to her share, and no further.
+  EXPECT_EQ(store.find("sha256:a0"), nullptr);
+  EXPECT_EQ(store.find("sha256:a1"), nullptr);
+  EXPECT_NE(store.find("sha256:a2"), nullptr);
+  EXPECT_NE(store.find("sha256:a3"), nullptr);
+  EXPECT_EQ(upload(store, "carol", "sha256:c0"), ModelStore::Outcome::NoRoom);
+  EXPECT_NE(store.find("sha256:a2"), nullptr);
+  EXPECT_NE(store.find("sha256:b0"), nullptr);
+}
+
+TEST(ModelStore, AModelOverTheShareIsRefusedAndIdleModelsGoToAnyone) {
+  ModelStore store(room_for(4, 2));
+  const std::uint64_t each = model_of(100)->bytes();
+  EXPECT_EQ(store.reserve("alice", 3 * each).outcome, ModelStore::Room::OverShare);
+  EXPECT_EQ(store.reserve("alice", 5 * each).outcome, ModelStore::Room::OverShare);
+  ModelStore whole(room_for(4, 4));
+  EXPECT_EQ(whole.reserve("alice", 5 * each).outcome, ModelStore::Room::OverBudget);
+
+  auto now = ModelStore::Clock::now();
+  store.set_clock([&] { return now; });
+  ASSERT_EQ(upload(store, "alice", "sha256:a0"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "alice", "sha256:a1"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "bob", "sha256:b0"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "bob", "sha256:b1"), ModelStore::Outcome::Added);
+  EXPECT_EQ(upload(store, "carol", "sha256:c0"), ModelStore::Outcome::NoRoom);
+  now += ModelStore::kDefaultIdleDrop / 2;
+  ASSERT_NE(store.find("sha256:b0"), nullptr);  // used: idle from now on
+  now += ModelStore::kDefaultIdleDrop / 2 + std::chrono::seconds(1);
+  ASSERT_EQ(upload(store, "carol", "sha256:c0"), ModelStore::Outcome::Added);
+  EXPECT_EQ(store.find("sha256:a0"), nullptr);  // idle an hour: anyone's to drop
+  EXPECT_NE(store.find("sha256:b0"), nullptr);
+}
+
+TEST(ModelStore, ReservationsAndModelsBeingDrawnCountAgainstTheBudget) {
+  ModelStore store(room_for(3, 3));
+  const std::uint64_t each = model_of(100)->bytes();
+  ASSERT_EQ(upload(store, "", "sha256:1"), ModelStore::Outcome::Added);
+  // A render draws 1: it is not dropped to make room, 2 is.
+  const std::shared_ptr<const TriangleModel> drawn = drawn_model(store.find("sha256:1"));
+  ASSERT_EQ(upload(store, "", "sha256:2"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "", "sha256:3"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "", "sha256:4"), ModelStore::Outcome::Added);
+  EXPECT_NE(store.find("sha256:1"), nullptr);
+  EXPECT_EQ(store.find("sha256:2"), nullptr);
+  // A reservation holds its room until it is used or let go.
+  {
+    ModelStore::RoomResult room = store.reserve("", 2 * each);
+    ASSERT_EQ(room.outcome, ModelStore::Room::Made);
+    EXPECT_LE(store.live_bytes(), store.max_bytes());
+    EXPECT_EQ(store.count(), 1u);  // 3 and 4 dropped for it; 1 is drawn
+    EXPECT_EQ(store.reserve("", each).outcome, ModelStore::Room::NoRoomNow);
+  }
+  EXPECT_EQ(store.live_bytes(), each);
+  EXPECT_EQ(store.reserve("", 2 * each).outcome, ModelStore::Room::Made);
+  // A pinned model dropping 1 while it is drawn: still counted until the render lets it go.
+  ModelStore pinned_later(room_for(2, 2));
+  ASSERT_EQ(upload(pinned_later, "", "sha256:x"), ModelStore::Outcome::Added);
+  const auto still_drawn = drawn_model(pinned_later.find("sha256:x"));
+  ASSERT_EQ(pinned_later.add("sha256:p", "floor", model_of(200), true).outcome, ModelStore::Outcome::Added);
+  EXPECT_EQ(pinned_later.find("sha256:x"), nullptr);
+  EXPECT_EQ(pinned_later.live_bytes(), pinned_later.bytes() + each);
+  EXPECT_EQ(pinned_later.reserve("", each / 4).outcome, ModelStore::Room::NoRoomNow);
+}
+
+TEST(ModelStore, AReservationTooSmallForTheModelGrowsOrRefuses) {
+  ModelStore store(room_for(2, 2));
+  const std::uint64_t each = model_of(100)->bytes();
+  ModelStore::RoomResult room = store.reserve("", each / 2);
+  ASSERT_EQ(room.outcome, ModelStore::Room::Made);
+  EXPECT_EQ(store.add_upload("sha256:1", model_of(100), room.reservation).outcome, ModelStore::Outcome::Added);
+  EXPECT_EQ(room.reservation.bytes(), 0u);
+  ModelStore::RoomResult small = store.reserve("", 1);
+  ASSERT_EQ(small.outcome, ModelStore::Room::Made);
+  EXPECT_EQ(store.add_upload("sha256:big", model_of(1000), small.reservation).outcome, ModelStore::Outcome::TooLarge);
+  EXPECT_NE(store.find("sha256:1"), nullptr);
+}
+
 TEST(ModelStore, AFolderLoadsByNameAndRefusesWhatLeavesIt) {
   const fs::path root = fs::temp_directory_path() / ("umbra-models-" + std::to_string(::getpid()));
   fs::create_directories(root / "models");
