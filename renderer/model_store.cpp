@@ -13,6 +13,8 @@
 
 namespace umbra {
 
+std::uint64_t max_loaded_bytes(std::uint64_t body_bytes) { return kUploadExpansion * body_bytes + kUploadAllowance; }
+
 std::shared_ptr<const TriangleModel> drawn_model(const std::shared_ptr<const HeldModel>& held) {
   if (!held) return nullptr;
   return std::shared_ptr<const TriangleModel>(held, held->model.get());

@@ -198,6 +198,17 @@ class ModelStore {
   std::shared_ptr<std::atomic<std::uint64_t>> alive_ = std::make_shared<std::atomic<std::uint64_t>>(0);
 };
 
+/// How much larger than its body an upload may be once loaded: at most
+/// kUploadExpansion x its body + kUploadAllowance bytes. A mesh drawn once
+/// loads to at most 12 times its body (uint8 triangle strips; a welded
+/// mesh with normals about 1 time, 3 times for uint16 strips without
+/// normals); only instancing (one mesh under many nodes, each copy built
+/// out) goes further, and past the allowance an upload pays for its
+/// copies with 1 body byte per 16 loaded.
+constexpr std::uint64_t kUploadExpansion = 16;
+constexpr std::uint64_t kUploadAllowance = std::uint64_t(32) << 20;
+std::uint64_t max_loaded_bytes(std::uint64_t body_bytes);
+
 /// Holds the built-in models (builtin_models.hpp), pinned under their
 /// names, after a --models folder has been loaded: a folder's model of the
 /// same name keeps that name (the built-in one stays reachable by its id),

@@ -7,7 +7,13 @@
 #include <thread>
 #include <vector>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <ctime>
 
 #include "gltf_builder.hpp"
 #include "gltf_loader.hpp"
@@ -296,7 +302,7 @@ struct TemporaryFolder {
 
 TEST(ModelArchive, KeepsABodyUnderItsIdAndGivesItBack) {
   TemporaryFolder folder;
-  const ModelArchive archive(folder.path.string());
+  ModelArchive archive(folder.path.string());
   const std::string body = "glTF and then some bytes";
   const std::string id = model_id_for(body);
   std::string why;
@@ -319,7 +325,7 @@ TEST(ModelArchive, KeepsABodyUnderItsIdAndGivesItBack) {
 
 TEST(ModelArchive, TakesNoFileThatDoesNotHashToItsNameOrIsTooLarge) {
   TemporaryFolder folder;
-  const ModelArchive archive(folder.path.string());
+  ModelArchive archive(folder.path.string());
   const std::string body = "the model's bytes";
   const std::string id = model_id_for(body);
   std::string why;
@@ -339,7 +345,7 @@ TEST(ModelArchive, TakesNoFileThatDoesNotHashToItsNameOrIsTooLarge) {
 
 TEST(ModelArchive, NeverFormsAPathFromANameOrABadId) {
   TemporaryFolder folder;
-  const ModelArchive archive(folder.path.string());
+  ModelArchive archive(folder.path.string());
   std::ofstream(folder.path / "teapot.glb") << "glTF";
   std::string why;
   for (const std::string& key : std::vector<std::string>{"teapot", "../teapot", "sha256:../../etc/passwd",
@@ -353,10 +359,135 @@ TEST(ModelArchive, NeverFormsAPathFromANameOrABadId) {
 }
 
 TEST(ModelArchive, AFolderItCannotWriteToIsSaidSo) {
-  const ModelArchive archive("/nonexistent-umbra-folder");
+  ModelArchive archive("/nonexistent-umbra-folder");
   std::string why;
   EXPECT_FALSE(archive.save(model_id_for("x"), LoadOptions::Format::Binary, "x", why));
   EXPECT_NE(why.find("/nonexistent-umbra-folder"), std::string::npos) << why;
+}
+
+// Sets a file's mtime `seconds_ago` into the past: as if last used then.
+void age(const std::filesystem::path& file, int seconds_ago) {
+  const timespec times[2] = {{std::time(nullptr) - seconds_ago, 0}, {std::time(nullptr) - seconds_ago, 0}};
+  ASSERT_EQ(::utimensat(AT_FDCWD, file.c_str(), times, 0), 0) << file;
+}
+
+std::vector<std::string> files_in(const std::filesystem::path& folder) {
+  std::vector<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) names.push_back(entry.path().filename());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::uint64_t bytes_in(const std::filesystem::path& folder) {
+  std::uint64_t total = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) total += entry.file_size();
+  return total;
+}
+
+TEST(ModelArchive, TheFolderIsBoundedAndLeastRecentlyUsedFilesGoFirst) {
+  TemporaryFolder folder;
+  const std::size_t body_bytes = 1000;
+  ModelArchive archive(folder.path.string(), 3 * body_bytes + 200);  // three bodies and their records
+  const ModelArchive::Record record{123456, 12};
+  std::vector<std::string> ids;
+  std::string why;
+  for (int i = 0; i < 3; ++i) {
+    const std::string body(body_bytes, char('a' + i));
+    ids.push_back(model_id_for(body));
+    ASSERT_TRUE(archive.save(ids.back(), LoadOptions::Format::Binary, body, why, record)) << why;
+    age(folder.path / (ids.back().substr(7) + ".glb"), 1000 - 100 * i);  // 0 the oldest
+  }
+  ASSERT_EQ(files_in(folder.path).size(), 6u);  // each model and its record
+  // Model 0 is used (loaded by some server): 1 is now the least recently used.
+  ASSERT_TRUE(archive.load(ids[0], 1 << 20, why)) << why;
+  const std::string fourth(body_bytes, 'z');
+  ASSERT_TRUE(archive.save(model_id_for(fourth), LoadOptions::Format::Binary, fourth, why, record)) << why;
+  EXPECT_TRUE(archive.find(ids[0]));
+  EXPECT_FALSE(archive.find(ids[1]));
+  EXPECT_FALSE(std::filesystem::exists(folder.path / (ids[1].substr(7) + ".json")));  // its record went with it
+  EXPECT_TRUE(archive.find(ids[2]));
+  EXPECT_LE(bytes_in(folder.path), archive.max_bytes());
+  EXPECT_EQ(archive.evicted(), 1u);
+  // A deleted model is simply unknown; saved again, it is back.
+  why.clear();
+  EXPECT_FALSE(archive.load(ids[1], 1 << 20, why));
+  EXPECT_TRUE(why.empty()) << why;
+  ASSERT_TRUE(archive.save(ids[1], LoadOptions::Format::Binary, std::string(body_bytes, 'b'), why, record));
+  EXPECT_TRUE(archive.load(ids[1], 1 << 20, why));
+  EXPECT_LE(bytes_in(folder.path), archive.max_bytes());
+  // Larger than the whole folder may hold: refused, nothing written.
+  const std::string huge(4 * body_bytes, 'h');
+  EXPECT_EQ(archive.save(model_id_for(huge), LoadOptions::Format::Binary, huge, why).status,
+            ModelArchive::Status::NoSpace);
+  EXPECT_NE(why.find("--model-store-max-gib"), std::string::npos) << why;
+  EXPECT_FALSE(archive.find(model_id_for(huge)));
+}
+
+TEST(ModelArchive, RecordsSayWhatAModelHoldsWithoutReadingIt) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string());
+  std::string why;
+  const std::string body = "glTF a model";
+  ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why, ModelArchive::Record{5000, 7}));
+  std::optional<ModelArchive::Found> found = archive.find(model_id_for(body));
+  ASSERT_TRUE(found);
+  EXPECT_EQ(found->file_bytes, body.size());
+  ASSERT_TRUE(found->record);
+  EXPECT_EQ(found->record->bytes_bound, 5000u);
+  EXPECT_EQ(found->record->triangles, 7u);
+  // Without a record (an older server wrote it, or it was cut short): none.
+  const std::string other = "glTF another";
+  ASSERT_TRUE(archive.save(model_id_for(other), LoadOptions::Format::Json, other, why));
+  EXPECT_FALSE(archive.find(model_id_for(other))->record);
+  std::ofstream(folder.path / (model_id_for(other).substr(7) + ".json")) << "{\"bytes_bound\": 5";
+  EXPECT_FALSE(archive.find(model_id_for(other))->record);
+  archive.write_record(model_id_for(other), {900, 3});
+  EXPECT_EQ(archive.find(model_id_for(other))->record->bytes_bound, 900u);
+  EXPECT_EQ(archive.find(model_id_for(other))->format, LoadOptions::Format::Json);
+}
+
+TEST(ModelArchive, AFullDiskEvictsThenSaysNoSpaceAndLeavesNothingBehind) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string());
+  std::string why;
+  const std::string old_body(5000, 'o');
+  ASSERT_TRUE(archive.save(model_id_for(old_body), LoadOptions::Format::Binary, old_body, why));
+  // The disk takes no more than what is free: here, nothing until the old model goes.
+  archive.write_for_test = [&](int fd, const void* data, std::size_t size) -> ssize_t {
+    if (archive.find(model_id_for(old_body))) {
+      errno = ENOSPC;
+      return -1;
+    }
+    return ::write(fd, data, size);
+  };
+  const std::string body(3000, 'n');
+  ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why)) << why;
+  EXPECT_FALSE(archive.find(model_id_for(old_body)));
+  EXPECT_TRUE(archive.load(model_id_for(body), 1 << 20, why)) << why;
+  // Full whatever is deleted: NoSpace, and no file, no temporary left.
+  archive.write_for_test = [](int, const void*, std::size_t) -> ssize_t {
+    errno = ENOSPC;
+    return -1;
+  };
+  const std::string refused(100, 'r');
+  EXPECT_EQ(archive.save(model_id_for(refused), LoadOptions::Format::Binary, refused, why).status,
+            ModelArchive::Status::NoSpace);
+  EXPECT_NE(why.find("No space"), std::string::npos) << why;
+  EXPECT_TRUE(files_in(folder.path).empty()) << files_in(folder.path).size();
+}
+
+TEST(ModelArchive, StrayTemporaryFilesOfACrashAreDeleted) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string());
+  std::ofstream(folder.path / ".upload-0123-crashed") << "half a model";
+  std::ofstream(folder.path / ".upload-4567-writing") << "a write under way";
+  std::ofstream(folder.path / "notes.txt") << "not the store's";
+  age(folder.path / ".upload-0123-crashed", 2 * 3600);
+  std::string why;
+  ASSERT_TRUE(archive.save(model_id_for("x"), LoadOptions::Format::Binary, "x", why));
+  EXPECT_FALSE(std::filesystem::exists(folder.path / ".upload-0123-crashed"));
+  EXPECT_TRUE(std::filesystem::exists(folder.path / ".upload-4567-writing"));
+  EXPECT_TRUE(std::filesystem::exists(folder.path / "notes.txt"));
 }
 
 }  // namespace
