@@ -269,6 +269,14 @@ ModelStore::AddResult ModelStore::add(const std::string& id, const std::string& 
   return {Outcome::Added, held};
 }
 
+bool ModelStore::remove_upload(const std::string& id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto found = by_id_.find(id);
+  if (found == by_id_.end()) return false;
+  drop(found->second);
+  return true;
+}
+
 std::shared_ptr<const HeldModel> ModelStore::find(const std::string& id_or_name) {
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& held : pinned_)

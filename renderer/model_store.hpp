@@ -139,6 +139,10 @@ class ModelStore {
   AddResult add(const std::string& id, const std::string& name, std::shared_ptr<const TriangleModel> model,
                 bool pinned);
 
+  /// Stops holding the upload `id` (one that could not be written to the
+  /// shared folder, so is refused); false if it is not held.
+  bool remove_upload(const std::string& id);
+
   /// By id or by name; made the most recently used. Null if not held.
   std::shared_ptr<const HeldModel> find(const std::string& id_or_name);
   /// Pinned models first (by name), then uploads, most recently used first.
