@@ -670,6 +670,20 @@ std::shared_ptr<const HeldModel> HttpApi::find_model(ModelPlan& plan, const std:
   // record said (or no record): the reservation grows, or the load stops.
   std::optional<ModelsRefused> refused;
   load_options.admit = [&](std::uint64_t bytes, std::size_t, std::string& message) {
+    // With the scene's models already found, can it ever fit? (Known here
+    // only for a model without a record.)
+    std::uint64_t together = bytes;
+    for (const auto& [key, held] : plan.held)
+      if (!held->pinned) together += held->bytes;
+    const std::uint64_t for_uploads = models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes());
+    if (together > for_uploads) {
+      refused = ModelsRefused{422, "the scene's models need at least " + mib(together) +
+                                       " once loaded together, more than the " + mib(for_uploads) +
+                                       " this server holds for models beside those of --models DIR "
+                                       "(--models-budget-mib)"};
+      message = refused->message;
+      return 422;
+    }
     const ModelStore::Room room = models_->grow(load.room, bytes);
     if (room == ModelStore::Room::Made) return 0;
     refused = room_refusal(room, bytes, "the model " + short_id(id_or_name) + " needs", 503);

@@ -74,7 +74,7 @@ class HttpApi {
   HttpApi(RenderService& renderer, ServerOptions options);
   /// With the server's model store (main.cpp fills it from --models DIR).
   HttpApi(RenderService& renderer, ModelStore& models, ServerOptions options);
-  ~HttpApi();
+  virtual ~HttpApi();
 
   /// Binds the socket; false (with errno set) if the address is unusable.
   bool bind();
@@ -92,7 +92,8 @@ class HttpApi {
   /// uploads, and files it reads from --model-store for it): one owner's
   /// uploads never evict another owner's models within its share. Without
   /// authentication every client is the one owner "".
-  std::string uploader_of(const HttpRequest& req) const;
+  /// Virtual only so that tests can stand in for authentication.
+  virtual std::string uploader_of(const HttpRequest& req) const;
 
  private:
   HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options);
