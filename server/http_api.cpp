@@ -608,7 +608,7 @@ void HttpApi::send_models_refused(HttpResponse& res, const ModelsRefused& refuse
 // Before anything is loaded: the named models that are held are kept (a
 // render holds them), and those in the folder get room for what their
 // records say they hold. All of them must fit the budget together, and
-// those loaded for this owner its share.
+// each one loaded for this owner its share.
 void HttpApi::plan_models(ModelPlan& plan, const std::vector<std::string>& keys, const std::string& owner) {
   std::uint64_t held_bytes = 0, to_load_bytes = 0;
   std::string listed;
@@ -626,23 +626,26 @@ void HttpApi::plan_models(ModelPlan& plan, const std::vector<std::string>& keys,
     // is admitted before the model is built (find_model).
     const std::uint64_t bytes = found->record ? found->record->bytes_bound : 0;
     to_load_bytes += bytes;
-    if (listed.size() < 200) listed += (listed.empty() ? "" : ", ") + short_id(key) + " " + mib(bytes);
+    if (listed.size() < 200)
+      listed += (listed.empty() ? "" : ", ") + short_id(key) + " " + mib(bytes);
+    else if (listed.back() != '.')
+      listed += ", ...";
     plan.to_load.emplace(key, ModelPlan::ToLoad{*found, {}});
   }
   if (plan.to_load.empty()) return;
-  const std::string what = "the scene's models not held by this server (" + listed + ") need";
   const std::uint64_t for_uploads = models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes());
-  if (to_load_bytes > models_->share_bytes() && models_->share_bytes() < for_uploads)
-    throw room_refusal(ModelStore::Room::OverShare, to_load_bytes, what, 503);
   if (held_bytes + to_load_bytes > for_uploads)
     throw ModelsRefused{422, "the scene's models need " + mib(held_bytes + to_load_bytes) +
-                                 " once loaded together (" + mib(held_bytes) + " held, " + listed + " to load), " +
+                                 " once loaded together (" + mib(held_bytes) + " held; " + std::to_string(plan.to_load.size()) +
+                                 " to load: " + listed + "), " +
                                  "more than the " + mib(for_uploads) +
                                  " this server holds for models beside those of --models DIR (--models-budget-mib)"};
   for (auto& [key, load] : plan.to_load) {
     const std::uint64_t bytes = load.found.record ? load.found.record->bytes_bound : 0;
+    // Each one within the owner's share; together they may borrow beyond it.
     ModelStore::RoomResult room = models_->reserve(owner, bytes);
-    if (room.outcome != ModelStore::Room::Made) throw room_refusal(room.outcome, to_load_bytes, what, 503);
+    if (room.outcome != ModelStore::Room::Made)
+      throw room_refusal(room.outcome, bytes, "the model " + short_id(key) + " needs", 503);
     load.room = std::move(room.reservation);
   }
 }
