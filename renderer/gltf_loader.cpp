@@ -211,6 +211,8 @@ class Loader {
   Loader(const tinygltf::Model& model, const LoadOptions& options) : gltf_(model), options_(options) {}
 
   std::shared_ptr<TriangleModel> build();
+  /// What check_primitives found the model will hold at most.
+  std::uint64_t bytes_bound() const { return bytes_bound_; }
 
  private:
   struct Instance {
@@ -225,12 +227,17 @@ class Loader {
   std::vector<std::uint32_t> read_indices(int index, const std::string& where, std::size_t vertex_count) const;
   glm::dmat4 local_matrix(std::size_t node) const;
   std::vector<Instance> instances() const;
-  void check_primitives(const std::vector<Instance>& instances) const;
+  struct Size {
+    std::size_t triangles = 0;
+    std::uint64_t bytes = 0;  // model_bytes_bound of what the instances will build
+  };
+  Size check_primitives(const std::vector<Instance>& instances) const;
   glm::vec3 base_color(int material, const std::string& where) const;
   void add_primitive(const Instance& instance, std::size_t p, TriangleModel& out, std::map<std::array<float, 3>, std::size_t>& parts) const;
 
   const tinygltf::Model& gltf_;
   const LoadOptions& options_;
+  std::uint64_t bytes_bound_ = 0;
 };
 
 const tinygltf::Accessor& Loader::accessor(int index, const std::string& where) const {
@@ -453,8 +460,12 @@ std::string primitive_name(std::size_t mesh, std::size_t p) {
 
 // Modes, attributes and counts of every instanced primitive, before any
 // vertex is read: what the model will cost is known and bounded first.
-void Loader::check_primitives(const std::vector<Instance>& instances) const {
+Loader::Size Loader::check_primitives(const std::vector<Instance>& instances) const {
   std::vector<std::size_t> mesh_triangles(gltf_.meshes.size(), 0), mesh_vertices(gltf_.meshes.size(), 0);
+  // Vertices an instance keeps (only those its triangles use: at most the
+  // accessor's count and at most one per corner).
+  std::vector<std::size_t> mesh_kept(gltf_.meshes.size(), 0);
+  std::uint64_t kept_vertices = 0, primitive_instances = 0;
   std::vector<bool> checked(gltf_.meshes.size(), false);
   const std::size_t max_vertices = 3 * options_.max_triangles;
   std::size_t triangles = 0, vertices = 0;
@@ -485,17 +496,23 @@ void Loader::check_primitives(const std::vector<Instance>& instances) const {
         }
         mesh_triangles[m] += count;
         mesh_vertices[m] += vertex_count;
+        mesh_kept[m] += std::min(vertex_count, corners);
         if (mesh_triangles[m] > options_.max_triangles || mesh_vertices[m] > max_vertices)
           refuse(422, index_of("meshes", m) + ": more than " + std::to_string(options_.max_triangles) + " triangles");
       }
     }
     triangles += mesh_triangles[m];
     vertices += mesh_vertices[m];
+    kept_vertices += mesh_kept[m];
+    primitive_instances += gltf_.meshes[m].primitives.size();
     if (triangles > options_.max_triangles || vertices > max_vertices)
       refuse(422, "the model has more than " + std::to_string(options_.max_triangles) +
                       " triangles (or 3 times as many vertices), counting every node that instances a mesh; "
                       "that is the most one model may have");
   }
+  // One part per base colour: at most one per material and the default.
+  const std::uint64_t parts = std::min<std::uint64_t>(primitive_instances, gltf_.materials.size() + 1);
+  return {triangles, model_bytes_bound(triangles, kept_vertices, parts)};
 }
 
 glm::vec3 Loader::base_color(int material, const std::string& where) const {
@@ -616,7 +633,12 @@ std::shared_ptr<TriangleModel> Loader::build() {
     refuse(422, "extensionsRequired: " + short_message(extension) +
                     " is not supported (Umbra reads uncompressed glTF 2.0: decompress Draco or meshopt first)");
   const std::vector<Instance> all = instances();
-  check_primitives(all);
+  const Size size = check_primitives(all);
+  bytes_bound_ = size.bytes;
+  if (options_.admit) {
+    std::string why;
+    if (const int status = options_.admit(size.bytes, size.triangles, why)) refuse(status, why);
+  }
   auto model = std::make_shared<TriangleModel>();
   std::map<std::array<float, 3>, std::size_t> parts;
   for (const Instance& instance : all)
@@ -654,7 +676,9 @@ LoadResult load_gltf(std::string_view bytes, const LoadOptions& options) {
                             : parser.LoadASCIIFromString(&gltf, &err, &warn, bytes.data(), size, options.external_folder);
     if (!access.refused.empty()) refuse(options.external_folder.empty() ? 422 : 400, "a buffer " + access.refused);
     if (!parsed) refuse(400, "not a valid glTF 2.0 file: " + short_message(err.empty() ? "unreadable" : err));
-    result.model = Loader(gltf, options).build();
+    Loader loader(gltf, options);
+    result.model = loader.build();
+    result.bytes_bound = loader.bytes_bound();
   } catch (const Refusal& r) {
     result.model.reset();
     result.status = r.status;

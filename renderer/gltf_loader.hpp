@@ -13,6 +13,8 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -51,12 +53,23 @@ struct LoadOptions {
   std::size_t max_external_bytes = std::size_t(64) << 20;
   std::size_t max_triangles = kMaxModelTriangles;
   std::size_t max_nodes = kMaxModelNodes;
+  /// Asked once what the model will hold is known from its accessors and
+  /// node instances, before any vertex is read or any geometry built:
+  /// `bytes` bounds the finished model's TriangleModel::bytes()
+  /// (model_bytes_bound). Returns 0 to go on, or an HTTP status (422,
+  /// 503, 507...) with `why` set, which refuses the load with them: so a
+  /// caller counts a model against a budget before its memory is spent.
+  /// Empty: every model within the limits above is built.
+  std::function<int(std::uint64_t bytes, std::size_t triangles, std::string& why)> admit;
 };
 
 struct LoadResult {
   std::shared_ptr<TriangleModel> model;  ///< set on success
   int status = 0;                        ///< 0 on success, else 400 or 422
   std::string error;                     ///< what is wrong and where
+  /// The bound `admit` was given (0 if the load stopped before it was
+  /// known): TriangleModel::bytes() of `model` is at most this.
+  std::uint64_t bytes_bound = 0;
 
   bool ok() const { return model != nullptr; }
 };

@@ -25,6 +25,13 @@ std::size_t TriangleModel::bytes() const {
   return n + area_vectors.capacity() * sizeof(glm::dvec3);
 }
 
+std::uint64_t model_bytes_bound(std::uint64_t triangles, std::uint64_t vertices, std::uint64_t parts) {
+  // finish_model shrinks every vector to its size: bytes() is exactly this
+  // for a model whose parts keep `vertices` positions in all.
+  return sizeof(TriangleModel) + parts * sizeof(ModelPart) + vertices * 2 * sizeof(glm::vec3) +
+         triangles * 3 * sizeof(std::uint32_t);
+}
+
 namespace {
 
 // The bits of a position, with -0 read as +0 so that both weld together.

@@ -45,6 +45,12 @@ struct TriangleModel {
   std::size_t bytes() const;
 };
 
+/// The most TriangleModel::bytes() can be for a finished model (after
+/// finish_model) of `triangles` triangles, `vertices` positions and
+/// `parts` parts: what a loader knows before it reads a vertex, so that a
+/// model is counted against a memory budget before it is built.
+std::uint64_t model_bytes_bound(std::uint64_t triangles, std::uint64_t vertices, std::uint64_t parts);
+
 /// True when the triangles form closed, consistently wound surfaces that
 /// face out: every edge is shared by exactly two triangles that run along it
 /// in opposite directions, and every shell (triangles joined by edges)

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <utility>
 
 #include <nlohmann/json.hpp>
@@ -174,8 +175,24 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "/metrics", &HttpApi::metrics, false},
 };
 
+struct HttpApi::ModelPlan {
+  std::map<std::string, std::shared_ptr<const HeldModel>> held;  // by the key the scene names
+  struct ToLoad {
+    ModelArchive::Found found;
+    ModelStore::Reservation room;
+  };
+  std::map<std::string, ToLoad> to_load;  // by id
+};
+
+ModelStore::Limits model_store_limits(const ServerOptions& options) {
+  ModelStore::Limits limits;
+  limits.max_bytes = options.models_budget_bytes;
+  limits.share_bytes = options.upload_share_bytes ? options.upload_share_bytes : options.models_budget_bytes / 4;
+  return limits;
+}
+
 HttpApi::HttpApi(RenderService& renderer, ServerOptions options)
-    : HttpApi(renderer, std::make_shared<ModelStore>(options.models_budget_bytes), options) {}
+    : HttpApi(renderer, std::make_shared<ModelStore>(model_store_limits(options)), options) {}
 
 // Not owned: an aliasing pointer with no control block.
 HttpApi::HttpApi(RenderService& renderer, ModelStore& models, ServerOptions options)
@@ -183,7 +200,8 @@ HttpApi::HttpApi(RenderService& renderer, ModelStore& models, ServerOptions opti
 
 HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options)
     : renderer_(renderer), options_(std::move(options)), models_(std::move(models)), started_(Clock::now()) {
-  if (!options_.model_store_dir.empty()) archive_ = std::make_unique<ModelArchive>(options_.model_store_dir);
+  if (!options_.model_store_dir.empty())
+    archive_ = std::make_unique<ModelArchive>(options_.model_store_dir, options_.model_store_max_bytes);
   HttpServerOptions connections = options_.connections;
   connections.host = options_.host;
   connections.port = options_.port;
@@ -324,6 +342,14 @@ MetricsGauges HttpApi::state() const {
   g.models = models_->count();
   g.model_bytes = models_->bytes();
   g.model_budget_bytes = models_->max_bytes();
+  g.model_live_bytes = models_->live_bytes();
+  g.model_share_bytes = models_->share_bytes();
+  g.models_loaded = models_loaded_.load();
+  if (archive_) {
+    g.model_store_bytes = archive_->bytes_on_disk();
+    g.model_store_budget_bytes = archive_->max_bytes();
+    g.model_store_evicted = archive_->evicted();
+  }
   g.connections_open = connections.connections_open;
   g.connections_evicted = connections.connections_evicted;
   g.connections_refused = connections.connections_refused;
@@ -412,17 +438,25 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   // No body at all reads as {}, all defaults, like an empty one. The
   // parser sets a depth route's output itself, so that Umbra-Unused-Fields
   // is judged against the depth map.
-  const ModelLookup lookup = [this](const std::string& id_or_name) -> std::optional<FoundModel> {
-    const auto held = find_model(id_or_name);
+  // The models the scene names are counted against the budget before any
+  // is loaded (plan_models), then found or loaded as the parser asks.
+  ModelPlan plan;
+  const std::string owner = uploader_of(req);
+  const ModelsNamed named = [&](const std::vector<std::string>& keys) { plan_models(plan, keys, owner); };
+  const ModelLookup lookup = [&](const std::string& id_or_name) -> std::optional<FoundModel> {
+    const auto held = find_model(plan, id_or_name);
     if (!held) return std::nullopt;
-    return FoundModel{held->id, held->model};
+    return FoundModel{held->id, drawn_model(held)};
   };
   ParsedRequest parsed;
   try {
-    parsed = parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, lookup);
+    parsed = parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, lookup, named);
   } catch (const ModelLoadsBusy&) {
     return send_models_busy(res);
+  } catch (const ModelsRefused& refused) {
+    return send_models_refused(res, refused);
   }
+  plan = ModelPlan{};  // what was reserved and not used goes back; the request holds its models
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
   record.output = to_string(request.output);
@@ -498,9 +532,13 @@ void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
   const std::string key = req.path.substr(std::char_traits<char>::length("/api/models/"));
   std::shared_ptr<const HeldModel> held;
   try {
-    held = find_model(key);
+    ModelPlan plan;
+    plan_models(plan, {key}, uploader_of(req));
+    held = find_model(plan, key);
   } catch (const ModelLoadsBusy&) {
     return send_models_busy(res);
+  } catch (const ModelsRefused& refused) {
+    return send_models_refused(res, refused);
   }
   if (!held)
     return send_error(res, 404,
@@ -523,7 +561,9 @@ std::optional<LoadResult> HttpApi::load_model(const std::string& body, const Loa
       --api.model_loads_;
     }
   } release{*this};
-  return load_gltf(body, options);
+  LoadResult result = load_gltf(body, options);
+  if (result.ok()) models_loaded_.fetch_add(1);
+  return result;
 }
 
 void HttpApi::send_models_busy(HttpResponse& res) const {
@@ -531,9 +571,96 @@ void HttpApi::send_models_busy(HttpResponse& res) const {
   send_error(res, 503, "already loading " + std::to_string(kMaxConcurrentModelLoads) + " models; retry later", "");
 }
 
-std::shared_ptr<const HeldModel> HttpApi::find_model(const std::string& id_or_name) {
-  if (auto held = models_->find(id_or_name)) return held;
-  if (!archive_) return nullptr;
+std::string HttpApi::uploader_of(const HttpRequest&) const { return ""; }
+
+namespace {
+
+std::string mib(std::uint64_t bytes) { return std::to_string((bytes + (1 << 20) - 1) >> 20) + " MiB"; }
+
+// "sha256:0123456789ab..." : enough of an id to tell models apart in a message.
+std::string short_id(const std::string& id) { return id.size() > 19 ? id.substr(0, 19) + "..." : id; }
+
+}  // namespace
+
+HttpApi::ModelsRefused HttpApi::room_refusal(ModelStore::Room room, std::uint64_t bytes, const std::string& what,
+                                             int no_room_status) const {
+  const std::string for_uploads = mib(models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes()));
+  switch (room) {
+    case ModelStore::Room::OverShare:
+      return {422, what + " " + mib(bytes) + " once loaded, more than the " + mib(models_->share_bytes()) +
+                       " share of model memory each client has (--upload-quota-mib)"};
+    case ModelStore::Room::OverBudget:
+      return {422, what + " " + mib(bytes) + " once loaded, more than the " + for_uploads +
+                       " this server holds for models beside those of --models DIR (--models-budget-mib)"};
+    default:
+      return {no_room_status,
+              what + " " + mib(bytes) + " once loaded, and the " + mib(models_->max_bytes()) +
+                  " for models (--models-budget-mib) are held now by other clients' models within their share, "
+                  "by models being drawn and by loads under way; retry later"};
+  }
+}
+
+void HttpApi::send_models_refused(HttpResponse& res, const ModelsRefused& refused) const {
+  if (refused.status == 503 || refused.status == 507) res.set_header("Retry-After", "5");
+  send_error(res, refused.status, refused.message, "");
+}
+
+// Before anything is loaded: the named models that are held are kept (a
+// render holds them), and those in the folder get room for what their
+// records say they hold. All of them must fit the budget together, and
+// each one loaded for this owner its share.
+void HttpApi::plan_models(ModelPlan& plan, const std::vector<std::string>& keys, const std::string& owner) {
+  std::uint64_t held_bytes = 0, to_load_bytes = 0;
+  std::string listed;
+  for (const std::string& key : keys) {
+    if (auto held = models_->find(key)) {
+      if (!held->pinned) held_bytes += held->bytes;
+      if (archive_) archive_->touch(held->id);  // used: the folder keeps it longest
+      plan.held.emplace(key, std::move(held));
+      continue;
+    }
+    if (!archive_ || plan.to_load.count(key)) continue;
+    std::optional<ModelArchive::Found> found = archive_->find(key);
+    if (!found) continue;  // unknown: the parser says so
+    // Without a record (an older server wrote it), the loader's own bound
+    // is admitted before the model is built (find_model).
+    const std::uint64_t bytes = found->record ? found->record->bytes_bound : 0;
+    to_load_bytes += bytes;
+    if (listed.size() < 200)
+      listed += (listed.empty() ? "" : ", ") + short_id(key) + " " + mib(bytes);
+    else if (listed.back() != '.')
+      listed += ", ...";
+    plan.to_load.emplace(key, ModelPlan::ToLoad{*found, {}});
+  }
+  if (plan.to_load.empty()) return;
+  const std::uint64_t for_uploads = models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes());
+  if (held_bytes + to_load_bytes > for_uploads)
+    throw ModelsRefused{422, "the scene's models need " + mib(held_bytes + to_load_bytes) +
+                                 " once loaded together (" + mib(held_bytes) + " held; " + std::to_string(plan.to_load.size()) +
+                                 " to load: " + listed + "), " +
+                                 "more than the " + mib(for_uploads) +
+                                 " this server holds for models beside those of --models DIR (--models-budget-mib)"};
+  for (auto& [key, load] : plan.to_load) {
+    const std::uint64_t bytes = load.found.record ? load.found.record->bytes_bound : 0;
+    // Each one within the owner's share; together they may borrow beyond it.
+    ModelStore::RoomResult room = models_->reserve(owner, bytes);
+    if (room.outcome != ModelStore::Room::Made)
+      throw room_refusal(room.outcome, bytes, "the model " + short_id(key) + " needs", 503);
+    load.room = std::move(room.reservation);
+  }
+}
+
+std::shared_ptr<const HeldModel> HttpApi::find_model(ModelPlan& plan, const std::string& id_or_name) {
+  if (const auto held = plan.held.find(id_or_name); held != plan.held.end()) return held->second;
+  const auto planned = plan.to_load.find(id_or_name);
+  if (planned == plan.to_load.end()) return nullptr;  // neither held nor stored when planned
+  ModelPlan::ToLoad& load = planned->second;
+  const auto keep = [&](std::shared_ptr<const HeldModel> held) {
+    plan.held.emplace(id_or_name, held);
+    plan.to_load.erase(planned);
+    return held;
+  };
+  if (auto held = models_->find(id_or_name)) return keep(std::move(held));  // loaded meanwhile
   std::string why;
   const std::optional<ModelArchive::Stored> stored = archive_->load(id_or_name, options_.max_model_bytes, why);
   if (!stored) {
@@ -542,21 +669,52 @@ std::shared_ptr<const HeldModel> HttpApi::find_model(const std::string& id_or_na
   }
   LoadOptions load_options;  // as an upload: nothing outside the body is read
   load_options.format = stored->format;
+  // What it holds is known before it is built: counted first. More than its
+  // record said (or no record): the reservation grows, or the load stops.
+  std::optional<ModelsRefused> refused;
+  load_options.admit = [&](std::uint64_t bytes, std::size_t, std::string& message) {
+    // With the scene's models already found, can it ever fit? (Known here
+    // only for a model without a record.)
+    std::uint64_t together = bytes;
+    for (const auto& [key, held] : plan.held)
+      if (!held->pinned) together += held->bytes;
+    const std::uint64_t for_uploads = models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes());
+    if (together > for_uploads) {
+      refused = ModelsRefused{422, "the scene's models need at least " + mib(together) +
+                                       " once loaded together, more than the " + mib(for_uploads) +
+                                       " this server holds for models beside those of --models DIR "
+                                       "(--models-budget-mib)"};
+      message = refused->message;
+      return 422;
+    }
+    const ModelStore::Room room = models_->grow(load.room, bytes);
+    if (room == ModelStore::Room::Made) return 0;
+    refused = room_refusal(room, bytes, "the model " + short_id(id_or_name) + " needs", 503);
+    message = refused->message;
+    return refused->status;
+  };
   std::optional<LoadResult> result = load_model(stored->body, load_options);
   if (!result) throw ModelLoadsBusy();
   LoadResult& loaded = *result;
+  if (refused) throw *refused;
   if (!loaded.ok()) {
     std::fprintf(stderr, "umbra-server: --model-store: %s: %s\n", id_or_name.c_str(), loaded.error.c_str());
     return nullptr;
   }
-  const ModelStore::AddResult added = models_->add(id_or_name, "", std::move(loaded.model), false);
-  if (!added.held)
-    std::fprintf(stderr, "umbra-server: --model-store: %s does not fit --models-budget-mib\n", id_or_name.c_str());
-  return added.held;
+  const std::size_t triangles = loaded.model->triangle_count();
+  const ModelStore::AddResult added = models_->add_upload(id_or_name, std::move(loaded.model), load.room);
+  if (!added.held) throw room_refusal(ModelStore::Room::NoRoomNow, loaded.bytes_bound, "the model " + short_id(id_or_name) + " needs", 503);
+  // Measured now: the next server to need it counts it before loading it.
+  if (!load.found.record || load.found.record->bytes_bound != loaded.bytes_bound)
+    archive_->write_record(id_or_name, {loaded.bytes_bound, triangles});
+  return keep(added.held);
 }
 
 // A .glb or a self-contained .gltf; its id is the SHA-256 of the body, so
 // the same upload twice is one model (the second answered 200 at once).
+// Its room is reserved before it is built (it may hold at most
+// max_loaded_bytes of its body, and its owner's share); it is held, then
+// written to --model-store: nothing refused is written.
 void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
   const std::string full_type = req.header("Content-Type");
   std::string type = full_type.substr(0, full_type.find(';'));
@@ -574,38 +732,71 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
   const std::string id = model_id_for(req.body);
   // Every server of a cluster must find a model it is told of: it is in
   // the shared folder before the upload is answered, also when this server
-  // held it already. Only a body that loaded is written there.
-  const auto archived = [&] {
+  // held it already (another server may have evicted the file).
+  const auto archived = [&](const std::optional<ModelArchive::Record>& record) {
     std::string why;
-    if (!archive_ || archive_->save(id, options.format, req.body, why)) return true;
-    send_error(res, 503, "the model could not be written to --model-store: " + why, "");
+    if (!archive_) return true;
+    const ModelArchive::Saved saved = archive_->save(id, options.format, req.body, why, record);
+    if (saved) return true;
+    if (saved.status == ModelArchive::Status::NoSpace) {
+      res.set_header("Retry-After", "5");
+      send_error(res, 507, "the model could not be written to --model-store: " + why, "");
+    } else {
+      send_error(res, 503, "the model could not be written to --model-store: " + why, "");
+    }
     return false;
   };
   if (const auto held = models_->find(id)) {
-    if (archived()) res.set_content(model_json(*held).dump(), "application/json");
+    if (archived(ModelArchive::Record{held->bytes, held->model->triangle_count()}))
+      res.set_content(model_json(*held).dump(), "application/json");
     return;
   }
+  const std::string owner = uploader_of(req);
+  ModelStore::Reservation room;
+  options.admit = [&](std::uint64_t bytes, std::size_t, std::string& why) {
+    const std::uint64_t most = max_loaded_bytes(req.body.size());
+    if (bytes > most) {
+      why = "the model would hold up to " + mib(bytes) + " once loaded, more than an upload of " +
+            std::to_string(req.body.size()) + " bytes may: " + std::to_string(kUploadExpansion) +
+            " times its body + " + mib(kUploadAllowance) + " (" + mib(most) +
+            "); instancing one mesh under many nodes builds each copy out";
+      return 422;
+    }
+    ModelStore::RoomResult reserved = models_->reserve(owner, bytes);
+    if (reserved.outcome == ModelStore::Room::Made) {
+      room = std::move(reserved.reservation);
+      return 0;
+    }
+    const ModelsRefused refused = room_refusal(reserved.outcome, bytes, "the model needs", 507);
+    if (refused.status == 507) res.set_header("Retry-After", "5");
+    why = refused.message;
+    return refused.status;
+  };
   std::optional<LoadResult> result = load_model(req.body, options);
   if (!result) return send_models_busy(res);
   LoadResult& loaded = *result;
   if (!loaded.ok()) return send_error(res, loaded.status, loaded.error, "");
-  if (!archived()) return;
-  const std::size_t bytes = loaded.model->bytes();
-  const ModelStore::AddResult added = models_->add(id, "", std::move(loaded.model), false);
+  const std::size_t triangles = loaded.model->triangle_count();
+  const ModelStore::AddResult added = models_->add_upload(id, std::move(loaded.model), room);
   switch (added.outcome) {
     case ModelStore::Outcome::Added:
+      if (!archived(ModelArchive::Record{loaded.bytes_bound, triangles})) {
+        models_->remove_upload(id);  // refused: neither held nor written
+        return;
+      }
       res.status = 201;
       res.set_header("Location", "/api/models/" + id);
       break;
     case ModelStore::Outcome::AlreadyHeld:  // uploaded meanwhile by another request
+      if (!archived(ModelArchive::Record{loaded.bytes_bound, triangles})) return;
       break;
     case ModelStore::Outcome::TooLarge:
     case ModelStore::Outcome::NameTaken:  // uploads have no name: cannot happen
-      return send_error(res, 422,
-                        "the model needs " + std::to_string(bytes >> 20) + " MiB once loaded, more than the " +
-                            std::to_string(models_->max_bytes() >> 20) +
-                            " MiB the server holds for models beside those of --models DIR (--models-budget-mib)",
-                        "");
+    case ModelStore::Outcome::NoRoom:
+      send_models_refused(res, room_refusal(added.outcome == ModelStore::Outcome::NoRoom ? ModelStore::Room::NoRoomNow
+                                                                                          : ModelStore::Room::OverBudget,
+                                            loaded.bytes_bound, "the model needs", 507));
+      return;
   }
   res.set_content(model_json(*added.held).dump(), "application/json");
 }

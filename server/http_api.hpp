@@ -3,6 +3,7 @@
 // pixels into PNG. Knows nothing of GL.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <memory>
 #include <mutex>
@@ -36,11 +37,21 @@ struct ServerOptions {
   /// Geometry held (--models-budget-mib), for the store HttpApi makes when
   /// none is given to it.
   std::uint64_t models_budget_bytes = std::uint64_t(2048) << 20;
+  /// --upload-quota-mib: what one owner's models (HttpApi::uploader_of)
+  /// may hold without being dropped for other owners' (ModelStore::Limits::
+  /// share_bytes). 0: a quarter of models_budget_bytes.
+  std::uint64_t upload_share_bytes = 0;
   /// --model-store DIR: a folder shared with other servers where every
   /// upload is written, and where a model not held is looked for
   /// (model_archive.hpp). Empty: none.
   std::string model_store_dir;
+  /// --model-store-max-gib: the most the folder holds; least recently used
+  /// files are deleted first to stay under it.
+  std::uint64_t model_store_max_bytes = ModelArchive::kDefaultMaxBytes;
 };
+
+/// The model store's limits for `options`: its budget, and each owner's share.
+ModelStore::Limits model_store_limits(const ServerOptions& options);
 
 /// "*", or scheme://host[:port] with scheme http or https and nothing after.
 bool valid_cors_origin(const std::string& origin);
@@ -63,7 +74,7 @@ class HttpApi {
   HttpApi(RenderService& renderer, ServerOptions options);
   /// With the server's model store (main.cpp fills it from --models DIR).
   HttpApi(RenderService& renderer, ModelStore& models, ServerOptions options);
-  ~HttpApi();
+  virtual ~HttpApi();
 
   /// Binds the socket; false (with errno set) if the address is unusable.
   bool bind();
@@ -76,6 +87,13 @@ class HttpApi {
   /// Stops serve(): idle connections and requests still arriving are
   /// closed at once, requests already read are answered. Thread-safe.
   void stop();
+
+  /// Whom the models `req` makes this server load are charged to (its
+  /// uploads, and files it reads from --model-store for it): one owner's
+  /// uploads never evict another owner's models within its share. Without
+  /// authentication every client is the one owner "".
+  /// Virtual only so that tests can stand in for authentication.
+  virtual std::string uploader_of(const HttpRequest& req) const;
 
  private:
   HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options);
@@ -106,16 +124,34 @@ class HttpApi {
   void get_model(const HttpRequest& req, HttpResponse& res);
 
   void render(const HttpRequest& req, HttpResponse& res, bool depth_route);
-  /// A held model by id or name; one not held is loaded from the
-  /// --model-store folder if that has it. Null if neither has it. Throws
-  /// ModelLoadsBusy if it would have to load one with no place free.
-  std::shared_ptr<const HeldModel> find_model(const std::string& id_or_name);
+  /// The models a request names, planned before any is loaded: those held
+  /// (kept alive here), and those to load from --model-store, each with
+  /// room already reserved for what its record says it holds.
+  struct ModelPlan;
+  /// Plans `keys` for `owner`. Throws ModelsRefused when what the held and
+  /// stored ones need together can never fit (422) or has no room now (503).
+  void plan_models(ModelPlan& plan, const std::vector<std::string>& keys, const std::string& owner);
+  /// A planned model by id or name: held, or loaded from the folder into
+  /// its reservation. Null if neither has it. Throws ModelLoadsBusy if it
+  /// would have to load one with no place free, ModelsRefused if it holds
+  /// more than its record said and no room is left for the rest.
+  std::shared_ptr<const HeldModel> find_model(ModelPlan& plan, const std::string& id_or_name);
   /// load_gltf in one of kMaxConcurrentModelLoads places (a load holds a
   /// few times its body in memory): nullopt, unloaded, if none is free.
   std::optional<LoadResult> load_model(const std::string& body, const LoadOptions& options);
   /// 503 with Retry-After: every model-load place is taken.
   void send_models_busy(HttpResponse& res) const;
   struct ModelLoadsBusy {};
+  /// The models a request names, or an upload, refused with this status
+  /// (422: can never fit; 503 / 507: no room now, Retry-After) and message.
+  struct ModelsRefused {
+    int status;
+    std::string message;
+  };
+  void send_models_refused(HttpResponse& res, const ModelsRefused& refused) const;
+  /// What a refused reservation of `bytes` for `what` answers.
+  ModelsRefused room_refusal(ModelStore::Room room, std::uint64_t bytes, const std::string& what,
+                             int no_room_status) const;
   /// The route for `req`'s method and path, or null (with `allow` set to
   /// the path's methods, if the path is a route's).
   const Route* find_route(const HttpRequest& req, std::string& allow) const;
@@ -135,6 +171,7 @@ class HttpApi {
   std::shared_ptr<ModelStore> models_;  // owned, or the one given (not owned)
   std::mutex model_loads_mutex_;
   int model_loads_ = 0;  // uploads being loaded now
+  std::atomic<std::uint64_t> models_loaded_{0};  // glTF bodies built into models
   std::unique_ptr<ModelArchive> archive_;  // --model-store, or null
   Metrics metrics_;
   std::unique_ptr<HttpServer> http_;

@@ -3,7 +3,8 @@
 //   umbra-server [--host 127.0.0.1] [--port 8080] [--web DIR] [--queue 16] [--deadline-ms 10000]
 //                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--memory-mib 2048]
 //                [--fresh-context-mib 64] [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--models DIR]
-//                [--model-store DIR] [--max-model-mib 64] [--models-budget-mib 2048] [--quiet]
+//                [--model-store DIR] [--model-store-max-gib 8] [--max-model-mib 64] [--models-budget-mib 2048]
+//                [--upload-quota-mib N] [--quiet]
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -32,8 +33,8 @@ void usage(std::FILE* out) {
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
                "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--memory-mib N]\n"
                "                    [--fresh-context-mib N] [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--models DIR]\n"
-               "                    [--model-store DIR] [--max-model-mib N] [--models-budget-mib N]\n"
-               "                    [--quiet]\n"
+               "                    [--model-store DIR] [--model-store-max-gib N] [--max-model-mib N]\n"
+               "                    [--models-budget-mib N] [--upload-quota-mib N] [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
                "  --web DIR       serve the web panel from DIR instead of the copy built in\n"
@@ -67,12 +68,23 @@ void usage(std::FILE* out) {
                "                  a folder shared with other servers (several on one machine, or a network file system):\n"
                "                  every upload is written there, named by its id, and a model this server does not hold\n"
                "                  is loaded from there, so any server behind a load balancer can render any upload\n"
+               "  --model-store-max-gib N\n"
+               "                  the most the --model-store folder holds, GiB: before a file is written, the least\n"
+               "                  recently used ones are deleted to fit (give every server sharing it the same value);\n"
+               "                  a model deleted so is unknown until uploaded again, 1..1048576 (default 8)\n"
                "  --max-model-mib N\n"
                "                  largest model upload (POST /api/models body) and --models file, MiB; larger gets 413,\n"
                "                  1..4095 (default 64). Every other request body stays limited to 1 MiB\n"
                "  --models-budget-mib N\n"
-               "                  memory for held models' geometry, MiB: uploads beyond it drop the least recently\n"
-               "                  used uploads, 1..1048576 (default 2048)\n"
+               "                  memory for models' geometry, MiB: every model loaded (uploaded, or read from\n"
+               "                  --model-store for a render) is counted before it is built; room is made by dropping\n"
+               "                  least recently used uploads its owner may drop; a scene whose models can never fit\n"
+               "                  together gets 422, 1..1048576 (default 2048)\n"
+               "  --upload-quota-mib N\n"
+               "                  each owner's share of --models-budget-mib, MiB (an owner: a --tokens token; without\n"
+               "                  tokens, all clients are one): one owner's uploads never drop another's models within\n"
+               "                  its share (only beyond it, or unused for an hour); a model larger gets 422,\n"
+               "                  1..1048576 (default a quarter of --models-budget-mib)\n"
                "  --quiet         no per-request log lines\n"
                "SIGINT or SIGTERM: stop accepting, close idle connections and requests still arriving, answer the requests\n"
                "already received, exit 0 (a second one exits at once). Every render already received is answered within\n"
@@ -145,6 +157,12 @@ int main(int argc, char** argv) {
       models_dir = value("--models");
     } else if (arg == "--model-store") {
       options.model_store_dir = value("--model-store");
+    } else if (arg == "--model-store-max-gib") {
+      options.model_store_max_bytes =
+          std::uint64_t(integer_flag("--model-store-max-gib", value("--model-store-max-gib"), 1, 1048576)) << 30;
+    } else if (arg == "--upload-quota-mib") {
+      options.upload_share_bytes =
+          std::uint64_t(integer_flag("--upload-quota-mib", value("--upload-quota-mib"), 1, 1048576)) << 20;
     } else if (arg == "--max-model-mib") {
       options.max_model_bytes = std::size_t(integer_flag("--max-model-mib", value("--max-model-mib"), 1, 4095)) << 20;
     } else if (arg == "--models-budget-mib") {
@@ -180,7 +198,7 @@ int main(int argc, char** argv) {
     }
   }
 
-  umbra::ModelStore models(options.models_budget_bytes);
+  umbra::ModelStore models(umbra::model_store_limits(options));
   if (!models_dir.empty()) {
     umbra::FolderLoad loaded;
     std::string error;

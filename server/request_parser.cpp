@@ -681,9 +681,29 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
   return q;
 }
 
+// The distinct "model" strings of a custom scene's mesh objects, in order;
+// whatever else is wrong is left to read_request.
+std::vector<std::string> named_models(const json& root) {
+  std::vector<std::string> keys;
+  if (!root.is_object()) return keys;
+  const auto scene = root.find("scene");
+  if (scene == root.end() || !scene->is_object()) return keys;
+  const auto objects = scene->find("objects");
+  if (objects == scene->end() || !objects->is_array() || objects->size() > RequestLimits::kMaxObjects) return keys;
+  for (const json& o : *objects) {
+    if (!o.is_object()) continue;
+    const auto type = o.find("type"), model = o.find("model");
+    if (type == o.end() || *type != "mesh" || model == o.end() || !model->is_string()) continue;
+    const std::string& key = model->get_ref<const std::string&>();
+    if (std::find(keys.begin(), keys.end(), key) == keys.end()) keys.push_back(key);
+  }
+  return keys;
+}
+
 }  // namespace
 
-ParsedRequest parse_render_request(std::string_view body, Route route, const ModelLookup& find_model) {
+ParsedRequest parse_render_request(std::string_view body, Route route, const ModelLookup& find_model,
+                                   const ModelsNamed& models_named) {
   ParsedRequest result;
   json root;
   LocatingBuilder builder(root);
@@ -698,6 +718,10 @@ ParsedRequest parse_render_request(std::string_view body, Route route, const Mod
     }
   } else {
     root = json::object();
+  }
+  if (models_named) {
+    const std::vector<std::string> keys = named_models(root);
+    if (!keys.empty()) models_named(keys);
   }
   std::set<std::string> sent;
   try {

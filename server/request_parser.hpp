@@ -77,10 +77,17 @@ struct FoundModel {
 /// Finds a model by id or name (ModelStore::find); nullopt if none is held.
 using ModelLookup = std::function<std::optional<FoundModel>(const std::string& id_or_name)>;
 
+/// Told every distinct model key ("model" of a mesh object) a custom scene
+/// names, in order, once the JSON is read and before find_model is asked
+/// for any: so that a server can count what it would load against its
+/// budget first (and refuse by throwing, which parse_render_request lets
+/// through). Not called for a body that is not JSON or names no model.
+using ModelsNamed = std::function<void(const std::vector<std::string>& keys)>;
+
 /// `find_model` resolves mesh objects' "model"; a name or id it does not
 /// know is looked up among the built-in models (builtin_models.hpp), and
 /// refused as an unknown model if it is not one of them either.
 ParsedRequest parse_render_request(std::string_view body, Route route = Route::Render,
-                                   const ModelLookup& find_model = {});
+                                   const ModelLookup& find_model = {}, const ModelsNamed& models_named = {});
 
 }  // namespace umbra

@@ -237,6 +237,53 @@ TEST(GltfLoader, WithoutAScenePropertyEveryRootNodeIsUsed) {
   EXPECT_EQ(r.model->triangle_count(), 12u);
 }
 
+// What a model will hold is known, and bounds what it holds, before any
+// geometry is built: a caller's `admit` sees it and may refuse the load.
+TEST(GltfLoader, TheLoadedSizeIsBoundedAndAdmittedBeforeBuilding) {
+  GltfBuilder flat = cube_file();
+  GltfBuilder instanced = cube_file();
+  for (int n = 1; n < 40; ++n) {
+    instanced.doc["nodes"].push_back({{"mesh", 0}, {"translation", {2.0 * n, 0, 0}}});
+    instanced.doc["scenes"][0]["nodes"].push_back(n);
+  }
+  for (GltfBuilder* b : {&flat, &instanced}) {
+    std::uint64_t admitted = 0;
+    std::size_t admitted_triangles = 0;
+    LoadOptions options;
+    options.admit = [&](std::uint64_t bytes, std::size_t triangles, std::string&) {
+      admitted = bytes;
+      admitted_triangles = triangles;
+      return 0;
+    };
+    const LoadResult r = load(b->glb(), options);
+    ASSERT_TRUE(r.ok()) << r.error;
+    EXPECT_EQ(admitted_triangles, r.model->triangle_count());
+    EXPECT_EQ(r.bytes_bound, admitted);
+    EXPECT_LE(r.model->bytes(), admitted);
+    // Exact for welded meshes: every vertex of the accessor is used.
+    EXPECT_EQ(r.model->bytes(), admitted);
+  }
+  // Strips, fans, and meshes sharing one large accessor: still a bound.
+  for (int mode : {4, 5, 6}) {
+    GltfBuilder b;
+    std::vector<glm::vec3> corners;
+    for (int i = 0; i < 30; ++i) corners.push_back({float(i % 2), float(i / 2), float(i % 3) * 0.1f});
+    const int p = b.vec3s(corners);
+    const int few = b.indices_u16({0, 1, 2});
+    b.scene({b.node({{"mesh", b.mesh(p, -1, -1, -1, mode)}}), b.node({{"mesh", b.mesh(p, few)}})});
+    const LoadResult r = load(b.glb());
+    ASSERT_TRUE(r.ok()) << r.error;
+    EXPECT_LE(r.model->bytes(), r.bytes_bound) << "mode " << mode;
+  }
+  // A refusal carries the caller's status and message, and nothing is built.
+  LoadOptions refusing;
+  refusing.admit = [](std::uint64_t, std::size_t, std::string& why) {
+    why = "no room";
+    return 507;
+  };
+  expect_refused(instanced.glb(), 507, "no room", refusing);
+}
+
 // --- Refusals -------------------------------------------------------------
 
 TEST(GltfLoader, NonTriangleModesAreRefusedNamingThePrimitive) {

@@ -1191,6 +1191,219 @@ TEST(Http, AModelUploadedToOneServerRendersOnAnotherThroughTheSharedStore) {
   fs::remove_all(folder);
 }
 
+// --- Models' memory, the store's disk, and owners (issue 29) ----------------
+
+// A grid of n x n vertices (2 (n - 1)^2 triangles) under `nodes` nodes, side
+// by side: instancing, which the loader builds out copy by copy.
+std::string instanced_grid_glb(int n, int nodes) {
+  test::GltfBuilder b;
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  for (int z = 0; z < n; ++z)
+    for (int x = 0; x < n; ++x) positions.push_back({float(x) / float(n), 0.0f, -float(z) / float(n)});
+  for (int z = 0; z + 1 < n; ++z)
+    for (int x = 0; x + 1 < n; ++x) {
+      const std::uint32_t a = std::uint32_t(z * n + x), c = a + std::uint32_t(n);
+      indices.insert(indices.end(), {a, a + 1, c + 1, a, c + 1, c});
+    }
+  const int mesh = b.mesh(b.vec3s(positions), b.indices_u32(indices));
+  std::vector<int> roots;
+  for (int i = 0; i < nodes; ++i) roots.push_back(b.node({{"mesh", mesh}, {"translation", {1.5 * i, 0, 0}}}));
+  b.scene(roots);
+  return b.glb();
+}
+
+double metric(httplib::Client& c, const std::string& name) {
+  const std::string page = c.Get("/metrics")->body;
+  const std::size_t at = page.find("\n" + name + " ");
+  if (at == std::string::npos) return -1.0;
+  return std::stod(page.substr(at + name.size() + 2));
+}
+
+struct StoreFolder {
+  std::filesystem::path path;
+  explicit StoreFolder(const std::string& name) {
+    path = std::filesystem::temp_directory_path() / ("umbra-http-" + name + "-" + std::to_string(getpid()));
+    std::filesystem::remove_all(path);
+    std::filesystem::create_directories(path);
+  }
+  ~StoreFolder() { std::filesystem::remove_all(path); }
+  std::vector<std::string> files() const {
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(path)) names.push_back(e.path().filename());
+    return names;
+  }
+  std::uint64_t bytes() const {
+    std::uint64_t total = 0;
+    for (const auto& e : std::filesystem::directory_iterator(path)) total += e.file_size();
+    return total;
+  }
+};
+
+// Finding 2: a scene naming stored models that cannot fit together is
+// refused before any of them is loaded, with their sizes; one that fits
+// renders, and the budget holds throughout.
+TEST(Http, AStoreSceneOverTheModelBudgetIs422BeforeAnyModelIsLoaded) {
+  StoreFolder folder("budget");
+  ServerOptions options;
+  options.model_store_dir = folder.path.string();
+  ModelStore big(std::uint64_t(64) << 20);
+  OwnServer uploader(options, big);
+  httplib::Client to_uploader("127.0.0.1", uploader.api.port());
+  std::vector<std::string> ids;
+  std::uint64_t each = 0;
+  for (int n : {60, 61, 62}) {
+    auto res = to_uploader.Post("/api/models", grid_glb(n), "model/gltf-binary");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 201) << res->body;
+    ids.push_back(json::parse(res->body)["id"]);
+    each = std::max<std::uint64_t>(each, json::parse(res->body)["bytes"].get<std::uint64_t>());
+  }
+  // Room for two of them, not three.
+  ModelStore small(2 * each + each / 2);
+  OwnServer renderer(options, small);
+  httplib::Client to_renderer("127.0.0.1", renderer.api.port());
+  json objects = json::array();
+  for (std::size_t i = 0; i < ids.size(); ++i)
+    objects.push_back({{"type", "mesh"}, {"model", ids[i]}, {"position", {2.0 * i, 0, 0}}});
+  const std::string all = json{{"width", 64}, {"height", 48}, {"scene", {{"objects", objects}}}}.dump();
+  auto res = to_renderer.Post("/api/render", all, "application/json");
+  expect_json_error(res, 422, "");
+  EXPECT_NE(res->body.find("--models-budget-mib"), std::string::npos) << res->body;
+  EXPECT_NE(res->body.find(ids[0].substr(0, 19)), std::string::npos) << res->body;  // names the models and sizes
+  EXPECT_EQ(metric(to_renderer, "umbra_models_loaded_total"), 0.0);
+  EXPECT_EQ(small.count(), 0u);
+  // Without the records beside the files (written by an older server):
+  // refused all the same, before the model past the budget is built.
+  for (const std::string& id : ids) std::filesystem::remove(folder.path / (id.substr(7) + ".json"));
+  res = to_renderer.Post("/api/render", all, "application/json");
+  expect_json_error(res, 422, "");
+  EXPECT_LE(metric(to_renderer, "umbra_models_loaded_total"), 2.0);
+  EXPECT_LE(small.live_bytes(), small.max_bytes());
+  // Two of them fit: rendered.
+  objects.erase(objects.end() - 1);
+  res = to_renderer.Post("/api/render", json{{"width", 64}, {"height", 48}, {"scene", {{"objects", objects}}}}.dump(),
+                         "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200) << res->body;
+  EXPECT_LE(small.live_bytes(), small.max_bytes());
+}
+
+// Finding 2 and 7: an upload may hold at most 16 times its body + 32 MiB
+// once loaded; past it, 422 before the model is built, and nothing written.
+TEST(Http, AnUploadThatGrowsPastItsRatioIsRefusedBeforeItIsBuilt) {
+  StoreFolder folder("ratio");
+  ServerOptions options;
+  options.model_store_dir = folder.path.string();
+  OwnServer server(options);
+  httplib::Client c("127.0.0.1", server.api.port());
+  const std::string glb = instanced_grid_glb(33, 1000);  // ~100 KB: 2 048 000 triangles, ~48 MiB once loaded
+  ASSERT_LT(glb.size(), std::size_t(200) << 10);
+  auto res = c.Post("/api/models", glb, "model/gltf-binary");
+  expect_json_error(res, 422, "");
+  EXPECT_NE(res->body.find("16 times its body"), std::string::npos) << res->body;
+  EXPECT_EQ(metric(c, "umbra_models_loaded_total"), 0.0);
+  EXPECT_TRUE(folder.files().empty());
+  // The same instancing, smaller: within the allowance, taken.
+  res = c.Post("/api/models", instanced_grid_glb(33, 100), "model/gltf-binary");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 201) << res->body;
+}
+
+// Finding 6: a refused upload is never written; the folder is bounded by
+// --model-store-max-gib, least recently used files deleted first.
+TEST(Http, TheStoreFolderIsBoundedAndARefusedUploadLeavesNoFile) {
+  StoreFolder folder("disk");
+  ServerOptions options;
+  options.model_store_dir = folder.path.string();
+  const std::string first = grid_glb(40);
+  options.model_store_max_bytes = 3 * first.size() + first.size() / 2;
+  ModelStore store(std::uint64_t(64) << 20);
+  OwnServer server(options, store);
+  httplib::Client c("127.0.0.1", server.api.port());
+  std::vector<std::string> ids;
+  for (int n : {40, 41, 39, 38, 37}) {
+    const std::string glb = grid_glb(n);
+    auto res = c.Post("/api/models", glb, "model/gltf-binary");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 201) << res->body;
+    ids.push_back(model_id_for(glb));
+    EXPECT_LE(folder.bytes(), options.model_store_max_bytes) << n;
+    // Distinct mtimes: the order of use is the order of upload.
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_FALSE(std::filesystem::exists(folder.path / (ids[0].substr(7) + ".glb")));
+  EXPECT_TRUE(std::filesystem::exists(folder.path / (ids[4].substr(7) + ".glb")));
+  EXPECT_GE(metric(c, "umbra_model_store_evicted_total"), 1.0);
+  // Held here, so still drawn here; uploaded again, written again.
+  ASSERT_EQ(c.Post("/api/models", first, "model/gltf-binary")->status, 200);
+  EXPECT_TRUE(std::filesystem::exists(folder.path / (ids[0].substr(7) + ".glb")));
+  EXPECT_LE(folder.bytes(), options.model_store_max_bytes);
+
+  // Over the models' budget: 422, and not on disk.
+  StoreFolder other("refused");
+  ServerOptions tight;
+  tight.model_store_dir = other.path.string();
+  ModelStore tiny(std::uint64_t(64) << 10);
+  OwnServer refusing(tight, tiny);
+  httplib::Client r("127.0.0.1", refusing.api.port());
+  auto res = r.Post("/api/models", grid_glb(80), "model/gltf-binary");
+  expect_json_error(res, 422, "");
+  EXPECT_NE(res->body.find("--models-budget-mib"), std::string::npos) << res->body;
+  EXPECT_TRUE(other.files().empty());
+}
+
+// A server whose clients say who they are (X-Test-Owner), standing in for
+// the tokens of --tokens.
+class OwnersApi : public HttpApi {
+ public:
+  using HttpApi::HttpApi;
+  std::string uploader_of(const HttpRequest& req) const override { return req.header("X-Test-Owner"); }
+};
+
+// Finding 7: one owner's uploads never evict another owner's model.
+TEST(Http, OneOwnersUploadsCannotEvictAnothersModel) {
+  const std::string alice_glb = grid_glb(50);
+  LoadResult probe = load_gltf(alice_glb, LoadOptions{});
+  ASSERT_TRUE(probe.ok());
+  const std::uint64_t each = probe.model->bytes();
+  ModelStore::Limits limits;
+  limits.max_bytes = 4 * each;
+  limits.share_bytes = 2 * each;
+  ModelStore store(limits);
+  ServerOptions options;
+  options.port = 0;
+  options.log_requests = false;
+  OwnersApi api(*ServerEnvironment::renderer, store, options);
+  ASSERT_TRUE(api.bind());
+  std::thread serving([&] { api.serve(); });
+  while (!api.serving()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  httplib::Client c("127.0.0.1", api.port());
+  const httplib::Headers alice = {{"X-Test-Owner", "alice"}}, bob = {{"X-Test-Owner", "bob"}};
+  auto res = c.Post("/api/models", alice, alice_glb, "model/gltf-binary");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 201) << res->body;
+  const std::string id = json::parse(res->body)["id"];
+  // Bob uploads ten models of the same size: each drops his own oldest.
+  int bob_ok = 0;
+  for (int i = 0; i < 10; ++i) {
+    res = c.Post("/api/models", bob, grid_glb(40 + i), "model/gltf-binary");
+    ASSERT_TRUE(res);
+    bob_ok += res->status == 201;
+  }
+  EXPECT_EQ(bob_ok, 10);
+  EXPECT_NE(store.find(id), nullptr);
+  res = c.Post("/api/render", alice, mesh_scene_body(id, "color"), "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200) << res->body;
+  // A model over his share: 422 naming it.
+  res = c.Post("/api/models", bob, grid_glb(110), "model/gltf-binary");
+  expect_json_error(res, 422, "");
+  EXPECT_NE(res->body.find("--upload-quota-mib"), std::string::npos) << res->body;
+  api.stop();
+  serving.join();
+}
+
 }  // namespace
 }  // namespace umbra
 

@@ -7,7 +7,13 @@
 #include <thread>
 #include <vector>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <ctime>
 
 #include "gltf_builder.hpp"
 #include "gltf_loader.hpp"
@@ -116,6 +122,129 @@ TEST(ModelStore, ConcurrentUploadsAndLookupsStayWithinBudget) {
   EXPECT_LE(store.count(), 5u);
 }
 
+// --- Owners: one owner's uploads never evict another's models -------------
+
+// A store with room for `models` models of model_of(100), and a share of
+// `share` of them per owner.
+ModelStore::Limits room_for(std::size_t models, std::size_t share) {
+  const std::uint64_t each = model_of(100)->bytes();
+  ModelStore::Limits limits;
+  limits.max_bytes = models * each + each / 2;
+  limits.share_bytes = share * each + each / 2;
+  return limits;
+}
+
+// Adds a model of model_of(100) as `owner`'s upload, as the server does:
+// room reserved for it first, then the model held in it.
+ModelStore::Outcome upload(ModelStore& store, const std::string& owner, const std::string& id) {
+  auto model = model_of(100);
+  ModelStore::RoomResult room = store.reserve(owner, model->bytes());
+  switch (room.outcome) {
+    case ModelStore::Room::Made: return store.add_upload(id, std::move(model), room.reservation).outcome;
+    case ModelStore::Room::NoRoomNow: return ModelStore::Outcome::NoRoom;
+    default: return ModelStore::Outcome::TooLarge;
+  }
+}
+
+TEST(ModelStore, AnOwnersUploadsEvictOnlyItsOwnModelsWithinOthersShares) {
+  ModelStore store(room_for(4, 2));
+  ASSERT_EQ(upload(store, "alice", "sha256:a1"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "alice", "sha256:a2"), ModelStore::Outcome::Added);
+  // Bob uploads many: each new one drops his own least recently used.
+  for (int i = 0; i < 10; ++i)
+    ASSERT_EQ(upload(store, "bob", "sha256:b" + std::to_string(i)), ModelStore::Outcome::Added) << i;
+  EXPECT_NE(store.find("sha256:a1"), nullptr);
+  EXPECT_NE(store.find("sha256:a2"), nullptr);
+  EXPECT_NE(store.find("sha256:b9"), nullptr);
+  EXPECT_NE(store.find("sha256:b8"), nullptr);
+  EXPECT_EQ(store.find("sha256:b7"), nullptr);
+  EXPECT_LE(store.live_bytes(), store.max_bytes());
+  EXPECT_EQ(store.owner_bytes("alice"), 2 * model_of(100)->bytes());
+}
+
+TEST(ModelStore, RoomBorrowedPastAShareIsGivenBackToOtherOwners) {
+  ModelStore store(room_for(4, 2));
+  for (int i = 0; i < 4; ++i) ASSERT_EQ(upload(store, "alice", "sha256:a" + std::to_string(i)), ModelStore::Outcome::Added);
+  EXPECT_EQ(store.count(), 4u);  // the whole budget, twice her share: free room borrowed
+  ASSERT_EQ(upload(store, "bob", "sha256:b0"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "bob", "sha256:b1"), ModelStore::Outcome::Added);
+  // Her least recently used went, down to her share, and no further.
+  EXPECT_EQ(store.find("sha256:a0"), nullptr);
+  EXPECT_EQ(store.find("sha256:a1"), nullptr);
+  EXPECT_NE(store.find("sha256:a2"), nullptr);
+  EXPECT_NE(store.find("sha256:a3"), nullptr);
+  EXPECT_EQ(upload(store, "carol", "sha256:c0"), ModelStore::Outcome::NoRoom);
+  EXPECT_NE(store.find("sha256:a2"), nullptr);
+  EXPECT_NE(store.find("sha256:b0"), nullptr);
+}
+
+TEST(ModelStore, AModelOverTheShareIsRefusedAndIdleModelsGoToAnyone) {
+  ModelStore store(room_for(4, 2));
+  const std::uint64_t each = model_of(100)->bytes();
+  EXPECT_EQ(store.reserve("alice", 3 * each).outcome, ModelStore::Room::OverShare);
+  EXPECT_EQ(store.reserve("alice", 5 * each).outcome, ModelStore::Room::OverShare);
+  ModelStore whole(room_for(4, 4));
+  EXPECT_EQ(whole.reserve("alice", 5 * each).outcome, ModelStore::Room::OverBudget);
+
+  auto now = ModelStore::Clock::now();
+  store.set_clock([&] { return now; });
+  ASSERT_EQ(upload(store, "alice", "sha256:a0"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "alice", "sha256:a1"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "bob", "sha256:b0"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "bob", "sha256:b1"), ModelStore::Outcome::Added);
+  EXPECT_EQ(upload(store, "carol", "sha256:c0"), ModelStore::Outcome::NoRoom);
+  now += ModelStore::kDefaultIdleDrop / 2;
+  ASSERT_NE(store.find("sha256:b0"), nullptr);  // used: idle from now on
+  now += ModelStore::kDefaultIdleDrop / 2 + std::chrono::seconds(1);
+  ASSERT_EQ(upload(store, "carol", "sha256:c0"), ModelStore::Outcome::Added);
+  EXPECT_EQ(store.find("sha256:a0"), nullptr);  // idle an hour: anyone's to drop
+  EXPECT_NE(store.find("sha256:b0"), nullptr);
+}
+
+TEST(ModelStore, ReservationsAndModelsBeingDrawnCountAgainstTheBudget) {
+  ModelStore store(room_for(3, 3));
+  const std::uint64_t each = model_of(100)->bytes();
+  ASSERT_EQ(upload(store, "", "sha256:1"), ModelStore::Outcome::Added);
+  // A render draws 1: it is not dropped to make room, 2 is.
+  const std::shared_ptr<const TriangleModel> drawn = drawn_model(store.find("sha256:1"));
+  ASSERT_EQ(upload(store, "", "sha256:2"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "", "sha256:3"), ModelStore::Outcome::Added);
+  ASSERT_EQ(upload(store, "", "sha256:4"), ModelStore::Outcome::Added);
+  EXPECT_NE(store.find("sha256:1"), nullptr);
+  EXPECT_EQ(store.find("sha256:2"), nullptr);
+  // A reservation holds its room until it is used or let go.
+  {
+    ModelStore::RoomResult room = store.reserve("", 2 * each);
+    ASSERT_EQ(room.outcome, ModelStore::Room::Made);
+    EXPECT_LE(store.live_bytes(), store.max_bytes());
+    EXPECT_EQ(store.count(), 1u);  // 3 and 4 dropped for it; 1 is drawn
+    EXPECT_EQ(store.reserve("", each).outcome, ModelStore::Room::NoRoomNow);
+  }
+  EXPECT_EQ(store.live_bytes(), each);
+  EXPECT_EQ(store.reserve("", 2 * each).outcome, ModelStore::Room::Made);
+  // A pinned model dropping 1 while it is drawn: still counted until the render lets it go.
+  ModelStore pinned_later(room_for(2, 2));
+  ASSERT_EQ(upload(pinned_later, "", "sha256:x"), ModelStore::Outcome::Added);
+  const auto still_drawn = drawn_model(pinned_later.find("sha256:x"));
+  ASSERT_EQ(pinned_later.add("sha256:p", "floor", model_of(200), true).outcome, ModelStore::Outcome::Added);
+  EXPECT_EQ(pinned_later.find("sha256:x"), nullptr);
+  EXPECT_EQ(pinned_later.live_bytes(), pinned_later.bytes() + each);
+  EXPECT_EQ(pinned_later.reserve("", each / 4).outcome, ModelStore::Room::NoRoomNow);
+}
+
+TEST(ModelStore, AReservationTooSmallForTheModelGrowsOrRefuses) {
+  ModelStore store(room_for(2, 2));
+  const std::uint64_t each = model_of(100)->bytes();
+  ModelStore::RoomResult room = store.reserve("", each / 2);
+  ASSERT_EQ(room.outcome, ModelStore::Room::Made);
+  EXPECT_EQ(store.add_upload("sha256:1", model_of(100), room.reservation).outcome, ModelStore::Outcome::Added);
+  EXPECT_EQ(room.reservation.bytes(), 0u);
+  ModelStore::RoomResult small = store.reserve("", 1);
+  ASSERT_EQ(small.outcome, ModelStore::Room::Made);
+  EXPECT_EQ(store.add_upload("sha256:big", model_of(1000), small.reservation).outcome, ModelStore::Outcome::TooLarge);
+  EXPECT_NE(store.find("sha256:1"), nullptr);
+}
+
 TEST(ModelStore, AFolderLoadsByNameAndRefusesWhatLeavesIt) {
   const fs::path root = fs::temp_directory_path() / ("umbra-models-" + std::to_string(::getpid()));
   fs::create_directories(root / "models");
@@ -173,7 +302,7 @@ struct TemporaryFolder {
 
 TEST(ModelArchive, KeepsABodyUnderItsIdAndGivesItBack) {
   TemporaryFolder folder;
-  const ModelArchive archive(folder.path.string());
+  ModelArchive archive(folder.path.string());
   const std::string body = "glTF and then some bytes";
   const std::string id = model_id_for(body);
   std::string why;
@@ -196,7 +325,7 @@ TEST(ModelArchive, KeepsABodyUnderItsIdAndGivesItBack) {
 
 TEST(ModelArchive, TakesNoFileThatDoesNotHashToItsNameOrIsTooLarge) {
   TemporaryFolder folder;
-  const ModelArchive archive(folder.path.string());
+  ModelArchive archive(folder.path.string());
   const std::string body = "the model's bytes";
   const std::string id = model_id_for(body);
   std::string why;
@@ -216,7 +345,7 @@ TEST(ModelArchive, TakesNoFileThatDoesNotHashToItsNameOrIsTooLarge) {
 
 TEST(ModelArchive, NeverFormsAPathFromANameOrABadId) {
   TemporaryFolder folder;
-  const ModelArchive archive(folder.path.string());
+  ModelArchive archive(folder.path.string());
   std::ofstream(folder.path / "teapot.glb") << "glTF";
   std::string why;
   for (const std::string& key : std::vector<std::string>{"teapot", "../teapot", "sha256:../../etc/passwd",
@@ -230,10 +359,135 @@ TEST(ModelArchive, NeverFormsAPathFromANameOrABadId) {
 }
 
 TEST(ModelArchive, AFolderItCannotWriteToIsSaidSo) {
-  const ModelArchive archive("/nonexistent-umbra-folder");
+  ModelArchive archive("/nonexistent-umbra-folder");
   std::string why;
   EXPECT_FALSE(archive.save(model_id_for("x"), LoadOptions::Format::Binary, "x", why));
   EXPECT_NE(why.find("/nonexistent-umbra-folder"), std::string::npos) << why;
+}
+
+// Sets a file's mtime `seconds_ago` into the past: as if last used then.
+void age(const std::filesystem::path& file, int seconds_ago) {
+  const timespec times[2] = {{std::time(nullptr) - seconds_ago, 0}, {std::time(nullptr) - seconds_ago, 0}};
+  ASSERT_EQ(::utimensat(AT_FDCWD, file.c_str(), times, 0), 0) << file;
+}
+
+std::vector<std::string> files_in(const std::filesystem::path& folder) {
+  std::vector<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) names.push_back(entry.path().filename());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::uint64_t bytes_in(const std::filesystem::path& folder) {
+  std::uint64_t total = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) total += entry.file_size();
+  return total;
+}
+
+TEST(ModelArchive, TheFolderIsBoundedAndLeastRecentlyUsedFilesGoFirst) {
+  TemporaryFolder folder;
+  const std::size_t body_bytes = 1000;
+  ModelArchive archive(folder.path.string(), 3 * body_bytes + 200);  // three bodies and their records
+  const ModelArchive::Record record{123456, 12};
+  std::vector<std::string> ids;
+  std::string why;
+  for (int i = 0; i < 3; ++i) {
+    const std::string body(body_bytes, char('a' + i));
+    ids.push_back(model_id_for(body));
+    ASSERT_TRUE(archive.save(ids.back(), LoadOptions::Format::Binary, body, why, record)) << why;
+    age(folder.path / (ids.back().substr(7) + ".glb"), 1000 - 100 * i);  // 0 the oldest
+  }
+  ASSERT_EQ(files_in(folder.path).size(), 6u);  // each model and its record
+  // Model 0 is used (loaded by some server): 1 is now the least recently used.
+  ASSERT_TRUE(archive.load(ids[0], 1 << 20, why)) << why;
+  const std::string fourth(body_bytes, 'z');
+  ASSERT_TRUE(archive.save(model_id_for(fourth), LoadOptions::Format::Binary, fourth, why, record)) << why;
+  EXPECT_TRUE(archive.find(ids[0]));
+  EXPECT_FALSE(archive.find(ids[1]));
+  EXPECT_FALSE(std::filesystem::exists(folder.path / (ids[1].substr(7) + ".json")));  // its record went with it
+  EXPECT_TRUE(archive.find(ids[2]));
+  EXPECT_LE(bytes_in(folder.path), archive.max_bytes());
+  EXPECT_EQ(archive.evicted(), 1u);
+  // A deleted model is simply unknown; saved again, it is back.
+  why.clear();
+  EXPECT_FALSE(archive.load(ids[1], 1 << 20, why));
+  EXPECT_TRUE(why.empty()) << why;
+  ASSERT_TRUE(archive.save(ids[1], LoadOptions::Format::Binary, std::string(body_bytes, 'b'), why, record));
+  EXPECT_TRUE(archive.load(ids[1], 1 << 20, why));
+  EXPECT_LE(bytes_in(folder.path), archive.max_bytes());
+  // Larger than the whole folder may hold: refused, nothing written.
+  const std::string huge(4 * body_bytes, 'h');
+  EXPECT_EQ(archive.save(model_id_for(huge), LoadOptions::Format::Binary, huge, why).status,
+            ModelArchive::Status::NoSpace);
+  EXPECT_NE(why.find("--model-store-max-gib"), std::string::npos) << why;
+  EXPECT_FALSE(archive.find(model_id_for(huge)));
+}
+
+TEST(ModelArchive, RecordsSayWhatAModelHoldsWithoutReadingIt) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string());
+  std::string why;
+  const std::string body = "glTF a model";
+  ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why, ModelArchive::Record{5000, 7}));
+  std::optional<ModelArchive::Found> found = archive.find(model_id_for(body));
+  ASSERT_TRUE(found);
+  EXPECT_EQ(found->file_bytes, body.size());
+  ASSERT_TRUE(found->record);
+  EXPECT_EQ(found->record->bytes_bound, 5000u);
+  EXPECT_EQ(found->record->triangles, 7u);
+  // Without a record (an older server wrote it, or it was cut short): none.
+  const std::string other = "glTF another";
+  ASSERT_TRUE(archive.save(model_id_for(other), LoadOptions::Format::Json, other, why));
+  EXPECT_FALSE(archive.find(model_id_for(other))->record);
+  std::ofstream(folder.path / (model_id_for(other).substr(7) + ".json")) << "{\"bytes_bound\": 5";
+  EXPECT_FALSE(archive.find(model_id_for(other))->record);
+  archive.write_record(model_id_for(other), {900, 3});
+  EXPECT_EQ(archive.find(model_id_for(other))->record->bytes_bound, 900u);
+  EXPECT_EQ(archive.find(model_id_for(other))->format, LoadOptions::Format::Json);
+}
+
+TEST(ModelArchive, AFullDiskEvictsThenSaysNoSpaceAndLeavesNothingBehind) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string());
+  std::string why;
+  const std::string old_body(5000, 'o');
+  ASSERT_TRUE(archive.save(model_id_for(old_body), LoadOptions::Format::Binary, old_body, why));
+  // The disk takes no more than what is free: here, nothing until the old model goes.
+  archive.write_for_test = [&](int fd, const void* data, std::size_t size) -> ssize_t {
+    if (archive.find(model_id_for(old_body))) {
+      errno = ENOSPC;
+      return -1;
+    }
+    return ::write(fd, data, size);
+  };
+  const std::string body(3000, 'n');
+  ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why)) << why;
+  EXPECT_FALSE(archive.find(model_id_for(old_body)));
+  EXPECT_TRUE(archive.load(model_id_for(body), 1 << 20, why)) << why;
+  // Full whatever is deleted: NoSpace, and no file, no temporary left.
+  archive.write_for_test = [](int, const void*, std::size_t) -> ssize_t {
+    errno = ENOSPC;
+    return -1;
+  };
+  const std::string refused(100, 'r');
+  EXPECT_EQ(archive.save(model_id_for(refused), LoadOptions::Format::Binary, refused, why).status,
+            ModelArchive::Status::NoSpace);
+  EXPECT_NE(why.find("No space"), std::string::npos) << why;
+  EXPECT_TRUE(files_in(folder.path).empty()) << files_in(folder.path).size();
+}
+
+TEST(ModelArchive, StrayTemporaryFilesOfACrashAreDeleted) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string());
+  std::ofstream(folder.path / ".upload-0123-crashed") << "half a model";
+  std::ofstream(folder.path / ".upload-4567-writing") << "a write under way";
+  std::ofstream(folder.path / "notes.txt") << "not the store's";
+  age(folder.path / ".upload-0123-crashed", 2 * 3600);
+  std::string why;
+  ASSERT_TRUE(archive.save(model_id_for("x"), LoadOptions::Format::Binary, "x", why));
+  EXPECT_FALSE(std::filesystem::exists(folder.path / ".upload-0123-crashed"));
+  EXPECT_TRUE(std::filesystem::exists(folder.path / ".upload-4567-writing"));
+  EXPECT_TRUE(std::filesystem::exists(folder.path / "notes.txt"));
 }
 
 }  // namespace
