@@ -98,6 +98,25 @@ std::string instanced_grid(int side, int instances, int salt) {
   return g.glb();
 }
 
+// `triangles` separate triangles scattered in a 2 x 1 x 2 box, drawn once
+// each (no instancing: loaded, about its body's size again); `salt` makes
+// each call's file distinct.
+std::string triangle_soup(int triangles, int salt) {
+  std::vector<glm::vec3> positions;
+  std::uint32_t state = 2463534242u + std::uint32_t(salt);
+  const auto next = [&] {
+    state ^= state << 13, state ^= state >> 17, state ^= state << 5;
+    return float(state % 100000) / 100000.0f;
+  };
+  for (int t = 0; t < triangles; ++t) {
+    const glm::vec3 corner(2 * next() - 1, next(), 2 * next() - 1);
+    positions.insert(positions.end(), {corner, corner + glm::vec3(0.05f, 0, 0), corner + glm::vec3(0, 0.05f, 0)});
+  }
+  umbra::test::GltfBuilder g;
+  g.scene({g.node({{"mesh", g.mesh(g.vec3s(positions))}})});
+  return g.glb();
+}
+
 // A unit cube and `padding` bytes of buffer no accessor reads: a large
 // upload that holds almost no geometry. `salt` makes each distinct.
 std::string padded_cube(std::size_t padding, int salt) {
@@ -225,26 +244,26 @@ Row mesh_overdraw(const std::string& binary) {
 }
 
 // Finding 2: models in the store, each large once loaded, all named by one
-// small render.
-Row store_models_over_budget(const std::string& binary) {
-  constexpr int kModels = 4;
-  Row row{"2. memory", "", ""};
+// small render. `glb(m)` is the m-th distinct model.
+Row store_models_over_budget(const std::string& binary, const std::string& finding, const std::string& what,
+                             int models, const std::function<std::string(int)>& glb, const std::string& budget_mib) {
+  Row row{finding, "", ""};
   const fs::path store = fs::temp_directory_path() / ("umbra-redteam-store-" + std::to_string(getpid()));
   fs::remove_all(store);
   fs::create_directories(store);
   std::vector<std::string> ids;
   std::size_t upload_bytes = 0;
   {
-    // Uploaded one by one to servers that each hold one, as behind a balancer.
-    for (int m = 0; m < kModels; ++m) {
-      ServerProcess uploader(binary, {"--quiet", "--model-store", store.string()});
-      auto c = client_for(uploader.port());
-      const std::string glb = instanced_grid(20, 5000, m);
-      upload_bytes = glb.size();
+    ServerProcess uploader(binary, {"--quiet", "--model-store", store.string()});
+    auto c = client_for(uploader.port());
+    for (int m = 0; m < models; ++m) {
+      const std::string file = glb(m);
+      upload_bytes = file.size();
       std::string answer;
-      ids.push_back(upload_id(c, glb, &answer));
+      ids.push_back(upload_id(c, file, &answer));
       if (ids.back().empty()) {
-        row.attack = std::to_string(kModels) + " distinct uploads of a 20 x 20 grid in 5,000 nodes";
+        row.attack = std::to_string(models) + " distinct uploads (" + std::to_string(upload_bytes / 1024) +
+                     " KiB each: " + what + ") to a --model-store";
         row.answer = "upload " + std::to_string(m + 1) + ": " + answer;
         fs::remove_all(store);
         return row;
@@ -252,10 +271,10 @@ Row store_models_over_budget(const std::string& binary) {
     }
   }
   const std::string body = mesh_scene(ids, 64).dump();
-  row.attack = std::to_string(kModels) + " distinct uploads (" + std::to_string(upload_bytes / 1024) +
-               " KiB each: a 20 x 20 grid in 5,000 nodes, 4M triangles) in a --model-store; a fresh server with " +
-               "--models-budget-mib 512 gets one " + std::to_string(body.size()) + "-byte render naming all";
-  ServerProcess server(binary, {"--quiet", "--model-store", store.string(), "--models-budget-mib", "512"});
+  row.attack = std::to_string(models) + " distinct uploads (" + std::to_string(upload_bytes / 1024) + " KiB each: " +
+               what + ") in a --model-store; a fresh server on it with --models-budget-mib " + budget_mib +
+               " gets one " + std::to_string(body.size()) + "-byte render naming all";
+  ServerProcess server(binary, {"--quiet", "--model-store", store.string(), "--models-budget-mib", budget_mib});
   auto c = client_for(server.port());
   const auto start = Clock::now();
   row.peak_rss_mib =
@@ -267,8 +286,8 @@ Row store_models_over_budget(const std::string& binary) {
 
 // Finding 3: a model of many node instances.
 Row many_instances(const std::string& binary) {
-  const std::string glb = instanced_grid(10, 10000, 0);
-  Row row{"3. load time", "upload of a 10 x 10 grid in 10,000 nodes (" + std::to_string(glb.size() / 1024) + " KiB)", ""};
+  const std::string glb = instanced_grid(2, 10000, 0);
+  Row row{"3. load time", "upload of a 2 x 2 grid (8 triangles) in 10,000 nodes (" + std::to_string(glb.size() / 1024) + " KiB)", ""};
   ServerProcess server(binary, {"--quiet"});
   auto c = client_for(server.port());
   const auto start = Clock::now();
@@ -369,16 +388,17 @@ Row store_disk(const std::string& binary) {
 }
 
 // Finding 7: one client's uploads against another's model.
-Row eviction(const std::string& binary) {
+Row eviction(const std::string& binary, const std::string& finding, const std::string& what, int uploads,
+             const std::function<std::string(int)>& glb, const std::string& budget_mib) {
   const fs::path tokens = fs::temp_directory_path() / ("umbra-redteam-tokens-" + std::to_string(getpid()));
   std::ofstream(tokens) << "token-of-alice render,upload\ntoken-of-mallory render,upload\n";
-  const std::string heavy = instanced_grid(25, 1000, 0);
-  Row row{"7. eviction",
-          "with --tokens, Alice uploads a cube; Mallory uploads 7 distinct " + std::to_string(heavy.size() / 1024) +
-              " KiB models (25 x 25 grid in 1,000 nodes) with --models-budget-mib 1024; Alice renders her cube",
+  Row row{finding,
+          "with --tokens and --models-budget-mib " + budget_mib + ", Alice uploads a cube; Mallory uploads " +
+              std::to_string(uploads) + " distinct " + std::to_string(glb(0).size() / 1024) + " KiB models (" + what +
+              "); Alice renders her cube",
           ""};
   std::string note;
-  auto started = start_server(binary, {"--quiet", "--models-budget-mib", "1024"}, {"--tokens", tokens.string()}, note);
+  auto started = start_server(binary, {"--quiet", "--models-budget-mib", budget_mib}, {"--tokens", tokens.string()}, note);
   ServerProcess& server = *started;
   auto c = client_for(server.port());
   httplib::Headers alice{{"Authorization", "Bearer token-of-alice"}}, mallory{{"Authorization", "Bearer token-of-mallory"}};
@@ -395,12 +415,12 @@ Row eviction(const std::string& binary) {
   std::string last;
   const auto start = Clock::now();
   row.peak_rss_mib = peak_rss_during(server, [&] {
-    for (int k = 0; k < 7; ++k) accepted += !upload_id(c, instanced_grid(25, 1000, k + 1), &last, mallory).empty();
+    for (int k = 0; k < uploads; ++k) accepted += !upload_id(c, glb(k), &last, mallory).empty();
   });
   row.seconds = seconds_since(start);
   auto r = c.Post("/api/render", alice, mesh_scene({cube}, 64).dump(), "application/json");
-  row.answer = note + "Mallory: " + std::to_string(accepted) + " of 7 accepted (last: " + last + "); Alice's render: " +
-               status_of(r);
+  row.answer = note + "Mallory: " + std::to_string(accepted) + " of " + std::to_string(uploads) + " accepted (last: " +
+               last + "); Alice's render: " + status_of(r);
   fs::remove(tokens);
   return row;
 }
@@ -476,10 +496,28 @@ int main(int argc, char** argv) {
     }
   }
   const std::vector<std::pair<const char*, std::function<Row()>>> findings = {
-      {"1", [&] { return mesh_overdraw(binary); }},      {"2", [&] { return store_models_over_budget(binary); }},
-      {"3", [&] { return many_instances(binary); }},     {"4", [&] { return non_readers(binary, seconds); }},
-      {"6", [&] { return store_disk(binary); }},         {"7", [&] { return eviction(binary); }},
-      {"8", [&] { return hosts(binary); }},              {"9", [&] { return sun_clock(binary); }},
+      {"1", [&] { return mesh_overdraw(binary); }},
+      {"2", [&] {
+         return store_models_over_budget(binary, "2. memory (amplified)", "a 20 x 20 grid in 5,000 nodes, 4M triangles",
+                                         4, [](int m) { return instanced_grid(20, 5000, m); }, "512");
+       }},
+      {"2", [&] {
+         return store_models_over_budget(binary, "2. memory", "100,000 separate triangles", 6,
+                                         [](int m) { return triangle_soup(100000, m); }, "32");
+       }},
+      {"3", [&] { return many_instances(binary); }},
+      {"4", [&] { return non_readers(binary, seconds); }},
+      {"6", [&] { return store_disk(binary); }},
+      {"7", [&] {
+         return eviction(binary, "7. eviction (amplified)", "a 25 x 25 grid in 1,000 nodes", 7,
+                         [](int k) { return instanced_grid(25, 1000, k + 1); }, "1024");
+       }},
+      {"7", [&] {
+         return eviction(binary, "7. eviction", "200,000 separate triangles", 12,
+                         [](int k) { return triangle_soup(200000, k + 1); }, "128");
+       }},
+      {"8", [&] { return hosts(binary); }},
+      {"9", [&] { return sun_clock(binary); }},
   };
   std::vector<Row> rows;
   for (const auto& [number, run] : findings) {
