@@ -327,6 +327,7 @@ MetricsGauges HttpApi::state() const {
   g.connections_open = connections.connections_open;
   g.connections_evicted = connections.connections_evicted;
   g.connections_refused = connections.connections_refused;
+  g.connections_stalled = connections.connections_stalled;
   g.requests_timed_out = connections.requests_timed_out;
   g.bodies_refused = connections.bodies_refused;
   return g;
@@ -356,6 +357,7 @@ void HttpApi::health(const HttpRequest&, HttpResponse& res) {
                        {"connections_open", g.connections_open},
                        {"connections_evicted", g.connections_evicted},
                        {"connections_refused", g.connections_refused},
+                       {"connections_stalled", g.connections_stalled},
                        {"requests_timed_out", g.requests_timed_out},
                        {"bodies_refused", g.bodies_refused}}
                       .dump(),

@@ -31,7 +31,8 @@ void usage(std::FILE* out) {
   std::fprintf(out,
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
                "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--memory-mib N]\n"
-               "                    [--fresh-context-mib N] [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--models DIR]\n"
+               "                    [--fresh-context-mib N] [--max-connections N] [--request-timeout-ms N] [--send-stall-ms N]\n"
+               "                    [--cors ORIGIN] [--models DIR]\n"
                "                    [--model-store DIR] [--max-model-mib N] [--models-budget-mib N]\n"
                "                    [--quiet]\n"
                "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
@@ -53,11 +54,16 @@ void usage(std::FILE* out) {
                "                  when idle, make the GL context anew once this much GL memory (MiB) was released since\n"
                "                  the last one, giving back what llvmpipe keeps until then; 0: never, 0..1048576 (default 64)\n"
                "  --max-connections N\n"
-               "                  connections open at once, 1..65536; past it a new one replaces the longest idle\n"
-               "                  (or slowest-sending) one, or gets 503 if all are busy (default 256)\n"
+               "                  connections open at once, 1..65536; past it a new one replaces the longest idle one,\n"
+               "                  else the one longest without progress (receiving its request, or sending an answer\n"
+               "                  the client does not read), or gets 503 if every one is being handled (default 256)\n"
                "  --request-timeout-ms N\n"
                "                  a request not received whole (headers and body) this long after its first byte\n"
                "                  gets 408 and the connection closes, 1..3600000 (default 10000)\n"
+               "  --send-stall-ms N\n"
+               "                  a connection whose client reads no byte of its answer this long is closed,\n"
+               "                  1..3600000 (default 5000). A client's pipelined requests wait while more than\n"
+               "                  1 MiB of its answers are unread\n"
                "  --cors ORIGIN   let web pages from ORIGIN (or \"*\": any) call the API; default: none\n"
                "  --models DIR    load every .glb and .gltf in DIR at start, named by file name (\"teapot\" for teapot.glb);\n"
                "                  their external buffer files are read from inside DIR only. A file that fails is\n"
@@ -136,6 +142,9 @@ int main(int argc, char** argv) {
     } else if (arg == "--max-connections") {
       options.connections.max_connections =
           std::size_t(integer_flag("--max-connections", value("--max-connections"), 1, 65536));
+    } else if (arg == "--send-stall-ms") {
+      options.connections.send_stall_timeout =
+          std::chrono::milliseconds(integer_flag("--send-stall-ms", value("--send-stall-ms"), 1, 3600000));
     } else if (arg == "--request-timeout-ms") {
       options.connections.request_timeout =
           std::chrono::milliseconds(integer_flag("--request-timeout-ms", value("--request-timeout-ms"), 1, 3600000));

@@ -43,7 +43,7 @@ struct MetricsGauges {
   std::uint64_t queue_depth = 0, queue_capacity = 0;
   std::uint64_t rejected = 0, expired = 0, abandoned = 0, too_costly = 0, overran = 0;
   std::uint64_t cached_bytes = 0, models = 0, model_bytes = 0, model_budget_bytes = 0;
-  std::uint64_t connections_open = 0, connections_evicted = 0, connections_refused = 0;
+  std::uint64_t connections_open = 0, connections_evicted = 0, connections_refused = 0, connections_stalled = 0;
   std::uint64_t requests_timed_out = 0, bodies_refused = 0;
 };
 
