@@ -13,6 +13,7 @@
 #include "model_store.hpp"
 #include "render_service.hpp"
 
+#include "access.hpp"
 #include "http_server.hpp"
 #include "metrics.hpp"
 
@@ -40,6 +41,13 @@ struct ServerOptions {
   /// upload is written, and where a model not held is looked for
   /// (model_archive.hpp). Empty: none.
   std::string model_store_dir;
+  /// --allowed-hosts: names a request's Host may give besides the loopback
+  /// names and `host` itself (AllowedHosts); "*": any. Another gets 421.
+  std::vector<std::string> allowed_hosts;
+  /// --tokens FILE: null, every request is served; else every route but
+  /// GET /api/health, OPTIONS and the panel's files needs a bearer token
+  /// with the route's scope (HttpApi::kRoutes).
+  std::shared_ptr<const TokenTable> tokens;
 };
 
 /// "*", or scheme://host[:port] with scheme http or https and nothing after.
@@ -77,6 +85,11 @@ class HttpApi {
   /// closed at once, requests already read are answered. Thread-safe.
   void stop();
 
+  /// Whose upload `req` is, for the model store's accounting: its
+  /// principal ("token:" + 12 hex digits) with --tokens, else "" (every
+  /// client is the same one).
+  std::string uploader_of(const HttpRequest& req) const;
+
  private:
   HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options);
 
@@ -86,6 +99,7 @@ class HttpApi {
     const char* path;
     Handler handler;
     bool blocks;          ///< waits for the renderer or loads a model: runs on a worker thread
+    unsigned scope;       ///< with --tokens, the Scope bits its token needs; 0: none (no token needed)
     bool prefix = false;  ///< `path` and at least one more character: "/api/models/" + id
   };
   static const Route kRoutes[];
@@ -124,6 +138,9 @@ class HttpApi {
   /// names it, "static" for the panel's files, or "other".
   std::string route_label(const HttpRequest& req) const;
   bool blocks(const HttpRequest& req) const;
+  /// At the end of `head`: the Host check, then (with --tokens) the token
+  /// and its scope. Refused before any of the body is read.
+  Admission admit(const HttpRequest& head) const;
   HttpResponse error_response(int status, const std::string& message) const;
   void add_cors_headers(HttpResponse& res) const;
   /// The panel's file `name` (a path relative to the web folder): false if
@@ -132,6 +149,7 @@ class HttpApi {
 
   RenderService& renderer_;
   ServerOptions options_;
+  AllowedHosts allowed_hosts_;
   std::shared_ptr<ModelStore> models_;  // owned, or the one given (not owned)
   std::mutex model_loads_mutex_;
   int model_loads_ = 0;  // uploads being loaded now

@@ -59,6 +59,8 @@ struct Connection {
   std::size_t unsent_in_kernel = 0;  // draining: as last seen
   bool close_when_drained = false;   // draining: close once all is read, rather than read on
   bool body_deadline_set = false;  // the deadline allows for this request's body
+  bool admitted = false;           // this request's head passed HttpHandlers::admit
+  std::string principal;           // of this request, from admit
   std::size_t counted_body = 0;    // bytes of its body counted in Impl::buffered_body_bytes
   std::uint32_t events = 0;    // registered with epoll; 0: not registered
 
@@ -200,6 +202,24 @@ struct HttpServer::Impl {
     c.phase = Phase::Idle;
     c.deadline = Clock::now() + options.idle_timeout;
     c.reader.reset();
+    c.admitted = false;
+    c.principal.clear();
+  }
+
+  // Once per request, when its head is whole: false if it was answered
+  // (refused) instead.
+  bool admit(Connection& c) {
+    if (c.admitted) return true;
+    c.admitted = true;
+    if (!handlers.admit) return true;
+    Admission admission = handlers.admit(c.reader.request());
+    c.principal = std::move(admission.principal);
+    if (!admission.refusal) return true;
+    // The body is not read: the connection closes unless there is none.
+    const bool whole = c.reader.state() == RequestReader::State::Complete;
+    HttpRequest head = whole ? c.reader.take_request() : partial_request(c);
+    respond(c, head, std::move(*admission.refusal), !whole);
+    return false;
   }
 
   // The connection to close to make room at the cap: the longest idle,
@@ -317,6 +337,7 @@ struct HttpServer::Impl {
             c.deadline = c.started + options.request_timeout;
             c.body_deadline_set = false;
           }
+          if (c.reader.state() == RequestReader::State::Body && !admit(c)) return;
           if (c.reader.state() == RequestReader::State::Body && !c.body_deadline_set) {
             c.body_deadline_set = true;
             c.deadline += std::chrono::milliseconds(std::uint64_t(c.reader.body_limit()) * 1000 /
@@ -336,9 +357,14 @@ struct HttpServer::Impl {
         }
         case RequestReader::State::Complete: {
           if (c.phase == Phase::Idle) c.started = Clock::now();
+          if (!admit(c)) {
+            if (!connections.count(fd)) return;
+            break;  // refused and answered; the next pipelined request may follow
+          }
           if (!count_body(c)) return refuse_body(c);
           HttpRequest request = c.reader.take_request();
           request.socket = c.fd;
+          request.principal = c.principal;
           dispatch(c, std::move(request));
           if (!connections.count(fd)) return;
           break;  // answered inline and sent: the next pipelined request may follow

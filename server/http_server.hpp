@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "http_message.hpp"
@@ -73,7 +74,20 @@ struct HttpServerOptions {
   std::size_t max_waiting_requests = 16;
 };
 
+/// What HttpHandlers::admit says of a request's head.
+struct Admission {
+  /// Set: answer this at once, before the body is read (the connection
+  /// then closes unless the request had no body).
+  std::optional<HttpResponse> refusal;
+  std::string principal;  ///< becomes HttpRequest::principal
+};
+
 struct HttpHandlers {
+  /// Once a request's head is read, before its body: may refuse it (a
+  /// foreign Host, no token) so that no body is read for nothing, and
+  /// names who sent it. May be empty: every request admitted. Runs on the
+  /// I/O thread, which must never wait.
+  std::function<Admission(const HttpRequest& head)> admit;
   /// True if handle() may block for `request`: it then runs on a worker;
   /// otherwise on the I/O thread, which must never wait.
   std::function<bool(const HttpRequest&)> blocks;

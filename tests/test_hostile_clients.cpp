@@ -157,7 +157,7 @@ Answer exchange(int port, const std::string& request, milliseconds timeout = mil
   return a;
 }
 
-const std::string kHealth = "GET /api/health HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+const std::string kHealth = "GET /api/health HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n";
 
 // A client sending its request a byte at a time, every `gap`, until told
 // to stop; each byte arrives well within any per-recv timeout.
@@ -165,7 +165,7 @@ class Trickler {
  public:
   Trickler(int port, milliseconds gap) : fd_(connect_to(port)) {
     thread_ = std::thread([this, gap] {
-      const std::string request = "POST /api/render HTTP/1.1\r\nHost: x\r\nX-Slow: " + std::string(100000, 'a');
+      const std::string request = "POST /api/render HTTP/1.1\r\nHost: localhost\r\nX-Slow: " + std::string(100000, 'a');
       for (std::size_t i = 0; i < request.size() && !stop_; ++i) {
         if (!send_all(fd_, request.substr(i, 1))) break;
         std::this_thread::sleep_for(gap);
@@ -189,7 +189,7 @@ TEST(HostileClients, AChunkedBodyIs413AtTheChunkThatPassesTheLimitAndTheConnecti
   Server server;
   const int fd = connect_to(server.port());
   ASSERT_GE(fd, 0);
-  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n"));
+  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nTransfer-Encoding: chunked\r\n\r\n"));
   // 64 KiB chunks, like curl's, up to 4 MiB; the server must refuse at 1 MiB.
   const std::string chunk = "10000\r\n" + std::string(65536, ' ') + "\r\n";
   std::size_t sent = 0;
@@ -211,7 +211,7 @@ TEST(HostileClients, AChunkedBodyIs413AtTheChunkThatPassesTheLimitAndTheConnecti
   close(fd);
   EXPECT_TRUE(refused_early || sent <= (4u << 20)) << sent;
   // One chunk announced past the limit is refused before its data.
-  const Answer big = exchange(server.port(), "POST /api/render HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n"
+  const Answer big = exchange(server.port(), "POST /api/render HTTP/1.1\r\nHost: localhost\r\nTransfer-Encoding: chunked\r\n\r\n"
                                              "200000\r\n", milliseconds(5000));
   EXPECT_EQ(big.status, 413);
   EXPECT_EQ(exchange(server.port(), kHealth).status, 200);
@@ -247,7 +247,7 @@ TEST(HostileClients, TheDeadlineAllowsForTheLargestBodyAtTheSlowestRate) {
   Server server(options);
   const std::string body = padded_body(1200);
   const int fd = connect_to(server.port());
-  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: 1200\r\n\r\n"));
+  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: 1200\r\n\r\n"));
   // 1200 bytes over ~1.2 s: past request_timeout alone, well within the
   // time the body is allowed.
   for (std::size_t at = 0; at < body.size(); at += 100) {
@@ -264,7 +264,7 @@ TEST(HostileClients, BodiesHeldAtOnceAreBounded) {
   options.max_buffered_body_bytes = 100000;
   Server server(options);
   const std::string body = padded_body(60000);
-  const std::string head = "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: 60000\r\n\r\n";
+  const std::string head = "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: 60000\r\n\r\n";
   const int first = connect_to(server.port()), second = connect_to(server.port());
   ASSERT_TRUE(send_all(first, head + body.substr(0, 50000)));
   std::this_thread::sleep_for(milliseconds(100));
@@ -437,11 +437,11 @@ TEST(HostileClients, PipelinedRequestsAreAnsweredInOrder) {
   Server server;
   const int fd = connect_to(server.port());
   const std::string body = R"({"width": 16, "height": 16})";
-  ASSERT_TRUE(send_all(fd, "GET /api/health HTTP/1.1\r\nHost: x\r\n\r\n"
-                           "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: " +
+  ASSERT_TRUE(send_all(fd, "GET /api/health HTTP/1.1\r\nHost: localhost\r\n\r\n"
+                           "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: " +
                                std::to_string(body.size()) + "\r\n\r\n" + body +
-                               "GET /api/scenes HTTP/1.1\r\nHost: x\r\n\r\n"
-                               "GET /nowhere HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"));
+                               "GET /api/scenes HTTP/1.1\r\nHost: localhost\r\n\r\n"
+                               "GET /nowhere HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n"));
   AnswerReader reader(fd);
   const Answer health = reader.next(), frame = reader.next(), scenes = reader.next(), missing = reader.next();
   EXPECT_EQ(health.status, 200);
@@ -459,14 +459,14 @@ TEST(HostileClients, ExpectContinueIsAnsweredAndABodyPastTheLimitIsNeverAskedFor
   Server server;
   const std::string body = R"({"width": 16, "height": 16})";
   const int fd = connect_to(server.port());
-  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nExpect: 100-continue\r\nContent-Length: " +
+  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nExpect: 100-continue\r\nContent-Length: " +
                                std::to_string(body.size()) + "\r\n\r\n"));
   AnswerReader reader(fd);
   EXPECT_EQ(reader.next().status, 100);
   ASSERT_TRUE(send_all(fd, body));
   EXPECT_EQ(reader.next().status, 200);
   close(fd);
-  const Answer big = exchange(server.port(), "POST /api/render HTTP/1.1\r\nHost: x\r\nExpect: 100-continue\r\n"
+  const Answer big = exchange(server.port(), "POST /api/render HTTP/1.1\r\nHost: localhost\r\nExpect: 100-continue\r\n"
                                              "Content-Length: 2000000\r\n\r\n");
   EXPECT_EQ(big.status, 413);
 }
@@ -480,7 +480,7 @@ TEST(HostileClients, AStopClosesIdleAndTricklingClientsAtOnceAndAnswersTheReques
   for (int i = 0; i < 3; ++i) idle.push_back(connect_to(port));
   const std::string body = R"({"width": 256, "height": 256, "output": "exact"})";
   const int busy = connect_to(port);
-  ASSERT_TRUE(send_all(busy, "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: " + std::to_string(body.size()) +
+  ASSERT_TRUE(send_all(busy, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: " + std::to_string(body.size()) +
                                  "\r\n\r\n" + body));
   while (RendererEnvironment::renderer->queue_depth() == 0) std::this_thread::sleep_for(milliseconds(1));
   const auto start = Clock::now();
@@ -502,7 +502,7 @@ TEST(HostileClients, AClientVanishingMidBodyLeavesNothingBehind) {
   Server server;
   for (int i = 0; i < 20; ++i) {
     const int fd = connect_to(server.port());
-    send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: 1000\r\n\r\n{\"width\":");
+    send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: 1000\r\n\r\n{\"width\":");
     close(fd);
   }
   std::this_thread::sleep_for(milliseconds(200));

@@ -112,7 +112,7 @@ TEST(GracefulStop, TricklingAndIdleClientsDoNotHoldItUp) {
   for (int i = 0; i < 6; ++i) sockets.push_back(connect_to_server());
   for (int i = 0; i < 3; ++i)  // the other three stay idle
     tricklers.emplace_back([&, fd = sockets[i]] {
-      const std::string head = "POST /api/render HTTP/1.1\r\nHost: x\r\nX-Slow: " + std::string(1000, 'a');
+      const std::string head = "POST /api/render HTTP/1.1\r\nHost: localhost\r\nX-Slow: " + std::string(1000, 'a');
       for (std::size_t k = 0; k < head.size() && !done; ++k) {
         if (send(fd, head.data() + k, 1, MSG_NOSIGNAL) != 1) break;
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
