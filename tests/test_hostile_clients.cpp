@@ -22,6 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "access.hpp"
 #include "http_api.hpp"
 #include "render_service.hpp"
 
@@ -43,7 +44,8 @@ class RendererEnvironment : public testing::Environment {
 
 // A server of its own per test, on the shared renderer.
 struct Server {
-  explicit Server(HttpServerOptions connections = {}) : api(*RendererEnvironment::renderer, options(connections)) {
+  explicit Server(HttpServerOptions connections = {}) : Server(options(connections)) {}
+  explicit Server(ServerOptions options) : api(*RendererEnvironment::renderer, options) {
     EXPECT_TRUE(api.bind());
     thread = std::thread([this] { api.serve(); });
     while (!api.serving()) std::this_thread::sleep_for(milliseconds(1));
@@ -431,6 +433,160 @@ TEST(HostileClients, PipelinedRequestsWaitWhileTheirAnswersAreUnread) {
   EXPECT_LE(answered * answer_bytes, options.max_unsent_bytes + 2 * answer_bytes + (16u << 10)) << answered;
   EXPECT_GT(answered, 2u) << "pipelining itself goes on";
   close(fd);
+}
+
+// Issue 29's finding 8: with Host: evil.example (DNS rebinding: a page of
+// evil.example whose name now points at 127.0.0.1) every route answered,
+// and a missing or repeated Host on HTTP/1.1 got 200.
+TEST(HostileClients, AForeignHostIs421AndAMissingOrRepeatedOneIs400) {
+  Server server;
+  const auto get = [&](const std::string& host_lines, const std::string& version = "HTTP/1.1") {
+    return exchange(server.port(), "GET /api/scenes " + version + "\r\n" + host_lines + "Connection: close\r\n\r\n");
+  };
+  const Answer foreign = get("Host: evil.example\r\n");
+  EXPECT_EQ(foreign.status, 421) << foreign.head << foreign.body;
+  EXPECT_NE(foreign.head.find("Misdirected Request"), std::string::npos);
+  EXPECT_NE(json::parse(foreign.body)["error"].get<std::string>().find("'evil.example'"), std::string::npos)
+      << foreign.body;
+  EXPECT_EQ(get("Host: evil.example:" + std::to_string(server.port()) + "\r\n").status, 421);
+  const Answer missing = get("");
+  EXPECT_EQ(missing.status, 400) << missing.body;
+  EXPECT_NE(missing.body.find("no Host header field"), std::string::npos) << missing.body;
+  EXPECT_EQ(get("Host: localhost\r\nHost: localhost\r\n").status, 400);
+  EXPECT_EQ(get("Host: local host\r\n").status, 400);
+  // A POST is refused before its body: nothing is read for a foreign Host.
+  const Answer upload = exchange(server.port(), "POST /api/models HTTP/1.1\r\nHost: evil.example\r\n"
+                                                "Content-Type: model/gltf-binary\r\nContent-Length: 50000000\r\n\r\n");
+  EXPECT_EQ(upload.status, 421);
+  // Loopback names and the bound address, at any port; HTTP/1.0 need not name one.
+  for (const std::string& host :
+       std::vector<std::string>{"localhost", "127.0.0.1:" + std::to_string(server.port()), "[::1]:1", "LOCALHOST"})
+    EXPECT_EQ(get("Host: " + host + "\r\n").status, 200) << host;
+  EXPECT_EQ(get("", "HTTP/1.0").status, 200);
+  // Health too: it is no exception to the Host check.
+  EXPECT_EQ(exchange(server.port(), "GET /api/health HTTP/1.1\r\nHost: evil.example\r\n\r\n").status, 421);
+}
+
+TEST(HostileClients, AllowedHostsAddNamesOrAny) {
+  ServerOptions options = Server::options({});
+  options.allowed_hosts = {"render.example"};
+  Server listed(options);
+  EXPECT_EQ(exchange(listed.port(), "GET /api/scenes HTTP/1.1\r\nHost: render.example:8080\r\n\r\n").status, 200);
+  EXPECT_EQ(exchange(listed.port(), "GET /api/scenes HTTP/1.1\r\nHost: localhost\r\n\r\n").status, 200);
+  EXPECT_EQ(exchange(listed.port(), "GET /api/scenes HTTP/1.1\r\nHost: evil.example\r\n\r\n").status, 421);
+  options.allowed_hosts = {"*"};
+  Server any(options);
+  EXPECT_EQ(exchange(any.port(), "GET /api/scenes HTTP/1.1\r\nHost: evil.example\r\n\r\n").status, 200);
+  EXPECT_EQ(exchange(any.port(), "GET /api/scenes HTTP/1.1\r\n\r\n").status, 400) << "still one Host on HTTP/1.1";
+}
+
+constexpr const char* kTokens =
+    "renderer-token-000000001 render\n"
+    "uploader-token-000000002 render,upload\n"
+    "monitor-token-0000000003 metrics\n";
+
+ServerOptions with_tokens(const std::string& cors = "") {
+  ServerOptions options = Server::options({});
+  std::string error;
+  options.tokens = std::make_shared<const TokenTable>(*TokenTable::parse(kTokens, error));
+  options.cors_origin = cors;
+  return options;
+}
+
+Answer ask(int port, const std::string& method, const std::string& path, const std::string& token,
+           const std::string& body = "", const std::string& type = "application/json") {
+  std::string request = method + " " + path + " HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n";
+  if (!token.empty()) request += "Authorization: Bearer " + token + "\r\n";
+  if (!body.empty()) request += "Content-Type: " + type + "\r\nContent-Length: " + std::to_string(body.size()) + "\r\n";
+  return umbra::exchange(port, request + "\r\n" + body);  // not std::exchange, found by argument
+
+}
+
+// Issue 29's finding 8: without tokens, anyone who could connect could
+// upload, list models and read /metrics.
+TEST(HostileClients, WithTokensEachRouteNeedsATokenWithItsScope) {
+  Server server(with_tokens());
+  const int port = server.port();
+  const std::string render = "renderer-token-000000001", upload = "uploader-token-000000002",
+                    monitor = "monitor-token-0000000003";
+  const std::string frame = R"({"width": 16, "height": 16})";
+  struct Case {
+    std::string method, path, body;
+    int status = 200;  // with the scope
+  };
+  const std::vector<Case> render_routes = {{"GET", "/api/scenes", ""},
+                                           {"GET", "/api/openapi.json", ""},
+                                           {"POST", "/api/render", frame},
+                                           {"POST", "/api/depth", frame},
+                                           {"GET", "/api/models", ""},
+                                           {"GET", "/api/models/teapot", "", 404}};  // this server holds none
+  for (const Case& c : render_routes) {
+    const Answer none = ask(port, c.method, c.path, "", c.body);
+    EXPECT_EQ(none.status, 401) << c.path << ": " << none.body;
+    EXPECT_NE(none.head.find("WWW-Authenticate: Bearer realm=\"umbra\"\r\n"), std::string::npos) << none.head;
+    const Answer unknown = ask(port, c.method, c.path, "renderer-token-000000009", c.body);
+    EXPECT_EQ(unknown.status, 401) << c.path;
+    EXPECT_NE(unknown.head.find("error=\"invalid_token\""), std::string::npos) << unknown.head;
+    const Answer wrong = ask(port, c.method, c.path, monitor, c.body);
+    EXPECT_EQ(wrong.status, 403) << c.path << ": " << wrong.body;
+    EXPECT_NE(wrong.head.find("error=\"insufficient_scope\", scope=\"render\""), std::string::npos) << wrong.head;
+    EXPECT_EQ(ask(port, c.method, c.path, render, c.body).status, c.status) << c.path;
+    EXPECT_EQ(ask(port, c.method, c.path, upload, c.body).status, c.status) << c.path;
+  }
+  // An upload needs the upload scope (then the body is judged: not a glTF).
+  const Answer refused = ask(port, "POST", "/api/models", render, "not a model", "model/gltf-binary");
+  EXPECT_EQ(refused.status, 403) << refused.body;
+  EXPECT_NE(refused.body.find("POST /api/models needs the upload scope; this token has render"), std::string::npos)
+      << refused.body;
+  EXPECT_EQ(ask(port, "POST", "/api/models", upload, "not a model", "model/gltf-binary").status, 400);
+  EXPECT_EQ(ask(port, "GET", "/metrics", render, "").status, 403);
+  EXPECT_EQ(ask(port, "GET", "/metrics", monitor, "").status, 200);
+  EXPECT_EQ(ask(port, "GET", "/metrics", "", "").status, 401);
+  // No token for health and the panel's own files; elsewhere any known one.
+  EXPECT_EQ(ask(port, "GET", "/api/health", "", "").status, 200);
+  EXPECT_EQ(ask(port, "GET", "/", "", "").status, 200);
+  EXPECT_EQ(ask(port, "GET", "/app.js", "", "").status, 200);
+  EXPECT_EQ(ask(port, "GET", "/api/nowhere", "", "").status, 401);
+  EXPECT_EQ(ask(port, "GET", "/api/nowhere", monitor, "").status, 404);
+  EXPECT_EQ(ask(port, "DELETE", "/api/render", monitor, "").status, 405);
+}
+
+TEST(HostileClients, AnUploadWithoutATokenIsRefusedBeforeItsBody) {
+  Server server(with_tokens());
+  const int fd = connect_to(server.port());
+  ASSERT_TRUE(send_all(fd, "POST /api/models HTTP/1.1\r\nHost: localhost\r\nContent-Type: model/gltf-binary\r\n"
+                           "Content-Length: 60000000\r\n\r\n"));
+  const Answer a = AnswerReader(fd).next(milliseconds(5000));
+  EXPECT_EQ(a.status, 401) << a.head << a.body;
+  EXPECT_NE(a.head.find("Connection: close"), std::string::npos) << a.head;
+  close(fd);
+  // Expect: 100-continue is refused, never continued.
+  const Answer asked = exchange(server.port(), "POST /api/models HTTP/1.1\r\nHost: localhost\r\n"
+                                               "Authorization: Bearer renderer-token-000000001\r\n"
+                                               "Expect: 100-continue\r\nContent-Length: 60000000\r\n\r\n");
+  EXPECT_EQ(asked.status, 403);
+}
+
+TEST(HostileClients, APreflightNeedsNoTokenAndAllowsTheAuthorizationHeader) {
+  Server server(with_tokens("https://app.example"));
+  const Answer a = exchange(server.port(), "OPTIONS /api/render HTTP/1.1\r\nHost: localhost\r\n"
+                                           "Origin: https://app.example\r\nAccess-Control-Request-Method: POST\r\n"
+                                           "Access-Control-Request-Headers: authorization, content-type\r\n\r\n");
+  EXPECT_EQ(a.status, 204) << a.head;
+  EXPECT_NE(a.head.find("Access-Control-Allow-Headers: Content-Type, Authorization"), std::string::npos) << a.head;
+  const Answer refused = ask(server.port(), "GET", "/api/scenes", "");
+  EXPECT_NE(refused.head.find("Access-Control-Allow-Origin: https://app.example"), std::string::npos) << refused.head;
+  EXPECT_NE(refused.head.find("WWW-Authenticate"), std::string::npos);
+}
+
+TEST(HostileClients, TheUploaderIsTheTokensPrincipalOnlyWithTokens) {
+  HttpRequest request;
+  request.principal = token_principal("uploader-token-000000002");
+  Server with(with_tokens());
+  EXPECT_EQ(with.api.uploader_of(request), request.principal);
+  EXPECT_EQ(request.principal.size(), 6u + 12u);
+  Server without;
+  EXPECT_EQ(without.api.uploader_of(request), "");
 }
 
 TEST(HostileClients, PipelinedRequestsAreAnsweredInOrder) {
