@@ -82,7 +82,7 @@ double probe(int port) {
   const int fd = connect_to(port);
   if (fd < 0) return -1;
   std::string answer;
-  if (send_all(fd, "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")) {
+  if (send_all(fd, "GET /api/health HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n")) {
     char buffer[4096];
     for (ssize_t n; (n = recv(fd, buffer, sizeof buffer, 0)) > 0;) answer.append(buffer, std::size_t(n));
   }
@@ -114,7 +114,7 @@ class SlowHeaders : public Attack {
       threads_.emplace_back([this, port, gap] {
         while (!quit_) {
           const int fd = connect_to(port);
-          const std::string head = "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: " + std::string(1 << 20, 'a');
+          const std::string head = "GET /api/health HTTP/1.1\r\nHost: localhost\r\nX-Slow: " + std::string(1 << 20, 'a');
           for (std::size_t k = 0; k < head.size() && !quit_ && fd >= 0; ++k) {
             if (!send_all(fd, head.substr(k, 1)) || closed(fd)) break;
             for (auto t = Clock::now(); !quit_ && Clock::now() - t < gap;) std::this_thread::sleep_for(milliseconds(10));
@@ -156,7 +156,7 @@ class HugeChunkedBodies : public Attack {
         while (!quit_) {
           const int fd = connect_to(port);
           if (fd < 0) continue;
-          send_all(fd, "POST /api/render HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n\r\n");
+          send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nTransfer-Encoding: chunked\r\n\r\n");
           for (int k = 0; k < 8192 && !quit_; ++k)
             if (!send_all(fd, chunk) || closed(fd)) break;
           close(fd);
@@ -174,7 +174,7 @@ class Renders : public Attack {
         while (!quit_) {
           const int fd = connect_to(port);
           if (fd < 0) continue;
-          send_all(fd, "POST /api/render HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\nContent-Length: 2\r\n\r\n{}");
+          send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Length: 2\r\n\r\n{}");
           char buffer[65536];
           while (recv(fd, buffer, sizeof buffer, 0) > 0) {
           }

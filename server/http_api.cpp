@@ -162,17 +162,19 @@ bool valid_cors_origin(const std::string& origin) {
 
 // The route table: what each API path does. A known path with another
 // method is 405; every other GET is a file of the web panel.
+// With --tokens, each needs a token with its scope; health needs none, so
+// that probes (HAProxy's, a load balancer's) work without one.
 const HttpApi::Route HttpApi::kRoutes[] = {
-    {"GET", "/api/health", &HttpApi::health, false},
-    {"GET", "/api/scenes", &HttpApi::scenes, false},
-    {"GET", "/api/openapi.json", &HttpApi::openapi_document, false},
-    {"POST", "/api/render", &HttpApi::render_color, true},
-    {"POST", "/api/depth", &HttpApi::render_depth, true},
-    {"GET", "/api/models", &HttpApi::list_models, false},
-    {"POST", "/api/models", &HttpApi::upload_model, true},
+    {"GET", "/api/health", &HttpApi::health, false, 0},
+    {"GET", "/api/scenes", &HttpApi::scenes, false, kScopeRender},
+    {"GET", "/api/openapi.json", &HttpApi::openapi_document, false, kScopeRender},
+    {"POST", "/api/render", &HttpApi::render_color, true, kScopeRender},
+    {"POST", "/api/depth", &HttpApi::render_depth, true, kScopeRender},
+    {"GET", "/api/models", &HttpApi::list_models, false, kScopeRender},
+    {"POST", "/api/models", &HttpApi::upload_model, true, kScopeUpload},
     // On a worker: a model not held may be read from --model-store.
-    {"GET", "/api/models/", &HttpApi::get_model, true, true},
-    {"GET", "/metrics", &HttpApi::metrics, false},
+    {"GET", "/api/models/", &HttpApi::get_model, true, kScopeRender, true},
+    {"GET", "/metrics", &HttpApi::metrics, false, kScopeMetrics},
 };
 
 struct HttpApi::ModelPlan {
@@ -199,7 +201,11 @@ HttpApi::HttpApi(RenderService& renderer, ModelStore& models, ServerOptions opti
     : HttpApi(renderer, std::shared_ptr<ModelStore>(std::shared_ptr<ModelStore>(), &models), std::move(options)) {}
 
 HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options)
-    : renderer_(renderer), options_(std::move(options)), models_(std::move(models)), started_(Clock::now()) {
+    : renderer_(renderer),
+      options_(std::move(options)),
+      allowed_hosts_(options_.host, options_.allowed_hosts),
+      models_(std::move(models)),
+      started_(Clock::now()) {
   if (!options_.model_store_dir.empty())
     archive_ = std::make_unique<ModelArchive>(options_.model_store_dir, options_.model_store_max_bytes);
   HttpServerOptions connections = options_.connections;
@@ -222,6 +228,7 @@ HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, Se
   connections.max_waiting_requests = renderer_.limits().queue_capacity;
   HttpHandlers handlers;
   handlers.blocks = [this](const HttpRequest& req) { return blocks(req); };
+  handlers.admit = [this](const HttpRequest& head) { return admit(head); };
   handlers.handle = [this](const HttpRequest& req, HttpResponse& res) {
     handle(req, res);
     add_cors_headers(res);
@@ -229,9 +236,11 @@ HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, Se
   handlers.error = [this](int status, const std::string& message) { return error_response(status, message); };
   handlers.log = [this](const HttpRequest& req, const HttpResponse& res, double ms) {
     metrics_.request_answered(route_label(req), res.status, ms / 1000.0);
+    // Who asked, by principal: never the token itself.
     if (options_.log_requests)
-      std::fprintf(stderr, "%s %s %d %.1f ms\n", req.method.empty() ? "-" : req.method.c_str(),
-                   req.path.empty() ? "-" : req.path.c_str(), res.status, ms);
+      std::fprintf(stderr, "%s %s %d %.1f ms%s%s\n", req.method.empty() ? "-" : req.method.c_str(),
+                   req.path.empty() ? "-" : req.path.c_str(), res.status, ms, req.principal.empty() ? "" : " ",
+                   req.principal.c_str());
   };
   http_ = std::make_unique<HttpServer>(std::move(connections), std::move(handlers));
 }
@@ -253,13 +262,49 @@ HttpResponse HttpApi::error_response(int status, const std::string& message) con
   return res;
 }
 
+std::string HttpApi::uploader_of(const HttpRequest& req) const { return options_.tokens ? req.principal : ""; }
+
+Admission HttpApi::admit(const HttpRequest& head) const {
+  Admission admission;
+  if (const AccessRefusal host = allowed_hosts_.check(head)) {
+    admission.refusal = error_response(host.status, host.message);
+    return admission;
+  }
+  if (!options_.tokens) return admission;
+  // No token for the panel's files (the page must load to ask for one),
+  // health, and CORS preflights (a browser never sends credentials with one).
+  std::string allow;
+  const Route* route = find_route(head, allow);
+  const bool api = head.path == "/api" || head.path.rfind("/api/", 0) == 0;
+  const bool panel_file = !route && !api && (head.method == "GET" || head.method == "HEAD");
+  if ((route && route->scope == 0) || panel_file || head.method == "OPTIONS") return admission;
+  // Elsewhere (an unknown API path, a wrong method) any known token will
+  // do: the 404 or 405 then says more than a 403 would.
+  const std::string what = route ? head.method + " " + route->path + (route->prefix ? "{id}" : "") : "this path";
+  const AccessRefusal refused =
+      authorize(*options_.tokens, head, route ? route->scope : 0, what, admission.principal);
+  if (!refused) return admission;
+  HttpResponse res = error_response(refused.status, refused.message);
+  // RFC 6750 §3: how to authenticate, and why this failed.
+  if (refused.status == 401)
+    res.set_header("WWW-Authenticate", head.has_header("Authorization")
+                                           ? "Bearer realm=\"umbra\", error=\"invalid_token\""
+                                           : "Bearer realm=\"umbra\"");
+  else if (refused.status == 403)
+    res.set_header("WWW-Authenticate",
+                   "Bearer realm=\"umbra\", error=\"insufficient_scope\", scope=\"" + scope_names(route->scope) + "\"");
+  admission.refusal = std::move(res);
+  return admission;
+}
+
 void HttpApi::add_cors_headers(HttpResponse& res) const {
   if (options_.cors_origin.empty()) return;
   // Every response, errors included, so a page can read why it failed.
   res.set_header("Access-Control-Allow-Origin", options_.cors_origin);
   res.set_header("Vary", "Origin");
   res.set_header("Access-Control-Expose-Headers",
-                 "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error, Umbra-Sun");
+                 "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error, Umbra-Sun, "
+                 "WWW-Authenticate");
   res.set_header("Timing-Allow-Origin", options_.cors_origin);
 }
 
@@ -314,7 +359,7 @@ void HttpApi::handle(const HttpRequest& req, HttpResponse& res) {
 void HttpApi::preflight(const HttpRequest&, HttpResponse& res) {
   res.status = 204;
   res.set_header("Access-Control-Allow-Methods", "GET, POST");
-  res.set_header("Access-Control-Allow-Headers", "Content-Type");
+  res.set_header("Access-Control-Allow-Headers", "Content-Type, Authorization");
   res.set_header("Access-Control-Max-Age", "600");
 }
 
@@ -353,6 +398,7 @@ MetricsGauges HttpApi::state() const {
   g.connections_open = connections.connections_open;
   g.connections_evicted = connections.connections_evicted;
   g.connections_refused = connections.connections_refused;
+  g.connections_stalled = connections.connections_stalled;
   g.requests_timed_out = connections.requests_timed_out;
   g.bodies_refused = connections.bodies_refused;
   return g;
@@ -382,6 +428,7 @@ void HttpApi::health(const HttpRequest&, HttpResponse& res) {
                        {"connections_open", g.connections_open},
                        {"connections_evicted", g.connections_evicted},
                        {"connections_refused", g.connections_refused},
+                       {"connections_stalled", g.connections_stalled},
                        {"requests_timed_out", g.requests_timed_out},
                        {"bodies_refused", g.bodies_refused}}
                       .dump(),
@@ -570,8 +617,6 @@ void HttpApi::send_models_busy(HttpResponse& res) const {
   res.set_header("Retry-After", "1");
   send_error(res, 503, "already loading " + std::to_string(kMaxConcurrentModelLoads) + " models; retry later", "");
 }
-
-std::string HttpApi::uploader_of(const HttpRequest&) const { return ""; }
 
 namespace {
 

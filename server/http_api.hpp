@@ -14,6 +14,7 @@
 #include "model_store.hpp"
 #include "render_service.hpp"
 
+#include "access.hpp"
 #include "http_server.hpp"
 #include "metrics.hpp"
 
@@ -48,6 +49,13 @@ struct ServerOptions {
   /// --model-store-max-gib: the most the folder holds; least recently used
   /// files are deleted first to stay under it.
   std::uint64_t model_store_max_bytes = ModelArchive::kDefaultMaxBytes;
+  /// --allowed-hosts: names a request's Host may give besides the loopback
+  /// names and `host` itself (AllowedHosts); "*": any. Another gets 421.
+  std::vector<std::string> allowed_hosts;
+  /// --tokens FILE: null, every request is served; else every route but
+  /// GET /api/health, OPTIONS and the panel's files needs a bearer token
+  /// with the route's scope (HttpApi::kRoutes).
+  std::shared_ptr<const TokenTable> tokens;
 };
 
 /// The model store's limits for `options`: its budget, and each owner's share.
@@ -89,10 +97,10 @@ class HttpApi {
   void stop();
 
   /// Whom the models `req` makes this server load are charged to (its
-  /// uploads, and files it reads from --model-store for it): one owner's
-  /// uploads never evict another owner's models within its share. Without
-  /// authentication every client is the one owner "".
-  /// Virtual only so that tests can stand in for authentication.
+  /// uploads, and files it reads from --model-store for it): its principal
+  /// ("token:" + 12 hex digits) with --tokens, else "" (every client is the
+  /// same one). One owner's uploads never evict another owner's models
+  /// within its share. Virtual only so that tests can stand in for tokens.
   virtual std::string uploader_of(const HttpRequest& req) const;
 
  private:
@@ -104,6 +112,7 @@ class HttpApi {
     const char* path;
     Handler handler;
     bool blocks;          ///< waits for the renderer or loads a model: runs on a worker thread
+    unsigned scope;       ///< with --tokens, the Scope bits its token needs; 0: none (no token needed)
     bool prefix = false;  ///< `path` and at least one more character: "/api/models/" + id
   };
   static const Route kRoutes[];
@@ -160,6 +169,9 @@ class HttpApi {
   /// names it, "static" for the panel's files, or "other".
   std::string route_label(const HttpRequest& req) const;
   bool blocks(const HttpRequest& req) const;
+  /// At the end of `head`: the Host check, then (with --tokens) the token
+  /// and its scope. Refused before any of the body is read.
+  Admission admit(const HttpRequest& head) const;
   HttpResponse error_response(int status, const std::string& message) const;
   void add_cors_headers(HttpResponse& res) const;
   /// The panel's file `name` (a path relative to the web folder): false if
@@ -168,6 +180,7 @@ class HttpApi {
 
   RenderService& renderer_;
   ServerOptions options_;
+  AllowedHosts allowed_hosts_;
   std::shared_ptr<ModelStore> models_;  // owned, or the one given (not owned)
   std::mutex model_loads_mutex_;
   int model_loads_ = 0;  // uploads being loaded now

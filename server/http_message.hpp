@@ -39,6 +39,9 @@ struct HttpRequest {
   std::string body;       ///< decoded (chunks joined)
   bool keep_alive = true; ///< false: the client asked to close (or spoke HTTP/1.0)
   int socket = -1;        ///< the connection's descriptor, for peer_closed(); owned by the server
+  /// Who sent it, for accounting: with --tokens, "token:" + the first 12
+  /// hex digits of its token's SHA-256 (never the token); else "".
+  std::string principal;
 
   /// First value of `name` (case-insensitive), or "".
   std::string header(std::string_view name) const;

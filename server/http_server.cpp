@@ -15,8 +15,10 @@
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
+#include <linux/sockios.h>
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/uio.h>
 #include <unistd.h>
@@ -31,8 +33,15 @@ constexpr std::size_t kReadChunk = 64 << 10;        // bytes read per readiness 
 constexpr std::size_t kAcceptsPerWake = 128;        // so that a flood of connects cannot starve the rest
 constexpr auto kLinger = std::chrono::seconds(1);   // reading after a closing response
 constexpr auto kAcceptPause = std::chrono::milliseconds(100);  // out of descriptors: rest accepting
+// How often a connection whose pipelined requests wait for its answers to
+// be read looks at its send queue again: no readiness event says that it
+// shrank below max_unsent_bytes (EPOLLOUT fires whenever there is room).
+constexpr auto kDrainPoll = std::chrono::milliseconds(50);
 
-enum class Phase { Idle, Receiving, Handling, Sending, Lingering };
+// Draining: every byte of the answers is with the kernel, but the client
+// has not read them all; the connection waits for it to read (below
+// max_unsent_bytes to go on with a pipelined request, all of it to close).
+enum class Phase { Idle, Receiving, Handling, Sending, Draining, Lingering };
 
 struct Connection {
   int fd = -1;
@@ -45,7 +54,13 @@ struct Connection {
   std::string out;             // to send
   std::size_t sent = 0;
   bool close_after_send = false;
+  Clock::time_point answer_due;   // sending: the whole answer out by then (write_timeout)
+  Clock::time_point progressed;   // sending, draining: when the client last took a byte of its answers
+  std::size_t unsent_in_kernel = 0;  // draining: as last seen
+  bool close_when_drained = false;   // draining: close once all is read, rather than read on
   bool body_deadline_set = false;  // the deadline allows for this request's body
+  bool admitted = false;           // this request's head passed HttpHandlers::admit
+  std::string principal;           // of this request, from admit
   std::size_t counted_body = 0;    // bytes of its body counted in Impl::buffered_body_bytes
   std::uint32_t events = 0;    // registered with epoll; 0: not registered
 
@@ -64,6 +79,14 @@ struct Work {
 
 void close_quietly(int fd) {
   if (fd >= 0) ::close(fd);
+}
+
+// Bytes sent on `fd` that the peer has not acknowledged yet: answers it
+// has not read (on loopback, once its receive buffer is full).
+std::size_t unsent_in_kernel(int fd) {
+  int bytes = 0;
+  if (ioctl(fd, SIOCOUTQ, &bytes) != 0 || bytes < 0) return 0;
+  return std::size_t(bytes);
 }
 
 }  // namespace
@@ -144,11 +167,18 @@ struct HttpServer::Impl {
 
   // ---- connections
 
-  void close_connection(int fd) {
+  // `reset`: with RST, dropping what the kernel still holds to send. For a
+  // client that does not read: a plain close would leave its unread
+  // answers in kernel memory until the kernel gives up on the peer.
+  void close_connection(int fd, bool reset = false) {
     auto it = connections.find(fd);
     if (it == connections.end()) return;
     watch(*it->second, 0);
     release_body(*it->second);
+    if (reset) {
+      const linger abort{1, 0};
+      setsockopt(fd, SOL_SOCKET, SO_LINGER, &abort, sizeof abort);
+    }
     ::close(fd);
     connections.erase(it);
     count([](HttpServerStats& s) { --s.connections_open; });
@@ -172,25 +202,53 @@ struct HttpServer::Impl {
     c.phase = Phase::Idle;
     c.deadline = Clock::now() + options.idle_timeout;
     c.reader.reset();
+    c.admitted = false;
+    c.principal.clear();
+  }
+
+  // Once per request, when its head is whole: false if it was answered
+  // (refused) instead.
+  bool admit(Connection& c) {
+    if (c.admitted) return true;
+    c.admitted = true;
+    if (!handlers.admit) return true;
+    Admission admission = handlers.admit(c.reader.request());
+    c.principal = std::move(admission.principal);
+    if (!admission.refusal) return true;
+    // The body is not read: the connection closes unless there is none.
+    const bool whole = c.reader.state() == RequestReader::State::Complete;
+    HttpRequest head = whole ? c.reader.take_request() : partial_request(c);
+    respond(c, head, std::move(*admission.refusal), !whole);
+    return false;
   }
 
   // The connection to close to make room at the cap: the longest idle,
-  // else the one receiving a request for longest (a legitimate request
-  // arrives in milliseconds; the slowest sender is the likeliest attacker,
-  // and the nearest its own timeout anyway). -1: every one is busy.
+  // else the one that has gone longest without progress: receiving its
+  // request since its first byte (a legitimate request arrives in
+  // milliseconds), or sending an answer the client last took a byte of
+  // then (a client that does not read). The slowest is the likeliest
+  // attacker, and the nearest its own timeout anyway. -1: every one is
+  // being handled.
   int connection_to_evict() const {
-    int idle = -1, receiving = -1;
-    Clock::time_point idle_since = Clock::time_point::max(), receiving_since = Clock::time_point::max();
+    int idle = -1, stuck = -1;
+    Clock::time_point idle_since = Clock::time_point::max(), stuck_since = Clock::time_point::max();
     for (const auto& [fd, c] : connections) {
-      if ((c->phase == Phase::Idle || c->phase == Phase::Lingering) && c->deadline < idle_since) {
-        idle = fd;
-        idle_since = c->deadline;
-      } else if (c->phase == Phase::Receiving && c->started < receiving_since) {
-        receiving = fd;
-        receiving_since = c->started;
+      if (c->phase == Phase::Idle || c->phase == Phase::Lingering) {
+        if (c->deadline < idle_since) {
+          idle = fd;
+          idle_since = c->deadline;
+        }
+        continue;
+      }
+      const Clock::time_point since = c->phase == Phase::Receiving                                   ? c->started
+                                      : c->phase == Phase::Sending || c->phase == Phase::Draining ? c->progressed
+                                                                                                    : Clock::time_point::max();
+      if (since < stuck_since) {
+        stuck = fd;
+        stuck_since = since;
       }
     }
-    return idle >= 0 ? idle : receiving;
+    return idle >= 0 ? idle : stuck;
   }
 
   // Best effort, never blocking: the few hundred bytes of an error fit in
@@ -220,7 +278,8 @@ struct HttpServer::Impl {
           count([](HttpServerStats& s) { ++s.connections_refused; });
           continue;
         }
-        close_connection(evict);
+        const Phase phase = connections.at(evict)->phase;
+        close_connection(evict, phase == Phase::Sending || phase == Phase::Draining);
         count([](HttpServerStats& s) { ++s.connections_evicted; });
       }
       // A response goes out as head, then body: with Nagle's algorithm the
@@ -278,6 +337,7 @@ struct HttpServer::Impl {
             c.deadline = c.started + options.request_timeout;
             c.body_deadline_set = false;
           }
+          if (c.reader.state() == RequestReader::State::Body && !admit(c)) return;
           if (c.reader.state() == RequestReader::State::Body && !c.body_deadline_set) {
             c.body_deadline_set = true;
             c.deadline += std::chrono::milliseconds(std::uint64_t(c.reader.body_limit()) * 1000 /
@@ -297,9 +357,14 @@ struct HttpServer::Impl {
         }
         case RequestReader::State::Complete: {
           if (c.phase == Phase::Idle) c.started = Clock::now();
+          if (!admit(c)) {
+            if (!connections.count(fd)) return;
+            break;  // refused and answered; the next pipelined request may follow
+          }
           if (!count_body(c)) return refuse_body(c);
           HttpRequest request = c.reader.take_request();
           request.socket = c.fd;
+          request.principal = c.principal;
           dispatch(c, std::move(request));
           if (!connections.count(fd)) return;
           break;  // answered inline and sent: the next pipelined request may follow
@@ -423,10 +488,18 @@ struct HttpServer::Impl {
     c.out += response_head(response, response.body.size(), close, std::max(1, keep_alive_s));
     if (request.method != "HEAD") c.out += response.body;
     c.phase = Phase::Sending;
-    c.deadline = Clock::now() + options.write_timeout;
+    c.progressed = Clock::now();
+    c.answer_due = c.progressed + options.write_timeout;
+    c.deadline = sending_deadline(c);
     c.close_after_send = close;
     watch(c, EPOLLOUT);
     flush(c);
+  }
+
+  // The whole answer within write_timeout, and a byte of it taken at least
+  // every send_stall_timeout.
+  Clock::time_point sending_deadline(const Connection& c) const {
+    return std::min(c.answer_due, c.progressed + options.send_stall_timeout);
   }
 
   // Sends what it can; false if the connection was closed. When a
@@ -446,6 +519,8 @@ struct HttpServer::Impl {
         return false;
       }
       c.sent += std::size_t(n);
+      c.progressed = Clock::now();
+      if (c.phase == Phase::Sending) c.deadline = sending_deadline(c);
     }
     c.out.clear();
     c.sent = 0;
@@ -464,9 +539,54 @@ struct HttpServer::Impl {
       watch(c, EPOLLIN);
       return true;
     }
+    if (!c.in.empty() && unsent_in_kernel(c.fd) > options.max_unsent_bytes) {
+      start_draining(c, false);
+      return true;
+    }
     become_idle(c);
     watch(c, EPOLLIN);
     return true;
+  }
+
+  // Waits for the client to read what the kernel holds of its answers:
+  // down to max_unsent_bytes before a pipelined request is read (one that
+  // never reads holds that much, not an answer per request it sent), or
+  // all of it before a connection that is done closes (else its unread
+  // answers would stay in kernel memory long after). Nothing is read
+  // meanwhile; no byte read for send_stall_timeout resets the connection.
+  void start_draining(Connection& c, bool then_close) {
+    c.phase = Phase::Draining;
+    c.close_when_drained = then_close;
+    c.unsent_in_kernel = unsent_in_kernel(c.fd);
+    c.deadline = std::min(Clock::now() + kDrainPoll, c.progressed + options.send_stall_timeout);
+    watch(c, 0);
+  }
+
+  // A connection done with, idle or lingering: closed, once the client has
+  // read its answers.
+  void close_when_read(Connection& c, Clock::time_point now) {
+    if (stopping || unsent_in_kernel(c.fd) == 0) return close_connection(c.fd);
+    c.progressed = now;
+    start_draining(c, true);
+  }
+
+  void recheck_draining(Connection& c, Clock::time_point now) {
+    const std::size_t unsent = unsent_in_kernel(c.fd);
+    if (unsent < c.unsent_in_kernel) c.progressed = now;
+    c.unsent_in_kernel = unsent;
+    if (c.close_when_drained && unsent == 0) return close_connection(c.fd);
+    if (!c.close_when_drained && unsent <= options.max_unsent_bytes) {
+      become_idle(c);
+      watch(c, EPOLLIN);
+      return resume(c.fd);
+    }
+    if (now - c.progressed >= options.send_stall_timeout) return close_stalled(c.fd);
+    c.deadline = std::min(now + kDrainPoll, c.progressed + options.send_stall_timeout);
+  }
+
+  void close_stalled(int fd) {
+    count([](HttpServerStats& s) { ++s.connections_stalled; });
+    close_connection(fd, true);
   }
 
   // After an answer went out: a request already buffered (pipelined) is
@@ -509,15 +629,21 @@ struct HttpServer::Impl {
       auto it = connections.find(fd);
       if (it == connections.end()) continue;
       Connection& c = *it->second;
-      if (c.phase == Phase::Receiving) {
+      if (c.phase == Phase::Draining) {
+        recheck_draining(c, now);
+      } else if (c.phase == Phase::Sending && now - c.progressed >= options.send_stall_timeout) {
+        close_stalled(fd);  // the client took no byte of its answer for send_stall_timeout
+      } else if (c.phase == Phase::Receiving) {
         count([](HttpServerStats& s) { ++s.requests_timed_out; });
         const HttpRequest partial = partial_request(c);
         const auto limit = std::chrono::duration<double>(options.request_timeout).count();
         char text[96];
         std::snprintf(text, sizeof text, "the request was not received whole within %g s", limit);
         respond(c, partial, handlers.error(408, text), true);
+      } else if (c.phase == Phase::Sending) {
+        close_connection(fd, true);  // too slow to read its whole answer within write_timeout
       } else {
-        close_connection(fd);  // idle, or too slow to read its answer, or done lingering
+        close_when_read(c, now);  // idle, or done lingering
       }
     }
   }
@@ -531,8 +657,11 @@ struct HttpServer::Impl {
       listen_fd = -1;
     }
     std::vector<int> closable;
+    // A draining connection's answers are in the kernel, which still
+    // delivers them after the close; what it pipelined after is not answered.
     for (const auto& [fd, c] : connections)
-      if (c->phase == Phase::Idle || c->phase == Phase::Receiving) closable.push_back(fd);
+      if (c->phase == Phase::Idle || c->phase == Phase::Receiving || c->phase == Phase::Draining)
+        closable.push_back(fd);
     for (int fd : closable) close_connection(fd);
   }
 

@@ -13,7 +13,10 @@
 //   receiving request line, headers, body           request_timeout from its first byte (plus the
 //                                                   largest body's time at min_body_rate), then 408
 //   handling  the handler runs                      the handler's own bounds (render queue, cost budget)
-//   sending   the response goes out                 write_timeout, then closed
+//   sending   the response goes out                 write_timeout in all, and send_stall_timeout without
+//                                                   a byte taken by the client, then closed; a
+//                                                   pipelined request waits while more than
+//                                                   max_unsent_bytes of answers are unread
 //   lingering after a closing response              1 s of reading (and dropping) what the client still
 //                                                   sends, so that it reads the response before the close
 #pragma once
@@ -23,6 +26,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "http_message.hpp"
@@ -34,9 +38,12 @@ struct HttpServerOptions {
   int port = 8080;  ///< 0: any free port
   HttpLimits limits;
   /// Connections open at once, 1... Past it a new one takes the place of
-  /// the longest-idle connection, else of the one that has been receiving
-  /// its request the longest; if every connection is busy with a request
-  /// it is answered 503 and closed. Default 256.
+  /// the longest-idle connection, else of the one that has gone longest
+  /// without progress: receiving its request (since its first byte) or
+  /// sending an answer (since the client last took a byte of it). Only
+  /// when every connection's request is being handled (at most
+  /// worker_threads + max_waiting_requests of them, plus none on the I/O
+  /// thread) is a new one answered 503 and closed. Default 256.
   std::size_t max_connections = 256;
   /// Pending connections the kernel holds before accept. Default 1024.
   int listen_backlog = 1024;
@@ -53,13 +60,34 @@ struct HttpServerOptions {
   /// closed. Default 256 MiB.
   std::size_t max_buffered_body_bytes = 256u << 20;
   std::chrono::milliseconds write_timeout{10000};    ///< to send one response. Default 10 s
+  /// An answer the client takes no byte of for this long closes the
+  /// connection (a client that does not read). Default 5 s.
+  std::chrono::milliseconds send_stall_timeout{5000};
+  /// Answers sent but not yet read by the client (the kernel's send queue)
+  /// above which a pipelined request waits before it is read and handled,
+  /// so that a client pipelining requests without reading their answers
+  /// holds at most this much plus one answer. Default 1 MiB.
+  std::size_t max_unsent_bytes = 1u << 20;
   /// Threads for handlers that may block, 1... Default 4.
   std::size_t worker_threads = 4;
   /// Requests that may wait for a free worker; past it 503. Default 16.
   std::size_t max_waiting_requests = 16;
 };
 
+/// What HttpHandlers::admit says of a request's head.
+struct Admission {
+  /// Set: answer this at once, before the body is read (the connection
+  /// then closes unless the request had no body).
+  std::optional<HttpResponse> refusal;
+  std::string principal;  ///< becomes HttpRequest::principal
+};
+
 struct HttpHandlers {
+  /// Once a request's head is read, before its body: may refuse it (a
+  /// foreign Host, no token) so that no body is read for nothing, and
+  /// names who sent it. May be empty: every request admitted. Runs on the
+  /// I/O thread, which must never wait.
+  std::function<Admission(const HttpRequest& head)> admit;
   /// True if handle() may block for `request`: it then runs on a worker;
   /// otherwise on the I/O thread, which must never wait.
   std::function<bool(const HttpRequest&)> blocks;
@@ -77,6 +105,7 @@ struct HttpServerStats {
   std::uint64_t connections_open = 0;
   std::uint64_t connections_accepted = 0;
   std::uint64_t connections_evicted = 0;  ///< closed to make room for a new one
+  std::uint64_t connections_stalled = 0;  ///< closed: the client read no byte of its answer for send_stall_timeout
   std::uint64_t connections_refused = 0;  ///< answered 503 at the connection cap
   std::uint64_t requests_timed_out = 0;   ///< answered 408
   std::uint64_t bodies_refused = 0;       ///< answered 503: max_buffered_body_bytes held already

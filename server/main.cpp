@@ -4,7 +4,7 @@
 //                [--max-request-ms 4000] [--max-request-mib 2048] [--max-run-ms 8000] [--memory-mib 2048]
 //                [--fresh-context-mib 64] [--max-connections 256] [--request-timeout-ms 10000] [--cors ORIGIN] [--models DIR]
 //                [--model-store DIR] [--model-store-max-gib 8] [--max-model-mib 64] [--models-budget-mib 2048]
-//                [--upload-quota-mib N] [--quiet]
+//                [--upload-quota-mib N] [--allowed-hosts LIST] [--tokens FILE | --no-auth] [--quiet]
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -12,6 +12,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <iterator>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -32,10 +35,13 @@ void usage(std::FILE* out) {
   std::fprintf(out,
                "usage: umbra-server [--host ADDRESS] [--port N] [--web DIR] [--queue N] [--deadline-ms N]\n"
                "                    [--max-request-ms N] [--max-request-mib N] [--max-run-ms N] [--memory-mib N]\n"
-               "                    [--fresh-context-mib N] [--max-connections N] [--request-timeout-ms N] [--cors ORIGIN] [--models DIR]\n"
+               "                    [--fresh-context-mib N] [--max-connections N] [--request-timeout-ms N] [--send-stall-ms N]\n"
+               "                    [--cors ORIGIN] [--models DIR]\n"
                "                    [--model-store DIR] [--model-store-max-gib N] [--max-model-mib N]\n"
-               "                    [--models-budget-mib N] [--upload-quota-mib N] [--quiet]\n"
-               "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only)\n"
+               "                    [--models-budget-mib N] [--upload-quota-mib N]\n"
+               "                    [--allowed-hosts LIST] [--tokens FILE | --no-auth] [--quiet]\n"
+               "  --host ADDRESS  address to listen on (default 127.0.0.1: this machine only). Any other address\n"
+               "                  (0.0.0.0, a LAN address, a name but localhost) needs --tokens or --no-auth\n"
                "  --port N        TCP port, 0 for any free one (default 8080)\n"
                "  --web DIR       serve the web panel from DIR instead of the copy built in\n"
                "  --queue N       renders waiting or running at most, 1..4096; more get 503 (default 16)\n"
@@ -55,11 +61,16 @@ void usage(std::FILE* out) {
                "                  when idle, make the GL context anew once this much GL memory (MiB) was released since\n"
                "                  the last one, giving back what llvmpipe keeps until then; 0: never, 0..1048576 (default 64)\n"
                "  --max-connections N\n"
-               "                  connections open at once, 1..65536; past it a new one replaces the longest idle\n"
-               "                  (or slowest-sending) one, or gets 503 if all are busy (default 256)\n"
+               "                  connections open at once, 1..65536; past it a new one replaces the longest idle one,\n"
+               "                  else the one longest without progress (receiving its request, or sending an answer\n"
+               "                  the client does not read), or gets 503 if every one is being handled (default 256)\n"
                "  --request-timeout-ms N\n"
                "                  a request not received whole (headers and body) this long after its first byte\n"
                "                  gets 408 and the connection closes, 1..3600000 (default 10000)\n"
+               "  --send-stall-ms N\n"
+               "                  a connection whose client reads no byte of its answer this long is closed,\n"
+               "                  1..3600000 (default 5000). A client's pipelined requests wait while more than\n"
+               "                  1 MiB of its answers are unread\n"
                "  --cors ORIGIN   let web pages from ORIGIN (or \"*\": any) call the API; default: none\n"
                "  --models DIR    load every .glb and .gltf in DIR at start, named by file name (\"teapot\" for teapot.glb);\n"
                "                  their external buffer files are read from inside DIR only. A file that fails is\n"
@@ -85,6 +96,17 @@ void usage(std::FILE* out) {
                "                  tokens, all clients are one): one owner's uploads never drop another's models within\n"
                "                  its share (only beyond it, or unused for an hour); a model larger gets 422,\n"
                "                  1..1048576 (default a quarter of --models-budget-mib)\n"
+               "  --allowed-hosts LIST\n"
+               "                  comma-separated names or addresses (no port) a request's Host may give, besides\n"
+               "                  localhost, 127.0.0.1, [::1] and the --host address (unless 0.0.0.0 or ::); any port.\n"
+               "                  \"*\": any Host. Another gets 421; none or two on HTTP/1.1 get 400. With --host 0.0.0.0\n"
+               "                  list the names clients use (default: none, so only loopback names are answered)\n"
+               "  --tokens FILE   one \"TOKEN SCOPE[,SCOPE]\" a line (scopes: render, upload, metrics; # comments;\n"
+               "                  tokens of 16+ characters of A-Z a-z 0-9 - . _ ~ + / =). Every route but GET /api/health,\n"
+               "                  OPTIONS and the panel's files then needs Authorization: Bearer TOKEN with its scope:\n"
+               "                  401 without a known token, 403 without the scope. Default: no tokens\n"
+               "  --no-auth       serve a non-loopback --host without tokens: anyone who can connect may render,\n"
+               "                  upload and read /metrics\n"
                "  --quiet         no per-request log lines\n"
                "SIGINT or SIGTERM: stop accepting, close idle connections and requests still arriving, answer the requests\n"
                "already received, exit 0 (a second one exits at once). Every render already received is answered within\n"
@@ -107,7 +129,8 @@ static long integer_flag(const char* flag, const std::string& text, long lo, lon
 int main(int argc, char** argv) {
   umbra::ServerOptions options;
   umbra::ServiceLimits limits;
-  std::string models_dir;
+  std::string models_dir, tokens_file;
+  bool no_auth = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     const auto value = [&](const char* name) -> std::string {
@@ -150,6 +173,9 @@ int main(int argc, char** argv) {
     } else if (arg == "--max-connections") {
       options.connections.max_connections =
           std::size_t(integer_flag("--max-connections", value("--max-connections"), 1, 65536));
+    } else if (arg == "--send-stall-ms") {
+      options.connections.send_stall_timeout =
+          std::chrono::milliseconds(integer_flag("--send-stall-ms", value("--send-stall-ms"), 1, 3600000));
     } else if (arg == "--request-timeout-ms") {
       options.connections.request_timeout =
           std::chrono::milliseconds(integer_flag("--request-timeout-ms", value("--request-timeout-ms"), 1, 3600000));
@@ -168,6 +194,16 @@ int main(int argc, char** argv) {
     } else if (arg == "--models-budget-mib") {
       options.models_budget_bytes =
           std::uint64_t(integer_flag("--models-budget-mib", value("--models-budget-mib"), 1, 1048576)) << 20;
+    } else if (arg == "--allowed-hosts") {
+      std::string why;
+      if (!umbra::AllowedHosts::parse_list(value("--allowed-hosts"), options.allowed_hosts, why)) {
+        std::fprintf(stderr, "umbra-server: --allowed-hosts: %s\n", why.c_str());
+        return 2;
+      }
+    } else if (arg == "--tokens") {
+      tokens_file = value("--tokens");
+    } else if (arg == "--no-auth") {
+      no_auth = true;
     } else if (arg == "--quiet") {
       options.log_requests = false;
     } else if (arg == "--help" || arg == "-h") {
@@ -180,6 +216,40 @@ int main(int argc, char** argv) {
     }
   }
 
+  if (!tokens_file.empty() && no_auth) {
+    std::fprintf(stderr, "umbra-server: --tokens and --no-auth contradict each other; give one\n");
+    return 2;
+  }
+  if (!tokens_file.empty()) {
+    std::ifstream in(tokens_file, std::ios::binary);
+    if (!in) {
+      std::fprintf(stderr, "umbra-server: --tokens: cannot read '%s'\n", tokens_file.c_str());
+      return 2;
+    }
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::string why;
+    auto tokens = umbra::TokenTable::parse(text, why);
+    if (!tokens) {
+      std::fprintf(stderr, "umbra-server: --tokens %s: %s\n", tokens_file.c_str(), why.c_str());
+      return 2;
+    }
+    options.tokens = std::make_shared<const umbra::TokenTable>(std::move(*tokens));
+    std::fprintf(stderr, "umbra-server: --tokens: %zu token(s); every route but GET /api/health and the panel's files needs one\n",
+                 options.tokens->size());
+  }
+  // Anyone on the network could render, upload and read /metrics.
+  if (!umbra::is_loopback_address(options.host) && !options.tokens && !no_auth) {
+    std::fprintf(stderr,
+                 "umbra-server: --host %s is not a loopback address: give --tokens FILE so that only clients with a "
+                 "token are served, or --no-auth to serve anyone who can connect\n",
+                 options.host.c_str());
+    return 2;
+  }
+  if (!umbra::is_loopback_address(options.host) && umbra::AllowedHosts(options.host, options.allowed_hosts).loopback_only())
+    std::fprintf(stderr,
+                 "umbra-server: --host %s with no --allowed-hosts: only requests naming localhost, 127.0.0.1 or [::1] "
+                 "as their Host are answered (421 otherwise); list the names clients use\n",
+                 options.host.c_str());
 
   if (!options.model_store_dir.empty()) {
     struct stat info {};

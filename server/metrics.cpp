@@ -166,6 +166,8 @@ std::string Metrics::exposition(const MetricsGauges& g) const {
        double(g.connections_evicted)},
       {"umbra_connections_refused_total", "counter", "Connections refused with 503 at --max-connections.",
        double(g.connections_refused)},
+      {"umbra_connections_stalled_total", "counter", "Connections closed: the client read none of its answer for --send-stall-ms.",
+       double(g.connections_stalled)},
       {"umbra_requests_timed_out_total", "counter", "Requests not received whole in time (408).",
        double(g.requests_timed_out)},
       {"umbra_bodies_refused_total", "counter", "Requests answered 503 because 256 MiB of bodies were held already.",

@@ -45,7 +45,7 @@ struct MetricsGauges {
   std::uint64_t cached_bytes = 0, models = 0, model_bytes = 0, model_budget_bytes = 0;
   std::uint64_t model_live_bytes = 0, model_share_bytes = 0, models_loaded = 0;
   std::uint64_t model_store_bytes = 0, model_store_budget_bytes = 0, model_store_evicted = 0;
-  std::uint64_t connections_open = 0, connections_evicted = 0, connections_refused = 0;
+  std::uint64_t connections_open = 0, connections_evicted = 0, connections_refused = 0, connections_stalled = 0;
   std::uint64_t requests_timed_out = 0, bodies_refused = 0;
 };
 

@@ -12,6 +12,8 @@
 #include <thread>
 #include <vector>
 
+#include <cerrno>
+
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -20,6 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "access.hpp"
 #include "http_api.hpp"
 #include "render_service.hpp"
 
@@ -41,7 +44,8 @@ class RendererEnvironment : public testing::Environment {
 
 // A server of its own per test, on the shared renderer.
 struct Server {
-  explicit Server(HttpServerOptions connections = {}) : api(*RendererEnvironment::renderer, options(connections)) {
+  explicit Server(HttpServerOptions connections = {}) : Server(options(connections)) {}
+  explicit Server(ServerOptions options) : api(*RendererEnvironment::renderer, options) {
     EXPECT_TRUE(api.bind());
     thread = std::thread([this] { api.serve(); });
     while (!api.serving()) std::this_thread::sleep_for(milliseconds(1));
@@ -155,7 +159,7 @@ Answer exchange(int port, const std::string& request, milliseconds timeout = mil
   return a;
 }
 
-const std::string kHealth = "GET /api/health HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+const std::string kHealth = "GET /api/health HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n";
 
 // A client sending its request a byte at a time, every `gap`, until told
 // to stop; each byte arrives well within any per-recv timeout.
@@ -163,7 +167,7 @@ class Trickler {
  public:
   Trickler(int port, milliseconds gap) : fd_(connect_to(port)) {
     thread_ = std::thread([this, gap] {
-      const std::string request = "POST /api/render HTTP/1.1\r\nHost: x\r\nX-Slow: " + std::string(100000, 'a');
+      const std::string request = "POST /api/render HTTP/1.1\r\nHost: localhost\r\nX-Slow: " + std::string(100000, 'a');
       for (std::size_t i = 0; i < request.size() && !stop_; ++i) {
         if (!send_all(fd_, request.substr(i, 1))) break;
         std::this_thread::sleep_for(gap);
@@ -187,7 +191,7 @@ TEST(HostileClients, AChunkedBodyIs413AtTheChunkThatPassesTheLimitAndTheConnecti
   Server server;
   const int fd = connect_to(server.port());
   ASSERT_GE(fd, 0);
-  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n"));
+  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nTransfer-Encoding: chunked\r\n\r\n"));
   // 64 KiB chunks, like curl's, up to 4 MiB; the server must refuse at 1 MiB.
   const std::string chunk = "10000\r\n" + std::string(65536, ' ') + "\r\n";
   std::size_t sent = 0;
@@ -209,7 +213,7 @@ TEST(HostileClients, AChunkedBodyIs413AtTheChunkThatPassesTheLimitAndTheConnecti
   close(fd);
   EXPECT_TRUE(refused_early || sent <= (4u << 20)) << sent;
   // One chunk announced past the limit is refused before its data.
-  const Answer big = exchange(server.port(), "POST /api/render HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n"
+  const Answer big = exchange(server.port(), "POST /api/render HTTP/1.1\r\nHost: localhost\r\nTransfer-Encoding: chunked\r\n\r\n"
                                              "200000\r\n", milliseconds(5000));
   EXPECT_EQ(big.status, 413);
   EXPECT_EQ(exchange(server.port(), kHealth).status, 200);
@@ -245,7 +249,7 @@ TEST(HostileClients, TheDeadlineAllowsForTheLargestBodyAtTheSlowestRate) {
   Server server(options);
   const std::string body = padded_body(1200);
   const int fd = connect_to(server.port());
-  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: 1200\r\n\r\n"));
+  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: 1200\r\n\r\n"));
   // 1200 bytes over ~1.2 s: past request_timeout alone, well within the
   // time the body is allowed.
   for (std::size_t at = 0; at < body.size(); at += 100) {
@@ -262,7 +266,7 @@ TEST(HostileClients, BodiesHeldAtOnceAreBounded) {
   options.max_buffered_body_bytes = 100000;
   Server server(options);
   const std::string body = padded_body(60000);
-  const std::string head = "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: 60000\r\n\r\n";
+  const std::string head = "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: 60000\r\n\r\n";
   const int first = connect_to(server.port()), second = connect_to(server.port());
   ASSERT_TRUE(send_all(first, head + body.substr(0, 50000)));
   std::this_thread::sleep_for(milliseconds(100));
@@ -329,15 +333,271 @@ TEST(HostileClients, PastTheConnectionCapTheLongestIdleMakesRoom) {
   EXPECT_GE(health["connections_evicted"].get<int>(), 2);
 }
 
+// A client with a receive buffer of about `receive_buffer` bytes (set
+// before connecting, so that the window it offers stays that small).
+int connect_small_window(int port, int receive_buffer = 1024) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(std::uint16_t(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+std::string repeated(const std::string& request, int times) {
+  std::string all;
+  for (int i = 0; i < times; ++i) all += request;
+  return all;
+}
+
+// Issue 29's finding 4: 256 connections (the cap) with a 1 KB receive
+// buffer, each pipelining 60 GET /api/openapi.json (100 KB each) and
+// reading nothing, held every slot in the sending phase, which was never
+// evicted: health probes got 503 "too many connections" until the write
+// timeout (10 s). The same with a cap of 64, to spare the machine.
+TEST(HostileClients, ClientsThatDoNotReadTheirAnswersDoNotLockOutHealth) {
+  HttpServerOptions options;  // else the defaults: 10 s to send an answer
+  options.max_connections = 64;
+  Server server(options);
+  const std::string flood = repeated("GET /api/openapi.json HTTP/1.1\r\nHost: localhost\r\n\r\n", 60);
+  std::vector<int> readers_of_nothing;
+  for (std::size_t i = 0; i < options.max_connections; ++i) {
+    const int fd = connect_small_window(server.port());
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(send_all(fd, flood));
+    readers_of_nothing.push_back(fd);
+  }
+  // Every one answered (its first bytes arrived, unread), then a moment
+  // for the server to fill what the kernel takes of its answers.
+  for (int fd : readers_of_nothing) ASSERT_TRUE(readable(fd, milliseconds(20000)));
+  std::this_thread::sleep_for(milliseconds(500));
+  for (int probe = 0; probe < 20; ++probe) {
+    const Answer a = exchange(server.port(), kHealth, milliseconds(5000));
+    ASSERT_EQ(a.status, 200) << "probe " << probe << ": " << a.body;
+  }
+  const json health = json::parse(exchange(server.port(), kHealth).body);
+  EXPECT_GE(health["connections_evicted"].get<int>(), 1) << "a probe took a stalled sender's place";
+  EXPECT_EQ(health["connections_refused"], 0);
+  for (int fd : readers_of_nothing) close(fd);
+}
+
+TEST(HostileClients, AClientThatReadsNoneOfItsAnswerIsClosedAfterTheStallTimeout) {
+  HttpServerOptions options;
+  options.write_timeout = milliseconds(600000);  // so that only the stall can close it
+  options.send_stall_timeout = milliseconds(500);
+  Server server(options);
+  const int fd = connect_small_window(server.port());
+  ASSERT_TRUE(send_all(fd, repeated("GET /api/openapi.json HTTP/1.1\r\nHost: localhost\r\n\r\n", 10)));
+  const auto start = Clock::now();
+  int stalled = 0;
+  while (stalled == 0 && seconds_since(start) < 30) {
+    std::this_thread::sleep_for(milliseconds(100));
+    stalled = json::parse(exchange(server.port(), kHealth).body)["connections_stalled"].get<int>();
+  }
+  EXPECT_EQ(stalled, 1);
+  // Closed with a reset: its unread answers are dropped, not left in the
+  // kernel for a client that will never read them.
+  char byte;
+  ssize_t n;
+  while ((n = recv(fd, &byte, 1, 0)) > 0) {
+  }
+  EXPECT_EQ(n, -1);
+  EXPECT_EQ(errno, ECONNRESET);
+  close(fd);
+}
+
+// Past max_unsent_bytes of unread answers, a client's pipelined requests
+// wait: one that pipelines thousands and reads none holds about that much,
+// not (as before) as much as the kernel's send buffer grows to (~4 MB).
+TEST(HostileClients, PipelinedRequestsWaitWhileTheirAnswersAreUnread) {
+  HttpServerOptions options;
+  options.max_unsent_bytes = 64 << 10;
+  Server server(options);
+  const std::string scenes = "GET /api/scenes HTTP/1.1\r\nHost: localhost\r\n\r\n";
+  const std::size_t answer_bytes = exchange(server.port(), scenes).body.size();
+  ASSERT_GT(answer_bytes, 1000u);
+  const int fd = connect_small_window(server.port());
+  ASSERT_TRUE(send_all(fd, repeated(scenes, 2000)));
+  std::this_thread::sleep_for(milliseconds(1500));
+  const auto metrics = exchange(server.port(), "GET /metrics HTTP/1.1\r\nHost: localhost\r\n\r\n").body;
+  const std::string counter = "umbra_http_requests_total{route=\"/api/scenes\",status=\"200\"} ";
+  const std::size_t at = metrics.find(counter);
+  ASSERT_NE(at, std::string::npos) << metrics;
+  const std::size_t answered = std::stoull(metrics.substr(at + counter.size())) - 1;  // less the size probe
+  // The bound, one answer past it, and what the client's own small buffer took.
+  EXPECT_LE(answered * answer_bytes, options.max_unsent_bytes + 2 * answer_bytes + (16u << 10)) << answered;
+  EXPECT_GT(answered, 2u) << "pipelining itself goes on";
+  close(fd);
+}
+
+// Issue 29's finding 8: with Host: evil.example (DNS rebinding: a page of
+// evil.example whose name now points at 127.0.0.1) every route answered,
+// and a missing or repeated Host on HTTP/1.1 got 200.
+TEST(HostileClients, AForeignHostIs421AndAMissingOrRepeatedOneIs400) {
+  Server server;
+  const auto get = [&](const std::string& host_lines, const std::string& version = "HTTP/1.1") {
+    return exchange(server.port(), "GET /api/scenes " + version + "\r\n" + host_lines + "Connection: close\r\n\r\n");
+  };
+  const Answer foreign = get("Host: evil.example\r\n");
+  EXPECT_EQ(foreign.status, 421) << foreign.head << foreign.body;
+  EXPECT_NE(foreign.head.find("Misdirected Request"), std::string::npos);
+  EXPECT_NE(json::parse(foreign.body)["error"].get<std::string>().find("'evil.example'"), std::string::npos)
+      << foreign.body;
+  EXPECT_EQ(get("Host: evil.example:" + std::to_string(server.port()) + "\r\n").status, 421);
+  const Answer missing = get("");
+  EXPECT_EQ(missing.status, 400) << missing.body;
+  EXPECT_NE(missing.body.find("no Host header field"), std::string::npos) << missing.body;
+  EXPECT_EQ(get("Host: localhost\r\nHost: localhost\r\n").status, 400);
+  EXPECT_EQ(get("Host: local host\r\n").status, 400);
+  // A POST is refused before its body: nothing is read for a foreign Host.
+  const Answer upload = exchange(server.port(), "POST /api/models HTTP/1.1\r\nHost: evil.example\r\n"
+                                                "Content-Type: model/gltf-binary\r\nContent-Length: 50000000\r\n\r\n");
+  EXPECT_EQ(upload.status, 421);
+  // Loopback names and the bound address, at any port; HTTP/1.0 need not name one.
+  for (const std::string& host :
+       std::vector<std::string>{"localhost", "127.0.0.1:" + std::to_string(server.port()), "[::1]:1", "LOCALHOST"})
+    EXPECT_EQ(get("Host: " + host + "\r\n").status, 200) << host;
+  EXPECT_EQ(get("", "HTTP/1.0").status, 200);
+  // Health too: it is no exception to the Host check.
+  EXPECT_EQ(exchange(server.port(), "GET /api/health HTTP/1.1\r\nHost: evil.example\r\n\r\n").status, 421);
+}
+
+TEST(HostileClients, AllowedHostsAddNamesOrAny) {
+  ServerOptions options = Server::options({});
+  options.allowed_hosts = {"render.example"};
+  Server listed(options);
+  EXPECT_EQ(exchange(listed.port(), "GET /api/scenes HTTP/1.1\r\nHost: render.example:8080\r\n\r\n").status, 200);
+  EXPECT_EQ(exchange(listed.port(), "GET /api/scenes HTTP/1.1\r\nHost: localhost\r\n\r\n").status, 200);
+  EXPECT_EQ(exchange(listed.port(), "GET /api/scenes HTTP/1.1\r\nHost: evil.example\r\n\r\n").status, 421);
+  options.allowed_hosts = {"*"};
+  Server any(options);
+  EXPECT_EQ(exchange(any.port(), "GET /api/scenes HTTP/1.1\r\nHost: evil.example\r\n\r\n").status, 200);
+  EXPECT_EQ(exchange(any.port(), "GET /api/scenes HTTP/1.1\r\n\r\n").status, 400) << "still one Host on HTTP/1.1";
+}
+
+constexpr const char* kTokens =
+    "renderer-token-000000001 render\n"
+    "uploader-token-000000002 render,upload\n"
+    "monitor-token-0000000003 metrics\n";
+
+ServerOptions with_tokens(const std::string& cors = "") {
+  ServerOptions options = Server::options({});
+  std::string error;
+  options.tokens = std::make_shared<const TokenTable>(*TokenTable::parse(kTokens, error));
+  options.cors_origin = cors;
+  return options;
+}
+
+Answer ask(int port, const std::string& method, const std::string& path, const std::string& token,
+           const std::string& body = "", const std::string& type = "application/json") {
+  std::string request = method + " " + path + " HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n";
+  if (!token.empty()) request += "Authorization: Bearer " + token + "\r\n";
+  if (!body.empty()) request += "Content-Type: " + type + "\r\nContent-Length: " + std::to_string(body.size()) + "\r\n";
+  return umbra::exchange(port, request + "\r\n" + body);  // not std::exchange, found by argument
+
+}
+
+// Issue 29's finding 8: without tokens, anyone who could connect could
+// upload, list models and read /metrics.
+TEST(HostileClients, WithTokensEachRouteNeedsATokenWithItsScope) {
+  Server server(with_tokens());
+  const int port = server.port();
+  const std::string render = "renderer-token-000000001", upload = "uploader-token-000000002",
+                    monitor = "monitor-token-0000000003";
+  const std::string frame = R"({"width": 16, "height": 16})";
+  struct Case {
+    std::string method, path, body;
+    int status = 200;  // with the scope
+  };
+  const std::vector<Case> render_routes = {{"GET", "/api/scenes", ""},
+                                           {"GET", "/api/openapi.json", ""},
+                                           {"POST", "/api/render", frame},
+                                           {"POST", "/api/depth", frame},
+                                           {"GET", "/api/models", ""},
+                                           {"GET", "/api/models/teapot", "", 404}};  // this server holds none
+  for (const Case& c : render_routes) {
+    const Answer none = ask(port, c.method, c.path, "", c.body);
+    EXPECT_EQ(none.status, 401) << c.path << ": " << none.body;
+    EXPECT_NE(none.head.find("WWW-Authenticate: Bearer realm=\"umbra\"\r\n"), std::string::npos) << none.head;
+    const Answer unknown = ask(port, c.method, c.path, "renderer-token-000000009", c.body);
+    EXPECT_EQ(unknown.status, 401) << c.path;
+    EXPECT_NE(unknown.head.find("error=\"invalid_token\""), std::string::npos) << unknown.head;
+    const Answer wrong = ask(port, c.method, c.path, monitor, c.body);
+    EXPECT_EQ(wrong.status, 403) << c.path << ": " << wrong.body;
+    EXPECT_NE(wrong.head.find("error=\"insufficient_scope\", scope=\"render\""), std::string::npos) << wrong.head;
+    EXPECT_EQ(ask(port, c.method, c.path, render, c.body).status, c.status) << c.path;
+    EXPECT_EQ(ask(port, c.method, c.path, upload, c.body).status, c.status) << c.path;
+  }
+  // An upload needs the upload scope (then the body is judged: not a glTF).
+  const Answer refused = ask(port, "POST", "/api/models", render, "not a model", "model/gltf-binary");
+  EXPECT_EQ(refused.status, 403) << refused.body;
+  EXPECT_NE(refused.body.find("POST /api/models needs the upload scope; this token has render"), std::string::npos)
+      << refused.body;
+  EXPECT_EQ(ask(port, "POST", "/api/models", upload, "not a model", "model/gltf-binary").status, 400);
+  EXPECT_EQ(ask(port, "GET", "/metrics", render, "").status, 403);
+  EXPECT_EQ(ask(port, "GET", "/metrics", monitor, "").status, 200);
+  EXPECT_EQ(ask(port, "GET", "/metrics", "", "").status, 401);
+  // No token for health and the panel's own files; elsewhere any known one.
+  EXPECT_EQ(ask(port, "GET", "/api/health", "", "").status, 200);
+  EXPECT_EQ(ask(port, "GET", "/", "", "").status, 200);
+  EXPECT_EQ(ask(port, "GET", "/app.js", "", "").status, 200);
+  EXPECT_EQ(ask(port, "GET", "/api/nowhere", "", "").status, 401);
+  EXPECT_EQ(ask(port, "GET", "/api/nowhere", monitor, "").status, 404);
+  EXPECT_EQ(ask(port, "DELETE", "/api/render", monitor, "").status, 405);
+}
+
+TEST(HostileClients, AnUploadWithoutATokenIsRefusedBeforeItsBody) {
+  Server server(with_tokens());
+  const int fd = connect_to(server.port());
+  ASSERT_TRUE(send_all(fd, "POST /api/models HTTP/1.1\r\nHost: localhost\r\nContent-Type: model/gltf-binary\r\n"
+                           "Content-Length: 60000000\r\n\r\n"));
+  const Answer a = AnswerReader(fd).next(milliseconds(5000));
+  EXPECT_EQ(a.status, 401) << a.head << a.body;
+  EXPECT_NE(a.head.find("Connection: close"), std::string::npos) << a.head;
+  close(fd);
+  // Expect: 100-continue is refused, never continued.
+  const Answer asked = exchange(server.port(), "POST /api/models HTTP/1.1\r\nHost: localhost\r\n"
+                                               "Authorization: Bearer renderer-token-000000001\r\n"
+                                               "Expect: 100-continue\r\nContent-Length: 60000000\r\n\r\n");
+  EXPECT_EQ(asked.status, 403);
+}
+
+TEST(HostileClients, APreflightNeedsNoTokenAndAllowsTheAuthorizationHeader) {
+  Server server(with_tokens("https://app.example"));
+  const Answer a = exchange(server.port(), "OPTIONS /api/render HTTP/1.1\r\nHost: localhost\r\n"
+                                           "Origin: https://app.example\r\nAccess-Control-Request-Method: POST\r\n"
+                                           "Access-Control-Request-Headers: authorization, content-type\r\n\r\n");
+  EXPECT_EQ(a.status, 204) << a.head;
+  EXPECT_NE(a.head.find("Access-Control-Allow-Headers: Content-Type, Authorization"), std::string::npos) << a.head;
+  const Answer refused = ask(server.port(), "GET", "/api/scenes", "");
+  EXPECT_NE(refused.head.find("Access-Control-Allow-Origin: https://app.example"), std::string::npos) << refused.head;
+  EXPECT_NE(refused.head.find("WWW-Authenticate"), std::string::npos);
+}
+
+TEST(HostileClients, TheUploaderIsTheTokensPrincipalOnlyWithTokens) {
+  HttpRequest request;
+  request.principal = token_principal("uploader-token-000000002");
+  Server with(with_tokens());
+  EXPECT_EQ(with.api.uploader_of(request), request.principal);
+  EXPECT_EQ(request.principal.size(), 6u + 12u);
+  Server without;
+  EXPECT_EQ(without.api.uploader_of(request), "");
+}
+
 TEST(HostileClients, PipelinedRequestsAreAnsweredInOrder) {
   Server server;
   const int fd = connect_to(server.port());
   const std::string body = R"({"width": 16, "height": 16})";
-  ASSERT_TRUE(send_all(fd, "GET /api/health HTTP/1.1\r\nHost: x\r\n\r\n"
-                           "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: " +
+  ASSERT_TRUE(send_all(fd, "GET /api/health HTTP/1.1\r\nHost: localhost\r\n\r\n"
+                           "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: " +
                                std::to_string(body.size()) + "\r\n\r\n" + body +
-                               "GET /api/scenes HTTP/1.1\r\nHost: x\r\n\r\n"
-                               "GET /nowhere HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"));
+                               "GET /api/scenes HTTP/1.1\r\nHost: localhost\r\n\r\n"
+                               "GET /nowhere HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n"));
   AnswerReader reader(fd);
   const Answer health = reader.next(), frame = reader.next(), scenes = reader.next(), missing = reader.next();
   EXPECT_EQ(health.status, 200);
@@ -355,14 +615,14 @@ TEST(HostileClients, ExpectContinueIsAnsweredAndABodyPastTheLimitIsNeverAskedFor
   Server server;
   const std::string body = R"({"width": 16, "height": 16})";
   const int fd = connect_to(server.port());
-  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nExpect: 100-continue\r\nContent-Length: " +
+  ASSERT_TRUE(send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nExpect: 100-continue\r\nContent-Length: " +
                                std::to_string(body.size()) + "\r\n\r\n"));
   AnswerReader reader(fd);
   EXPECT_EQ(reader.next().status, 100);
   ASSERT_TRUE(send_all(fd, body));
   EXPECT_EQ(reader.next().status, 200);
   close(fd);
-  const Answer big = exchange(server.port(), "POST /api/render HTTP/1.1\r\nHost: x\r\nExpect: 100-continue\r\n"
+  const Answer big = exchange(server.port(), "POST /api/render HTTP/1.1\r\nHost: localhost\r\nExpect: 100-continue\r\n"
                                              "Content-Length: 2000000\r\n\r\n");
   EXPECT_EQ(big.status, 413);
 }
@@ -376,7 +636,7 @@ TEST(HostileClients, AStopClosesIdleAndTricklingClientsAtOnceAndAnswersTheReques
   for (int i = 0; i < 3; ++i) idle.push_back(connect_to(port));
   const std::string body = R"({"width": 256, "height": 256, "output": "exact"})";
   const int busy = connect_to(port);
-  ASSERT_TRUE(send_all(busy, "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: " + std::to_string(body.size()) +
+  ASSERT_TRUE(send_all(busy, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: " + std::to_string(body.size()) +
                                  "\r\n\r\n" + body));
   while (RendererEnvironment::renderer->queue_depth() == 0) std::this_thread::sleep_for(milliseconds(1));
   const auto start = Clock::now();
@@ -398,7 +658,7 @@ TEST(HostileClients, AClientVanishingMidBodyLeavesNothingBehind) {
   Server server;
   for (int i = 0; i < 20; ++i) {
     const int fd = connect_to(server.port());
-    send_all(fd, "POST /api/render HTTP/1.1\r\nHost: x\r\nContent-Length: 1000\r\n\r\n{\"width\":");
+    send_all(fd, "POST /api/render HTTP/1.1\r\nHost: localhost\r\nContent-Length: 1000\r\n\r\n{\"width\":");
     close(fd);
   }
   std::this_thread::sleep_for(milliseconds(200));

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <iterator>
+#include <regex>
 #include <sstream>
 
 #include <arpa/inet.h>
@@ -21,6 +22,7 @@
 #include <sys/resource.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <httplib.h>
@@ -114,7 +116,7 @@ TEST(GracefulStop, TricklingAndIdleClientsDoNotHoldItUp) {
   for (int i = 0; i < 6; ++i) sockets.push_back(connect_to_server());
   for (int i = 0; i < 3; ++i)  // the other three stay idle
     tricklers.emplace_back([&, fd = sockets[i]] {
-      const std::string head = "POST /api/render HTTP/1.1\r\nHost: x\r\nX-Slow: " + std::string(1000, 'a');
+      const std::string head = "POST /api/render HTTP/1.1\r\nHost: localhost\r\nX-Slow: " + std::string(1000, 'a');
       for (std::size_t k = 0; k < head.size() && !done; ++k) {
         if (send(fd, head.data() + k, 1, MSG_NOSIGNAL) != 1) break;
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
@@ -623,6 +625,99 @@ TEST(Memory, AMultiLayerShadowMapIsGivenBackOnceIdleAndFramesStayTheSame) {
   EXPECT_TRUE(render(small) == before) << "a frame after the GL context was made anew differs from before";
   server.send_signal(SIGTERM);
   EXPECT_EQ(server.wait(), 0);
+}
+
+// umbra-server with `args` until it exits (it must, by itself): its exit
+// status and what it wrote on stderr.
+struct Exit {
+  int status = -1;
+  std::string said;
+};
+
+Exit run_to_exit(const std::string& args) {
+  const std::string command = std::string(UMBRA_SERVER_BINARY) + " --port 0 " + args + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  Exit exit;
+  if (!pipe) return exit;
+  char buffer[512];
+  while (fgets(buffer, sizeof buffer, pipe)) exit.said += buffer;
+  const int status = pclose(pipe);
+  exit.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return exit;
+}
+
+std::string temp_file(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + "umbra-" + std::to_string(getpid()) + "-" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+// Issue 29's finding 8: anyone who could reach the port could upload and
+// read /metrics. A non-loopback address now needs tokens, or the operator
+// saying so.
+TEST(Access, ANonLoopbackHostWithoutTokensRefusesToStart) {
+  for (const char* host : {"0.0.0.0", "::", "render.example"}) {
+    const Exit refused = run_to_exit(std::string("--quiet --host ") + host);
+    EXPECT_EQ(refused.status, 2) << host << ": " << refused.said;
+    EXPECT_NE(refused.said.find("is not a loopback address: give --tokens FILE"), std::string::npos) << refused.said;
+    EXPECT_NE(refused.said.find("--no-auth"), std::string::npos) << refused.said;
+  }
+  const Exit both = run_to_exit("--quiet --host 0.0.0.0 --no-auth --tokens /dev/null");
+  EXPECT_EQ(both.status, 2) << both.said;
+  // --no-auth: it serves, and says which Host names it answers for.
+  ServerProcess open_server(UMBRA_SERVER_BINARY, {"--quiet", "--host", "0.0.0.0", "--no-auth"});
+  EXPECT_NE(open_server.log().find("only requests naming localhost, 127.0.0.1 or [::1]"), std::string::npos)
+      << open_server.log();
+  auto res = client(open_server).Get("/api/scenes");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  open_server.send_signal(SIGTERM);
+  EXPECT_EQ(open_server.wait(), 0);
+}
+
+TEST(Access, AMalformedTokensFileRefusesToStartNamingTheLine) {
+  const std::string file = temp_file("tokens-bad", "# ops\nsecret-token-0000000001 render\nsecret-token-0000000002 admin\n");
+  const Exit refused = run_to_exit("--quiet --tokens " + file);
+  std::remove(file.c_str());
+  EXPECT_EQ(refused.status, 2) << refused.said;
+  EXPECT_NE(refused.said.find("line 3: unknown scope 'admin'"), std::string::npos) << refused.said;
+  EXPECT_EQ(refused.said.find("secret-token"), std::string::npos) << refused.said;
+  const Exit missing = run_to_exit("--quiet --tokens /nonexistent/tokens");
+  EXPECT_EQ(missing.status, 2) << missing.said;
+  EXPECT_NE(missing.said.find("cannot read"), std::string::npos) << missing.said;
+  const Exit bad_hosts = run_to_exit("--quiet --allowed-hosts render.example:8080");
+  EXPECT_EQ(bad_hosts.status, 2) << bad_hosts.said;
+}
+
+TEST(Access, TokensAreNeverLoggedOnlyTheirPrincipal) {
+  const std::string render = "Rend3r-s3cret-t0ken-AAAA", upload = "Upl0ad-s3cret-t0ken-BBBB";
+  const std::string file = temp_file("tokens", render + " render\n" + upload + " render,upload\n");
+  ServerProcess server(UMBRA_SERVER_BINARY, {"--tokens", file, "--host", "0.0.0.0"});  // logging every request
+  std::remove(file.c_str());
+  httplib::Client c = client(server);
+  const auto bearer = [](const std::string& token) { return httplib::Headers{{"Authorization", "Bearer " + token}}; };
+  auto ok = c.Get("/api/scenes", bearer(render));
+  ASSERT_TRUE(ok);
+  EXPECT_EQ(ok->status, 200);
+  auto forbidden = c.Post("/api/models", bearer(render), "x", "model/gltf-binary");
+  ASSERT_TRUE(forbidden);
+  EXPECT_EQ(forbidden->status, 403);
+  auto uploaded = c.Post("/api/models", bearer(upload), "x", "model/gltf-binary");
+  ASSERT_TRUE(uploaded);
+  EXPECT_EQ(uploaded->status, 400);  // the upload scope is enough; the body is no glTF
+  auto unknown = c.Get("/api/scenes", bearer(render + "X"));
+  ASSERT_TRUE(unknown);
+  EXPECT_EQ(unknown->status, 401);
+  for (const auto* res : {&ok, &forbidden, &uploaded, &unknown})
+    EXPECT_EQ((*res)->body.find("s3cret"), std::string::npos) << (*res)->body;
+  server.send_signal(SIGTERM);
+  EXPECT_EQ(server.wait(), 0);
+  const std::string log = server.log();
+  EXPECT_EQ(log.find("s3cret"), std::string::npos) << log;
+  EXPECT_NE(log.find("GET /api/scenes 200"), std::string::npos) << log;
+  // Who asked, by principal: 12 hex digits of the token's SHA-256.
+  const std::regex principal(R"(GET /api/scenes 200 [\d.]+ ms token:[0-9a-f]{12}\n)");
+  EXPECT_TRUE(std::regex_search(log, principal)) << log;
 }
 
 }  // namespace

@@ -94,10 +94,79 @@ function clearError(source = "render") {
   state.errorSource = null;
 }
 
+// --- Access token ------------------------------------------------------------------
+// A server run with --tokens answers 401 without a token: the panel asks for
+// one, keeps it for this tab only (sessionStorage: gone when the tab
+// closes) and sends it as "Authorization: Bearer" on every call it makes.
+
+const TOKEN_KEY = "umbra.token";
+const auth = { asking: null, memory: "" };  // the question being asked; the token if storage is off
+
+function savedToken() {
+  try {
+    return sessionStorage.getItem(TOKEN_KEY) || "";
+  } catch (_) {
+    return auth.memory;
+  }
+}
+
+function saveToken(token) {
+  auth.memory = token;
+  try {
+    sessionStorage.setItem(TOKEN_KEY, token);
+  } catch (_) { /* storage off: kept in memory until the page is left */ }
+}
+
+function withToken(headers = {}) {
+  const token = savedToken();
+  return token ? { ...headers, Authorization: `Bearer ${token}` } : headers;
+}
+
+// Shows the token field; resolves once a token is entered. Calls refused
+// at once (the lists, a frame) share the one question.
+function askForToken(rejected) {
+  if (!auth.asking) {
+    auth.asking = new Promise((resolve) => {
+      $("auth-reason").textContent = rejected
+        ? "The server did not accept that token (401): enter another."
+        : "This server needs an access token (401).";
+      $("auth").hidden = false;
+      $("token").value = "";
+      $("token").focus();
+      $("auth").onsubmit = (e) => {
+        e.preventDefault();
+        const token = $("token").value.trim();
+        if (!token) return;
+        saveToken(token);
+        $("auth").hidden = true;
+        auth.asking = null;
+        resolve();
+      };
+    });
+  }
+  return auth.asking;
+}
+
+// After a 401 to a call sent with `sent`: asks for a token, unless another
+// call has brought a new one meanwhile (then that one is tried).
+async function tokenAfter401(sent) {
+  if (savedToken() === sent) await askForToken(sent !== "");
+}
+
+// fetch with the token, asking for one (and trying again) on 401.
+async function apiFetch(path, init = {}) {
+  for (;;) {
+    const sent = savedToken();
+    const response = await fetch(path, { ...init, headers: withToken(init.headers) });
+    if (response.status !== 401) return response;
+    await tokenAfter401(sent);
+  }
+}
+
 async function post(path, body) {
   let response;
   try {
-    response = await fetch(path, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
+    response = await apiFetch(path, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
   } catch (e) {
     throw new Error("The server is unreachable (" + e.message + "). Is umbra-server running?");
   }
@@ -973,7 +1042,7 @@ function round(x) {
 
 async function getJson(path) {
   try {
-    const response = await fetch(path);
+    const response = await apiFetch(path);
     return response.ok ? await response.json() : null;
   } catch (_) {
     return null;
@@ -1096,7 +1165,8 @@ function sendModel(file, onProgress) {
   return new Promise((resolve, reject) => {
     const xhr = new XMLHttpRequest();
     xhr.open("POST", "/api/models");
-    xhr.setRequestHeader("Content-Type", contentTypeFor(file.name));
+    for (const [name, value] of Object.entries(withToken({ "Content-Type": contentTypeFor(file.name) })))
+      xhr.setRequestHeader(name, value);
     xhr.upload.addEventListener("progress", (e) => { if (e.lengthComputable) onProgress(e.loaded / e.total); });
     xhr.addEventListener("load", () => {
       let json = null;
@@ -1127,9 +1197,16 @@ async function uploadModel(file) {
   clearError("upload");
   status.textContent = `Uploading ${file.name} (${mebibytes(file.size)})…`;
   try {
-    const answer = await sendModel(file, (sent) => {
-      status.textContent = sent < 1 ? `Uploading ${file.name}: ${Math.floor(100 * sent)} %` : `Loading ${file.name} on the server…`;
-    });
+    let answer;
+    for (;;) {
+      const token = savedToken();
+      answer = await sendModel(file, (sent) => {
+        status.textContent = sent < 1 ? `Uploading ${file.name}: ${Math.floor(100 * sent)} %` : `Loading ${file.name} on the server…`;
+      });
+      if (answer.status !== 401) break;
+      status.textContent = `${file.name} needs an access token: enter it above.`;
+      await tokenAfter401(token);
+    }
     const model = answer.json;
     if ((answer.status !== 200 && answer.status !== 201) || !model || !model.id) {
       const detail = model && model.error ? model.error : `${answer.status} ${answer.statusText}`;
@@ -1308,7 +1385,9 @@ function sceneJsonFromUrl(params, skipped) {
 function curlCommand(body) {
   const json = JSON.stringify(body).replace(/'/g, "'\\''");
   const file = body.output === "color" ? "frame.png" : `${body.output}.png`;
-  return `curl -X POST '${location.origin}/api/render' -H 'Content-Type: application/json' -d '${json}' -o ${file}`;
+  // The token itself stays out of the page: the shell fills it in.
+  const token = savedToken() ? ` -H "Authorization: Bearer $UMBRA_TOKEN"` : "";
+  return `curl -X POST '${location.origin}/api/render' -H 'Content-Type: application/json'${token} -d '${json}' -o ${file}`;
 }
 
 async function copyCurl() {

@@ -15,9 +15,14 @@
 //    required headers) at the path it is documented for, unless a response
 //    of that operation holds an example of the same name: then the server
 //    answers that status with exactly that JSON.
+// 5. With --tokens, every operation that lists the bearer scheme answers
+//    401 (with WWW-Authenticate) without a token and 403 with a token of
+//    another scope, as documented, and the others need none.
 // Exits non-zero, naming the check, at the first failure.
 import assert from "node:assert/strict";
 import fs from "node:fs";
+import os from "node:os";
+import path from "node:path";
 import SwaggerParser from "@apidevtools/swagger-parser";
 import Ajv2020 from "ajv/dist/2020.js";
 import { startServer } from "./server.mjs";
@@ -57,8 +62,9 @@ function validate(schema, value, what) {
 }
 
 let base;
-async function request(method, path, body, contentType) {
+async function request(method, path, body, contentType, token) {
   const init = { method, headers: {} };
+  if (token) init.headers.Authorization = `Bearer ${token}`;
   if (body !== undefined) {
     init.body = body;
     init.headers["Content-Type"] = contentType;
@@ -210,6 +216,51 @@ async function main() {
     server.child.kill("SIGTERM");
     await server.exited;
   }
+
+  await step("with --tokens, the bearer scheme is what each operation needs", async () => {
+    const scopes = ["render", "upload", "metrics"];
+    const tokens = Object.fromEntries(scopes.map((s) => [s, `openapi-test-token-${s}-0123456789`]));
+    const file = path.join(os.tmpdir(), `umbra-openapi-tokens-${process.pid}`);
+    fs.writeFileSync(file, scopes.map((s) => `${tokens[s]} ${s}\n`).join(""));
+    const guarded = startServer(serverBinary, ["--tokens", file]);
+    try {
+      base = `http://127.0.0.1:${await guarded.port}`;
+      let secured = 0;
+      for (const [route, item] of Object.entries(api.paths)) {
+        for (const [method, operation] of Object.entries(item)) {
+          if (method === "options" || !operation.responses) continue;
+          const example = Object.values(Object.values(operation.requestBody?.content ?? {})[0]?.examples ?? {})[0];
+          const params = Object.fromEntries((operation.parameters ?? []).filter((p) => p.in === "path")
+            .map((p) => [p.name, Object.values(p.examples)[0].value]));
+          const type = Object.keys(operation.requestBody?.content ?? {})[0];
+          const target = fill(route, { file: "index.html", ...params });
+          const what = `${method.toUpperCase()} ${target} with --tokens`;
+          const send = (token) => request(method.toUpperCase(), target, example && JSON.stringify(example.value), type, token);
+          const needed = (operation.security ?? []).find((s) => s.bearer)?.bearer ?? [];
+          if (needed.length === 0) {
+            const res = await send();
+            assert.ok(res.status < 400, `${what} needs no token, yet answered ${res.status}`);
+            continue;
+          }
+          const none = await send();
+          assert.equal(none.status, 401, `${what} without a token`);
+          checkAnswer(operation, none, `${what} without a token`);
+          const other = scopes.find((s) => !needed.includes(s));
+          const wrong = await send(tokens[other]);
+          assert.equal(wrong.status, 403, `${what} with a ${other} token`);
+          checkAnswer(operation, wrong, `${what} with a ${other} token`);
+          const right = await send(tokens[needed[0]]);
+          assert.ok(right.status !== 401 && right.status !== 403, `${what} with a ${needed[0]} token: ${right.status}`);
+          secured += 1;
+        }
+      }
+      assert.ok(secured >= 8, `only ${secured} operations need a token`);
+    } finally {
+      guarded.child.kill("SIGTERM");
+      await guarded.exited;
+      fs.rmSync(file, { force: true });
+    }
+  });
   console.log(`docs/openapi.json: all checks passed (${checks} answers and values checked)`);
 }
 

@@ -8,6 +8,7 @@
 import assert from "node:assert/strict";
 import { createHash } from "node:crypto";
 import fs from "node:fs";
+import os from "node:os";
 import path from "node:path";
 import { chromium } from "playwright-core";
 import { startServer } from "./server.mjs";
@@ -311,6 +312,7 @@ async function step(page, name, body) {
 
 const server = startServer(serverBinary);
 const port = await server.port;
+let guarded = null;  // the server with --tokens, for the last step
 const browser = await chromium.launch({
   executablePath: chromiumPath,
   args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"],
@@ -928,6 +930,59 @@ try {
     const frame = await imageStats(page, "frame");
     assert.equal(frame.width, 960, "the last good frame stays, not a broken image");
   });
+
+  // A server run with --tokens answers 401 to the panel's calls: the panel
+  // asks for a token, sends it on every call, and renders.
+  const token = "panel-test-token-0123456789";
+  const tokens = path.join(os.tmpdir(), `umbra-panel-tokens-${process.pid}`);
+  fs.writeFileSync(tokens, `${token} render,upload\n`);
+  guarded = startServer(serverBinary, ["--tokens", tokens]);
+  const guardedPort = await guarded.port;
+  fs.rmSync(tokens, { force: true });
+  const locked = await page.context().newPage();
+  await locked.addInitScript(countRequests);
+  const sentAuthorizations = new Set();
+  locked.on("request", (r) => { if (new URL(r.url()).pathname.startsWith("/api/")) sentAuthorizations.add(r.headers().authorization || "none"); });
+
+  await step(locked, "a-server-with-tokens-asks-for-one", async () => {
+    await locked.goto(`http://127.0.0.1:${guardedPort}/`);
+    await locked.waitForSelector("#auth:not([hidden])", { timeout: 60000 });
+    assert.match(await locked.$eval("#auth-reason", (p) => p.textContent), /needs an access token \(401\)/);
+    assert.equal(await locked.$eval("#token", (i) => i.type), "password", "the token is typed into a password field");
+    assert.equal(await locked.$eval("label[for=token]", (l) => l.textContent.length > 0), true, "the field is labelled");
+    // A wrong one is refused and asked again.
+    await locked.fill("#token", "not-the-token-0123456789");
+    await locked.click("#use-token");
+    await locked.waitForFunction(() => /did not accept/.test(document.getElementById("auth-reason").textContent) &&
+                                       !document.getElementById("auth").hidden, null, { timeout: 60000 });
+    await locked.fill("#token", token);
+    await locked.click("#use-token");
+    await waitForNewImages(locked, { frame: "", depth: "" });
+    assert.ok(await locked.$eval("#auth", (f) => f.hidden), "the field is gone once the token works");
+    assert.ok(await locked.$eval("#error", (e) => e.hidden), "no error shown");
+    assert.ok(sentAuthorizations.has(`Bearer ${token}`), "the token went as a bearer token");
+    // The lists came with it: the server's scenes and models.
+    assert.ok(await locked.$eval("#scene", (s) => Array.from(s.options).some((o) => o.value === "teapot")),
+              "the server's scene list was loaded with the token");
+    assert.equal(await locked.evaluate(() => sessionStorage.getItem("umbra.token")), token, "kept for this tab");
+    // Copy as curl leaves the token out of the page.
+    await locked.click("#copy-curl");
+    assert.match(await locked.$eval("#curl", (p) => p.textContent), /Authorization: Bearer \$UMBRA_TOKEN/);
+    assert.ok(!(await locked.$eval("#curl", (p) => p.textContent)).includes(token), "the token is not shown");
+  });
+
+  await step(locked, "a-reload-keeps-the-token-and-uploads-send-it", async () => {
+    sentAuthorizations.clear();
+    await locked.reload();
+    await waitForNewImages(locked, { frame: "", depth: "" });
+    assert.ok(await locked.$eval("#auth", (f) => f.hidden), "not asked again in the same tab");
+    const before = await currentSources(locked);
+    await chooseFile(locked, "box.glb", box);
+    await locked.waitForFunction((value) => document.getElementById("scene").value === value, `model:${boxId}`,
+                                 { timeout: 60000 });
+    await waitForNewImages(locked, before);
+    assert.deepEqual([...sentAuthorizations], [`Bearer ${token}`], "every API call carried the token");
+  });
 } catch (error) {
   failed = true;
   console.error(`not ok ${stepNumber + 1} - ${error.message}`);
@@ -936,6 +991,7 @@ try {
 } finally {
   await browser.close();
   if (server.child.exitCode === null) server.child.kill("SIGKILL");
+  if (guarded && guarded.child.exitCode === null) guarded.child.kill("SIGKILL");
 }
 console.log(`screenshots in ${artifacts}`);
 process.exit(failed ? 1 : 0);

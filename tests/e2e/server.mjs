@@ -2,8 +2,9 @@
 // free port, which its "listening on" line on stderr names.
 import { spawn } from "node:child_process";
 
-export function startServer(serverBinary) {
-  const child = spawn(serverBinary, ["--port", "0", "--quiet"], { stdio: ["ignore", "ignore", "pipe"] });
+// `args`: more flags (e.g. ["--tokens", file]).
+export function startServer(serverBinary, args = []) {
+  const child = spawn(serverBinary, ["--port", "0", "--quiet", ...args], { stdio: ["ignore", "ignore", "pipe"] });
   let log = "";
   const exited = new Promise((resolve) => child.on("exit", (code, signal) => resolve({ code, signal })));
   const port = new Promise((resolve, reject) => {
