@@ -28,8 +28,9 @@ std::size_t TriangleModel::bytes() const {
 std::uint64_t model_bytes_bound(std::uint64_t triangles, std::uint64_t vertices, std::uint64_t parts) {
   // finish_model shrinks every vector to its size: bytes() is exactly this
   // for a model whose parts keep `vertices` positions in all.
+  // The area vectors: one per direction bin some triangle falls in.
   return sizeof(TriangleModel) + parts * sizeof(ModelPart) + vertices * 2 * sizeof(glm::vec3) +
-         triangles * 3 * sizeof(std::uint32_t);
+         triangles * 3 * sizeof(std::uint32_t) + std::min<std::uint64_t>(triangles, kAreaDirectionBins) * sizeof(glm::dvec3);
 }
 
 namespace {
@@ -168,6 +169,7 @@ std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& posit
 namespace {
 
 constexpr int kBinsPerSide = 8;
+static_assert(6 * kBinsPerSide * kBinsPerSide == kAreaDirectionBins);
 
 // Which of the 6 * kBinsPerSide^2 direction bins a non-zero vector falls in:
 // the cube face its largest component points to, then the cell of that face

@@ -45,6 +45,9 @@ struct TriangleModel {
   std::size_t bytes() const;
 };
 
+/// How many directions binned_area_vectors sorts triangles' areas into.
+constexpr std::size_t kAreaDirectionBins = 384;
+
 /// The most TriangleModel::bytes() can be for a finished model (after
 /// finish_model) of `triangles` triangles, `vertices` positions and
 /// `parts` parts: what a loader knows before it reads a vertex, so that a
