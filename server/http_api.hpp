@@ -100,8 +100,8 @@ class HttpApi {
   /// uploads, and files it reads from --model-store for it): its principal
   /// ("token:" + 12 hex digits) with --tokens, else "" (every client is the
   /// same one). One owner's uploads never evict another owner's models
-  /// within its share. Virtual only so that tests can stand in for tokens.
-  virtual std::string uploader_of(const HttpRequest& req) const;
+  /// within its share.
+  std::string uploader_of(const HttpRequest& req) const;
 
  private:
   HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, ServerOptions options);

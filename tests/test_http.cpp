@@ -1353,14 +1353,6 @@ TEST(Http, TheStoreFolderIsBoundedAndARefusedUploadLeavesNoFile) {
   EXPECT_TRUE(other.files().empty());
 }
 
-// A server whose clients say who they are (X-Test-Owner), standing in for
-// the tokens of --tokens.
-class OwnersApi : public HttpApi {
- public:
-  using HttpApi::HttpApi;
-  std::string uploader_of(const HttpRequest& req) const override { return req.header("X-Test-Owner"); }
-};
-
 // Finding 7: one owner's uploads never evict another owner's model.
 TEST(Http, OneOwnersUploadsCannotEvictAnothersModel) {
   const std::string alice_glb = grid_glb(50);
@@ -1374,12 +1366,18 @@ TEST(Http, OneOwnersUploadsCannotEvictAnothersModel) {
   ServerOptions options;
   options.port = 0;
   options.log_requests = false;
-  OwnersApi api(*ServerEnvironment::renderer, store, options);
+  // Each --tokens token is an owner.
+  std::string error;
+  const auto tokens = TokenTable::parse("alice-token-0123456789 render,upload\nbob-token-0123456789 render,upload\n", error);
+  ASSERT_TRUE(tokens) << error;
+  options.tokens = std::make_shared<const TokenTable>(*tokens);
+  HttpApi api(*ServerEnvironment::renderer, store, options);
   ASSERT_TRUE(api.bind());
   std::thread serving([&] { api.serve(); });
   while (!api.serving()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   httplib::Client c("127.0.0.1", api.port());
-  const httplib::Headers alice = {{"X-Test-Owner", "alice"}}, bob = {{"X-Test-Owner", "bob"}};
+  const httplib::Headers alice = {{"Authorization", "Bearer alice-token-0123456789"}},
+                         bob = {{"Authorization", "Bearer bob-token-0123456789"}};
   auto res = c.Post("/api/models", alice, alice_glb, "model/gltf-binary");
   ASSERT_TRUE(res);
   ASSERT_EQ(res->status, 201) << res->body;
