@@ -2,7 +2,9 @@
 # N umbra-servers on loopback behind HAProxy, in the foreground, supervised:
 #   scripts/cluster.sh N PORT [umbra-server flags...]
 # HAProxy listens on 127.0.0.1:PORT (UMBRA_CLUSTER_HOST=ADDRESS to listen
-# elsewhere, e.g. 0.0.0.0; see docs/operations.md#a-cluster-on-one-machine);
+# elsewhere, e.g. 0.0.0.0: then the server flags must hold --tokens FILE or
+# --no-auth, and --allowed-hosts with the names clients use; see
+# docs/operations.md#several-servers-behind-haproxy);
 # the servers on 127.0.0.1:PORT+1 ... PORT+N, with one --model-store folder
 # so that a model uploaded to any is found by every one.
 #
@@ -33,6 +35,19 @@ fi
 dir="${UMBRA_CLUSTER_DIR:-.cluster}"
 server="${UMBRA_SERVER:-build/server/umbra-server}"
 host="${UMBRA_CLUSTER_HOST:-127.0.0.1}"
+
+# The servers listen on loopback, but HAProxy exposes them: the rule a
+# server applies to its own --host applies to HAProxy's address.
+case "$host" in
+  127.* | localhost | ::1 | "[::1]") ;;
+  *)
+    if ! printf '%s\n' "$@" | grep -qx -e --tokens -e --no-auth; then
+      echo "cluster: HAProxy on $host is reachable from other machines: give the servers --tokens FILE" \
+        "(or --no-auth to let anyone render and upload), and --allowed-hosts with the names clients use" >&2
+      exit 2
+    fi
+    ;;
+esac
 
 bash scripts/install-deps.sh --cluster >/dev/null
 [ -x "$server" ] || bash scripts/build.sh
