@@ -38,16 +38,12 @@ host="${UMBRA_CLUSTER_HOST:-127.0.0.1}"
 
 # The servers listen on loopback, but HAProxy exposes them: the rule a
 # server applies to its own --host applies to HAProxy's address.
-case "$host" in
-  127.* | localhost | ::1 | "[::1]") ;;
-  *)
-    if ! printf '%s\n' "$@" | grep -qx -e --tokens -e --no-auth; then
-      echo "cluster: HAProxy on $host is reachable from other machines: give the servers --tokens FILE" \
-        "(or --no-auth to let anyone render and upload), and --allowed-hosts with the names clients use" >&2
-      exit 2
-    fi
-    ;;
-esac
+loopback() { [[ "$1" =~ ^(localhost|::1|\[::1\]|127\.[0-9]{1,3}\.[0-9]{1,3}\.[0-9]{1,3})$ ]]; }
+if ! loopback "$host" && ! printf '%s\n' "$@" | grep -qx -e --tokens -e --no-auth; then
+  echo "cluster: HAProxy on $host is reachable from other machines: give the servers --tokens FILE" \
+    "(or --no-auth to let anyone render and upload), and --allowed-hosts with the names clients use" >&2
+  exit 2
+fi
 
 bash scripts/install-deps.sh --cluster >/dev/null
 [ -x "$server" ] || bash scripts/build.sh
@@ -64,34 +60,50 @@ done
 # supervise NAME COMMAND...: runs COMMAND in the background, writes its PID
 # to $dir/NAME.pid, and starts it again whenever it exits, until this
 # subshell gets SIGTERM: then it passes the signal on, waits for COMMAND to
-# finish (a server drains first) and exits.
+# finish (a server drains first) and exits 0. If COMMAND's first run
+# exits with an error status (not killed by a signal) within $first_run_s
+# seconds, what it was given cannot work (an unknown flag, a port in use,
+# no binary): it exits 1 instead, and the script stops everything.
+first_run_s=10
 supervise() {
   local name=$1
   shift
-  local child="" stopping=0 backoff=1 started status
-  trap 'stopping=1; [ -z "$child" ] || kill -TERM "$child" 2>/dev/null || true' TERM
+  local child="" pause="" stopping=0 backoff=1 runs=0 started status
+  trap 'stopping=1; kill -TERM $child $pause 2>/dev/null || true' TERM
   while [ "$stopping" = 0 ]; do
     started=$SECONDS
     "$@" &
     child=$!
+    runs=$((runs + 1))
     echo "$child" >"$dir/$name.pid"
     status=0
     wait "$child" || status=$?
     # A trapped signal ends `wait` early: wait for the child itself.
     while kill -0 "$child" 2>/dev/null; do wait "$child" || true; done
+    child=""  # its PID may be reused now: never signal it again
     [ "$stopping" = 0 ] || break
+    if ((runs == 1 && status > 0 && status < 128 && SECONDS - started < first_run_s)); then
+      echo "cluster: $name exited (status $status) $((SECONDS - started)) s after its first start: stopping" >&2
+      rm -f "$dir/$name.pid"
+      exit 1
+    fi
     if ((SECONDS - started >= 60)); then backoff=1; fi
     echo "cluster: $name exited (status $status) after $((SECONDS - started)) s; starting it again in $backoff s" >&2
     sleep "$backoff" &
-    wait $! || true
+    pause=$!
+    wait "$pause" || true
+    kill "$pause" 2>/dev/null || true  # when a signal ended the wait
+    pause=""
     backoff=$((backoff * 2 > 30 ? 30 : backoff * 2))
   done
   rm -f "$dir/$name.pid"
 }
 
 supervisors=()
+stopping=0
 stop() {
   trap - INT TERM EXIT
+  stopping=1
   echo "cluster: stopping (each server answers what it has received first)" >&2
   kill -TERM "${supervisors[@]}" 2>/dev/null || true
   wait || true
@@ -104,5 +116,10 @@ done
 UMBRA_BIND="$host:$port" UMBRA_DIR="$PWD/deploy" supervise haproxy "$haproxy" -f "$config" -db &
 supervisors+=($!)
 echo "cluster: $count umbra-servers behind HAProxy on http://$host:$port/ (Ctrl-C stops them)"
-# Every supervisor runs until stop(); this `wait` ends only on a signal.
-wait || true
+# A supervisor ends by itself only when what it runs cannot start: then
+# everything stops, exit 1. Else this waits until a signal runs stop().
+if wait -n "${supervisors[@]}" && [ "$stopping" = 0 ]; then :; fi
+if [ "$stopping" = 0 ]; then
+  stop
+  exit 1
+fi

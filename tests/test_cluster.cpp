@@ -89,7 +89,8 @@ struct ClusterScript {
   pid_t pid = -1;
   fs::path dir, log;
   int exit_code = -1;
-  ClusterScript(int servers, int port, const fs::path& state) : dir(state), log(state / "cluster.log") {
+  ClusterScript(int servers, int port, const fs::path& state, const std::string& server_flag = "--quiet")
+      : dir(state), log(state / "cluster.log") {
     pid = fork();
     if (pid == 0) {
       setpgid(0, 0);
@@ -100,14 +101,18 @@ struct ClusterScript {
       setenv("UMBRA_SERVER", UMBRA_SERVER_BINARY, 1);
       const std::string script = std::string(UMBRA_SOURCE_DIR) + "/scripts/cluster.sh";
       execl("/bin/bash", "bash", script.c_str(), std::to_string(servers).c_str(), std::to_string(port).c_str(),
-            "--quiet", static_cast<char*>(nullptr));
+            server_flag.c_str(), static_cast<char*>(nullptr));
       _exit(127);
     }
   }
-  // The script's exit code once it has ended within `limit`, else -1.
-  int stop(std::chrono::seconds limit) {
+  // The script's exit code once it has ended within `limit` (by itself,
+  // unsignalled), else -1.
+  int wait_for_exit(std::chrono::seconds limit) { return finish(limit, false); }
+  // The same after SIGTERM.
+  int stop(std::chrono::seconds limit) { return finish(limit, true); }
+  int finish(std::chrono::seconds limit, bool terminate) {
     if (pid <= 0) return exit_code;
-    kill(pid, SIGTERM);
+    if (terminate) kill(pid, SIGTERM);
     const auto until = Clock::now() + limit;
     int status = 0;
     while (Clock::now() < until) {
@@ -296,6 +301,26 @@ TEST(Cluster, TheScriptRestartsKilledAndDrainedServersAndSixteenClientsLoseNothi
   EXPECT_EQ(cluster->stop(std::chrono::seconds(60)), 0) << cluster->output();
   for (int i = 0; i <= 3; ++i) EXPECT_FALSE(listening(port + i)) << "port " << port + i << " still open";
   cluster.reset();
+  fs::remove_all(root);
+}
+
+// A server that cannot start (here an unknown flag) is not started again
+// and again for ever: the script stops everything and exits 1, saying why.
+TEST(Cluster, TheScriptStopsWhenAServerCannotStart) {
+  const fs::path root = fs::temp_directory_path() / ("umbra-cluster-bad-" + std::to_string(getpid()));
+  fs::remove_all(root);
+  fs::create_directories(root);
+  int port = 0;
+  for (int tries = 0; tries < 50 && port == 0; ++tries) {
+    const int p = free_port();
+    if (p + 2 < 65536 && !listening(p + 1) && !listening(p + 2)) port = p;
+  }
+  ASSERT_NE(port, 0);
+  ClusterScript cluster(2, port, root, "--no-such-flag");
+  EXPECT_EQ(cluster.wait_for_exit(std::chrono::seconds(120)), 1) << cluster.output();
+  const std::string log = cluster.output();
+  EXPECT_NE(log.find("after its first start: stopping"), std::string::npos) << log;
+  for (int i = 0; i <= 2; ++i) EXPECT_FALSE(listening(port + i)) << "port " << port + i << " still open";
   fs::remove_all(root);
 }
 
