@@ -94,7 +94,7 @@ std::optional<std::string> host_of(std::string_view value) {
   }
   for (char c : port)
     if (!std::isdigit(static_cast<unsigned char>(c))) return std::nullopt;
-  if (port.size() > 5) return std::nullopt;
+  if (port.size() > 5 || (!port.empty() && std::stoul(std::string(port)) > 65535)) return std::nullopt;
   return lower(host);
 }
 

@@ -24,7 +24,8 @@ TEST(Access, HostOfTakesTheHostWithoutItsPort) {
   EXPECT_EQ(host_of("127.0.0.1:"), "127.0.0.1");
   EXPECT_EQ(host_of("[::1]:8080"), "[::1]");
   EXPECT_EQ(host_of("[::1]"), "[::1]");
-  for (const char* bad : {"", ":80", "a b", "a/b", "x:port", "[::1", "[::1]x", "[]", "a:123456", "évil", "a@b"})
+  EXPECT_EQ(host_of("a:65535"), "a");
+  for (const char* bad : {"", ":80", "a b", "a/b", "x:port", "[::1", "[::1]x", "[]", "a:123456", "a:65536", "a:99999", "évil", "a@b"})
     EXPECT_FALSE(host_of(bad)) << bad;
 }
 
