@@ -31,7 +31,6 @@
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
-#include <sys/utsname.h>
 #include <unistd.h>
 
 #include "server_process.hpp"
@@ -230,18 +229,6 @@ Row measure(const std::string& name, umbra::testing::ServerProcess& server, doub
   return row;
 }
 
-std::string machine() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line, model;
-  int cores = 0;
-  while (std::getline(in, line)) {
-    if (line.rfind("model name", 0) == 0 && model.empty()) model = line.substr(line.find(':') + 2);
-    if (line.rfind("processor", 0) == 0) ++cores;
-  }
-  utsname u{};
-  uname(&u);
-  return model + ", " + std::to_string(cores) + " cores, " + u.sysname + " " + u.release;
-}
 
 }  // namespace
 
@@ -302,7 +289,7 @@ int main(int argc, char** argv) {
 
   std::ostringstream md;
   md << "# Health under hostile clients\n\n"
-     << "`umbra-hostile-bench --seconds " << seconds << "` on " << machine()
+     << "`umbra-hostile-bench --seconds " << seconds << "` on " << umbra::testing::machine_summary()
      << ", `" << binary.substr(binary.rfind('/') + 1) << "` at its defaults.\n"
      << "Each attack runs while `GET /api/health` is probed on a fresh connection every 50 ms "
      << "(failed: no 200 within 5 s). RSS: the server's resident memory before the attack, its peak during it, "

@@ -25,7 +25,6 @@
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
-#include <sys/utsname.h>
 #include <unistd.h>
 
 #include <glm/vec3.hpp>
@@ -45,18 +44,6 @@ using umbra::testing::ServerProcess;
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-std::string machine() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line, model;
-  int cores = 0;
-  while (std::getline(in, line)) {
-    if (line.rfind("model name", 0) == 0 && model.empty()) model = line.substr(line.find(':') + 2);
-    if (line.rfind("processor", 0) == 0) ++cores;
-  }
-  utsname u{};
-  uname(&u);
-  return model + ", " + std::to_string(cores) + " cores, " + u.sysname + " " + u.release;
-}
 
 // ---- Models, built in code as the red team built them. ----
 
@@ -553,7 +540,7 @@ int main(int argc, char** argv) {
   }
   std::ostringstream md;
   md << "# The second red team's findings (issue 29), reproduced\n\n"
-     << "`umbra-redteam-bench` on " << machine() << ", `" << binary << "`. Each row starts fresh servers at their "
+     << "`umbra-redteam-bench` on " << umbra::testing::machine_summary() << ", `" << binary << "`. Each row starts fresh servers at their "
      << "defaults but for the flags it names. Finding 5 (the cluster script) is `tests/test_cluster.cpp`. "
      << "Peak RSS: the server's resident memory, sampled every 20 ms while the attack ran.\n\n"
      << "| finding | attack | answer | s | peak RSS MiB |\n|---|---|---|---:|---:|\n";

@@ -7,6 +7,7 @@
 #include <regex>
 #include <stdexcept>
 
+#include <sys/utsname.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -99,6 +100,19 @@ long ServerProcess::resident_kib() const {
 std::string ServerProcess::log() const {
   std::lock_guard<std::mutex> lock(log_mutex_);
   return log_;
+}
+
+std::string machine_summary() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line, model;
+  int cores = 0;
+  while (std::getline(in, line)) {
+    if (line.rfind("model name", 0) == 0 && model.empty()) model = line.substr(line.find(':') + 2);
+    if (line.rfind("processor", 0) == 0) ++cores;
+  }
+  utsname u{};
+  uname(&u);
+  return model + ", " + std::to_string(cores) + " cores, " + u.sysname + " " + u.release;
 }
 
 }  // namespace umbra::testing

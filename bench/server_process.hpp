@@ -41,4 +41,7 @@ class ServerProcess {
   mutable std::mutex log_mutex_;
 };
 
+/// "CPU model, N cores, Linux release": the machine a benchmark ran on.
+std::string machine_summary();
+
 }  // namespace umbra::testing

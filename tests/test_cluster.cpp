@@ -67,6 +67,18 @@ bool listening(int port) {
   return connected;
 }
 
+// A port with `after` free ports right above it (the script's servers go
+// on port + 1 .. port + after), or 0.
+int free_port_with(int after) {
+  for (int tries = 0; tries < 50; ++tries) {
+    const int p = free_port();
+    bool free = p + after < 65536;
+    for (int i = 1; i <= after && free; ++i) free = !listening(p + i);
+    if (free) return p;
+  }
+  return 0;
+}
+
 // The umbra-server process started with `--port port`, found in /proc as
 // an operator finds it (pgrep -f), whatever the script records; -1 if none.
 pid_t server_on_port(int port) {
@@ -167,12 +179,8 @@ TEST(Cluster, TheScriptRestartsKilledAndDrainedServersAndSixteenClientsLoseNothi
   const fs::path root = fs::temp_directory_path() / ("umbra-cluster-" + std::to_string(getpid()));
   fs::remove_all(root);
   fs::create_directories(root);
-  // The balancer on `port`, the servers on port+1..port+3: four free ports.
-  int port = 0;
-  for (int tries = 0; tries < 50 && port == 0; ++tries) {
-    const int p = free_port();
-    if (p + 3 < 65536 && !listening(p + 1) && !listening(p + 2) && !listening(p + 3)) port = p;
-  }
+  // The balancer on `port`, the servers on port+1..port+3.
+  const int port = free_port_with(3);
   ASSERT_NE(port, 0);
   const auto server_port = [&](int i) { return port + i; };  // render1 = port + 1
   auto cluster = std::make_unique<ClusterScript>(3, port, root);
@@ -310,11 +318,7 @@ TEST(Cluster, TheScriptStopsWhenAServerCannotStart) {
   const fs::path root = fs::temp_directory_path() / ("umbra-cluster-bad-" + std::to_string(getpid()));
   fs::remove_all(root);
   fs::create_directories(root);
-  int port = 0;
-  for (int tries = 0; tries < 50 && port == 0; ++tries) {
-    const int p = free_port();
-    if (p + 2 < 65536 && !listening(p + 1) && !listening(p + 2)) port = p;
-  }
+  const int port = free_port_with(2);
   ASSERT_NE(port, 0);
   ClusterScript cluster(2, port, root, "--no-such-flag");
   EXPECT_EQ(cluster.wait_for_exit(std::chrono::seconds(120)), 1) << cluster.output();
