@@ -193,6 +193,21 @@ ModelStore::Limits model_store_limits(const ServerOptions& options) {
   return limits;
 }
 
+// Each owner's share of the --model-store folder: the same fraction of it
+// as --upload-quota-mib is of --models-budget-mib (a quarter by default).
+ModelArchive::Limits model_archive_limits(const ServerOptions& options) {
+  const ModelStore::Limits memory = model_store_limits(options);
+  ModelArchive::Limits limits;
+  limits.max_bytes = options.model_store_max_bytes;
+  const auto fraction_of = [&](std::uint64_t whole) {
+    if (memory.max_bytes == 0 || memory.share_bytes >= memory.max_bytes) return whole;
+    return std::max<std::uint64_t>(1, std::uint64_t(static_cast<long double>(whole) * memory.share_bytes / memory.max_bytes));
+  };
+  limits.share_bytes = fraction_of(limits.max_bytes);
+  limits.share_files = fraction_of(limits.max_files);
+  return limits;
+}
+
 HttpApi::HttpApi(RenderService& renderer, ServerOptions options)
     : HttpApi(renderer, std::make_shared<ModelStore>(model_store_limits(options)), options) {}
 
@@ -207,7 +222,7 @@ HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, Se
       models_(std::move(models)),
       started_(Clock::now()) {
   if (!options_.model_store_dir.empty())
-    archive_ = std::make_unique<ModelArchive>(options_.model_store_dir, options_.model_store_max_bytes);
+    archive_ = std::make_unique<ModelArchive>(options_.model_store_dir, model_archive_limits(options_));
   HttpServerOptions connections = options_.connections;
   connections.host = options_.host;
   connections.port = options_.port;
@@ -580,7 +595,7 @@ void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
   std::shared_ptr<const HeldModel> held;
   try {
     ModelPlan plan;
-    plan_models(plan, {key}, uploader_of(req));
+    plan_models(plan, {key}, uploader_of(req), "the model");
     held = find_model(plan, key);
   } catch (const ModelLoadsBusy&) {
     return send_models_busy(res);
@@ -620,7 +635,8 @@ void HttpApi::send_models_busy(HttpResponse& res) const {
 
 namespace {
 
-std::string mib(std::uint64_t bytes) { return std::to_string((bytes + (1 << 20) - 1) >> 20) + " MiB"; }
+// Rounded up; saturating (a record may claim up to 2^64 - 1 bytes).
+std::string mib(std::uint64_t bytes) { return std::to_string((bytes >> 20) + ((bytes & ((1 << 20) - 1)) != 0)) + " MiB"; }
 
 // "sha256:0123456789ab..." : enough of an id to tell models apart in a message.
 std::string short_id(const std::string& id) { return id.size() > 19 ? id.substr(0, 19) + "..." : id; }
@@ -654,7 +670,8 @@ void HttpApi::send_models_refused(HttpResponse& res, const ModelsRefused& refuse
 // render holds them), and those in the folder get room for what their
 // records say they hold. All of them must fit the budget together, and
 // each one loaded for this owner its share.
-void HttpApi::plan_models(ModelPlan& plan, const std::vector<std::string>& keys, const std::string& owner) {
+void HttpApi::plan_models(ModelPlan& plan, const std::vector<std::string>& keys, const std::string& owner,
+                          const std::string& subject) {
   std::uint64_t held_bytes = 0, to_load_bytes = 0;
   std::string listed;
   for (const std::string& key : keys) {
@@ -680,7 +697,7 @@ void HttpApi::plan_models(ModelPlan& plan, const std::vector<std::string>& keys,
   if (plan.to_load.empty()) return;
   const std::uint64_t for_uploads = models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes());
   if (held_bytes + to_load_bytes > for_uploads)
-    throw ModelsRefused{422, "the scene's models need " + mib(held_bytes + to_load_bytes) +
+    throw ModelsRefused{422, subject + (subject == "the model" ? " needs " : " need ") + mib(held_bytes + to_load_bytes) +
                                  " once loaded together (" + mib(held_bytes) + " held; " + std::to_string(plan.to_load.size()) +
                                  " to load: " + listed + "), " +
                                  "more than the " + mib(for_uploads) +
@@ -751,7 +768,7 @@ std::shared_ptr<const HeldModel> HttpApi::find_model(ModelPlan& plan, const std:
   if (!added.held) throw room_refusal(ModelStore::Room::NoRoomNow, loaded.bytes_bound, "the model " + short_id(id_or_name) + " needs", 503);
   // Measured now: the next server to need it counts it before loading it.
   if (!load.found.record || load.found.record->bytes_bound != loaded.bytes_bound)
-    archive_->write_record(id_or_name, {loaded.bytes_bound, triangles});
+    archive_->write_record(id_or_name, {loaded.bytes_bound, triangles, load.found.owner});
   return keep(added.held);
 }
 
@@ -783,20 +800,27 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
     if (!archive_) return true;
     const ModelArchive::Saved saved = archive_->save(id, options.format, req.body, why, record);
     if (saved) return true;
-    if (saved.status == ModelArchive::Status::NoSpace) {
-      res.set_header("Retry-After", "5");
-      send_error(res, 507, "the model could not be written to --model-store: " + why, "");
-    } else {
-      send_error(res, 503, "the model could not be written to --model-store: " + why, "");
+    if (!saved.detail.empty()) std::fprintf(stderr, "umbra-server: --model-store: %s\n", saved.detail.c_str());
+    switch (saved.status) {
+      case ModelArchive::Status::TooLarge:  // retrying can never succeed
+        send_error(res, 422, "the model cannot be written to --model-store: " + why, "");
+        break;
+      case ModelArchive::Status::NoRoomNow:
+      case ModelArchive::Status::NoSpace:
+        res.set_header("Retry-After", "5");
+        send_error(res, 507, "the model could not be written to --model-store: " + why, "");
+        break;
+      default:
+        send_error(res, 503, "the model could not be written to --model-store: " + why, "");
     }
     return false;
   };
+  const std::string owner = uploader_of(req);
   if (const auto held = models_->find(id)) {
-    if (archived(ModelArchive::Record{held->bytes, held->model->triangle_count()}))
+    if (archived(ModelArchive::Record{held->bytes, held->model->triangle_count(), owner}))
       res.set_content(model_json(*held).dump(), "application/json");
     return;
   }
-  const std::string owner = uploader_of(req);
   ModelStore::Reservation room;
   options.admit = [&](std::uint64_t bytes, std::size_t, std::string& why) {
     const std::uint64_t most = max_loaded_bytes(req.body.size());
@@ -825,7 +849,7 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
   const ModelStore::AddResult added = models_->add_upload(id, std::move(loaded.model), room);
   switch (added.outcome) {
     case ModelStore::Outcome::Added:
-      if (!archived(ModelArchive::Record{loaded.bytes_bound, triangles})) {
+      if (!archived(ModelArchive::Record{loaded.bytes_bound, triangles, owner})) {
         models_->remove_upload(id);  // refused: neither held nor written
         return;
       }
@@ -833,7 +857,7 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
       res.set_header("Location", "/api/models/" + id);
       break;
     case ModelStore::Outcome::AlreadyHeld:  // uploaded meanwhile by another request
-      if (!archived(ModelArchive::Record{loaded.bytes_bound, triangles})) return;
+      if (!archived(ModelArchive::Record{loaded.bytes_bound, triangles, owner})) return;
       break;
     case ModelStore::Outcome::TooLarge:
     case ModelStore::Outcome::NameTaken:  // uploads have no name: cannot happen

@@ -139,7 +139,9 @@ class HttpApi {
   struct ModelPlan;
   /// Plans `keys` for `owner`. Throws ModelsRefused when what the held and
   /// stored ones need together can never fit (422) or has no room now (503).
-  void plan_models(ModelPlan& plan, const std::vector<std::string>& keys, const std::string& owner);
+  /// `subject` names the models in a refusal ("the scene's models", "the model").
+  void plan_models(ModelPlan& plan, const std::vector<std::string>& keys, const std::string& owner,
+                   const std::string& subject = "the scene's models");
   /// A planned model by id or name: held, or loaded from the folder into
   /// its reservation. Null if neither has it. Throws ModelLoadsBusy if it
   /// would have to load one with no place free, ModelsRefused if it holds

@@ -1402,6 +1402,74 @@ TEST(Http, OneOwnersUploadsCannotEvictAnothersModel) {
   serving.join();
 }
 
+// Round 2, finding 2: one token's uploads never delete another token's
+// file from --model-store within its share (a quarter of the folder, as
+// --upload-quota-mib is of --models-budget-mib); another server still
+// finds it there.
+TEST(Http, OneTokensUploadsCannotEvictAnothersStoredModel) {
+  StoreFolder folder("owners");
+  ServerOptions options;
+  options.model_store_dir = folder.path.string();
+  const auto on_disk = [](const std::string& glb) { return (glb.size() + 4095) / 4096 * 4096 + 4096; };
+  options.model_store_max_bytes = 8 * on_disk(grid_glb(49));
+  std::string error;
+  const auto tokens = TokenTable::parse("alice-token-0123456789 render,upload\nbob-token-0123456789 render,upload\n", error);
+  ASSERT_TRUE(tokens) << error;
+  options.tokens = std::make_shared<const TokenTable>(*tokens);
+  ModelStore memory(std::uint64_t(256) << 20);
+  OwnServer server(options, memory);
+  httplib::Client c("127.0.0.1", server.api.port());
+  const httplib::Headers alice = {{"Authorization", "Bearer alice-token-0123456789"}},
+                         bob = {{"Authorization", "Bearer bob-token-0123456789"}};
+  const std::string alice_glb = grid_glb(30);
+  auto res = c.Post("/api/models", alice, alice_glb, "model/gltf-binary");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 201) << res->body;
+  const std::string id = model_id_for(alice_glb);
+  for (int n = 40; n < 58; ++n) {
+    res = c.Post("/api/models", bob, grid_glb(n), "model/gltf-binary");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 201) << n << ": " << res->body;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // distinct mtimes
+  }
+  EXPECT_TRUE(std::filesystem::exists(folder.path / (id.substr(7) + ".glb"))) << "alice's file was evicted";
+  EXPECT_FALSE(std::filesystem::exists(folder.path / (model_id_for(grid_glb(40)).substr(7) + ".glb")));
+  // Another server of the cluster (holding nothing) still finds it.
+  ModelStore other_memory(std::uint64_t(256) << 20);
+  OwnServer other(options, other_memory);
+  httplib::Client o("127.0.0.1", other.api.port());
+  res = o.Get("/api/models/" + id, alice);
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200) << res->body;
+}
+
+// Round 2, finding 4: a model larger than the whole folder may hold is 422
+// (retrying never helps), naming the bound; a write error names the model
+// and the error, never the server's path; 507 has its reason phrase.
+TEST(Http, AModelOverTheWholeStoreIs422AndStoreErrorsNameNoPath) {
+  EXPECT_STREQ(reason_phrase(507), "Insufficient Storage");
+  EXPECT_STREQ(reason_phrase(421), "Misdirected Request");
+  StoreFolder folder("whole");
+  ServerOptions options;
+  options.model_store_dir = folder.path.string();
+  options.model_store_max_bytes = 64 << 10;
+  OwnServer server(options);
+  httplib::Client c("127.0.0.1", server.api.port());
+  const std::string glb = grid_glb(80);
+  ASSERT_GT(glb.size(), std::size_t(64) << 10);
+  auto res = c.Post("/api/models", glb, "model/gltf-binary");
+  expect_json_error(res, 422, "");
+  EXPECT_NE(res->body.find("--model-store-max-gib"), std::string::npos) << res->body;
+  EXPECT_FALSE(res->has_header("Retry-After"));
+  // The folder is gone: 503, naming the id and the error only.
+  std::filesystem::remove_all(folder.path);
+  res = c.Post("/api/models", grid_glb(20), "model/gltf-binary");
+  expect_json_error(res, 503, "");
+  EXPECT_EQ(res->body.find(folder.path.string()), std::string::npos) << res->body;
+  EXPECT_NE(res->body.find(model_id_for(grid_glb(20)).substr(0, 19)), std::string::npos) << res->body;
+  std::filesystem::create_directories(folder.path);
+}
+
 }  // namespace
 }  // namespace umbra
 

@@ -361,8 +361,13 @@ TEST(ModelArchive, NeverFormsAPathFromANameOrABadId) {
 TEST(ModelArchive, AFolderItCannotWriteToIsSaidSo) {
   ModelArchive archive("/nonexistent-umbra-folder");
   std::string why;
-  EXPECT_FALSE(archive.save(model_id_for("x"), LoadOptions::Format::Binary, "x", why));
-  EXPECT_NE(why.find("/nonexistent-umbra-folder"), std::string::npos) << why;
+  const ModelArchive::Saved saved = archive.save(model_id_for("x"), LoadOptions::Format::Binary, "x", why);
+  EXPECT_FALSE(saved);
+  // The client learns the id and the error; the server's path only its log.
+  EXPECT_EQ(why.find("/nonexistent-umbra-folder"), std::string::npos) << why;
+  EXPECT_NE(why.find(model_id_for("x").substr(0, 19)), std::string::npos) << why;
+  EXPECT_NE(why.find("No such file"), std::string::npos) << why;
+  EXPECT_NE(saved.detail.find("/nonexistent-umbra-folder"), std::string::npos) << saved.detail;
 }
 
 // Sets a file's mtime `seconds_ago` into the past: as if last used then.
@@ -378,17 +383,24 @@ std::vector<std::string> files_in(const std::filesystem::path& folder) {
   return names;
 }
 
+// What the folder's files take on disk (allocated blocks).
 std::uint64_t bytes_in(const std::filesystem::path& folder) {
   std::uint64_t total = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(folder)) total += entry.file_size();
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+    struct stat info {};
+    if (::stat(entry.path().c_str(), &info) == 0) total += std::uint64_t(info.st_blocks) * 512;
+  }
   return total;
 }
+
+// What one model of `body_bytes` and its record take on disk, at most.
+constexpr std::uint64_t kModelOnDisk = 2 * 4096;
 
 TEST(ModelArchive, TheFolderIsBoundedAndLeastRecentlyUsedFilesGoFirst) {
   TemporaryFolder folder;
   const std::size_t body_bytes = 1000;
-  ModelArchive archive(folder.path.string(), 3 * body_bytes + 200);  // three bodies and their records
-  const ModelArchive::Record record{123456, 12};
+  ModelArchive archive(folder.path.string(), 3 * kModelOnDisk + 4096);  // three bodies and their records
+  const ModelArchive::Record record{123456, 12, ""};
   std::vector<std::string> ids;
   std::string why;
   for (int i = 0; i < 3; ++i) {
@@ -416,9 +428,10 @@ TEST(ModelArchive, TheFolderIsBoundedAndLeastRecentlyUsedFilesGoFirst) {
   EXPECT_TRUE(archive.load(ids[1], 1 << 20, why));
   EXPECT_LE(bytes_in(folder.path), archive.max_bytes());
   // Larger than the whole folder may hold: refused, nothing written.
-  const std::string huge(4 * body_bytes, 'h');
+  // Never: TooLarge (422), not a refusal to retry.
+  const std::string huge(4 * kModelOnDisk, 'h');
   EXPECT_EQ(archive.save(model_id_for(huge), LoadOptions::Format::Binary, huge, why).status,
-            ModelArchive::Status::NoSpace);
+            ModelArchive::Status::TooLarge);
   EXPECT_NE(why.find("--model-store-max-gib"), std::string::npos) << why;
   EXPECT_FALSE(archive.find(model_id_for(huge)));
 }
@@ -428,7 +441,7 @@ TEST(ModelArchive, RecordsSayWhatAModelHoldsWithoutReadingIt) {
   ModelArchive archive(folder.path.string());
   std::string why;
   const std::string body = "glTF a model";
-  ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why, ModelArchive::Record{5000, 7}));
+  ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why, ModelArchive::Record{5000, 7, ""}));
   std::optional<ModelArchive::Found> found = archive.find(model_id_for(body));
   ASSERT_TRUE(found);
   EXPECT_EQ(found->file_bytes, body.size());
@@ -441,7 +454,7 @@ TEST(ModelArchive, RecordsSayWhatAModelHoldsWithoutReadingIt) {
   EXPECT_FALSE(archive.find(model_id_for(other))->record);
   std::ofstream(folder.path / (model_id_for(other).substr(7) + ".json")) << "{\"bytes_bound\": 5";
   EXPECT_FALSE(archive.find(model_id_for(other))->record);
-  archive.write_record(model_id_for(other), {900, 3});
+  archive.write_record(model_id_for(other), {900, 3, ""});
   EXPECT_EQ(archive.find(model_id_for(other))->record->bytes_bound, 900u);
   EXPECT_EQ(archive.find(model_id_for(other))->format, LoadOptions::Format::Json);
 }
@@ -488,6 +501,120 @@ TEST(ModelArchive, StrayTemporaryFilesOfACrashAreDeleted) {
   EXPECT_FALSE(std::filesystem::exists(folder.path / ".upload-0123-crashed"));
   EXPECT_TRUE(std::filesystem::exists(folder.path / ".upload-4567-writing"));
   EXPECT_TRUE(std::filesystem::exists(folder.path / "notes.txt"));
+}
+
+// Finding 1 (round 2): a load's buffer is sized by the file, not by the
+// limit: a 300-byte model under a 4 TiB limit takes 301 bytes, not 4 TiB.
+TEST(ModelArchive, ALoadTakesABufferTheSizeOfTheFileNotOfTheLimit) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string());
+  const std::string body(300, 'm');
+  std::string why;
+  ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why));
+  const auto stored = archive.load(model_id_for(body), std::size_t(1) << 42, why);
+  ASSERT_TRUE(stored) << why;
+  EXPECT_EQ(stored->body, body);
+  EXPECT_LE(stored->body.capacity(), std::size_t(1) << 20);
+}
+
+std::string owned_body(int n) { return "model " + std::to_string(n) + std::string(1000, 'x'); }
+
+// Finding 2 (round 2): the folder's owners, as in ModelStore: an upload
+// deletes its owner's files, others' beyond their share, or idle ones;
+// otherwise NoRoomNow, deleting nothing.
+TEST(ModelArchive, OneOwnersUploadsNeverDeleteAnothersFilesWithinItsShare) {
+  TemporaryFolder folder;
+  ModelArchive::Limits limits;
+  limits.max_bytes = 4 * kModelOnDisk;
+  limits.share_bytes = 2 * kModelOnDisk;
+  ModelArchive archive(folder.path.string(), limits);
+  std::string why;
+  const auto save = [&](int n, const std::string& owner) {
+    return archive.save(model_id_for(owned_body(n)), LoadOptions::Format::Binary, owned_body(n), why,
+                        ModelArchive::Record{1, 1, owner});
+  };
+  const auto stored = [&](int n) { return archive.find(model_id_for(owned_body(n))).has_value(); };
+  ASSERT_TRUE(save(0, "alice")) << why;
+  age(folder.path / (model_id_for(owned_body(0)).substr(7) + ".glb"), 500);  // the least recently used
+  EXPECT_EQ(archive.find(model_id_for(owned_body(0)))->owner, "alice");
+  // Bob uploads 18: each one past the bound deletes his own oldest.
+  for (int n = 1; n <= 18; ++n) {
+    ASSERT_TRUE(save(n, "bob")) << n << ": " << why;
+    age(folder.path / (model_id_for(owned_body(n)).substr(7) + ".glb"), 400 - n);
+    EXPECT_LE(bytes_in(folder.path), limits.max_bytes) << n;
+  }
+  EXPECT_TRUE(stored(0)) << "alice's model was deleted for bob's uploads";
+  EXPECT_TRUE(stored(18));
+  EXPECT_FALSE(stored(1));
+  // Alice's next upload deletes her own least recently used file first.
+  ASSERT_TRUE(save(20, "alice")) << why;
+  EXPECT_FALSE(stored(0));
+  EXPECT_TRUE(stored(16));
+  // Carol may take what bob holds beyond his share (3 > 2): his oldest.
+  ASSERT_TRUE(save(30, "carol")) << why;
+  EXPECT_FALSE(stored(16));
+  EXPECT_TRUE(stored(20));
+  // Now everyone is within their share: dave may delete nothing, and does not.
+  const std::vector<std::string> before = files_in(folder.path);
+  EXPECT_EQ(save(40, "dave").status, ModelArchive::Status::NoRoomNow);
+  EXPECT_NE(why.find("retry later"), std::string::npos) << why;
+  EXPECT_EQ(files_in(folder.path), before);
+  // A file unused past idle_delete goes for anyone.
+  age(folder.path / (model_id_for(owned_body(20)).substr(7) + ".glb"), 500);
+  ModelArchive::Limits idle = limits;
+  idle.idle_delete = std::chrono::seconds(450);
+  ModelArchive patient(folder.path.string(), idle);
+  ASSERT_TRUE(patient.save(model_id_for(owned_body(40)), LoadOptions::Format::Binary, owned_body(40), why,
+                           ModelArchive::Record{1, 1, "dave"}))
+      << why;
+  EXPECT_FALSE(stored(20));  // alice's, unused for 500 s
+  EXPECT_TRUE(stored(30));
+  EXPECT_TRUE(stored(17));
+  // Files of an older server (records without an owner, or none) are the anonymous owner's.
+  std::ofstream(folder.path / (model_id_for(owned_body(30)).substr(7) + ".json"), std::ios::trunc)
+      << R"({"bytes_bound": 1, "triangles": 1})";
+  EXPECT_EQ(archive.find(model_id_for(owned_body(30)))->owner, "");
+}
+
+// Finding 3 (round 2): the bound counts blocks on disk (a 100-byte file
+// takes 4 KiB), and the number of model files is bounded too.
+TEST(ModelArchive, TheBoundCountsAllocatedBlocksAndFiles) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string(), 10 * kModelOnDisk);
+  std::string why;
+  for (int n = 0; n < 30; ++n) {
+    const std::string body = "small " + std::to_string(n);
+    ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why, ModelArchive::Record{1, 1, ""}))
+        << why;
+  }
+  EXPECT_LE(bytes_in(folder.path), archive.max_bytes());
+  EXPECT_LE(files_in(folder.path).size(), 2u * 10);
+  ModelArchive::Limits few;
+  few.max_files = 3;
+  TemporaryFolder other;
+  ModelArchive counted(other.path.string(), few);
+  for (int n = 0; n < 5; ++n) {
+    const std::string body = "tiny " + std::to_string(n);
+    ASSERT_TRUE(counted.save(model_id_for(body), LoadOptions::Format::Binary, body, why)) << why;
+  }
+  EXPECT_EQ(files_in(other.path).size(), 3u);
+}
+
+// Finding 4 (round 2): a record that claims more than an upload of its
+// file could hold is not taken (its owner is).
+TEST(ModelArchive, ARecordClaimingTheImpossibleIsNotTaken) {
+  TemporaryFolder folder;
+  ModelArchive archive(folder.path.string());
+  const std::string body = "glTF small";
+  std::string why;
+  ASSERT_TRUE(archive.save(model_id_for(body), LoadOptions::Format::Binary, body, why,
+                           ModelArchive::Record{~std::uint64_t(0), 1, "alice"}));
+  const auto found = archive.find(model_id_for(body));
+  ASSERT_TRUE(found);
+  EXPECT_FALSE(found->record);
+  EXPECT_EQ(found->owner, "alice");
+  archive.write_record(model_id_for(body), {max_loaded_bytes(body.size()), 1, "alice"});
+  EXPECT_TRUE(archive.find(model_id_for(body))->record);
 }
 
 }  // namespace
