@@ -266,9 +266,9 @@ TEST(Watchdog, SigtermDuringADeepFrameExitsWithinTheStatedBound) {
 }
 
 // Issue 29, second round: 400,000 slivers (a 19.2 MB upload) across an
-// 8192^2 map are 6.5e9 tile tests, a minute of shadow pass on the
-// reference machine, yet were one draw call: the watchdog could not cut
-// it (the frame answered 503 after 30.9 s, SIGTERM took 31.5 s). The
+// 8192^2 map are 6.5e9 tile tests, 24 s of shadow pass on the reference
+// machine, yet were one draw call: the watchdog could not cut it (the
+// red team's frame answered 503 after 30.9 s, SIGTERM took 31.5 s). The
 // draw's estimate (triangles and the tiles their boxes cover) splits it
 // into chunks now, so the frame ends within the limit and a chunk.
 TEST(Watchdog, AFrameOfLongSliversIsCutShortWithinTheLimit) {
@@ -284,7 +284,9 @@ TEST(Watchdog, AFrameOfLongSliversIsCutShortWithinTheLimit) {
                      {"shadow", {{"map_size", 8192}}}};
   const Answer a = post_render(server, body.dump(), 120);
   EXPECT_EQ(a.status, 503) << a.body;
-  EXPECT_LT(a.seconds, 20.0) << "the 2 s limit, a chunk of about 20 ms, and a busy machine's slack";
+  // One draw call took 24 s on the reference machine: the bound leaves 10 s
+  // of slack for a busy machine and still fails it.
+  EXPECT_LT(a.seconds, 12.0) << "the 2 s limit, a chunk of about 20 ms, and a busy machine's slack";
   if (a.status == 503) {
     const json error = json::parse(a.body);
     EXPECT_EQ(error["field"], "shadow.map_size");
