@@ -22,15 +22,16 @@ std::size_t TriangleModel::bytes() const {
   for (const ModelPart& part : parts)
     n += (part.positions.capacity() + part.normals.capacity()) * sizeof(glm::vec3) +
          part.indices.capacity() * sizeof(std::uint32_t);
-  return n + area_vectors.capacity() * sizeof(glm::dvec3);
+  return n + area_vectors.capacity() * sizeof(glm::dvec3) + edge_lengths.capacity() * sizeof(EdgeLengthBin);
 }
 
 std::uint64_t model_bytes_bound(std::uint64_t triangles, std::uint64_t vertices, std::uint64_t parts) {
   // finish_model shrinks every vector to its size: bytes() is exactly this
   // for a model whose parts keep `vertices` positions in all.
-  // The area vectors: one per direction bin some triangle falls in.
+  // The area vectors and edge lengths: one per bin some triangle falls in.
   return sizeof(TriangleModel) + parts * sizeof(ModelPart) + vertices * 2 * sizeof(glm::vec3) +
-         triangles * 3 * sizeof(std::uint32_t) + std::min<std::uint64_t>(triangles, kAreaDirectionBins) * sizeof(glm::dvec3);
+         triangles * 3 * sizeof(std::uint32_t) + std::min<std::uint64_t>(triangles, kAreaDirectionBins) * sizeof(glm::dvec3) +
+         std::min<std::uint64_t>(triangles, kEdgeLengthBins) * sizeof(EdgeLengthBin);
 }
 
 namespace {
@@ -200,6 +201,26 @@ std::vector<glm::dvec3> binned_area_vectors(const std::vector<ModelPart>& parts)
   return bins;
 }
 
+std::vector<EdgeLengthBin> edge_length_bins(const std::vector<ModelPart>& parts) {
+  std::vector<EdgeLengthBin> bins(kEdgeLengthBins);
+  for (const ModelPart& part : parts)
+    for (std::size_t t = 0; t + 2 < part.indices.size(); t += 3) {
+      const glm::dvec3 a(part.positions[part.indices[t]]), b(part.positions[part.indices[t + 1]]),
+          c(part.positions[part.indices[t + 2]]);
+      const double squared = std::max({glm::dot(b - a, b - a), glm::dot(c - b, c - b), glm::dot(a - c, a - c)});
+      if (!(squared > 0.0) || !std::isfinite(squared)) continue;
+      // log2 of the edge's length is half that of its square.
+      const int bin = std::clamp(int(std::floor(0.5 * std::log2(squared))) + int(kEdgeLengthBins / 2), 0,
+                                 int(kEdgeLengthBins) - 1);
+      bins[std::size_t(bin)].triangles += 1.0;
+      bins[std::size_t(bin)].squared_edges += squared;
+    }
+  bins.erase(std::remove_if(bins.begin(), bins.end(), [](const EdgeLengthBin& b) { return b.triangles == 0.0; }),
+             bins.end());
+  bins.shrink_to_fit();
+  return bins;
+}
+
 double projected_area(const TriangleModel& model, const glm::dvec3& direction) {
   double sum = 0.0;
   for (const glm::dvec3& a : model.area_vectors) sum += std::abs(glm::dot(direction, a));
@@ -217,6 +238,7 @@ void finish_model(TriangleModel& model) {
   model.parts.shrink_to_fit();
   model.closed = is_closed(model.parts);
   model.area_vectors = binned_area_vectors(model.parts);
+  model.edge_lengths = edge_length_bins(model.parts);
 }
 
 std::string model_id_for(std::string_view bytes) {

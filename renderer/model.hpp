@@ -27,6 +27,15 @@ struct ModelPart {
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
 
+/// Triangles whose longest edge is about one length (within a factor of 2):
+/// how many, and the sum of their longest edges squared. A projection that
+/// stretches world lengths by at most sx along screen x and sy along y
+/// gives each triangle a bounding box of at most sx * sy * edge^2.
+struct EdgeLengthBin {
+  double triangles = 0.0;
+  double squared_edges = 0.0;
+};
+
 /// A whole model: its parts (one per distinct base colour), bounds, and
 /// whether it is closed, which decides front-face culling in the shadow pass.
 struct TriangleModel {
@@ -38,6 +47,13 @@ struct TriangleModel {
   /// cost estimate (projected_area) to count how deep the triangles overlap
   /// in a view, which the bounds alone do not tell.
   std::vector<glm::dvec3> area_vectors;
+  /// The triangles' longest edges (model space), squared and summed by
+  /// length (edge_length_bins): set by finish_model(), read by the cost
+  /// estimate and the renderer (mesh_tile_tests) to bound how many 64 x 64
+  /// tiles llvmpipe tests the triangles against, which grows with their
+  /// projected bounding boxes, not with their area: a long sliver has
+  /// almost none.
+  std::vector<EdgeLengthBin> edge_lengths;
 
   std::size_t triangle_count() const;
   /// What the model holds in memory (its vectors' capacities and itself):
@@ -47,6 +63,10 @@ struct TriangleModel {
 
 /// How many directions binned_area_vectors sorts triangles' areas into.
 constexpr std::size_t kAreaDirectionBins = 384;
+
+/// How many lengths edge_length_bins sorts triangles into (powers of 2,
+/// from 2^-32 to 2^31 and beyond at either end).
+constexpr std::size_t kEdgeLengthBins = 64;
 
 /// The most TriangleModel::bytes() can be for a finished model (after
 /// finish_model) of `triangles` triangles, `vertices` positions and
@@ -90,7 +110,12 @@ std::vector<glm::dvec3> binned_area_vectors(const std::vector<ModelPart>& parts)
 /// overlaps counted as often as they are drawn. O(area_vectors.size() <= 384).
 double projected_area(const TriangleModel& model, const glm::dvec3& direction);
 
-/// Sets bounds, closed and area_vectors from the parts, and trims spare
+/// Each triangle's longest edge, squared, summed by its power of 2
+/// (empty bins and triangles with no edge left out). O(triangles), once per
+/// model.
+std::vector<EdgeLengthBin> edge_length_bins(const std::vector<ModelPart>& parts);
+
+/// Sets bounds, closed, area_vectors and edge_lengths from the parts, and trims spare
 /// capacity.
 void finish_model(TriangleModel& model);
 

@@ -47,7 +47,7 @@ struct ServiceLimits {
   /// Longest a request may run once started, milliseconds, > 0
   /// (RunTimeExceeded). A ray cast ("exact", "error") is checked between
   /// rows, so it ends within a row of it. A GL frame (the watchdog) is
-  /// checked between passes and between the chunks a deep mesh's draws are
+  /// checked between passes and between the chunks a deep or long mesh's draws are
   /// split into (ShadowRenderer, about 20 ms each), so it holds the GL
   /// thread for at most about this plus a chunk, plus the one draw or
   /// upload in progress that the estimate priced (scene triangles, map

@@ -53,7 +53,7 @@ constexpr double kMsPerBvhTriangle = 6.0e-4;  // build: 99 k in 44..61 ms, 998 k
 // A mesh query and its transforms, per ray (two threads): 640x360 "exact"
 // 56..71 ms, with an area light (64 shadow rays a pixel) 835..920 ms.
 constexpr double kMsPerRayMeshTest = 7.0e-5;
-constexpr std::uint64_t kBvhBytesPerTriangle = 90;
+constexpr std::uint64_t kBvhBytesPerTriangle = 90;  // Embree's memory monitor, buffers included: 83..85
 // A mesh's layers past the first (ViewLayers::mesh_overdraw), measured with
 // issue 29's model: 4,000 stacked 40 x 40 quads (8,000 triangles), one
 // object, each layer nearer the eye and the light than the one before, so
@@ -63,7 +63,15 @@ constexpr std::uint64_t kBvhBytesPerTriangle = 90;
 // 0 and 1 1.1..2.4 s at 256^2, 4.9 s at 512^2; pcf_radius 8 10.6 s at 256^2.
 constexpr double kMsPerMeshFragment = 2.5e-5;  // plus kMsPerGather for each of its shadow-map reads
 // Map 2048^2 and 1024^2, 1.3e10 and 3.3e9 texels: 5.2 s and 1.24 s.
-constexpr double kMsPerMeshTexel = 5.0e-7;  // Embree's memory monitor, buffers included: 83..85
+constexpr double kMsPerMeshTexel = 5.0e-7;
+// A triangle tested against a 64 x 64 tile (mesh_tile_tests), measured with
+// issue 29's slivers: triangles 100 x 100 world units corner to corner and
+// 1e-4 wide, one object seen face on from a point light and a camera at
+// 60 units, map 1024^2, 2048^2 and 4096^2 (each sliver's box covers the
+// whole map: 256, 1,024 and 4,096 tiles), 20,000 and 200,000 slivers:
+// Server-Timing's shadow pass over the tiles the estimate counts,
+// rounded up (see the comment at mesh_tile_tests' test).
+constexpr double kMsPerTileTest = 1.0e-5;
 
 // Mesh sizes, as tessellate() builds them (tests check the two agree).
 constexpr std::uint64_t kSphereStacks = 48, kSphereSlices = 96;
@@ -165,7 +173,66 @@ bool camera_culls_closed_faces(const RenderRequest& request) {
   return true;
 }
 
+// How deep a mesh's triangles lie seen from a view: along its forward axis
+// for an orthographic view; for a perspective one, the most along the
+// directions from the eye to the bounds' centre and 8 corners. A wide view
+// looks through a mesh at many angles: blinds seen edge on at their centre
+// are thousands of layers deep towards their ends.
+double layers_seen_from(const SceneObject& o, const Aabb& bounds, const std::optional<glm::dvec3>& eye,
+                        const glm::dvec3& forward) {
+  if (!eye) return mesh_layers_along(o, forward);
+  const auto along = [&](const glm::dvec3& point) {
+    const glm::dvec3 toward = point - *eye;
+    return mesh_layers_along(o, toward == glm::dvec3(0.0) ? forward : toward);
+  };
+  double layers = along(bounds.center());
+  for (const glm::dvec3& corner : bounds.corners()) layers = std::max(layers, along(corner));
+  return layers;
+}
+
 }  // namespace
+
+double mesh_tile_tests(const SceneObject& o, const glm::dmat4& view_projection, double width, double height) {
+  if (o.type != SceneObject::Type::Mesh || !o.model || o.model->bounds.empty()) return 0.0;
+  // The bounds' rectangle in NDC (clipped to the view), their nearest clip
+  // w (a linear function: least at a corner) and how far off axis they
+  // reach; bounds reaching behind a perspective eye cover the whole view.
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300, w_min = 1e300;
+  bool around_eye = false;
+  for (const glm::dvec3& corner : object_bounds(o).corners()) {
+    const glm::dvec4 clip = view_projection * glm::dvec4(corner, 1.0);
+    if (!(clip.w > 1e-12)) {
+      around_eye = true;
+      break;
+    }
+    x0 = std::min(x0, clip.x / clip.w), x1 = std::max(x1, clip.x / clip.w);
+    y0 = std::min(y0, clip.y / clip.w), y1 = std::max(y1, clip.y / clip.w);
+    w_min = std::min(w_min, clip.w);
+  }
+  if (around_eye) x0 = y0 = -1.0, x1 = y1 = 1.0;
+  x0 = std::max(x0, -1.0), y0 = std::max(y0, -1.0), x1 = std::min(x1, 1.0), y1 = std::min(y1, 1.0);
+  if (!(x1 > x0 && y1 > y0)) return 0.0;
+  const double rect_pixels = (x1 - x0) * 0.5 * width * (y1 - y0) * 0.5 * height;
+  // Pixels per world unit along screen x and y: the gradient of x/w is
+  // (row0 - (x/w) row3) / w, at most (|row0| + |x/w| |row3|) / w; the
+  // model's scale stretches its edges by at most its largest factor.
+  const glm::dmat4& m = view_projection;  // column-major: m[column][row]
+  const glm::dvec3 row0(m[0][0], m[1][0], m[2][0]), row1(m[0][1], m[1][1], m[2][1]), row3(m[0][3], m[1][3], m[2][3]);
+  const glm::dvec3 factors = glm::abs(o.mesh_scale);
+  const double scale = std::max({factors.x, factors.y, factors.z});
+  const double sx = (glm::length(row0) + std::max(-x0, x1) * glm::length(row3)) * scale * 0.5 * width;
+  const double sy = (glm::length(row1) + std::max(-y0, y1) * glm::length(row3)) * scale * 0.5 * height;
+  double pixels = 0.0;
+  for (const EdgeLengthBin& bin : o.model->edge_lengths)
+    pixels += around_eye ? bin.triangles * rect_pixels
+                         : std::min(bin.squared_edges * sx * sy / (w_min * w_min), bin.triangles * rect_pixels);
+  return pixels / (64.0 * 64.0);
+}
+
+double mesh_draw_ms(const SceneObject& o, const glm::dmat4& view_projection, double width, double height) {
+  return double(mesh_triangle_count(o)) * kMsPerDrawnTriangle +
+         mesh_tile_tests(o, view_projection, width, height) * kMsPerTileTest;
+}
 
 double depth_complexity(const Scene& scene, const glm::dmat4& view_projection) {
   double sum = 0.0;
@@ -189,9 +256,7 @@ ViewLayers view_layers(const Scene& scene, const glm::dmat4& view_projection, bo
     const double share = c.around_eye ? 1.0 : c.share;
     if (share <= 0.0) continue;
     // Bounds around a perspective eye: its triangles may face it from any side.
-    const glm::dvec3 toward = eye ? bounds.center() - *eye : forward;
-    double layers = c.around_eye ? mesh_deepest_layers(o, forward)
-                                 : mesh_layers_along(o, toward == glm::dvec3(0.0) ? forward : toward);
+    double layers = c.around_eye ? mesh_deepest_layers(o, forward) : layers_seen_from(o, bounds, eye, forward);
     // A closed surface faces each way with half its area: culling draws one half.
     if (closed_faces_culled && o.model->closed) layers *= 0.5;
     v.deepest_mesh = std::max(v.deepest_mesh, layers);
@@ -199,6 +264,24 @@ ViewLayers view_layers(const Scene& scene, const glm::dmat4& view_projection, bo
   }
   return v;
 }
+
+namespace {
+
+// mesh_tile_tests of every mesh object in a view, summed; keeps the most a
+// triangle in f.tiles_per_triangle.
+double count_tile_tests(const Scene& scene, const glm::dmat4& view_projection, double width, double height,
+                        CostFactors& f) {
+  double sum = 0.0;
+  for (const SceneObject& o : scene.objects) {
+    const double tiles = mesh_tile_tests(o, view_projection, width, height);
+    if (tiles <= 0.0) continue;
+    sum += tiles;
+    f.tiles_per_triangle = std::max(f.tiles_per_triangle, tiles / double(std::max<std::uint64_t>(1, mesh_triangle_count(o))));
+  }
+  return sum;
+}
+
+}  // namespace
 
 CostFactors cost_factors(const RenderRequest& request) {
   CostFactors f;
@@ -224,6 +307,8 @@ CostFactors cost_factors(const RenderRequest& request) {
         const ViewLayers meshes = view_layers(request.scene, view_projection, shadow_culls);
         f.mesh_texel_layers += layer_texels * meshes.mesh_overdraw;
         f.deepest_mesh = std::max(f.deepest_mesh, meshes.deepest_mesh);
+        const double size = double(plan.layer_size);
+        f.mesh_shadow_tile_tests += count_tile_tests(request.scene, view_projection, size, size, f);
       }
     }
     if (depth) {
@@ -239,7 +324,10 @@ CostFactors cost_factors(const RenderRequest& request) {
           view_layers(request.scene, camera.projection * camera.view, camera_culls_closed_faces(request));
       f.mesh_pixel_layers = image_pixels * meshes.mesh_overdraw;
       f.deepest_mesh = std::max(f.deepest_mesh, meshes.deepest_mesh);
+      f.mesh_tile_tests += count_tile_tests(request.scene, camera.projection * camera.view, double(request.width),
+                                            double(request.height), f);
     }
+    f.mesh_tile_tests += f.mesh_shadow_tile_tests;
   }
   if (casts_rays) {
     f.camera_rays = image_pixels;
@@ -284,6 +372,12 @@ RequestCost estimate_cost(const RenderRequest& request) {
        "a model's triangles lie up to about " + std::to_string(std::llround(f.deepest_mesh)) +
            " layers deep in a view, each layer drawn in turn: use models whose triangles overlap less, fewer "
            "of them, or lower width and height and shadow.map_size"},
+      {"mesh triangle extent", f.mesh_tile_tests * kMsPerTileTest,
+       f.mesh_shadow_tile_tests * 2.0 >= f.mesh_tile_tests ? "shadow.map_size" : "width",
+       "a model's triangles each span up to about " + std::to_string(std::llround(f.tiles_per_triangle)) +
+           " tiles of 64 x 64 pixels in a view, and each is tested against every tile its bounding box covers: " +
+           (f.mesh_shadow_tile_tests * 2.0 >= f.mesh_tile_tests ? "lower shadow.map_size, " : "lower width and height, ") +
+           "or use models with smaller triangles, or fewer of them"},
       {"shadow filter taps", f.pixels * f.gathers_per_pixel * kMsPerGather,
        request.shadow.filter == ShadowFilter::Pcf ? "shadow.pcf_radius" : "width",
        request.shadow.filter == ShadowFilter::Pcf ? "lower shadow.pcf_radius, or width and height"

@@ -9,6 +9,7 @@
 #include "gl/program.hpp"
 #include "mesh_instance.hpp"
 #include "receiver_cells.hpp"
+#include "request_cost.hpp"
 #include "umbras.hpp"
 #include "shader_interface.hpp"
 
@@ -333,9 +334,15 @@ void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<boo
   for (const Run& run : planes) draw_scene_indices(run.first, run.second);
 }
 
-void ShadowRenderer::begin_pass(double pixels, double fragments_per_chunk) {
-  pass_pixels_ = pixels;
-  chunk_fragments_ = fragments_per_chunk;
+void ShadowRenderer::begin_pass(const Scene& scene, const std::vector<glm::dmat4>& view_projections, double width,
+                                double height, double fragments_per_chunk) {
+  pass_pixels_ = width * height;
+  ms_per_fragment_ = kChunkMs / fragments_per_chunk;
+  chunk_ms_ = kChunkMs;
+  pass_draw_ms_.assign(scene.objects.size(), 0.0);
+  for (std::size_t i = 0; i < scene.objects.size(); ++i)
+    for (const glm::dmat4& view_projection : view_projections)
+      pass_draw_ms_[i] = std::max(pass_draw_ms_[i], mesh_draw_ms(scene.objects[i], view_projection, width, height));
 }
 
 void ShadowRenderer::draw_scene_indices(std::size_t first, std::size_t count) {
@@ -348,16 +355,20 @@ void ShadowRenderer::draw_scene_indices(std::size_t first, std::size_t count) {
   });
   for (; it != ranges.end() && it->first_index < end; ++it) {
     const double layers = g.deep_layers[it->object];
-    if (layers <= kDeepLayers || it->index_count < 3) continue;
+    const double draw_ms = it->object < pass_draw_ms_.size() ? pass_draw_ms_[it->object] : 0.0;
+    const bool deep = layers > kDeepLayers, long_draw = draw_ms > kLongDrawMs;
+    if (!(deep || long_draw) || it->index_count < 3) continue;
     const std::size_t from = std::max<std::size_t>(it->first_index, first);
     const std::size_t to = std::min<std::size_t>(std::size_t(it->first_index) + it->index_count, end);
     draw_indices(pending, from - pending);
-    // As if the mesh filled the view, each of its triangles equally deep:
-    // never more fragments a triangle than it can have.
+    // A deep mesh as if it filled the view, each of its triangles equally
+    // deep: never more fragments a triangle than it can have; and each
+    // triangle's share of the estimated draw.
     const double triangles = double(it->index_count / 3);
-    const double fragments_per_triangle = layers * pass_pixels_ / triangles;
+    const double ms_per_triangle =
+        (deep ? layers * pass_pixels_ / triangles * ms_per_fragment_ : 0.0) + draw_ms / triangles;
     for (std::size_t at = from; at < to;) {
-      const double chunk_triangles = std::clamp(chunk_fragments_ / fragments_per_triangle, 1.0, triangles);
+      const double chunk_triangles = std::clamp(chunk_ms_ / ms_per_triangle, 1.0, triangles);
       const std::size_t n = std::min(3 * std::size_t(chunk_triangles), to - at);
       const auto start = Clock::now();
       draw_indices(at, n);
@@ -379,8 +390,8 @@ void ShadowRenderer::wait_for_chunk(Clock::time_point chunk_start) {
   // The next chunk sized to take about kChunkMs: shrunk at once if this
   // one took longer, grown at most twofold if it was quicker.
   const double ms = std::max(elapsed_ms(chunk_start), 1e-3);
-  chunk_fragments_ *= std::min(2.0, kChunkMs / ms);
-  check_watch("a deep mesh's draws");
+  chunk_ms_ *= std::min(2.0, kChunkMs / ms);
+  check_watch("a mesh's chunked draws");
 }
 
 void ShadowRenderer::check_watch(const char* where) const {
@@ -449,7 +460,10 @@ void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowP
   // Whatever the map held is drawn over from here: a frame that stops
   // half way must not leave it to be reused.
   shadow_.holds_plan = false;
-  begin_pass(double(light.layer_size) * double(light.layer_size), kShadowChunkFragments);
+  std::vector<glm::dmat4> views;
+  for (const ShadowView& view : light.views)
+    if (!view.empty) views.push_back(view.projection * view.view);
+  begin_pass(request.scene, views, double(light.layer_size), double(light.layer_size), kShadowChunkFragments);
   const GLuint framebuffer = shadow_.framebuffer.id();
   glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
   // The map has its own resolution: without its own viewport it would be
@@ -603,7 +617,9 @@ ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest
 std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light,
                                       const std::vector<bool>& planes, const CasterTexels& casters) {
   resize_display(request.width, request.height);
-  begin_pass(double(request.width) * double(request.height), kMainChunkFragments);
+  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
+  begin_pass(request.scene, {camera.projection * camera.view}, double(request.width), double(request.height),
+             kMainChunkFragments);
   const DisplayVariant variant = display_variant(request, light);
   CellDraws cells;
   if (variant.shadows) cells = upload_plane_cells(request, light, planes, casters);

@@ -19,7 +19,7 @@
 namespace umbra {
 
 /// When a frame must give up: render() checks it between the chunks that a
-/// deep mesh's draws are split into (see draw_scene_indices) and between
+/// deep or long mesh's draws are split into (see draw_scene_indices) and between
 /// passes.
 struct FrameWatch {
   std::chrono::steady_clock::time_point until = std::chrono::steady_clock::time_point::max();
@@ -171,6 +171,12 @@ class ShadowRenderer {
   // surface seen without culling), so their draws are never split.
   static constexpr double kDeepLayers = 4.0;
   static constexpr double kChunkMs = 20.0;
+  // A mesh whose triangles the estimate prices at more than this in a pass
+  // (mesh_draw_ms: per triangle and per 64 x 64 tile their bounding boxes
+  // cover) is drawn in chunks too: 200,000 slivers across a 4096^2 map are
+  // not deep at all, yet one draw of them is seconds. The teapot is well
+  // under a millisecond.
+  static constexpr double kLongDrawMs = 2.0 * kChunkMs;
   // The fragments a first chunk is sized for, assuming the deep mesh fills
   // the view (so never too large): about kChunkMs on the reference machine
   // (issue 29's stack: 2.5e-5 ms a camera fragment with PCF radius 1, 5e-7
@@ -180,15 +186,20 @@ class ShadowRenderer {
   static constexpr double kShadowChunkFragments = 1 << 25;
   // The frame's watch, and the chunking state of the pass being drawn.
   FrameWatch watch_;
-  double pass_pixels_ = 0.0;       // the pass's viewport
-  double chunk_fragments_ = 0.0;   // fragments a chunk is sized for, adapted to the time chunks take
+  double pass_pixels_ = 0.0;          // the pass's viewport
+  double ms_per_fragment_ = 0.0;      // kChunkMs over the pass's first chunk of a deep mesh's fragments
+  std::vector<double> pass_draw_ms_;  // per scene object: mesh_draw_ms, the most over the pass's views
+  double chunk_ms_ = 0.0;             // estimated ms a chunk is sized for, adapted to the time chunks take
   // Draws indices [first, first + count) of the current scene: in one call
-  // unless they hold a deep mesh (kDeepLayers), whose triangles are drawn
-  // in chunks with wait_for_chunk() after each.
+  // unless they hold a deep mesh (kDeepLayers) or a long one (kLongDrawMs),
+  // whose triangles are drawn in chunks with wait_for_chunk() after each,
+  // in index order (the same pixels as one call).
   void draw_scene_indices(std::size_t first, std::size_t count);
-  // Starts a pass's chunking: `fragments_per_chunk` of a viewport of
-  // `pixels`.
-  void begin_pass(double pixels, double fragments_per_chunk);
+  // Starts a pass's chunking: `fragments_per_chunk` of a deep mesh in a
+  // viewport of `width` x `height`, and each mesh's draw estimated in the
+  // views `view_projections` of `scene` (the current one).
+  void begin_pass(const Scene& scene, const std::vector<glm::dmat4>& view_projections, double width, double height,
+                  double fragments_per_chunk);
   // Waits for the GL to finish what was issued (a fence: llvmpipe draws
   // when flushed), sizes the next chunk by the time this one took, and
   // throws FrameCutShort if the watch has run out.

@@ -53,7 +53,7 @@ void usage(std::FILE* out) {
                "                  a request estimated to need more memory at its peak (MiB) gets 422, 1..1048576\n"
                "                  (default 2048)\n"
                "  --max-run-ms N  the watchdog: a render running longer (a GL frame, checked between passes and between\n"
-               "                  the ~20 ms chunks a deep mesh is drawn in; an exact or error ray cast, between rows)\n"
+               "                  the ~20 ms chunks a deep or long mesh is drawn in; an exact or error ray cast, between rows)\n"
                "                  is stopped with 503 and nothing of it returned, 1..3600000 (default 8000)\n"
                "  --memory-mib N  memory budget of the renderer (MiB): caches are released to fit each request and\n"
                "                  after 1.5 s idle; a request needing more alone gets 422, 64..1048576 (default 2048)\n"

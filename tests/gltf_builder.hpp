@@ -162,4 +162,39 @@ inline std::string stacked_quads_glb(int quads, float size = 40.0f, float spacin
   return b.glb();
 }
 
+/// Issue 29's slivers: `count` triangles each running corner to corner
+/// across a 100 x 100 square facing +Z and 1e-4 wide (almost no area), a
+/// thousand side by side 1e-3 apart in each layer, layers 1e-3 apart
+/// towards -Z; positions only, not indexed. llvmpipe tests each against
+/// every 64 x 64 tile its bounding box covers: 200,000 across a 4096^2
+/// shadow map are 8e8 tile tests, seconds, for a 9.6 MB upload.
+inline std::string slivers_glb(int count) {
+  std::vector<glm::vec3> positions;
+  positions.reserve(std::size_t(count) * 3);
+  for (int t = 0; t < count; ++t) {
+    const float d = float(t % 1000) * 1e-3f, z = -float(t / 1000) * 1e-3f;
+    positions.insert(positions.end(), {{-50.0f, -50.0f + d, z}, {50.0f, 50.0f + d, z}, {50.0f, 50.0f + d + 1e-4f, z}});
+  }
+  GltfBuilder b;
+  b.scene({b.node({{"mesh", b.mesh(b.vec3s(positions))}})});
+  return b.glb();
+}
+
+/// Issue 29's blinds: `quads` quads in planes x = const spread over x in
+/// [-10, 10], each spanning y in [-120, 120] and z in [-10, -0.2]; positions
+/// only. Seen from the origin looking down -Z they are edge on at their
+/// centre, yet a wide view looks through thousands of them towards +-Y.
+inline std::string blinds_glb(int quads) {
+  std::vector<glm::vec3> positions;
+  positions.reserve(std::size_t(quads) * 6);
+  for (int i = 0; i < quads; ++i) {
+    const float x = -10.0f + 20.0f * float(i) / float(std::max(1, quads - 1));
+    const glm::vec3 a{x, -120, -10}, b{x, 120, -10}, c{x, 120, -0.2f}, d{x, -120, -0.2f};
+    positions.insert(positions.end(), {a, b, c, a, c, d});
+  }
+  GltfBuilder b;
+  b.scene({b.node({{"mesh", b.mesh(b.vec3s(positions))}})});
+  return b.glb();
+}
+
 }  // namespace umbra::test

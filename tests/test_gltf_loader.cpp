@@ -262,9 +262,12 @@ TEST(GltfLoader, TheLoadedSizeIsBoundedAndAdmittedBeforeBuilding) {
     EXPECT_EQ(r.bytes_bound, admitted);
     EXPECT_LE(r.model->bytes(), admitted);
     // Exact for welded meshes (every vertex of the accessor is used) but
-    // for the area vectors: one per direction bin the triangles fill.
-    EXPECT_EQ(r.model->bytes() + (std::min(r.model->triangle_count(), kAreaDirectionBins) -
-                                  r.model->area_vectors.size()) * sizeof(glm::dvec3),
+    // for the area vectors and edge lengths: one per bin the triangles fill.
+    EXPECT_EQ(r.model->bytes() +
+                  (std::min(r.model->triangle_count(), kAreaDirectionBins) - r.model->area_vectors.size()) *
+                      sizeof(glm::dvec3) +
+                  (std::min(r.model->triangle_count(), kEdgeLengthBins) - r.model->edge_lengths.size()) *
+                      sizeof(EdgeLengthBin),
               admitted);
   }
   // Strips, fans, and meshes sharing one large accessor: still a bound.

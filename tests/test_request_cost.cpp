@@ -263,6 +263,66 @@ TEST(RequestCost, IssueTwentyNinesStackedQuadsAreOverTheDefaultBudget) {
   EXPECT_LT(estimate_cost(*small.request).total_ms, 0.25 * double(limits.max_request_cost.count()));
 }
 
+// A request for one model `name` as issue 29's red team sent the slivers:
+// camera and point light 60 units above, 512^2.
+json sliver_body(int map_size) {
+  return {{"width", 512},
+          {"height", 512},
+          {"scene", {{"objects", {{{"type", "mesh"}, {"model", "m"}}}}}},
+          {"camera", {{"position", {0, 0, 60}}, {"target", {0, 0, 0}}, {"fov_y_deg", 100}}},
+          {"light", {{"position", {0, 0, 60}}, {"target", {0, 0, 0}}}},
+          {"shadow", {{"map_size", map_size}}}};
+}
+
+RenderRequest with_model(const json& body, const std::shared_ptr<const TriangleModel>& model) {
+  const ParsedRequest parsed = parse_render_request(body.dump(), Route::Render, test::lookup_of({{"m", model}}));
+  EXPECT_TRUE(parsed.ok()) << parsed.error.message;
+  return parsed.ok() ? *parsed.request : RenderRequest{};
+}
+
+// Issue 29, second round: 200,000 slivers (a 9.6 MB upload) were estimated
+// under 400 ms, priced per triangle, and took 5 s of shadow pass at map
+// 4096 and 15 s at 8192: each is tested against every tile of the map.
+// (kMsPerTileTest: 20,000 of them took 46, 212 and 823 ms of shadow pass
+// at maps 1024, 2048 and 4096, 256, 1,024 and 4,096 tiles each: 1.0e-5 ms
+// a tile test.)
+TEST(RequestCost, IssueTwentyNinesSliversAreRefusedForTheirTriangleExtent) {
+  const LoadResult slivers = load_gltf(test::slivers_glb(200000), {});
+  ASSERT_TRUE(slivers.ok()) << slivers.error;
+  for (int map_size : {4096, 8192}) {
+    const RequestCost cost = estimate_cost(with_model(sliver_body(map_size), slivers.model));
+    EXPECT_GT(cost.total_ms, 10.0 * 400.0) << map_size;
+    EXPECT_EQ(cost.dominant().name, "mesh triangle extent");
+    EXPECT_EQ(cost.dominant().field, "shadow.map_size");
+    EXPECT_NE(cost.dominant().advice.find("lower shadow.map_size"), std::string::npos) << cost.dominant().advice;
+    // Every triangle's box covers the whole map, and no more.
+    const double map_tiles = double(map_size / 64) * double(map_size / 64);
+    EXPECT_GT(cost.factors.tiles_per_triangle, 0.5 * map_tiles);
+    EXPECT_LE(cost.factors.tiles_per_triangle, 1.01 * map_tiles);
+  }
+  // A few of them are fine.
+  const LoadResult few = load_gltf(test::slivers_glb(200), {});
+  ASSERT_TRUE(few.ok());
+  EXPECT_LT(estimate_cost(with_model(sliver_body(4096), few.model)).total_ms, 0.25 * 400.0);
+}
+
+// Issue 29, second round: 4,000 blinds seen edge on at their centre by a
+// 170 degree camera were estimated by the one direction to their centre,
+// about 0 layers, and held the GL thread for 4.7 s at 512^2.
+TEST(RequestCost, IssueTwentyNinesBlindsAreDeepTowardsTheirEnds) {
+  const LoadResult blinds = load_gltf(test::blinds_glb(4000), {});
+  ASSERT_TRUE(blinds.ok()) << blinds.error;
+  const json body = {{"width", 512},
+                     {"height", 512},
+                     {"scene", {{"objects", {{{"type", "mesh"}, {"model", "m"}}}}}},
+                     {"camera", {{"position", {0, 0, 0}}, {"target", {0, 0, -1}}, {"fov_y_deg", 170}}},
+                     {"light", {{"position", {0, 50, -5}}, {"target", {0, 0, -5}}}}};
+  const RequestCost cost = estimate_cost(with_model(body, blinds.model));
+  EXPECT_GT(cost.total_ms, 2.0 * 250.0);
+  EXPECT_EQ(cost.dominant().name, "mesh overdraw");
+  EXPECT_GT(cost.factors.deepest_mesh, 100.0);
+}
+
 // The built-in models and the bench's mesh scenes: a few layers deep at
 // most, so their estimates stay close to what the bounds gave.
 TEST(RequestCost, OrdinaryModelsAreAFewLayersDeep) {
@@ -274,6 +334,12 @@ TEST(RequestCost, OrdinaryModelsAreAFewLayersDeep) {
       ASSERT_NE(overdraw, cost.parts.end());
       EXPECT_LT(cost.factors.deepest_mesh, 3.0) << name << " " << output;
       EXPECT_LT(overdraw->ms, 0.25 * cost.total_ms) << name << " " << output;
+      // Their triangles are small: about a tile each in any view.
+      const auto extent = std::find_if(cost.parts.begin(), cost.parts.end(),
+                                       [](const CostPart& p) { return p.name == "mesh triangle extent"; });
+      ASSERT_NE(extent, cost.parts.end());
+      EXPECT_LT(cost.factors.tiles_per_triangle, 1.0) << name << " " << output;
+      EXPECT_LT(extent->ms, 0.01 * cost.total_ms) << name << " " << output;
     }
 }
 
