@@ -4,9 +4,10 @@
 // on an older binary (--server PATH) to see the findings, on the current
 // one to see them closed. Writes bench/results/redteam.md.
 //
-//   umbra-redteam-bench [--server PATH] [--out FILE] [--seconds 10]
+//   umbra-redteam-bench [--server PATH] [--out FILE] [--seconds 10] [--only 1,4]
 //
-// --seconds: how long the non-reading clients' attack is probed.
+// --seconds: how long the non-reading clients' attack is probed; --only:
+// just those findings' rows.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -337,13 +338,20 @@ Row non_readers(const std::string& binary, double seconds) {
   });
   std::this_thread::sleep_for(std::chrono::seconds(1));
   int probes = 0, answered = 0;
+  std::string first_failure;
   const auto start = Clock::now();
   row.peak_rss_mib = peak_rss_during(server, [&] {
     while (seconds_since(start) < seconds) {
       auto c = client_for(server.port(), 5);
+      const auto sent = Clock::now();
       auto r = c.Get("/api/health");
       ++probes;
       answered += r && r->status == 200;
+      if (!(r && r->status == 200) && first_failure.empty()) {
+        char after[32];
+        std::snprintf(after, sizeof after, " after %.1f s", seconds_since(sent));
+        first_failure = status_of(r) + after;
+      }
       std::this_thread::sleep_for(milliseconds(250));
     }
   });
@@ -351,7 +359,8 @@ Row non_readers(const std::string& binary, double seconds) {
   quit = true;
   attacker.join();
   row.answer = std::to_string(answered) + " of " + std::to_string(probes) + " health probes answered 200 (" +
-               std::to_string(opened.load()) + " attacking connections opened)";
+               std::to_string(opened.load()) + " attacking connections opened)" +
+               (first_failure.empty() ? "" : "; the first failure: " + first_failure);
   return row;
 }
 
@@ -484,6 +493,7 @@ int main(int argc, char** argv) {
   std::string binary = UMBRA_SERVER_BINARY;
   std::string out = std::string(UMBRA_RESULTS_DIR) + "/redteam.md";
   double seconds = 10;
+  std::string only;  // ",1,4,": just those findings
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--server" && i + 1 < argc)
@@ -492,8 +502,10 @@ int main(int argc, char** argv) {
       out = argv[++i];
     else if (arg == "--seconds" && i + 1 < argc)
       seconds = std::atof(argv[++i]);
+    else if (arg == "--only" && i + 1 < argc)
+      only = "," + std::string(argv[++i]) + ",";
     else {
-      std::fprintf(stderr, "usage: umbra-redteam-bench [--server PATH] [--out FILE] [--seconds 10]\n");
+      std::fprintf(stderr, "usage: umbra-redteam-bench [--server PATH] [--out FILE] [--seconds 10] [--only 1,4]\n");
       return 2;
     }
   }
@@ -523,6 +535,7 @@ int main(int argc, char** argv) {
   };
   std::vector<Row> rows;
   for (const auto& [number, run] : findings) {
+    if (!only.empty() && only.find("," + std::string(number) + ",") == std::string::npos) continue;
     Row row;
     try {
       row = run();

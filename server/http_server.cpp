@@ -48,6 +48,7 @@ struct Connection {
   std::uint64_t id = 0;
   Phase phase = Phase::Idle;
   Clock::time_point deadline;  // of the phase; none while handling
+  Clock::time_point idle_since;  // idle: accepted, or its last answer sent
   Clock::time_point started;   // the request's first byte, for the log
   RequestReader reader;
   std::string in;              // read, not yet parsed
@@ -200,7 +201,8 @@ struct HttpServer::Impl {
 
   void become_idle(Connection& c) {
     c.phase = Phase::Idle;
-    c.deadline = Clock::now() + options.idle_timeout;
+    c.idle_since = Clock::now();
+    c.deadline = c.idle_since + options.idle_timeout;
     c.reader.reset();
     c.admitted = false;
     c.principal.clear();
@@ -222,33 +224,30 @@ struct HttpServer::Impl {
     return false;
   }
 
-  // The connection to close to make room at the cap: the longest idle,
-  // else the one that has gone longest without progress: receiving its
-  // request since its first byte (a legitimate request arrives in
-  // milliseconds), or sending an answer the client last took a byte of
-  // then (a client that does not read). The slowest is the likeliest
-  // attacker, and the nearest its own timeout anyway. -1: every one is
-  // being handled.
+  // The connection to close to make room at the cap: one already closing
+  // (lingering), else the one that has gone longest without progress: idle
+  // since it was accepted or last answered, receiving its request since its
+  // first byte (a legitimate request arrives in milliseconds), or sending an
+  // answer the client last took a byte of then (a client that does not
+  // read). The slowest is the likeliest attacker, and the nearest its own
+  // timeout anyway; a connection just accepted is the newest of all, so a
+  // flood of reconnecting non-readers cannot push a health probe out before
+  // its request is read. -1: every one is being handled.
   int connection_to_evict() const {
-    int idle = -1, stuck = -1;
-    Clock::time_point idle_since = Clock::time_point::max(), stuck_since = Clock::time_point::max();
+    int oldest = -1;
+    Clock::time_point oldest_since = Clock::time_point::max();
     for (const auto& [fd, c] : connections) {
-      if (c->phase == Phase::Idle || c->phase == Phase::Lingering) {
-        if (c->deadline < idle_since) {
-          idle = fd;
-          idle_since = c->deadline;
-        }
-        continue;
-      }
-      const Clock::time_point since = c->phase == Phase::Receiving                                   ? c->started
+      if (c->phase == Phase::Lingering) return fd;
+      const Clock::time_point since = c->phase == Phase::Idle                                      ? c->idle_since
+                                      : c->phase == Phase::Receiving                                 ? c->started
                                       : c->phase == Phase::Sending || c->phase == Phase::Draining ? c->progressed
                                                                                                     : Clock::time_point::max();
-      if (since < stuck_since) {
-        stuck = fd;
-        stuck_since = since;
+      if (since < oldest_since) {
+        oldest = fd;
+        oldest_since = since;
       }
     }
-    return idle >= 0 ? idle : stuck;
+    return oldest;
   }
 
   // Best effort, never blocking: the few hundred bytes of an error fit in

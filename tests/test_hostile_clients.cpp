@@ -386,6 +386,40 @@ TEST(HostileClients, ClientsThatDoNotReadTheirAnswersDoNotLockOutHealth) {
   for (int fd : readers_of_nothing) close(fd);
 }
 
+// The review of issue 29: non-readers that reconnect as soon as they are
+// closed made room at the cap by evicting the one idle connection there,
+// a health probe accepted a moment before, before its request was read
+// (2 of 37 probes got a reset). The connection longest without progress
+// goes instead: not the newest.
+TEST(HostileClients, AReconnectingNonReaderDoesNotEvictAProbeJustAccepted) {
+  HttpServerOptions options;
+  options.max_connections = 8;
+  Server server(options);
+  const std::string flood = repeated("GET /api/openapi.json HTTP/1.1\r\nHost: localhost\r\n\r\n", 60);
+  std::vector<int> readers_of_nothing;
+  for (std::size_t i = 0; i < options.max_connections; ++i) {
+    const int fd = connect_small_window(server.port());
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(send_all(fd, flood));
+    readers_of_nothing.push_back(fd);
+  }
+  for (int fd : readers_of_nothing) ASSERT_TRUE(readable(fd, milliseconds(20000)));
+  std::this_thread::sleep_for(milliseconds(200));
+  const int probe = connect_to(server.port());  // takes a stalled sender's place
+  ASSERT_GE(probe, 0);
+  std::this_thread::sleep_for(milliseconds(200));
+  const int again = connect_small_window(server.port());  // at the cap again
+  ASSERT_GE(again, 0);
+  ASSERT_TRUE(send_all(again, flood));
+  readers_of_nothing.push_back(again);
+  std::this_thread::sleep_for(milliseconds(200));
+  ASSERT_TRUE(send_all(probe, kHealth));
+  const Answer a = AnswerReader(probe).next(milliseconds(5000));
+  EXPECT_EQ(a.status, 200) << "the probe was evicted before its request was read";
+  close(probe);
+  for (int fd : readers_of_nothing) close(fd);
+}
+
 TEST(HostileClients, AClientThatReadsNoneOfItsAnswerIsClosedAfterTheStallTimeout) {
   HttpServerOptions options;
   options.write_timeout = milliseconds(600000);  // so that only the stall can close it
