@@ -82,7 +82,7 @@ std::uint64_t ModelStore::live_locked() const { return alive_->load() + reserved
 
 // Which limit `bytes` of one owner's models can never fit under, if any.
 ModelStore::Room ModelStore::limit_for(std::uint64_t bytes) const {
-  const std::uint64_t for_uploads = limits_.max_bytes - std::min(limits_.max_bytes, pinned_bytes_);
+  const std::uint64_t for_uploads = upload_max_bytes_locked();
   if (bytes > limits_.share_bytes && limits_.share_bytes < for_uploads) return Room::OverShare;
   if (bytes > for_uploads) return Room::OverBudget;
   return Room::Made;
@@ -256,7 +256,7 @@ ModelStore::AddResult ModelStore::add(const std::string& id, const std::string& 
     return {Outcome::AlreadyHeld, found->second->held};
   }
   const std::uint64_t bytes = model->bytes();
-  if (bytes > limits_.max_bytes - std::min(limits_.max_bytes, pinned_bytes_) || pinned_.size() >= limits_.max_models)
+  if (bytes > upload_max_bytes_locked() || pinned_.size() >= limits_.max_models)
     return {Outcome::TooLarge, nullptr};
   auto held = make_held(id, name, true, "", std::move(model));
   pinned_.push_back(held);
@@ -315,9 +315,9 @@ std::uint64_t ModelStore::owner_bytes(const std::string& owner) const {
   return usage == owners_.end() ? 0 : usage->second.bytes;
 }
 
-std::uint64_t ModelStore::pinned_bytes() const {
+std::uint64_t ModelStore::upload_max_bytes() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return pinned_bytes_;
+  return upload_max_bytes_locked();
 }
 
 namespace {

@@ -24,6 +24,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -158,8 +159,8 @@ class ModelStore {
   std::uint64_t owner_bytes(const std::string& owner) const;
   std::uint64_t max_bytes() const { return limits_.max_bytes; }
   std::uint64_t share_bytes() const { return limits_.share_bytes; }
-  /// Bytes of the pinned models: the budget less these is all uploads get.
-  std::uint64_t pinned_bytes() const;
+  /// The budget less the pinned models: the most all uploads may hold.
+  std::uint64_t upload_max_bytes() const;
 
   /// For tests: the clock that idle_drop is measured with.
   void set_clock(std::function<Clock::time_point()> now);
@@ -192,6 +193,9 @@ class ModelStore {
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<const HeldModel>> pinned_;
   std::uint64_t pinned_bytes_ = 0;
+  std::uint64_t upload_max_bytes_locked() const {
+    return limits_.max_bytes - std::min(limits_.max_bytes, pinned_bytes_);
+  }
   std::list<Upload> uploads_;  // most recently used first
   std::unordered_map<std::string, std::list<Upload>::iterator> by_id_;
   std::uint64_t upload_bytes_ = 0;

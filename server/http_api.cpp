@@ -638,6 +638,12 @@ namespace {
 // Rounded up; saturating (a record may claim up to 2^64 - 1 bytes).
 std::string mib(std::uint64_t bytes) { return std::to_string((bytes >> 20) + ((bytes & ((1 << 20) - 1)) != 0)) + " MiB"; }
 
+// The end of every refusal of models that can never fit together.
+std::string over_upload_budget(std::uint64_t upload_max_bytes) {
+  return "more than the " + mib(upload_max_bytes) +
+         " this server holds for models beside those of --models DIR (--models-budget-mib)";
+}
+
 // "sha256:0123456789ab..." : enough of an id to tell models apart in a message.
 std::string short_id(const std::string& id) { return id.size() > 19 ? id.substr(0, 19) + "..." : id; }
 
@@ -645,14 +651,12 @@ std::string short_id(const std::string& id) { return id.size() > 19 ? id.substr(
 
 HttpApi::ModelsRefused HttpApi::room_refusal(ModelStore::Room room, std::uint64_t bytes, const std::string& what,
                                              int no_room_status) const {
-  const std::string for_uploads = mib(models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes()));
   switch (room) {
     case ModelStore::Room::OverShare:
       return {422, what + " " + mib(bytes) + " once loaded, more than the " + mib(models_->share_bytes()) +
                        " share of model memory each client has (--upload-quota-mib)"};
     case ModelStore::Room::OverBudget:
-      return {422, what + " " + mib(bytes) + " once loaded, more than the " + for_uploads +
-                       " this server holds for models beside those of --models DIR (--models-budget-mib)"};
+      return {422, what + " " + mib(bytes) + " once loaded, " + over_upload_budget(models_->upload_max_bytes())};
     default:
       return {no_room_status,
               what + " " + mib(bytes) + " once loaded, and the " + mib(models_->max_bytes()) +
@@ -695,13 +699,11 @@ void HttpApi::plan_models(ModelPlan& plan, const std::vector<std::string>& keys,
     plan.to_load.emplace(key, ModelPlan::ToLoad{*found, {}});
   }
   if (plan.to_load.empty()) return;
-  const std::uint64_t for_uploads = models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes());
+  const std::uint64_t for_uploads = models_->upload_max_bytes();
   if (held_bytes + to_load_bytes > for_uploads)
     throw ModelsRefused{422, subject + (subject == "the model" ? " needs " : " need ") + mib(held_bytes + to_load_bytes) +
                                  " once loaded together (" + mib(held_bytes) + " held; " + std::to_string(plan.to_load.size()) +
-                                 " to load: " + listed + "), " +
-                                 "more than the " + mib(for_uploads) +
-                                 " this server holds for models beside those of --models DIR (--models-budget-mib)"};
+                                 " to load: " + listed + "), " + over_upload_budget(for_uploads)};
   for (auto& [key, load] : plan.to_load) {
     const std::uint64_t bytes = load.found.record ? load.found.record->bytes_bound : 0;
     // Each one within the owner's share; together they may borrow beyond it.
@@ -740,12 +742,10 @@ std::shared_ptr<const HeldModel> HttpApi::find_model(ModelPlan& plan, const std:
     std::uint64_t together = bytes;
     for (const auto& [key, held] : plan.held)
       if (!held->pinned) together += held->bytes;
-    const std::uint64_t for_uploads = models_->max_bytes() - std::min(models_->max_bytes(), models_->pinned_bytes());
+    const std::uint64_t for_uploads = models_->upload_max_bytes();
     if (together > for_uploads) {
-      refused = ModelsRefused{422, "the scene's models need at least " + mib(together) +
-                                       " once loaded together, more than the " + mib(for_uploads) +
-                                       " this server holds for models beside those of --models DIR "
-                                       "(--models-budget-mib)"};
+      refused = ModelsRefused{422, "the scene's models need at least " + mib(together) + " once loaded together, " +
+                                       over_upload_budget(for_uploads)};
       message = refused->message;
       return 422;
     }
