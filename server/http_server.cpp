@@ -553,11 +553,17 @@ struct HttpServer::Impl {
   // all of it before a connection that is done closes (else its unread
   // answers would stay in kernel memory long after). Nothing is read
   // meanwhile; no byte read for send_stall_timeout resets the connection.
+  // Draining has no event to wait for: look again after kDrainPoll, or
+  // at the stall limit if that comes first.
+  Clock::time_point draining_deadline(const Connection& c, Clock::time_point now) const {
+    return std::min(now + kDrainPoll, c.progressed + options.send_stall_timeout);
+  }
+
   void start_draining(Connection& c, bool then_close) {
     c.phase = Phase::Draining;
     c.close_when_drained = then_close;
     c.unsent_in_kernel = unsent_in_kernel(c.fd);
-    c.deadline = std::min(Clock::now() + kDrainPoll, c.progressed + options.send_stall_timeout);
+    c.deadline = draining_deadline(c, Clock::now());
     watch(c, 0);
   }
 
@@ -580,7 +586,7 @@ struct HttpServer::Impl {
       return resume(c.fd);
     }
     if (now - c.progressed >= options.send_stall_timeout) return close_stalled(c.fd);
-    c.deadline = std::min(now + kDrainPoll, c.progressed + options.send_stall_timeout);
+    c.deadline = draining_deadline(c, now);
   }
 
   void close_stalled(int fd) {
