@@ -93,6 +93,8 @@ std::string ModelArchive::model_path(const std::string& id, LoadOptions::Format 
   return folder_ + "/" + hex_of(id) + extension(format);
 }
 
+std::string ModelArchive::record_path(const std::string& hex) const { return folder_ + "/" + hex + ".json"; }
+
 bool ModelArchive::write_file(const std::string& path, std::string_view data, int& error) {
   const std::string temporary = temporary_name(folder_, path.substr(folder_.size() + 1));
   const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
@@ -188,7 +190,7 @@ ModelArchive::Scan ModelArchive::scan() {
         known->second.mtime_ns == record->second.mtime_ns) {
       model.owner = known->second.owner;
     } else {
-      const std::optional<Record> parsed = parse_record(folder_ + "/" + hex + ".json");
+      const std::optional<Record> parsed = parse_record(record_path(hex));
       model.owner = parsed ? parsed->owner : "";
     }
     owners[hex] = {record->second.inode, record->second.mtime_ns, model.owner};
@@ -198,7 +200,7 @@ ModelArchive::Scan ModelArchive::scan() {
   // Records whose model is gone (evicted by another server meanwhile, or
   // the model's write still under way: only old ones).
   for (const auto& [hex, record] : records)
-    if (now_ns - record.mtime_ns > stray_ns && ::unlink((folder_ + "/" + hex + ".json").c_str()) == 0)
+    if (now_ns - record.mtime_ns > stray_ns && ::unlink(record_path(hex).c_str()) == 0)
       result.total -= std::min(result.total, record.bytes);
   return result;
 }
@@ -251,7 +253,7 @@ bool ModelArchive::evict_to(const std::string& owner, std::uint64_t max_total, s
   for (const Scan::Model* model : chosen) {
     // Gone already (another server evicted it): freed all the same.
     if (::unlink((folder_ + "/" + model->name).c_str()) == 0) evicted_.fetch_add(1);
-    if (model->has_record) ::unlink((folder_ + "/" + model->name.substr(0, 64) + ".json").c_str());
+    if (model->has_record) ::unlink(record_path(model->name.substr(0, 64)).c_str());
   }
   bytes_on_disk_.store(total);
   return true;
@@ -311,7 +313,7 @@ void ModelArchive::write_record(const std::string& id, const Record& record) {
   // Best effort: without a record, the model is measured when it is loaded.
   int error = 0;
   const std::string text = record_text(record);
-  if (write_file(folder_ + "/" + hex_of(id) + ".json", text, error)) bytes_on_disk_.fetch_add(allocated_estimate(text.size()));
+  if (write_file(record_path(hex_of(id)), text, error)) bytes_on_disk_.fetch_add(allocated_estimate(text.size()));
 }
 
 std::optional<ModelArchive::Found> ModelArchive::find(const std::string& id) const {
@@ -322,7 +324,7 @@ std::optional<ModelArchive::Found> ModelArchive::find(const std::string& id) con
     Found found;
     found.format = format;
     found.file_bytes = std::uint64_t(info.st_size);
-    found.record = parse_record(folder_ + "/" + hex_of(id) + ".json");
+    found.record = parse_record(record_path(hex_of(id)));
     if (found.record) found.owner = found.record->owner;
     // A claim no upload of this file could make (a record cut, changed or
     // of another file) is not taken: the loader's own bound is admitted.

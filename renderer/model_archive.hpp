@@ -164,6 +164,8 @@ class ModelArchive {
   // One atomic write of `data` to `path`; errno-style result in `error`.
   bool write_file(const std::string& path, std::string_view data, int& error);
   std::string model_path(const std::string& id, LoadOptions::Format format) const;
+  /// The size record beside the model whose id is "sha256:" + `hex`.
+  std::string record_path(const std::string& hex) const;
 
   std::string folder_;
   Limits limits_;
