@@ -114,18 +114,17 @@ void ModelStore::drop(std::list<Upload>::iterator it) {
 
 bool ModelStore::drop_until(const std::string& owner, const std::function<bool()>& fits) {
   const Clock::time_point now = now_();
+  // One pass from the least recently used, each upload judged when it is
+  // reached: one passed over stays undroppable, since a drop can only end
+  // an owner's over-share, never start one.
+  auto candidate = uploads_.end();
   while (!fits()) {
-    // The least recently used one this owner may drop. Searched from the
-    // end each time: a drop can end another owner's over-share.
-    bool found = false;
-    for (auto candidate = uploads_.end(); candidate != uploads_.begin();) {
-      --candidate;
-      if (!may_drop(*candidate, owner, now)) continue;
-      drop(candidate);
-      found = true;
-      break;
-    }
-    if (!found) return false;
+    if (candidate == uploads_.begin()) return false;
+    --candidate;
+    if (!may_drop(*candidate, owner, now)) continue;
+    const auto newer = std::next(candidate);
+    drop(candidate);
+    candidate = newer;
   }
   return true;
 }
