@@ -355,6 +355,24 @@ std::string repeated(const std::string& request, int times) {
   return all;
 }
 
+// 60 pipelined GET /api/openapi.json (100 KB each).
+const std::string kOpenApiFlood = repeated("GET /api/openapi.json HTTP/1.1\r\nHost: localhost\r\n\r\n", 60);
+
+// `count` more clients with a small receive window that each send
+// kOpenApiFlood and never read, appended to `fds`; true once every one
+// has been answered (its first bytes arrived, unread).
+bool open_non_readers(int port, std::size_t count, std::vector<int>& fds) {
+  for (std::size_t i = 0; i < count; ++i) {
+    const int fd = connect_small_window(port);
+    if (fd < 0) return false;
+    fds.push_back(fd);
+    if (!send_all(fd, kOpenApiFlood)) return false;
+  }
+  for (std::size_t i = fds.size() - count; i < fds.size(); ++i)
+    if (!readable(fds[i], milliseconds(20000))) return false;
+  return true;
+}
+
 // Issue 29's finding 4: 256 connections (the cap) with a 1 KB receive
 // buffer, each pipelining 60 GET /api/openapi.json (100 KB each) and
 // reading nothing, held every slot in the sending phase, which was never
@@ -364,17 +382,9 @@ TEST(HostileClients, ClientsThatDoNotReadTheirAnswersDoNotLockOutHealth) {
   HttpServerOptions options;  // else the defaults: 10 s to send an answer
   options.max_connections = 64;
   Server server(options);
-  const std::string flood = repeated("GET /api/openapi.json HTTP/1.1\r\nHost: localhost\r\n\r\n", 60);
   std::vector<int> readers_of_nothing;
-  for (std::size_t i = 0; i < options.max_connections; ++i) {
-    const int fd = connect_small_window(server.port());
-    ASSERT_GE(fd, 0);
-    ASSERT_TRUE(send_all(fd, flood));
-    readers_of_nothing.push_back(fd);
-  }
-  // Every one answered (its first bytes arrived, unread), then a moment
-  // for the server to fill what the kernel takes of its answers.
-  for (int fd : readers_of_nothing) ASSERT_TRUE(readable(fd, milliseconds(20000)));
+  ASSERT_TRUE(open_non_readers(server.port(), options.max_connections, readers_of_nothing));
+  // A moment for the server to fill what the kernel takes of its answers.
   std::this_thread::sleep_for(milliseconds(500));
   for (int probe = 0; probe < 20; ++probe) {
     const Answer a = exchange(server.port(), kHealth, milliseconds(5000));
@@ -395,23 +405,13 @@ TEST(HostileClients, AReconnectingNonReaderDoesNotEvictAProbeJustAccepted) {
   HttpServerOptions options;
   options.max_connections = 8;
   Server server(options);
-  const std::string flood = repeated("GET /api/openapi.json HTTP/1.1\r\nHost: localhost\r\n\r\n", 60);
   std::vector<int> readers_of_nothing;
-  for (std::size_t i = 0; i < options.max_connections; ++i) {
-    const int fd = connect_small_window(server.port());
-    ASSERT_GE(fd, 0);
-    ASSERT_TRUE(send_all(fd, flood));
-    readers_of_nothing.push_back(fd);
-  }
-  for (int fd : readers_of_nothing) ASSERT_TRUE(readable(fd, milliseconds(20000)));
+  ASSERT_TRUE(open_non_readers(server.port(), options.max_connections, readers_of_nothing));
   std::this_thread::sleep_for(milliseconds(200));
   const int probe = connect_to(server.port());  // takes a stalled sender's place
   ASSERT_GE(probe, 0);
   std::this_thread::sleep_for(milliseconds(200));
-  const int again = connect_small_window(server.port());  // at the cap again
-  ASSERT_GE(again, 0);
-  ASSERT_TRUE(send_all(again, flood));
-  readers_of_nothing.push_back(again);
+  ASSERT_TRUE(open_non_readers(server.port(), 1, readers_of_nothing));  // at the cap again
   std::this_thread::sleep_for(milliseconds(200));
   ASSERT_TRUE(send_all(probe, kHealth));
   const Answer a = AnswerReader(probe).next(milliseconds(5000));
