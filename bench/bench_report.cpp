@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <thread>
 
-#include "render_service.hpp"
+#include "service/render_service.hpp"
 
 namespace umbra::bench {
 

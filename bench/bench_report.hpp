@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "render_result.hpp"
-#include "request.hpp"
+#include "service/render_result.hpp"
+#include "core/request.hpp"
 
 namespace umbra {
 

@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "request_cost.hpp"
+#include "service/request_cost.hpp"
 #include "request_parser.hpp"
 
 int main(int argc, char** argv) {

@@ -11,8 +11,8 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
-#include "gl/program.hpp"
-#include "light_math.hpp"
+#include "gpu/program.hpp"
+#include "core/light_math.hpp"
 
 namespace umbra {
 

@@ -14,11 +14,11 @@
 #include <string>
 #include <vector>
 
-#include "gl/egl_context.hpp"
-#include "gl/objects.hpp"
-#include "image.hpp"
-#include "request.hpp"
-#include "scene.hpp"
+#include "gpu/egl_context.hpp"
+#include "gpu/objects.hpp"
+#include "core/image.hpp"
+#include "core/request.hpp"
+#include "core/scene.hpp"
 
 namespace umbra {
 

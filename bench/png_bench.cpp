@@ -26,7 +26,7 @@
 
 #include "png.hpp"
 #include "png_candidates.hpp"
-#include "render_service.hpp"
+#include "service/render_service.hpp"
 #include "request_parser.hpp"
 
 namespace {

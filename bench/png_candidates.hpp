@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "image.hpp"
+#include "core/image.hpp"
 
 namespace umbra::bench {
 

@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "request.hpp"
+#include "core/request.hpp"
 
 namespace umbra {
 

@@ -10,7 +10,7 @@
 //   moves and every frame draws its shadow map. Time per frame = shadow +
 //   main pass + read-back from each renderer's own FrameTimings;
 // - accuracy: the shadow output of both at the scene's own time against the
-//   exact ray-cast reference (renderer/shadow_error.hpp).
+//   exact ray-cast reference (renderer/reference/shadow_error.hpp).
 //
 // Prints a table as it goes and writes STEM.md and STEM.json under --out.
 #include "speed_bench.hpp"
@@ -31,10 +31,10 @@
 
 #include "bench_report.hpp"
 #include "plain_frame.hpp"
-#include "ray_cast.hpp"
-#include "render_service.hpp"
+#include "reference/ray_cast.hpp"
+#include "service/render_service.hpp"
 #include "scene_files.hpp"
-#include "shadow_error.hpp"
+#include "reference/shadow_error.hpp"
 
 namespace umbra::bench {
 
@@ -286,7 +286,7 @@ void write_reports(const std::vector<SpeedRow>& rows, const SpeedOptions& option
      << " and " << (kTrimThreshold >> 20) << " MiB, so that no frame's cost depends on what the run allocated before. ms = shadow + main pass + read-back from each renderer's own timings "
         "(wall clock with glFinish); s+m+r = the median of each stage on its own. ratio = Umbra ms / plain ms.\n"
      << "- Error: the shadow output at the scene's own time against the exact ray-cast reference "
-        "(`renderer/shadow_error.hpp`); wrong = share of measured pixels with |v - v_exact| > 0.5; artifacts = "
+        "(`renderer/reference/shadow_error.hpp`); wrong = share of measured pixels with |v - v_exact| > 0.5; artifacts = "
         "share of interior pixels (exactly lit or dark, over 3 px from any shadow edge, silhouette or crease, "
         "an edge between pixel centres included: 4 x 4 samples per pixel around each candidate) off by more than "
         "0.1.\n"

@@ -29,10 +29,10 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_report.hpp"
-#include "ray_cast.hpp"
-#include "render_service.hpp"
+#include "reference/ray_cast.hpp"
+#include "service/render_service.hpp"
 #include "scene_files.hpp"
-#include "shadow_error.hpp"
+#include "reference/shadow_error.hpp"
 #include "speed_bench.hpp"
 
 namespace umbra {
@@ -405,7 +405,7 @@ void write_reports(const std::vector<Row>& rows, const Options& options, const s
      << "- Frames: " << setup << ", the light moving 0.37 s of orbit per frame; time = shadow + main pass + read-back "
         "on the GL thread (PNG encoding excluded); a frame whose light orbiting does not move, and which therefore "
         "kept its shadow map, is measured again after an untimed frame that makes the map stale.\n"
-     << "- Error: the `shadow` output against the exact ray-cast reference (`renderer/shadow_error.hpp`): "
+     << "- Error: the `shadow` output against the exact ray-cast reference (`renderer/reference/shadow_error.hpp`): "
         "`wrong` = share of measured pixels with |v - v_exact| > 0.5, split into false shadow and false light; "
         "`artifacts` = share of interior pixels (exactly lit or dark, over 3 px from any shadow edge, silhouette or "
         "crease, an edge between pixel centres included: 4 x 4 samples per pixel around each candidate) off by "

@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <string_view>
 
-#include "gltf_loader.hpp"
+#include "assets/gltf_loader.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   umbra::LoadOptions options;  // no external folder: as an upload

@@ -14,7 +14,7 @@ PACKAGES=(
   libstb-dev                                          # stb_image: the tests' PNG decoder; stb_image_write: bench
   libpng-dev                                          # libpng: only for umbra-png-bench's comparison
   libgtest-dev                                        # GoogleTest
-  libtinygltf-dev                                     # glTF 2.0 parser (header; renderer/tiny_gltf_impl.cpp compiles it)
+  libtinygltf-dev                                     # glTF 2.0 parser (header; renderer/assets/tiny_gltf_impl.cpp compiles it)
   nettle-dev                                          # SHA-256: the ids of uploaded models
   libembree-dev                                       # Embree 3: the exact reference's ray cast against meshes
   python3-ephem                                       # PyEphem: the sun positions tests/data/sun_positions.csv is checked against

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Writes tests/data/sun_positions.csv: the sun's azimuth and elevation by
 PyEphem (Debian's python3-ephem), the independent reference for
-renderer/sun_position.cpp (tests/test_sun_position.cpp).
+renderer/core/sun_position.cpp (tests/test_sun_position.cpp).
 
     scripts/make-sun-table.py OUT.csv        write the table
     scripts/make-sun-table.py --check CSV    recompute it and compare (a ctest)

@@ -12,7 +12,8 @@
 #   --keep DIR    leave the PNGs in DIR/before and DIR/after
 # Exit status 0 when every PNG is identical, 1 when any differs or fails.
 # REV is built in a git worktree under the keep folder (./build-identity by
-# default, reused between runs); the working tree is built in ./build.
+# default, reused between runs); the working tree in its build-worktree
+# (./build, with its own options, is left alone).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 before=HEAD size="" keep=build-identity
@@ -43,7 +44,7 @@ if [ ! -d "$tree" ]; then
 fi
 build_server "$tree" "$keep/build-$rev"
 echo "building the working tree (after)..."
-build_server . build
+build_server . "$keep/build-worktree"
 
 render() {  # server binary, output folder
   rm -rf "$2"; mkdir -p "$2"
@@ -85,7 +86,7 @@ status=0
 echo "rendering with $rev..."
 render "$keep/build-$rev/server/umbra-server" "$keep/before" || status=1
 echo "rendering with the working tree..."
-render build/server/umbra-server "$keep/after" || status=1
+render "$keep/build-worktree/server/umbra-server" "$keep/after" || status=1
 
 same=0 differ=0
 for f in "$keep"/before/*.png; do

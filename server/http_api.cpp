@@ -11,12 +11,12 @@
 #include <nlohmann/json.hpp>
 
 #include "client_socket.hpp"
-#include "folder_file.hpp"
-#include "gltf_loader.hpp"
-#include "light_math.hpp"
+#include "assets/folder_file.hpp"
+#include "assets/gltf_loader.hpp"
+#include "core/light_math.hpp"
 #include "png.hpp"
 #include "request_parser.hpp"
-#include "scene.hpp"
+#include "core/scene.hpp"
 #include "web_assets.hpp"
 
 namespace umbra {

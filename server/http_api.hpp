@@ -10,9 +10,9 @@
 #include <optional>
 #include <string>
 
-#include "model_archive.hpp"
-#include "model_store.hpp"
-#include "render_service.hpp"
+#include "assets/model_archive.hpp"
+#include "assets/model_store.hpp"
+#include "service/render_service.hpp"
 
 #include "access.hpp"
 #include "http_server.hpp"

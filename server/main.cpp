@@ -26,8 +26,8 @@
 #include <unistd.h>
 
 #include "http_api.hpp"
-#include "model_store.hpp"
-#include "render_service.hpp"
+#include "assets/model_store.hpp"
+#include "service/render_service.hpp"
 
 namespace {
 

@@ -14,7 +14,7 @@
 #include <string>
 #include <utility>
 
-#include "image.hpp"
+#include "core/image.hpp"
 
 namespace umbra {
 

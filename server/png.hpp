@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include "image.hpp"
+#include "core/image.hpp"
 
 namespace umbra {
 

@@ -10,11 +10,11 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
-#include "builtin_models.hpp"
-#include "light_math.hpp"
-#include "mesh_instance.hpp"
-#include "scene.hpp"
-#include "sun_position.hpp"
+#include "core/builtin_models.hpp"
+#include "core/light_math.hpp"
+#include "core/mesh_instance.hpp"
+#include "core/scene.hpp"
+#include "core/sun_position.hpp"
 
 namespace umbra {
 

@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-#include "request.hpp"
+#include "core/request.hpp"
 
 namespace umbra {
 

@@ -6,7 +6,7 @@
 // scene); `visibility` in [0, 1] is the fraction of the light's direct light
 // that reaches the surface, and is also what the "shadow" output shows.
 //
-// Built once per variant (DisplayVariant in renderer/shader_interface.hpp,
+// Built once per variant (DisplayVariant in renderer/gpu/shader_interface.hpp,
 // which also declares the FrameBlock `u`): SHADOWS, DIRECT_LIGHT, OUTPUT_SHADOW,
 // LIGHT_PERSPECTIVE, LIGHT_CUBE, VIEW_COUNT, FILTER, PCF_RADIUS,
 // FILTER_REACH, FILTER_READ, BIAS_AUTO and LIGHT_SIDE are #defines, so nothing below
@@ -103,7 +103,7 @@ void set_view_constants(inout View v) {
 // Faces +X, -X, +Y, -Y, +Z, -Z, each a little wider than 90 degrees so that
 // the face of p's major axis holds p with its filter kernel. A face's
 // rotation is a signed permutation (cube_face_view in
-// renderer/light_math.hpp), built here from the axis and sign rather than
+// renderer/core/light_math.hpp), built here from the axis and sign rather than
 // selected among six matrices: that selection was about a third of a point
 // light's main pass on llvmpipe. The projection is rebuilt from near, far
 // and tan_half.

@@ -8,7 +8,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "model.hpp"
+#include "core/model.hpp"
 #include "request_parser.hpp"
 
 namespace umbra::test {

@@ -9,7 +9,7 @@
 #include <mutex>
 #include <string>
 
-#include "render_service.hpp"
+#include "service/render_service.hpp"
 #include "request_parser.hpp"
 
 namespace umbra {

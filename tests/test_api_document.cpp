@@ -18,7 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "request_parser.hpp"
-#include "scene.hpp"
+#include "core/scene.hpp"
 
 namespace umbra {
 namespace {

@@ -15,12 +15,12 @@
 #include <glm/trigonometric.hpp>
 
 #include "png.hpp"
-#include "ray_cast.hpp"
+#include "reference/ray_cast.hpp"
 #include "render_support.hpp"
-#include "render_service.hpp"
+#include "service/render_service.hpp"
 #include "request_parser.hpp"
 #include "scene_files.hpp"
-#include "shadow_error.hpp"
+#include "reference/shadow_error.hpp"
 
 namespace umbra {
 namespace {

@@ -7,8 +7,8 @@
 
 #include <glm/geometric.hpp>
 
-#include "builtin_models.hpp"
-#include "model_store.hpp"
+#include "core/builtin_models.hpp"
+#include "assets/model_store.hpp"
 
 namespace umbra {
 namespace {

@@ -1,10 +1,10 @@
-// The renderer's byte-bounded LRU (renderer/byte_bounded_lru.hpp).
+// The renderer's byte-bounded LRU (renderer/core/byte_bounded_lru.hpp).
 #include <gtest/gtest.h>
 
 #include <memory>
 #include <string>
 
-#include "byte_bounded_lru.hpp"
+#include "core/byte_bounded_lru.hpp"
 
 namespace umbra {
 namespace {

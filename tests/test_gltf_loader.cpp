@@ -12,7 +12,7 @@
 #include <glm/geometric.hpp>
 
 #include "gltf_builder.hpp"
-#include "gltf_loader.hpp"
+#include "assets/gltf_loader.hpp"
 
 namespace umbra {
 namespace {

@@ -24,7 +24,7 @@
 
 #include "access.hpp"
 #include "http_api.hpp"
-#include "render_service.hpp"
+#include "service/render_service.hpp"
 
 namespace umbra {
 namespace {

@@ -21,13 +21,13 @@
 #include <nlohmann/json.hpp>
 #include <stb_image.h>
 
-#include "builtin_models.hpp"
+#include "core/builtin_models.hpp"
 #include "gltf_builder.hpp"
-#include "gltf_loader.hpp"
+#include "assets/gltf_loader.hpp"
 #include "http_api.hpp"
-#include "model_store.hpp"
-#include "render_service.hpp"
-#include "sun_position.hpp"
+#include "assets/model_store.hpp"
+#include "service/render_service.hpp"
+#include "core/sun_position.hpp"
 
 namespace umbra {
 namespace {

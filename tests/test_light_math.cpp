@@ -9,8 +9,8 @@
 #include <glm/matrix.hpp>
 #include <glm/trigonometric.hpp>
 
-#include "light_math.hpp"
-#include "scene.hpp"
+#include "core/light_math.hpp"
+#include "core/scene.hpp"
 
 namespace umbra {
 namespace {

@@ -5,11 +5,11 @@
 
 #include <string>
 
-#include "light_math.hpp"
+#include "core/light_math.hpp"
 #include "model_support.hpp"
-#include "ray_cast.hpp"
+#include "reference/ray_cast.hpp"
 #include "render_support.hpp"
-#include "shadow_error.hpp"
+#include "reference/shadow_error.hpp"
 
 namespace umbra {
 namespace {

@@ -4,7 +4,7 @@
 #include <glm/geometric.hpp>
 
 #include "gltf_builder.hpp"
-#include "model.hpp"
+#include "core/model.hpp"
 
 namespace umbra {
 namespace {

@@ -16,9 +16,9 @@
 #include <ctime>
 
 #include "gltf_builder.hpp"
-#include "gltf_loader.hpp"
-#include "model_archive.hpp"
-#include "model_store.hpp"
+#include "assets/gltf_loader.hpp"
+#include "assets/model_archive.hpp"
+#include "assets/model_store.hpp"
 
 namespace umbra {
 namespace {

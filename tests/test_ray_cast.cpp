@@ -9,12 +9,12 @@
 
 #include <glm/geometric.hpp>
 
-#include "mesh_ray_cast.hpp"
-#include "model.hpp"
+#include "reference/mesh_ray_cast.hpp"
+#include "core/model.hpp"
 #include "model_support.hpp"
-#include "ray_cast.hpp"
-#include "scene.hpp"
-#include "shadow_error.hpp"
+#include "reference/ray_cast.hpp"
+#include "core/scene.hpp"
+#include "reference/shadow_error.hpp"
 
 namespace umbra {
 namespace {

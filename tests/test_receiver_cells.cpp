@@ -8,9 +8,9 @@
 #include <glm/ext/matrix_transform.hpp>
 #include <glm/geometric.hpp>
 
-#include "light_math.hpp"
-#include "receiver_cells.hpp"
-#include "scene.hpp"
+#include "core/light_math.hpp"
+#include "plan/receiver_cells.hpp"
+#include "core/scene.hpp"
 
 namespace umbra {
 namespace {

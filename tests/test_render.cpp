@@ -10,17 +10,17 @@
 #include <memory>
 #include <set>
 
-#include "gl/egl_context.hpp"
-#include "gl/program.hpp"
-#include "light_math.hpp"
-#include "ray_cast.hpp"
+#include "gpu/egl_context.hpp"
+#include "gpu/program.hpp"
+#include "core/light_math.hpp"
+#include "reference/ray_cast.hpp"
 #include "render_support.hpp"
-#include "render_service.hpp"
+#include "service/render_service.hpp"
 #include "request_parser.hpp"
 #include "scene_files.hpp"
-#include "shader_interface.hpp"
-#include "shadow_error.hpp"
-#include "umbras.hpp"
+#include "gpu/shader_interface.hpp"
+#include "reference/shadow_error.hpp"
+#include "plan/umbras.hpp"
 
 namespace umbra {
 namespace {

@@ -11,12 +11,12 @@
 #include <nlohmann/json.hpp>
 
 #include "gltf_builder.hpp"
-#include "gltf_loader.hpp"
+#include "assets/gltf_loader.hpp"
 #include "model_support.hpp"
-#include "render_service.hpp"
-#include "request_cost.hpp"
+#include "service/render_service.hpp"
+#include "service/request_cost.hpp"
 #include "request_parser.hpp"
-#include "scene.hpp"
+#include "core/scene.hpp"
 #include "scene_files.hpp"
 
 namespace umbra {

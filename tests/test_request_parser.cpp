@@ -6,11 +6,11 @@
 
 #include <glm/geometric.hpp>
 
-#include "builtin_models.hpp"
-#include "mesh_instance.hpp"
+#include "core/builtin_models.hpp"
+#include "core/mesh_instance.hpp"
 #include "model_support.hpp"
 #include "request_parser.hpp"
-#include "scene.hpp"
+#include "core/scene.hpp"
 
 namespace umbra {
 namespace {

@@ -5,9 +5,9 @@
 
 #include <glm/geometric.hpp>
 
-#include "mesh_instance.hpp"
+#include "core/mesh_instance.hpp"
 #include "model_support.hpp"
-#include "scene.hpp"
+#include "core/scene.hpp"
 
 namespace umbra {
 namespace {

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "light_math.hpp"
-#include "shader_interface.hpp"
+#include "core/light_math.hpp"
+#include "gpu/shader_interface.hpp"
 
 namespace umbra {
 namespace {

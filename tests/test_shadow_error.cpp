@@ -4,7 +4,7 @@
 #include <cmath>
 #include <functional>
 
-#include "shadow_error.hpp"
+#include "reference/shadow_error.hpp"
 
 namespace umbra {
 namespace {

@@ -2,7 +2,7 @@
 // PyEphem (tests/data/sun_positions.csv, written by scripts/make-sun-table.py
 // and checked to be ephem's output by the ctest sun_table_is_ephem_output),
 // the delta T model, and RFC 3339 parsing and formatting.
-#include "sun_position.hpp"
+#include "core/sun_position.hpp"
 
 #include <gtest/gtest.h>
 

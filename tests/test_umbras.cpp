@@ -13,11 +13,11 @@
 #include <glm/mat4x4.hpp>
 #include <glm/matrix.hpp>
 
-#include "light_math.hpp"
-#include "ray_cast.hpp"
-#include "receiver_cells.hpp"
-#include "scene.hpp"
-#include "umbras.hpp"
+#include "core/light_math.hpp"
+#include "reference/ray_cast.hpp"
+#include "plan/receiver_cells.hpp"
+#include "core/scene.hpp"
+#include "plan/umbras.hpp"
 
 namespace umbra {
 namespace {

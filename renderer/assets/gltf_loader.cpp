@@ -1,0 +1,699 @@
+#include "assets/gltf_loader.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <new>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_inverse.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/mat4x4.hpp>
+#include <sys/stat.h>
+#include <tiny_gltf.h>
+
+#include "assets/folder_file.hpp"
+
+namespace umbra {
+
+namespace {
+
+// A refusal: thrown inside the loader, returned as a LoadResult.
+struct Refusal {
+  int status;
+  std::string message;
+};
+
+[[noreturn]] void refuse(int status, std::string message) { throw Refusal{status, std::move(message)}; }
+
+std::string index_of(const char* array, std::size_t i) { return std::string(array) + "[" + std::to_string(i) + "]"; }
+
+// What tinygltf says, on one line and short: its messages may quote a
+// whole data: URI.
+std::string short_message(std::string text) {
+  for (char& c : text)
+    if (c == '\n' || c == '\r') c = ' ';
+  while (!text.empty() && text.back() == ' ') text.pop_back();
+  constexpr std::size_t kMax = 300;
+  if (text.size() > kMax) text = text.substr(0, kMax) + "...";
+  return text;
+}
+
+std::uint32_t read_u32(std::string_view bytes, std::size_t at) {
+  std::uint32_t v = 0;
+  std::memcpy(&v, bytes.data() + at, 4);  // glTF is little-endian, as is every machine Umbra builds on
+  return v;
+}
+
+// The GLB container (glTF 2.0 §4.4), checked before tinygltf sees it;
+// returns the JSON chunk.
+std::string_view glb_json_chunk(std::string_view bytes) {
+  if (bytes.size() < 20) refuse(400, "glTF binary: " + std::to_string(bytes.size()) + " bytes is too short for a header");
+  if (bytes.size() > std::numeric_limits<std::uint32_t>::max()) refuse(422, "glTF binary: larger than 4 GiB");
+  const std::uint32_t version = read_u32(bytes, 4), length = read_u32(bytes, 8);
+  if (version != 2) refuse(422, "glTF binary: version " + std::to_string(version) + "; only glTF 2.0 is read");
+  if (length != bytes.size())
+    refuse(400, "glTF binary: the header says " + std::to_string(length) + " bytes but there are " +
+                    std::to_string(bytes.size()));
+  const std::uint64_t json_length = read_u32(bytes, 12);
+  if (read_u32(bytes, 16) != 0x4E4F534Au) refuse(400, "glTF binary: the first chunk is not JSON");
+  if (json_length == 0 || 20 + json_length > bytes.size())
+    refuse(400, "glTF binary: the JSON chunk's length " + std::to_string(json_length) + " does not fit the file");
+  const std::uint64_t rest = bytes.size() - 20 - json_length;
+  if (rest > 0) {
+    if (rest < 8) refuse(400, "glTF binary: a truncated chunk after the JSON");
+    const std::uint64_t bin_length = read_u32(bytes, std::size_t(20 + json_length));
+    if (read_u32(bytes, std::size_t(24 + json_length)) != 0x004E4942u)
+      refuse(400, "glTF binary: the second chunk is not BIN");
+    if (bin_length > rest - 8)
+      refuse(400, "glTF binary: the BIN chunk's length " + std::to_string(bin_length) + " does not fit the file");
+  }
+  return bytes.substr(20, std::size_t(json_length));
+}
+
+// Nesting depth and value count of a JSON text, strings skipped, so that
+// the parsers below never meet a document that would exhaust the stack or
+// the memory (kMaxJsonDepth, kMaxJsonValues). Malformed JSON is left to
+// the parser.
+void check_json_shape(std::string_view text) {
+  std::size_t depth = 0, values = 1;
+  bool in_string = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (c == '\\')
+        ++i;
+      else if (c == '"')
+        in_string = false;
+      continue;
+    }
+    switch (c) {
+      case '"': in_string = true; break;
+      case '[':
+      case '{':
+        if (++depth > kMaxJsonDepth)
+          refuse(422, "the glTF JSON nests arrays and objects deeper than " + std::to_string(kMaxJsonDepth));
+        break;
+      case ']':
+      case '}':
+        if (depth > 0) --depth;
+        break;
+      case ',':
+      case ':':
+        if (++values > kMaxJsonValues)
+          refuse(422, "the glTF JSON has more than " + std::to_string(kMaxJsonValues) +
+                          " values; put geometry in buffers, not in JSON");
+        break;
+      default: break;
+    }
+  }
+}
+
+// --- Files, only through these callbacks ------------------------------------
+
+struct FileAccess {
+  const LoadOptions* options;
+  std::string refused;  ///< the first external file asked for and refused, and why
+};
+
+bool file_exists(const std::string& path, void* user) {
+  auto& access = *static_cast<FileAccess*>(user);
+  std::string real;
+  if (file_inside_folder(access.options->external_folder, path, real)) return true;
+  if (access.refused.empty())
+    access.refused = access.options->external_folder.empty()
+                         ? "refers to the external file '" + short_message(path) +
+                               "': an uploaded model must be self-contained (a .glb, or a .gltf with data: URIs)"
+                         : "refers to '" + short_message(path) + "', which is missing or outside the models folder";
+  return false;
+}
+
+std::string expand_file_path(const std::string& path, void*) { return path; }  // no ~ or $VAR expansion
+
+bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* user) {
+  auto& access = *static_cast<FileAccess*>(user);
+  std::string real;
+  if (!file_inside_folder(access.options->external_folder, path, real)) {
+    if (err) *err = "outside the models folder";
+    return false;
+  }
+  struct stat info {};
+  if (stat(real.c_str(), &info) != 0 || std::uint64_t(info.st_size) > access.options->max_external_bytes) {
+    access.refused = "refers to '" + short_message(path) + "', larger than " +
+                     std::to_string(access.options->max_external_bytes >> 20) + " MiB";
+    if (err) *err = "too large";
+    return false;
+  }
+  std::ifstream in(real, std::ios::binary);
+  out->assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  // A file that grew since stat() is cut at the limit rather than trusted.
+  if (out->size() > access.options->max_external_bytes) out->resize(access.options->max_external_bytes);
+  return bool(in) || in.eof();
+}
+
+bool write_whole_file(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+  if (err) *err = "writing is not allowed";
+  return false;
+}
+
+// Textures are not used: an image is never decoded, whatever it holds.
+bool ignore_image(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
+  return true;
+}
+
+// --- Accessors, checked here whatever tinygltf checked ----------------------
+
+std::size_t component_bytes(int type) {
+  switch (type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
+    case TINYGLTF_COMPONENT_TYPE_SHORT:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
+    default: return 0;
+  }
+}
+
+const char* component_name(int type) {
+  switch (type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE: return "BYTE";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return "UNSIGNED_BYTE";
+    case TINYGLTF_COMPONENT_TYPE_SHORT: return "SHORT";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return "UNSIGNED_SHORT";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return "UNSIGNED_INT";
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: return "FLOAT";
+    default: return "unknown";
+  }
+}
+
+// The bytes of an accessor's elements: element i starts at base + i * stride.
+struct ElementView {
+  const unsigned char* base = nullptr;
+  std::size_t stride = 0;
+  std::size_t count = 0;
+  int component_type = 0;
+};
+
+class Loader {
+ public:
+  Loader(const tinygltf::Model& model, const LoadOptions& options) : gltf_(model), options_(options) {}
+
+  std::shared_ptr<TriangleModel> build();
+  /// What check_primitives found the model will hold at most.
+  std::uint64_t bytes_bound() const { return bytes_bound_; }
+
+ private:
+  struct Instance {
+    std::size_t node;
+    std::size_t mesh;
+    glm::dmat4 world;
+  };
+
+  const tinygltf::Accessor& accessor(int index, const std::string& where) const;
+  ElementView view(int index, const std::string& where, int type, std::initializer_list<int> component_types) const;
+  std::vector<glm::vec3> read_vec3(int index, const std::string& where) const;
+  std::vector<std::uint32_t> read_indices(int index, const std::string& where, std::size_t vertex_count) const;
+  glm::dmat4 local_matrix(std::size_t node) const;
+  std::vector<Instance> instances() const;
+  struct Size {
+    std::size_t triangles = 0;
+    std::uint64_t bytes = 0;  // model_bytes_bound of what the instances will build
+  };
+  Size check_primitives(const std::vector<Instance>& instances) const;
+  glm::vec3 base_color(int material, const std::string& where) const;
+  void add_primitive(const Instance& instance, std::size_t p, TriangleModel& out, std::map<std::array<float, 3>, std::size_t>& parts) const;
+
+  const tinygltf::Model& gltf_;
+  const LoadOptions& options_;
+  std::uint64_t bytes_bound_ = 0;
+};
+
+const tinygltf::Accessor& Loader::accessor(int index, const std::string& where) const {
+  if (index < 0 || std::size_t(index) >= gltf_.accessors.size())
+    refuse(400, where + ": accessor " + std::to_string(index) + " is out of range (" +
+                    std::to_string(gltf_.accessors.size()) + " accessors)");
+  return gltf_.accessors[std::size_t(index)];
+}
+
+ElementView Loader::view(int index, const std::string& where, int type, std::initializer_list<int> component_types) const {
+  const tinygltf::Accessor& a = accessor(index, where);
+  const std::string name = where + " (" + index_of("accessors", std::size_t(index)) + ")";
+  if (a.sparse.isSparse) refuse(422, name + ": sparse accessors are not supported");
+  if (a.type != type)
+    refuse(400, name + ": type " + std::to_string(a.type) + " where " +
+                    (type == TINYGLTF_TYPE_SCALAR ? "SCALAR" : "VEC3") + " is required");
+  if (std::find(component_types.begin(), component_types.end(), a.componentType) == component_types.end()) {
+    std::string allowed;
+    for (int t : component_types) allowed += (allowed.empty() ? "" : ", ") + std::string(component_name(t));
+    refuse(422, name + ": component type " + std::to_string(a.componentType) + " (" + component_name(a.componentType) +
+                    ") is not supported here; use " + allowed);
+  }
+  ElementView v;
+  v.count = a.count;
+  v.component_type = a.componentType;
+  if (a.count == 0) return v;
+  if (a.bufferView < 0 || std::size_t(a.bufferView) >= gltf_.bufferViews.size())
+    refuse(400, name + ": bufferView " + std::to_string(a.bufferView) + " is out of range (" +
+                    std::to_string(gltf_.bufferViews.size()) + " buffer views)");
+  const tinygltf::BufferView& bv = gltf_.bufferViews[std::size_t(a.bufferView)];
+  const std::string bv_name = index_of("bufferViews", std::size_t(a.bufferView));
+  if (bv.buffer < 0 || std::size_t(bv.buffer) >= gltf_.buffers.size())
+    refuse(400, bv_name + ": buffer " + std::to_string(bv.buffer) + " is out of range (" +
+                    std::to_string(gltf_.buffers.size()) + " buffers)");
+  const std::size_t buffer_size = gltf_.buffers[std::size_t(bv.buffer)].data.size();
+  // Each step compares before it adds or multiplies: nothing can wrap.
+  if (bv.byteOffset > buffer_size || bv.byteLength > buffer_size - bv.byteOffset)
+    refuse(400, bv_name + ": bytes " + std::to_string(bv.byteOffset) + " + " + std::to_string(bv.byteLength) +
+                    " run past the end of its buffer (" + std::to_string(buffer_size) + " bytes)");
+  const std::size_t components = type == TINYGLTF_TYPE_SCALAR ? 1 : 3;
+  const std::size_t element = components * component_bytes(a.componentType);
+  v.stride = bv.byteStride == 0 ? element : bv.byteStride;
+  if (v.stride < element)
+    refuse(400, bv_name + ": byteStride " + std::to_string(bv.byteStride) + " is less than the element size " +
+                    std::to_string(element) + " of " + name);
+  if (a.byteOffset > bv.byteLength || element > bv.byteLength - a.byteOffset ||
+      a.count - 1 > (bv.byteLength - a.byteOffset - element) / v.stride)
+    refuse(400, name + ": " + std::to_string(a.count) + " elements of " + std::to_string(element) +
+                    " bytes every " + std::to_string(v.stride) + " from byte " + std::to_string(a.byteOffset) +
+                    " run past the end of " + bv_name + " (" + std::to_string(bv.byteLength) + " bytes)");
+  v.base = gltf_.buffers[std::size_t(bv.buffer)].data.data() + bv.byteOffset + a.byteOffset;
+  return v;
+}
+
+std::vector<glm::vec3> Loader::read_vec3(int index, const std::string& where) const {
+  const ElementView v = view(index, where, TINYGLTF_TYPE_VEC3, {TINYGLTF_COMPONENT_TYPE_FLOAT});
+  std::vector<glm::vec3> out(v.count);
+  for (std::size_t i = 0; i < v.count; ++i) {
+    std::memcpy(&out[i], v.base + i * v.stride, sizeof(glm::vec3));
+    if (!std::isfinite(out[i].x) || !std::isfinite(out[i].y) || !std::isfinite(out[i].z))
+      refuse(400, where + " (" + index_of("accessors", std::size_t(index)) + "): element " + std::to_string(i) +
+                      " is not finite (NaN or infinity)");
+  }
+  return out;
+}
+
+std::vector<std::uint32_t> Loader::read_indices(int index, const std::string& where, std::size_t vertex_count) const {
+  const ElementView v = view(index, where, TINYGLTF_TYPE_SCALAR,
+                             {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                              TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT});
+  std::vector<std::uint32_t> out(v.count);
+  for (std::size_t i = 0; i < v.count; ++i) {
+    const unsigned char* at = v.base + i * v.stride;
+    if (v.component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) {
+      out[i] = *at;
+    } else if (v.component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) {
+      std::uint16_t x;
+      std::memcpy(&x, at, 2);
+      out[i] = x;
+    } else {
+      std::memcpy(&out[i], at, 4);
+    }
+    if (out[i] >= vertex_count)
+      refuse(400, where + " (" + index_of("accessors", std::size_t(index)) + "): index " + std::to_string(out[i]) +
+                      " at element " + std::to_string(i) + " is out of range (" + std::to_string(vertex_count) +
+                      " vertices)");
+  }
+  return out;
+}
+
+bool all_finite(const std::vector<double>& values) {
+  return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+}
+
+glm::dmat4 Loader::local_matrix(std::size_t n) const {
+  const tinygltf::Node& node = gltf_.nodes[n];
+  const std::string name = index_of("nodes", n);
+  if (!node.matrix.empty()) {
+    if (node.matrix.size() != 16) refuse(400, name + ".matrix: " + std::to_string(node.matrix.size()) + " numbers, not 16");
+    if (!all_finite(node.matrix)) refuse(400, name + ".matrix: not finite (NaN or infinity)");
+    glm::dmat4 m;
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r) m[c][r] = node.matrix[std::size_t(c * 4 + r)];  // column-major, as glm
+    return m;
+  }
+  const auto check = [&](const std::vector<double>& v, std::size_t size, const char* field) {
+    if (!v.empty() && v.size() != size)
+      refuse(400, name + "." + field + ": " + std::to_string(v.size()) + " numbers, not " + std::to_string(size));
+    if (!all_finite(v)) refuse(400, name + "." + field + ": not finite (NaN or infinity)");
+  };
+  check(node.translation, 3, "translation");
+  check(node.rotation, 4, "rotation");
+  check(node.scale, 3, "scale");
+  glm::dmat4 m(1.0);
+  if (!node.translation.empty()) m[3] = glm::dvec4(node.translation[0], node.translation[1], node.translation[2], 1.0);
+  if (!node.rotation.empty()) {
+    // glTF stores x, y, z, w; glm's constructor takes w first.
+    glm::dquat q(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]);
+    const double length = glm::length(q);
+    if (!(length > 0.0) || !std::isfinite(length)) refuse(400, name + ".rotation: not a unit quaternion");
+    m = m * glm::dmat4(glm::mat3_cast(q / length));
+  }
+  if (!node.scale.empty()) m = m * glm::scale(glm::dmat4(1.0), glm::dvec3(node.scale[0], node.scale[1], node.scale[2]));
+  return m;
+}
+
+std::vector<Loader::Instance> Loader::instances() const {
+  const std::size_t node_count = gltf_.nodes.size();
+  if (node_count > options_.max_nodes)
+    refuse(422, "the model has " + std::to_string(node_count) + " nodes; at most " + std::to_string(options_.max_nodes) +
+                    " are taken");
+  // One parent at most: then the hierarchy from real roots is a forest, and
+  // a cycle can only hang off a node listed as a root while it has a parent.
+  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> parent(node_count, kNone);
+  for (std::size_t n = 0; n < node_count; ++n) {
+    const auto& children = gltf_.nodes[n].children;
+    for (std::size_t k = 0; k < children.size(); ++k) {
+      const int c = children[k];
+      if (c < 0 || std::size_t(c) >= node_count)
+        refuse(400, index_of("nodes", n) + ".children[" + std::to_string(k) + "]: node " + std::to_string(c) +
+                        " is out of range (" + std::to_string(node_count) + " nodes)");
+      if (parent[std::size_t(c)] != kNone)
+        refuse(400, index_of("nodes", std::size_t(c)) + " is a child of both " +
+                        index_of("nodes", parent[std::size_t(c)]) + " and " + index_of("nodes", n) +
+                        " (a node has one parent at most)");
+      parent[std::size_t(c)] = n;
+    }
+  }
+  std::vector<std::size_t> roots;
+  if (gltf_.defaultScene >= 0 || !gltf_.scenes.empty()) {
+    const std::size_t s = gltf_.defaultScene >= 0 ? std::size_t(gltf_.defaultScene) : 0;
+    if (s >= gltf_.scenes.size())
+      refuse(400, "scene: " + std::to_string(gltf_.defaultScene) + " is out of range (" +
+                      std::to_string(gltf_.scenes.size()) + " scenes)");
+    const auto& listed = gltf_.scenes[s].nodes;
+    for (std::size_t k = 0; k < listed.size(); ++k) {
+      const std::string where = index_of("scenes", s) + ".nodes[" + std::to_string(k) + "]";
+      if (listed[k] < 0 || std::size_t(listed[k]) >= node_count)
+        refuse(400, where + ": node " + std::to_string(listed[k]) + " is out of range (" + std::to_string(node_count) +
+                        " nodes)");
+      const std::size_t n = std::size_t(listed[k]);
+      if (parent[n] != kNone)
+        refuse(400, where + ": " + index_of("nodes", n) + " is listed as a root but is a child of " +
+                        index_of("nodes", parent[n]) + " (a cycle, or not a root)");
+      roots.push_back(n);
+    }
+  } else {
+    for (std::size_t n = 0; n < node_count; ++n)
+      if (parent[n] == kNone) roots.push_back(n);
+  }
+
+  std::vector<Instance> out;
+  std::vector<bool> visited(node_count, false);
+  struct Step {
+    std::size_t node;
+    glm::dmat4 parent_world;
+    std::size_t depth;
+  };
+  std::vector<Step> stack;
+  for (auto it = roots.rbegin(); it != roots.rend(); ++it) stack.push_back({*it, glm::dmat4(1.0), 1});
+  while (!stack.empty()) {
+    const Step step = stack.back();
+    stack.pop_back();
+    const std::string name = index_of("nodes", step.node);
+    if (visited[step.node]) refuse(400, name + " is reached twice from the scene's roots");
+    visited[step.node] = true;
+    if (step.depth > kMaxNodeDepth)
+      refuse(422, name + ": the node hierarchy is deeper than " + std::to_string(kMaxNodeDepth) + " levels");
+    const tinygltf::Node& node = gltf_.nodes[step.node];
+    const glm::dmat4 world = step.parent_world * local_matrix(step.node);
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r)
+        if (!std::isfinite(world[c][r])) refuse(400, name + ": its transform, with its parents', is not finite");
+    if (node.mesh >= 0 || node.mesh < -1) {
+      if (node.mesh < 0 || std::size_t(node.mesh) >= gltf_.meshes.size())
+        refuse(400, name + ".mesh: " + std::to_string(node.mesh) + " is out of range (" +
+                        std::to_string(gltf_.meshes.size()) + " meshes)");
+      out.push_back({step.node, std::size_t(node.mesh), world});
+    }
+    for (auto c = node.children.rbegin(); c != node.children.rend(); ++c)
+      stack.push_back({std::size_t(*c), world, step.depth + 1});
+  }
+  return out;
+}
+
+const char* mode_name(int mode) {
+  switch (mode) {
+    case TINYGLTF_MODE_POINTS: return "POINTS";
+    case TINYGLTF_MODE_LINE: return "LINES";
+    case TINYGLTF_MODE_LINE_LOOP: return "LINE_LOOP";
+    case TINYGLTF_MODE_LINE_STRIP: return "LINE_STRIP";
+    default: return "unknown";
+  }
+}
+
+std::string primitive_name(std::size_t mesh, std::size_t p) {
+  return index_of("meshes", mesh) + ".primitives[" + std::to_string(p) + "]";
+}
+
+// Modes, attributes and counts of every instanced primitive, before any
+// vertex is read: what the model will cost is known and bounded first.
+Loader::Size Loader::check_primitives(const std::vector<Instance>& instances) const {
+  std::vector<std::size_t> mesh_triangles(gltf_.meshes.size(), 0), mesh_vertices(gltf_.meshes.size(), 0);
+  // Vertices an instance keeps (only those its triangles use: at most the
+  // accessor's count and at most one per corner).
+  std::vector<std::size_t> mesh_kept(gltf_.meshes.size(), 0);
+  std::uint64_t kept_vertices = 0, primitive_instances = 0;
+  std::vector<bool> checked(gltf_.meshes.size(), false);
+  const std::size_t max_vertices = 3 * options_.max_triangles;
+  std::size_t triangles = 0, vertices = 0;
+  for (const Instance& instance : instances) {
+    const std::size_t m = instance.mesh;
+    if (!checked[m]) {
+      checked[m] = true;
+      for (std::size_t p = 0; p < gltf_.meshes[m].primitives.size(); ++p) {
+        const tinygltf::Primitive& primitive = gltf_.meshes[m].primitives[p];
+        const std::string name = primitive_name(m, p);
+        const int mode = primitive.mode;
+        if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
+          refuse(422, name + ": mode " + std::to_string(mode) + " (" + mode_name(mode) + ") is not triangles");
+        const auto position = primitive.attributes.find("POSITION");
+        if (position == primitive.attributes.end()) refuse(422, name + ": no POSITION attribute");
+        const std::size_t vertex_count = accessor(position->second, name + ".attributes.POSITION").count;
+        const std::size_t corners =
+            primitive.indices >= 0 ? accessor(primitive.indices, name + ".indices").count : vertex_count;
+        if (vertex_count > max_vertices || corners > max_vertices)
+          refuse(422, name + ": more than " + std::to_string(options_.max_triangles) + " triangles");
+        std::size_t count = 0;
+        if (mode == TINYGLTF_MODE_TRIANGLES) {
+          if (corners % 3 != 0)
+            refuse(400, name + ": " + std::to_string(corners) + " corners is not a multiple of 3 for TRIANGLES");
+          count = corners / 3;
+        } else {
+          count = corners >= 3 ? corners - 2 : 0;
+        }
+        mesh_triangles[m] += count;
+        mesh_vertices[m] += vertex_count;
+        mesh_kept[m] += std::min(vertex_count, corners);
+        if (mesh_triangles[m] > options_.max_triangles || mesh_vertices[m] > max_vertices)
+          refuse(422, index_of("meshes", m) + ": more than " + std::to_string(options_.max_triangles) + " triangles");
+      }
+    }
+    triangles += mesh_triangles[m];
+    vertices += mesh_vertices[m];
+    kept_vertices += mesh_kept[m];
+    primitive_instances += gltf_.meshes[m].primitives.size();
+    if (triangles > options_.max_triangles || vertices > max_vertices)
+      refuse(422, "the model has more than " + std::to_string(options_.max_triangles) +
+                      " triangles (or 3 times as many vertices), counting every node that instances a mesh; "
+                      "that is the most one model may have");
+  }
+  // One part per base colour: at most one per material and the default.
+  const std::uint64_t parts = std::min<std::uint64_t>(primitive_instances, gltf_.materials.size() + 1);
+  return {triangles, model_bytes_bound(triangles, kept_vertices, parts)};
+}
+
+glm::vec3 Loader::base_color(int material, const std::string& where) const {
+  if (material < 0) return glm::vec3(1.0f);  // glTF's default material is white
+  if (std::size_t(material) >= gltf_.materials.size())
+    refuse(400, where + ".material: " + std::to_string(material) + " is out of range (" +
+                    std::to_string(gltf_.materials.size()) + " materials)");
+  const std::vector<double>& factor = gltf_.materials[std::size_t(material)].pbrMetallicRoughness.baseColorFactor;
+  const std::string name = index_of("materials", std::size_t(material)) + ".pbrMetallicRoughness.baseColorFactor";
+  if (factor.size() != 4) refuse(400, name + ": " + std::to_string(factor.size()) + " numbers, not 4");
+  if (!all_finite(factor)) refuse(400, name + ": not finite (NaN or infinity)");
+  glm::vec3 c;
+  for (int i = 0; i < 3; ++i) c[i] = float(std::clamp(factor[std::size_t(i)], 0.0, 1.0));
+  return c;
+}
+
+void Loader::add_primitive(const Instance& instance, std::size_t p, TriangleModel& out,
+                           std::map<std::array<float, 3>, std::size_t>& parts) const {
+  const tinygltf::Primitive& primitive = gltf_.meshes[instance.mesh].primitives[p];
+  const std::string name = primitive_name(instance.mesh, p);
+  std::vector<glm::vec3> positions = read_vec3(primitive.attributes.at("POSITION"), name + ".attributes.POSITION");
+  std::vector<std::uint32_t> corners;
+  if (primitive.indices >= 0) {
+    corners = read_indices(primitive.indices, name + ".indices", positions.size());
+  } else {
+    corners.resize(positions.size());
+    for (std::size_t i = 0; i < corners.size(); ++i) corners[i] = std::uint32_t(i);
+  }
+  std::vector<std::uint32_t> triangles;
+  if (primitive.mode == TINYGLTF_MODE_TRIANGLES) {
+    triangles = std::move(corners);
+  } else {
+    // Strips alternate their winding; fans turn about their first corner.
+    for (std::size_t i = 0; i + 2 < corners.size(); ++i) {
+      if (primitive.mode == TINYGLTF_MODE_TRIANGLE_FAN)
+        triangles.insert(triangles.end(), {corners[0], corners[i + 1], corners[i + 2]});
+      else if (i % 2 == 0)
+        triangles.insert(triangles.end(), {corners[i], corners[i + 1], corners[i + 2]});
+      else
+        triangles.insert(triangles.end(), {corners[i + 1], corners[i], corners[i + 2]});
+    }
+  }
+  if (triangles.empty()) return;
+
+  std::vector<glm::vec3> normals;
+  const auto normal = primitive.attributes.find("NORMAL");
+  if (normal != primitive.attributes.end()) {
+    normals = read_vec3(normal->second, name + ".attributes.NORMAL");
+    if (normals.size() != positions.size())
+      refuse(400, name + ": " + std::to_string(normals.size()) + " normals for " + std::to_string(positions.size()) +
+                      " positions");
+  }
+
+  // Only the vertices the triangles use are kept (a primitive may index a
+  // few vertices of a large shared accessor).
+  constexpr std::uint32_t kUnused = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> remap(positions.size(), kUnused);
+  std::vector<std::uint32_t> used;
+  for (std::uint32_t& i : triangles) {
+    if (remap[i] == kUnused) {
+      remap[i] = std::uint32_t(used.size());
+      used.push_back(i);
+    }
+    i = remap[i];
+  }
+
+  const glm::dmat4& world = instance.world;
+  const glm::dmat3 linear(world);
+  const double determinant = glm::determinant(linear);
+  // A mirroring transform turns counter-clockwise into clockwise.
+  if (determinant < 0.0)
+    for (std::size_t t = 0; t < triangles.size(); t += 3) std::swap(triangles[t + 1], triangles[t + 2]);
+  std::vector<glm::vec3> world_positions(used.size());
+  for (std::size_t v = 0; v < used.size(); ++v) {
+    const glm::dvec3 w = glm::dvec3(world * glm::dvec4(glm::dvec3(positions[used[v]]), 1.0));
+    const glm::vec3 f(w);
+    if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.z))
+      refuse(400, name + " under " + index_of("nodes", instance.node) +
+                      ": a position is not finite once transformed (too large for 32-bit floats)");
+    world_positions[v] = f;
+  }
+  std::vector<glm::vec3> world_normals;
+  if (!normals.empty() && determinant != 0.0) {
+    const glm::dmat3 normal_matrix = glm::inverseTranspose(linear);
+    world_normals.resize(used.size());
+    for (std::size_t v = 0; v < used.size(); ++v) {
+      const glm::dvec3 n = normal_matrix * glm::dvec3(normals[used[v]]);
+      const double length = glm::length(n);
+      if (!(length > 0.0) || !std::isfinite(length)) {
+        world_normals.clear();  // a zero normal in the file: make them all, consistently
+        break;
+      }
+      world_normals[v] = glm::vec3(n / length);
+    }
+  }
+  if (world_normals.empty()) world_normals = area_weighted_normals(world_positions, triangles);
+
+  const glm::vec3 color = base_color(primitive.material, name);
+  const auto found = parts.emplace(std::array<float, 3>{color.r, color.g, color.b}, out.parts.size());
+  if (found.second) {
+    out.parts.emplace_back();
+    out.parts.back().base_color = color;
+  }
+  ModelPart& part = out.parts[found.first->second];
+  const std::uint32_t base = std::uint32_t(part.positions.size());
+  part.positions.insert(part.positions.end(), world_positions.begin(), world_positions.end());
+  part.normals.insert(part.normals.end(), world_normals.begin(), world_normals.end());
+  // No reserve(size + n) here: with many instances of one mesh that would
+  // reallocate (and copy) the whole index array once per instance, which
+  // made 10,000 node instances take minutes. insert grows geometrically.
+  const std::size_t first = part.indices.size();
+  part.indices.insert(part.indices.end(), triangles.begin(), triangles.end());
+  for (std::size_t k = first; k < part.indices.size(); ++k) part.indices[k] += base;
+}
+
+std::shared_ptr<TriangleModel> Loader::build() {
+  for (const std::string& extension : gltf_.extensionsRequired)
+    refuse(422, "extensionsRequired: " + short_message(extension) +
+                    " is not supported (Umbra reads uncompressed glTF 2.0: decompress Draco or meshopt first)");
+  const std::vector<Instance> all = instances();
+  const Size size = check_primitives(all);
+  bytes_bound_ = size.bytes;
+  if (options_.admit) {
+    std::string why;
+    if (const int status = options_.admit(size.bytes, size.triangles, why)) refuse(status, why);
+  }
+  auto model = std::make_shared<TriangleModel>();
+  std::map<std::array<float, 3>, std::size_t> parts;
+  for (const Instance& instance : all)
+    for (std::size_t p = 0; p < gltf_.meshes[instance.mesh].primitives.size(); ++p)
+      add_primitive(instance, p, *model, parts);
+  if (model->triangle_count() == 0)
+    refuse(422, "the model has no triangles (in the nodes of its scene, or in any root node when it names no scene)");
+  finish_model(*model);
+  return model;
+}
+
+}  // namespace
+
+LoadResult load_gltf(std::string_view bytes, const LoadOptions& options) {
+  LoadResult result;
+  try {
+    const bool glb = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+    if (options.format == LoadOptions::Format::Binary && !glb)
+      refuse(400, "not a glTF binary (.glb): it does not start with \"glTF\"; send a .gltf as model/gltf+json");
+    if (options.format == LoadOptions::Format::Json && glb)
+      refuse(400, "this is a glTF binary (.glb), not JSON: send it as model/gltf-binary");
+    if (bytes.size() > std::numeric_limits<std::uint32_t>::max()) refuse(422, "the model is larger than 4 GiB");
+    check_json_shape(glb ? glb_json_chunk(bytes) : bytes);
+
+    FileAccess access{&options, ""};
+    tinygltf::TinyGLTF parser;
+    parser.SetImageLoader(ignore_image, nullptr);
+    parser.SetFsCallbacks(tinygltf::FsCallbacks{file_exists, expand_file_path, read_whole_file, write_whole_file, &access});
+    parser.SetStoreOriginalJSONForExtrasAndExtensions(false);
+    tinygltf::Model gltf;
+    std::string err, warn;
+    const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+    const auto size = static_cast<unsigned int>(bytes.size());
+    const bool parsed = glb ? parser.LoadBinaryFromMemory(&gltf, &err, &warn, data, size, options.external_folder)
+                            : parser.LoadASCIIFromString(&gltf, &err, &warn, bytes.data(), size, options.external_folder);
+    if (!access.refused.empty()) refuse(options.external_folder.empty() ? 422 : 400, "a buffer " + access.refused);
+    if (!parsed) refuse(400, "not a valid glTF 2.0 file: " + short_message(err.empty() ? "unreadable" : err));
+    Loader loader(gltf, options);
+    result.model = loader.build();
+    result.bytes_bound = loader.bytes_bound();
+  } catch (const Refusal& r) {
+    result.model.reset();
+    result.status = r.status;
+    result.error = r.message;
+  } catch (const std::bad_alloc&) {
+    result.model.reset();
+    result.status = 422;
+    result.error = "the model needs more memory than this server gives one model";
+  } catch (const std::exception& e) {
+    // tinygltf reads some fields with at() and nlohmann's accessors.
+    result.model.reset();
+    result.status = 400;
+    result.error = "not a valid glTF 2.0 file: " + short_message(e.what());
+  }
+  return result;
+}
+
+}  // namespace umbra

@@ -1,0 +1,325 @@
+#include "core/scene.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <glm/trigonometric.hpp>
+
+#include "core/builtin_models.hpp"
+#include "core/mesh_instance.hpp"
+
+namespace umbra {
+
+glm::dvec3 rotate_y(const glm::dvec3& v, double degrees) {
+  const double a = glm::radians(degrees);
+  const double c = std::cos(a), s = std::sin(a);
+  return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
+}
+
+void Aabb::extend(const glm::dvec3& p) {
+  min = glm::min(min, p);
+  max = glm::max(max, p);
+}
+
+void Aabb::extend(const Aabb& other) {
+  if (other.empty()) return;
+  extend(other.min);
+  extend(other.max);
+}
+
+std::vector<glm::dvec3> Aabb::corners() const {
+  std::vector<glm::dvec3> out;
+  out.reserve(8);
+  for (int i = 0; i < 8; ++i)
+    out.emplace_back(i & 1 ? max.x : min.x, i & 2 ? max.y : min.y, i & 4 ? max.z : min.z);
+  return out;
+}
+
+namespace {
+
+SceneObject plane(glm::dvec3 center, double sx, double sz, glm::dvec3 color) {
+  SceneObject o;
+  o.type = SceneObject::Type::Plane;
+  o.center = center;
+  o.size = {sx, 0.0, sz};
+  o.color = color;
+  return o;
+}
+
+SceneObject box(glm::dvec3 center, glm::dvec3 size, double rotation_y_deg, glm::dvec3 color) {
+  SceneObject o;
+  o.type = SceneObject::Type::Box;
+  o.center = center;
+  o.size = size;
+  o.rotation_y_deg = rotation_y_deg;
+  o.color = color;
+  return o;
+}
+
+SceneObject mesh(const std::string& builtin_model, glm::dvec3 position, glm::dvec3 rotation_deg, double scale) {
+  const BuiltinModel* m = find_builtin_model(builtin_model);
+  SceneObject o;
+  o.type = SceneObject::Type::Mesh;
+  o.model = m->model;
+  o.model_id = m->id;
+  o.center = position;
+  o.rotation_deg = rotation_deg;
+  o.mesh_scale = glm::dvec3(scale);
+  return o;
+}
+
+constexpr glm::dvec3 kFloorColor{0.72, 0.66, 0.58};
+
+}  // namespace
+
+Aabb object_bounds(const SceneObject& o) {
+  Aabb b;
+  switch (o.type) {
+    case SceneObject::Type::Plane:
+      b.extend(o.center - glm::dvec3(o.size.x, 0.0, o.size.z) * 0.5);
+      b.extend(o.center + glm::dvec3(o.size.x, 0.0, o.size.z) * 0.5);
+      break;
+    case SceneObject::Type::Box:
+      for (int i = 0; i < 8; ++i) {
+        const glm::dvec3 local{(i & 1 ? 0.5 : -0.5) * o.size.x, (i & 2 ? 0.5 : -0.5) * o.size.y,
+                               (i & 4 ? 0.5 : -0.5) * o.size.z};
+        b.extend(o.center + rotate_y(local, o.rotation_y_deg));
+      }
+      break;
+    case SceneObject::Type::Sphere:
+      b.extend(o.center - glm::dvec3(o.radius));
+      b.extend(o.center + glm::dvec3(o.radius));
+      break;
+    case SceneObject::Type::Mesh:
+      b = mesh_bounds(o);
+      break;
+  }
+  return b;
+}
+
+Aabb scene_bounds(const Scene& scene) {
+  Aabb b;
+  for (const auto& o : scene.objects) b.extend(object_bounds(o));
+  return b;
+}
+
+const std::vector<BuiltinScene>& builtin_scenes() {
+  // The seeds' scene: a 50 x 50 floor at y = -0.5 and a unit cube resting on
+  // it, lit from (-2, 4, -1) towards the origin.
+  static const std::vector<BuiltinScene> scenes = {
+      {"cube-on-plane",
+       "The seeds' scene: one unit cube resting on a 50 x 50 floor.",
+       {plane({0.0, -0.5, 0.0}, 50.0, 50.0, kFloorColor),
+        box({0.0, 0.0, 0.0}, {1.0, 1.0, 1.0}, 0.0, {0.85, 0.35, 0.25})},
+       {2.5, 3.0, 5.0},
+       {0.6, -0.3, 0.6},
+       {-2.0, 4.0, -1.0}},
+      {"three-cubes",
+       "Three cubes of different sizes and rotations on a 50 x 50 floor.",
+       {plane({0.0, -0.5, 0.0}, 50.0, 50.0, kFloorColor),
+        box({-1.2, 0.25, 0.3}, {1.5, 1.5, 1.5}, 15.0, {0.85, 0.35, 0.25}),
+        box({1.4, 0.0, -0.6}, {1.0, 1.0, 1.0}, 40.0, {0.3, 0.55, 0.85}),
+        box({0.6, -0.2, 1.6}, {0.6, 0.6, 0.6}, 65.0, {0.4, 0.75, 0.35})},
+       {3.5, 4.0, 6.5},
+       {0.3, -0.2, 0.6},
+       {-2.0, 4.0, -1.0}},
+      // A real model: the spout, handle and lid shadow the pot itself, and
+      // its surface is open, so the shadow pass draws both sides.
+      {"teapot",
+       "The Utah teapot (102,400 triangles) on a 50 x 50 floor.",
+       {plane({0.0, -0.5, 0.0}, 50.0, 50.0, kFloorColor), mesh("teapot", {0.0, -0.5, 0.0}, {0.0, -30.0, 0.0}, 0.5)},
+       {-2.5, 3.0, 4.8},
+       {0.4, 0.3, 0.3},
+       {-2.0, 4.0, -1.0}},
+      // A closed model that shadows itself along the whole of its length.
+      {"torus-knot",
+       "A closed torus knot (16,384 triangles) hovering over a 50 x 50 floor.",
+       {plane({0.0, -0.5, 0.0}, 50.0, 50.0, kFloorColor), mesh("torus-knot", {0.0, 0.75, 0.0}, {25.0, 0.0, 0.0}, 1.0)},
+       {3.6, 3.2, 5.0},
+       {0.0, 0.3, 0.0},
+       {-2.0, 4.0, -1.0}},
+  };
+  return scenes;
+}
+
+const BuiltinScene* find_builtin_scene(const std::string& name) {
+  for (const auto& s : builtin_scenes())
+    if (s.name == name) return &s;
+  return nullptr;
+}
+
+SceneViewDefaults default_view_for(const Scene& scene) {
+  const Aabb bounds = scene_bounds(scene);
+  const glm::dvec3 center = bounds.empty() ? glm::dvec3(0.0) : bounds.center();
+  const double radius = bounds.empty() ? 1.0 : std::max(0.5 * glm::length(bounds.extent()), 1e-6);
+  SceneViewDefaults v;
+  v.camera_target = center;
+  // Far enough for the bounding sphere to fit a 45 degree view (1 / sin(22.5) ~ 2.61).
+  v.camera_position = center + glm::normalize(glm::dvec3(0.45, 0.55, 1.0)) * (2.8 * radius);
+  // The light target is the API's fixed default, the origin; place the light
+  // beyond the scene along the built-in scenes' light direction from it.
+  v.light_target = glm::dvec3(0.0);
+  const double reach = glm::length(center - v.light_target) + 2.0 * radius;
+  v.light_position = v.light_target + glm::normalize(glm::dvec3(-2.0, 4.0, -1.0)) * reach;
+  return v;
+}
+
+namespace {
+
+struct MeshBuilder {
+  Mesh& mesh;
+
+  std::uint32_t vertex(const glm::dvec3& p, const glm::dvec3& n, const glm::dvec3& c) {
+    const glm::dvec3 local = p - mesh.origin;
+    mesh.vertices.push_back({{float(local.x), float(local.y), float(local.z)},
+                             {float(n.x), float(n.y), float(n.z)},
+                             {float(c.x), float(c.y), float(c.z)}});
+    return std::uint32_t(mesh.vertices.size() - 1);
+  }
+
+  // A rectangle centred at `center` spanning +-u and +-v, facing u x v.
+  void quad(const glm::dvec3& center, const glm::dvec3& u, const glm::dvec3& v, const glm::dvec3& color) {
+    const glm::dvec3 n = glm::normalize(glm::cross(u, v));
+    const std::uint32_t a = vertex(center - u - v, n, color);
+    const std::uint32_t b = vertex(center + u - v, n, color);
+    const std::uint32_t c = vertex(center + u + v, n, color);
+    const std::uint32_t d = vertex(center - u + v, n, color);
+    mesh.indices.insert(mesh.indices.end(), {a, b, c, a, c, d});
+  }
+
+  void box(const SceneObject& o) {
+    const glm::dvec3 half = o.size * 0.5;
+    const glm::dvec3 axes[3] = {rotate_y({1, 0, 0}, o.rotation_y_deg), {0, 1, 0},
+                                rotate_y({0, 0, 1}, o.rotation_y_deg)};
+    for (int k = 0; k < 3; ++k) {
+      for (double sign : {1.0, -1.0}) {
+        const glm::dvec3 n = axes[k] * sign;
+        const int iu = (k + 1) % 3, iv = (k + 2) % 3;
+        // u x v must equal n: (axes[iu] x axes[iv]) = axes[k] for a right-handed frame.
+        const glm::dvec3 u = axes[iu] * half[iu];
+        const glm::dvec3 v = axes[iv] * (half[iv] * sign);
+        quad(o.center + n * half[k], u, v, o.color);
+      }
+    }
+  }
+
+  void sphere(const SceneObject& o) {
+    // A UV sphere fine enough that its silhouette departs from the true
+    // sphere by < 0.1 % of the radius (1 - cos(pi / 96)).
+    constexpr int kStacks = 48, kSlices = 96;
+    constexpr double kPi = 3.14159265358979323846;
+    const std::uint32_t first = std::uint32_t(mesh.vertices.size());
+    for (int i = 0; i <= kStacks; ++i) {
+      const double theta = kPi * i / kStacks;
+      for (int j = 0; j <= kSlices; ++j) {
+        const double phi = 2.0 * kPi * j / kSlices;
+        const glm::dvec3 n{std::sin(theta) * std::cos(phi), std::cos(theta), -std::sin(theta) * std::sin(phi)};
+        vertex(o.center + n * o.radius, n, o.color);
+      }
+    }
+    const std::uint32_t row = kSlices + 1;
+    for (int i = 0; i < kStacks; ++i) {
+      for (int j = 0; j < kSlices; ++j) {
+        const std::uint32_t a = first + i * row + j, b = a + row, c = b + 1, d = a + 1;
+        if (i != 0) mesh.indices.insert(mesh.indices.end(), {a, b, d});
+        if (i != kStacks - 1) mesh.indices.insert(mesh.indices.end(), {d, b, c});
+      }
+    }
+  }
+
+  void plane(const SceneObject& o) {
+    quad(o.center, {0.5 * o.size.x, 0, 0}, {0, 0, -0.5 * o.size.z}, o.color);
+  }
+};
+
+// Mesh::smooth_normal_span of the triangles in indices [0, count).
+double smooth_normal_span(const std::vector<Vertex>& vertices, const std::vector<std::uint32_t>& indices,
+                          std::uint32_t count) {
+  const auto position = [&](std::uint32_t i) { return glm::dvec3(glm::make_vec3(vertices[i].position)); };
+  const auto normal = [&](std::uint32_t i) { return glm::make_vec3(vertices[i].normal); };
+  double span = 0.0;
+  for (std::uint32_t t = 0; t + 2 < count; t += 3) {
+    const std::uint32_t a = indices[t], b = indices[t + 1], c = indices[t + 2];
+    if (normal(a) == normal(b) && normal(b) == normal(c)) continue;
+    span = std::max({span, glm::distance(position(a), position(b)), glm::distance(position(b), position(c)),
+                     glm::distance(position(c), position(a))});
+  }
+  return span;
+}
+
+}  // namespace
+
+Mesh tessellate(const Scene& scene) {
+  Mesh mesh;
+  const Aabb bounds = scene_bounds(scene);
+  mesh.origin = bounds.empty() ? glm::dvec3(0.0) : bounds.center();
+  MeshBuilder builder{mesh};
+  // Appends object i's triangles with `append` and records where they lie.
+  const auto record = [&mesh](std::size_t i, auto&& append) {
+    const auto first = std::uint32_t(mesh.indices.size());
+    append();
+    mesh.object_ranges.push_back({i, first, std::uint32_t(mesh.indices.size()) - first});
+  };
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const SceneObject& o = scene.objects[i];
+    if (o.type == SceneObject::Type::Box) record(i, [&] { builder.box(o); });
+    if (o.type == SceneObject::Type::Sphere) record(i, [&] { builder.sphere(o); });
+    if (o.type == SceneObject::Type::Mesh && mesh_is_closed(o)) record(i, [&] { append_mesh_instance(o, mesh); });
+  }
+  mesh.closed_index_count = std::uint32_t(mesh.indices.size());
+  mesh.smooth_normal_span = smooth_normal_span(mesh.vertices, mesh.indices, mesh.closed_index_count);
+  // Open surfaces (planes, open meshes: a terrain, a leaf) are never culled
+  // in the shadow pass: culling either side would drop the side that faces
+  // the light as a caster.
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const SceneObject& o = scene.objects[i];
+    if (o.type == SceneObject::Type::Mesh && !mesh_is_closed(o)) record(i, [&] { append_mesh_instance(o, mesh); });
+  }
+  // Planes last, each with its own range: the shadow pass leaves out those
+  // that cannot shadow anything under the frame's light.
+  for (const auto& o : scene.objects) mesh.bounds.push_back(object_bounds(o));
+  // Where the other objects lie against each plane: a turned mesh's bounds
+  // are not tight (mesh_surface_bounds), and a floor they reach under would
+  // be drawn into every layer of the map.
+  std::vector<Aabb> surfaces;
+  for (std::size_t j = 0; j < scene.objects.size(); ++j)
+    surfaces.push_back(scene.objects[j].type == SceneObject::Type::Mesh ? mesh_surface_bounds(scene.objects[j])
+                                                                        : mesh.bounds[j]);
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const SceneObject& o = scene.objects[i];
+    if (o.type != SceneObject::Type::Plane) continue;
+    PlaneRange range;
+    range.object = i;
+    record(i, [&] { builder.plane(o); });
+    range.height = o.center.y;
+    range.color = o.color;
+    for (std::size_t j = 0; j < scene.objects.size(); ++j) {
+      if (j == i) continue;
+      range.lowest_other = std::min(range.lowest_other, surfaces[j].min.y);
+      range.highest_other = std::max(range.highest_other, surfaces[j].max.y);
+    }
+    mesh.planes.push_back(range);
+  }
+  mesh.open_index_count = std::uint32_t(mesh.indices.size()) - mesh.closed_index_count;
+  return mesh;
+}
+
+bool closed_meshes_seen_from_outside(const Mesh& mesh, const Camera& camera, double aspect) {
+  const double tan_half = std::tan(glm::radians(camera.fov_y_deg) * 0.5);
+  const double reach = camera.near_plane * std::sqrt(1.0 + tan_half * tan_half * (1.0 + aspect * aspect));
+  for (const ObjectRange& range : mesh.object_ranges) {
+    if (range.first_index >= mesh.closed_index_count || range.index_count == 0) continue;
+    const Aabb& box = mesh.bounds[range.object];
+    const glm::dvec3 outside = glm::max(glm::max(box.min - camera.position, camera.position - box.max), 0.0);
+    // Slack for rounding: of the near plane's reach, and of float positions
+    // relative to the mesh origin, whose error grows with the scene's size.
+    const double slack = 1e-3 * reach + 1e-6 * (glm::length(camera.position - mesh.origin) + glm::length(box.extent()));
+    if (glm::length(outside) <= reach + slack) return false;
+  }
+  return true;
+}
+
+}  // namespace umbra

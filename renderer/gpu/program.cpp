@@ -1,0 +1,112 @@
+#include "gpu/program.hpp"
+
+#include <stdexcept>
+
+#include "gpu/embedded_shaders.hpp"
+#include "gpu/shader_interface.hpp"
+
+namespace umbra::gl {
+
+namespace {
+
+// The info log of a shader or program, through the matching GL getters.
+template <class GetIv, class GetLog>
+std::string info_log(GLuint object, GetIv get_iv, GetLog get_log) {
+  GLint length = 0;
+  get_iv(object, GL_INFO_LOG_LENGTH, &length);
+  std::string log(std::size_t(length > 0 ? length : 1), '\0');
+  get_log(object, GLsizei(log.size()), nullptr, log.data());
+  return log;
+}
+
+Shader compile(GLenum stage, std::string_view file, std::string_view source) {
+  Shader shader(glCreateShader(stage));
+  const GLchar* text = source.data();
+  const GLint length = GLint(source.size());
+  glShaderSource(shader.id(), 1, &text, &length);
+  glCompileShader(shader.id());
+  GLint ok = GL_FALSE;
+  glGetShaderiv(shader.id(), GL_COMPILE_STATUS, &ok);
+  if (ok != GL_TRUE)
+    throw std::runtime_error("GLSL compile error in shaders/" + std::string(file) + ":\n" +
+                             info_log(shader.id(), glGetShaderiv, glGetShaderInfoLog));
+  return shader;
+}
+
+std::string_view embedded(std::string_view file) {
+  const std::string_view source = shader_source(file);
+  if (source.empty()) throw std::runtime_error("shader not embedded: " + std::string(file));
+  return source;
+}
+
+}  // namespace
+
+Program build_program(std::string_view vertex_file, std::string_view fragment_file, const std::string& prelude) {
+  Program program = build_program_from_sources(vertex_file, prelude + std::string(embedded(vertex_file)),
+                                               fragment_file, prelude + std::string(embedded(fragment_file)));
+  check_block_layout(program);
+  return program;
+}
+
+const Program& ProgramVariants::get(const std::string& defines) {
+  for (auto it = kept_.begin(); it != kept_.end(); ++it) {
+    if (it->first != defines) continue;
+    kept_.splice(kept_.begin(), kept_, it);
+    return kept_.front().second;
+  }
+  Program built = build_program(vertex_file_, fragment_file_, glsl_prelude(defines));
+  // Room first, so the program returned is never the one evicted.
+  while (!kept_.empty() && kept_.size() >= capacity_) kept_.pop_back();
+  kept_.emplace_front(defines, std::move(built));
+  return kept_.front().second;
+}
+
+void check_block_layout(const Program& program) {
+  const GLuint block = glGetUniformBlockIndex(program.id(), "FrameBlock");
+  if (block == GL_INVALID_INDEX) return;  // not used
+  GLint size = 0;
+  glGetActiveUniformBlockiv(program.id(), block, GL_UNIFORM_BLOCK_DATA_SIZE, &size);
+  if (size <= 0 || std::size_t(size) > sizeof(FrameBlock))
+    throw std::runtime_error("FrameBlock is " + std::to_string(size) + " bytes in GL, " +
+                             std::to_string(sizeof(FrameBlock)) + " in C++");
+  std::size_t count = 0;
+  const BlockMember* members = frame_block_members(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const BlockMember& m = members[i];
+    GLuint index = GL_INVALID_INDEX;
+    glGetUniformIndices(program.id(), 1, &m.gl_name, &index);
+    GLint offset = -1, stride = -1;
+    if (index != GL_INVALID_INDEX) {
+      glGetActiveUniformsiv(program.id(), 1, &index, GL_UNIFORM_OFFSET, &offset);
+      glGetActiveUniformsiv(program.id(), 1, &index, GL_UNIFORM_ARRAY_STRIDE, &stride);
+    }
+    if (offset != GLint(m.offset) || stride != GLint(m.array_stride))
+      throw std::runtime_error(std::string("FrameBlock member ") + m.gl_name + " is at GL offset " +
+                               std::to_string(offset) + " stride " + std::to_string(stride) + ", C++ has " +
+                               std::to_string(m.offset) + " stride " + std::to_string(m.array_stride));
+  }
+}
+
+Program build_program_from_sources(std::string_view vertex_file, std::string_view vertex_source,
+                                   std::string_view fragment_file, std::string_view fragment_source) {
+  const Shader vertex = compile(GL_VERTEX_SHADER, vertex_file, vertex_source);
+  const Shader fragment = compile(GL_FRAGMENT_SHADER, fragment_file, fragment_source);
+  Program program(glCreateProgram());
+  glAttachShader(program.id(), vertex.id());
+  glAttachShader(program.id(), fragment.id());
+  glLinkProgram(program.id());
+  GLint ok = GL_FALSE;
+  glGetProgramiv(program.id(), GL_LINK_STATUS, &ok);
+  if (ok != GL_TRUE)
+    throw std::runtime_error("GLSL link error in " + std::string(vertex_file) + " + " + std::string(fragment_file) +
+                             ":\n" + info_log(program.id(), glGetProgramiv, glGetProgramInfoLog));
+  return program;
+}
+
+GLint uniform_location(const Program& program, const char* name) {
+  const GLint location = glGetUniformLocation(program.id(), name);
+  if (location < 0) throw std::runtime_error(std::string("no active uniform '") + name + "'");
+  return location;
+}
+
+}  // namespace umbra::gl

@@ -1,0 +1,50 @@
+// GLSL programs built from the shader files embedded at build time.
+#pragma once
+
+#include <list>
+#include <string>
+#include <utility>
+#include <string_view>
+
+#include "gpu/objects.hpp"
+
+namespace umbra::gl {
+
+/// Compiles and links `vertex_file` + `fragment_file` (names under shaders/),
+/// each preceded by `prelude` (the #version line, #defines and the uniform
+/// block: see glsl_prelude in shader_interface.hpp; the files have none of
+/// their own). Throws std::runtime_error carrying the GLSL compile or link
+/// log, or naming a FrameBlock member whose layout differs from C++'s.
+Program build_program(std::string_view vertex_file, std::string_view fragment_file, const std::string& prelude);
+
+/// The same from sources in memory; the names only label error messages.
+Program build_program_from_sources(std::string_view vertex_name, std::string_view vertex_source,
+                                   std::string_view fragment_name, std::string_view fragment_source);
+
+/// The variants of one vertex + fragment pair, built when first asked for,
+/// each selected by its #define lines; the `capacity` most recently used are
+/// kept (a software rasteriser's compiled program is large).
+class ProgramVariants {
+ public:
+  ProgramVariants(std::string vertex_file, std::string fragment_file, std::size_t capacity)
+      : vertex_file_(std::move(vertex_file)), fragment_file_(std::move(fragment_file)), capacity_(capacity) {}
+  /// The program for `defines`, built with glsl_prelude(defines) if it is
+  /// not kept; throws as build_program does.
+  const Program& get(const std::string& defines);
+  std::size_t size() const { return kept_.size(); }
+
+ private:
+  std::string vertex_file_, fragment_file_;
+  std::size_t capacity_;
+  std::list<std::pair<std::string, Program>> kept_;  // most recently used first
+};
+
+/// Throws unless every member of the program's FrameBlock (if it uses one)
+/// sits at the offset, with the array stride, that the C++ struct has.
+void check_block_layout(const Program& program);
+
+/// A uniform's location; throws if the program has no active uniform of that
+/// name, so a typo fails loudly at start-up instead of drawing silently wrong.
+GLint uniform_location(const Program& program, const char* name);
+
+}  // namespace umbra::gl

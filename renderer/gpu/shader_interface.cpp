@@ -1,0 +1,156 @@
+#include "gpu/shader_interface.hpp"
+
+#include <sstream>
+#include <stdexcept>
+
+#include <glm/ext/matrix_transform.hpp>
+
+namespace umbra {
+
+namespace {
+
+// FrameBlock as GLSL text, from the same list that made the C++ struct.
+#define UMBRA_GLSL_MEMBER(type, name) "  " #type " " #name ";\n"
+#define UMBRA_GLSL_ARRAY(type, name, count) "  " #type " " #name "[" #count "];\n"
+constexpr const char* kFrameBlockGlsl =
+    "layout(std140, binding = 0) uniform FrameBlock {\n" UMBRA_FRAME_BLOCK(UMBRA_GLSL_MEMBER, UMBRA_GLSL_ARRAY) "} u;\n";
+#undef UMBRA_GLSL_MEMBER
+#undef UMBRA_GLSL_ARRAY
+
+#define UMBRA_MEMBER_ENTRY(type, name) {"FrameBlock." #name, offsetof(FrameBlock, name), 0},
+#define UMBRA_ARRAY_ENTRY(type, name, count) \
+  {"FrameBlock." #name "[0]", offsetof(FrameBlock, name), sizeof(FrameBlock::name[0])},
+const BlockMember kFrameBlockMembers[] = {UMBRA_FRAME_BLOCK(UMBRA_MEMBER_ENTRY, UMBRA_ARRAY_ENTRY)};
+#undef UMBRA_MEMBER_ENTRY
+#undef UMBRA_ARRAY_ENTRY
+
+int filter_code(ShadowFilter filter) {
+  switch (filter) {
+    case ShadowFilter::Hard: return 0;
+    case ShadowFilter::Pcf: return 1;
+    case ShadowFilter::Pcss: return 2;
+  }
+  return 1;
+}
+
+}  // namespace
+
+const BlockMember* frame_block_members(std::size_t& count) {
+  count = sizeof kFrameBlockMembers / sizeof kFrameBlockMembers[0];
+  return kFrameBlockMembers;
+}
+
+std::string DisplayVariant::defines() const {
+  std::ostringstream d;
+  d << "#define SHADOWS " << int(shadows) << "\n"
+    << "#define DIRECT_LIGHT " << int(direct_light) << "\n"
+    << "#define OUTPUT_SHADOW " << int(shadow_output) << "\n"
+    << "#define LIGHT_PERSPECTIVE " << int(perspective) << "\n"
+    << "#define LIGHT_CUBE " << int(cube) << "\n"
+    << "#define VIEW_COUNT " << view_count << "\n"
+    << "#define FILTER " << filter_code(filter) << "\n"
+    << "#define PCF_RADIUS " << pcf_radius << "\n"
+    << "#define BIAS_AUTO " << int(bias_auto) << "\n"
+    << "#define FILTER_REACH " << filter_reach << "\n"
+    << "#define FILTER_READ " << filter_read << "\n"
+    << "#define LIGHT_SIDE " << light_side << "\n";
+  return d.str();
+}
+
+DisplayVariant without_shadows(const DisplayVariant& v) {
+  DisplayVariant lit;
+  lit.shadows = false;
+  lit.direct_light = v.direct_light;
+  lit.shadow_output = v.shadow_output;
+  lit.perspective = v.perspective;
+  return lit;
+}
+
+DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& plan) {
+  DisplayVariant v;
+  v.direct_light = plan.direct_light;
+  v.shadow_output = request.output == Output::Shadow;
+  v.perspective = plan.perspective;
+  if (!(request.shadow.enabled && plan.direct_light)) return without_shadows(v);
+  const ShadowSettings& s = request.shadow;
+  v.cube = plan.layout == ShadowLayout::Cube;
+  v.view_count = int(plan.views.size());
+  // PCSS with an ideal light (size 0) has no penumbra to find: it is PCF.
+  v.filter = s.filter == ShadowFilter::Pcss && request.light.size <= 0.0 ? ShadowFilter::Pcf : s.filter;
+  v.pcf_radius = v.filter == ShadowFilter::Pcf ? s.pcf_radius : 0;
+  v.bias_auto = s.bias.automatic;
+  v.filter_reach = filter_reach_texels(s);
+  v.filter_read = filter_read_texels(s);
+  return v;
+}
+
+FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const Mesh& mesh,
+                       const std::vector<TexelRect>& casters) {
+  const glm::dvec3& origin = mesh.origin;
+  // Origin-relative float matrices: the translation by the origin is folded
+  // in while still in double precision.
+  const glm::dmat4 from_origin = glm::translate(glm::dmat4(1.0), origin);
+  const auto relative = [&](const glm::dmat4& m) { return glm::mat4(m * from_origin); };
+  FrameBlock b;
+  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
+  b.camera_view_projection = relative(reversed_depth_projection(request.camera, request.width, request.height) *
+                                      camera.view);
+  b.camera_position = glm::vec4(glm::vec3(request.camera.position - origin), 1.0f);
+  b.light_position = glm::vec4(glm::vec3(plan.position - origin), 1.0f);
+  b.light_direction = glm::vec4(glm::vec3(plan.direction), 0.0f);
+  b.light_color_ambient = glm::vec4(glm::vec3(request.light.color), float(request.light.ambient));
+  if (plan.views.size() > std::size_t(kMaxViews))
+    throw std::logic_error("a light with " + std::to_string(plan.views.size()) + " views; the shaders hold " +
+                           std::to_string(kMaxViews));
+  for (std::size_t i = 0; i < plan.views.size(); ++i) {
+    const ShadowView& v = plan.views[i];
+    b.light_view[i] = relative(v.view);
+    b.light_projection[i] = glm::mat4(v.projection);
+    b.view_depth_texel[i] = plan.perspective ? glm::vec4(v.near_plane, v.far_plane, v.texel_size.x, v.tan_half)
+                                             : glm::vec4(v.near_plane, v.far_plane, v.texel_size.x, v.texel_size.y);
+    const TexelRect& held = casters.at(i);
+    // None: a rectangle that no filter's reach meets from anywhere.
+    b.view_casters[i] = held.empty() ? glm::vec4(1e30f, 1e30f, -1e30f, -1e30f)
+                                     : glm::vec4(held.min.x, held.min.y, held.max.x, held.max.y);
+  }
+  const DepthBias& bias = request.shadow.bias;
+  b.bias_constant = float(bias.constant);
+  b.bias_slope = float(bias.slope);
+  b.bias_normal_offset = float(bias.normal_offset);
+  // An area light: a point light's radius, or the tangent of half a
+  // directional light's angular diameter.
+  b.light_size = float(plan.perspective ? request.light.size : sun_disc_tan_radius(request.light));
+  b.map_size = float(plan.layer_size);
+  b.smooth_normal_span = plan.perspective ? float(mesh.smooth_normal_span) : 0.0f;
+  int grid = 1;
+  while (grid * grid < int(plan.views.size())) ++grid;
+  b.preview_grid = grid;
+  b.preview_size = float(request.shadow.map_size);
+  return b;
+}
+
+std::string PreviewVariant::defines() const {
+  std::ostringstream d;
+  d << "#define LIGHT_PERSPECTIVE " << int(perspective) << "\n"
+    << "#define VIEW_COUNT " << view_count << "\n";
+  return d.str();
+}
+
+std::string glsl_prelude(const std::string& extra_defines) {
+  std::ostringstream s;
+  s << "#version 450 core\n"
+    << "#define kMaxViews " << kMaxViews << "\n"
+    << "#define kPcssSearchTexels " << kPcssSearchTexels << "\n"
+    << "#define kPcssMaxPenumbraTexels " << kPcssMaxPenumbraTexels << "\n"
+    << "#define kPcssBlockerSamples " << kPcssBlockerSamples << "\n"
+    << "#define kPcssFilterSamples " << kPcssFilterSamples << "\n"
+    << "#define FILTER_HARD " << filter_code(ShadowFilter::Hard) << "\n"
+    << "#define FILTER_PCF " << filter_code(ShadowFilter::Pcf) << "\n"
+    << "#define FILTER_PCSS " << filter_code(ShadowFilter::Pcss) << "\n"
+    << extra_defines << kFrameBlockGlsl
+    // Each file's own line numbers in compile errors.
+    << "#line 1\n";
+  return s.str();
+}
+
+}  // namespace umbra

@@ -1,0 +1,171 @@
+// The interface between the renderer and its shaders, written once, in C++.
+//
+// The GLSL side is generated from this file when a program is built: the
+// uniform block below becomes a `layout(std140) uniform FrameBlock` with
+// the same members, and the constants and variant switches become
+// `#define`s (see glsl_prelude). The shader files therefore declare no
+// uniforms and copy no constants, and a program whose block layout differs
+// from the C++ struct refuses to build (gl::check_block_layout). No GL here.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+
+#include "core/light_math.hpp"
+#include "core/request.hpp"
+
+namespace umbra {
+
+// ---------------------------------------------------------------------------
+// Constants the shaders share with C++ (injected as #defines).
+
+/// Views of one light: up to kMaxCascades cascades, or six cube faces.
+inline constexpr int kMaxViews = 6;
+/// PCSS: how far the blocker search reaches, texels; and the widest
+/// penumbra it filters, texels. A view must hold a point with the search's
+/// reach to spare (see filter_reach_texels).
+inline constexpr int kPcssSearchTexels = 32;
+inline constexpr int kPcssMaxPenumbraTexels = 64;
+/// PCSS: samples of the blocker search and of the filter.
+inline constexpr int kPcssBlockerSamples = 16;
+inline constexpr int kPcssFilterSamples = 32;
+
+// ---------------------------------------------------------------------------
+// The uniform block, one per frame, shared by every program (binding 0).
+//
+// std140 puts each member at an offset that GL reports; the C++ struct must
+// agree. Members are mat4, vec4, vec2, float or int, and arrays only of mat4
+// and vec4 (std140 strides other arrays to 16 bytes). Positions are relative
+// to the mesh origin (see Mesh::origin), lengths in world units.
+//
+// UMBRA_FRAME_BLOCK(MEMBER, ARRAY) lists them: MEMBER(type, name),
+// ARRAY(type, name, count).
+#define UMBRA_FRAME_BLOCK(MEMBER, ARRAY)                                                            \
+  /* The camera: origin-relative view-projection (reversed depth, see */                         \
+  /* reversed_depth_projection), and its position. */                                             \
+  MEMBER(mat4, camera_view_projection)                                                             \
+  MEMBER(vec4, camera_position)                                                                    \
+  /* The light: position (a point light's), unit direction of travel */                           \
+  /* (position -> target), linear RGB colour with the ambient fraction in w. */                   \
+  MEMBER(vec4, light_position)                                                                     \
+  MEMBER(vec4, light_direction)                                                                    \
+  MEMBER(vec4, light_color_ambient)                                                                \
+  /* One entry per view of the light (layer of the map). All views but */                        \
+  /* cube faces share light_view[0]. */                                                           \
+  ARRAY(mat4, light_view, kMaxViews)                                                               \
+  ARRAY(mat4, light_projection, kMaxViews)                                                    \
+  /* x, y: near and far planes, world units along the view's axis. */                             \
+  /* z, w: orthographic: world size of one texel along light x and y; */                          \
+  /*       perspective: z = that size per unit of distance, w = tan(half fov). */                 \
+  ARRAY(vec4, view_depth_texel, kMaxViews)                                                         \
+  /* xy, zw: the texel rectangle (min, max) of the view's layer that the */                       \
+  /* shadow pass drew anything into (caster_texels); none: 1e30, -1e30. */                        \
+  ARRAY(vec4, view_casters, kMaxViews)                                                             \
+  /* The seeds' explicit bias (BIAS_AUTO 0): constant and slope in window */                      \
+  /* depth, normal offset in texels. */                                                           \
+  MEMBER(float, bias_constant)                                                                     \
+  MEMBER(float, bias_slope)                                                                        \
+  MEMBER(float, bias_normal_offset)                                                                \
+  /* PCSS: orthographic: tan(half the angular diameter); perspective: radius. */                  \
+  MEMBER(float, light_size)                                                                        \
+  /* Shadow map texels per side. */                                                               \
+  MEMBER(float, map_size)                                                                          \
+  /* A point light: Mesh::smooth_normal_span, which LIGHT_SIDE's facing */                        \
+  /* test allows for (scene.vert); 0 for a directional light. */                                  \
+  MEMBER(float, smooth_normal_span)                                                                \
+  /* Depth preview: the preview's side in pixels, and tiles per row. */                           \
+  MEMBER(float, preview_size)                                                                      \
+  MEMBER(int, preview_grid)
+
+namespace std140 {
+// The GLSL type names used above, as C++ types of the same std140 size.
+using glm::mat4;
+using glm::vec2;
+using glm::vec4;
+// std140 base alignment of each of them.
+template <class T> inline constexpr std::size_t alignment = 16;
+template <> inline constexpr std::size_t alignment<vec2> = 8;
+template <> inline constexpr std::size_t alignment<float> = 4;
+template <> inline constexpr std::size_t alignment<int> = 4;
+
+struct FrameBlock {
+#define UMBRA_CXX_MEMBER(type, name) alignas(alignment<type>) type name{};
+#define UMBRA_CXX_ARRAY(type, name, count) alignas(16) type name[count]{};
+  UMBRA_FRAME_BLOCK(UMBRA_CXX_MEMBER, UMBRA_CXX_ARRAY)
+#undef UMBRA_CXX_MEMBER
+#undef UMBRA_CXX_ARRAY
+};
+}  // namespace std140
+using std140::FrameBlock;
+
+/// One member of FrameBlock as GL names it, with its C++ offset.
+struct BlockMember {
+  const char* gl_name;  // e.g. "FrameBlock.light_view[0]"
+  std::size_t offset;
+  std::size_t array_stride;  // 0 for a single member
+};
+/// Every member of FrameBlock, in order, for gl::check_block_layout.
+const BlockMember* frame_block_members(std::size_t& count);
+
+// ---------------------------------------------------------------------------
+// Variants: each switch is a compile-time #define, so the shader has no
+// branch on a uniform (a software rasteriser runs both sides of a branch it
+// cannot prove uniform, and cannot fold it away) and every loop has a
+// constant trip count.
+
+/// The main pass's variant for one frame.
+struct DisplayVariant {
+  bool shadows = true;          // SHADOWS: 0 draws no shadow term at all
+  bool direct_light = true;     // DIRECT_LIGHT: 0 (a sun below the horizon): ambient only, visibility 0
+  bool shadow_output = false;   // OUTPUT_SHADOW: visibility as grey, not colour
+  bool perspective = false;     // LIGHT_PERSPECTIVE: point light
+  bool cube = false;            // LIGHT_CUBE: six faces, picked by major axis
+  int view_count = 1;           // VIEW_COUNT: 1..kMaxViews
+  ShadowFilter filter = ShadowFilter::Pcf;  // FILTER: FILTER_HARD / _PCF / _PCSS
+  int pcf_radius = 1;           // PCF_RADIUS: 0..8
+  bool bias_auto = true;        // BIAS_AUTO: receiver plane vs the seeds' bias
+  int filter_reach = 2;         // FILTER_REACH: see filter_reach_texels
+  int filter_read = 3;          // FILTER_READ: see filter_read_texels
+  /// LIGHT_SIDE: closed meshes are drawn in two parts, split where their
+  /// points may start to face the light (scene.vert): 1 the part that may
+  /// face it, -1 the part that cannot (lit by ambient only, visibility 0),
+  /// 0 whole (everything else).
+  int light_side = 0;
+
+  /// The #define lines that select this variant.
+  std::string defines() const;
+};
+
+/// The main pass's variant for `request` drawn with the light's views in
+/// `plan`. Switches that cannot matter are left at their defaults (no shadow
+/// pass: no filter), so equal frames share one program.
+DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& plan);
+
+/// `v` with no shadow term (and the shadow switches at their defaults, as
+/// display_variant leaves them): the program for points no caster can
+/// shadow, the same one a frame without shadows uses.
+DisplayVariant without_shadows(const DisplayVariant& v);
+
+/// The depth preview's variant.
+struct PreviewVariant {
+  bool perspective = false;  // LIGHT_PERSPECTIVE: linearise the stored depth
+  int view_count = 1;        // VIEW_COUNT: tiles drawn
+  std::string defines() const;
+};
+
+/// The block's contents for `request` drawn with the light's views in
+/// `plan`, positions relative to mesh.origin; `casters`: one per view, where
+/// its layer holds anything (caster_texels).
+FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const Mesh& mesh,
+                       const std::vector<TexelRect>& casters);
+
+/// What every program's source starts with: the GLSL version, the shared
+/// constants, `extra_defines`, and the FrameBlock declaration.
+std::string glsl_prelude(const std::string& extra_defines);
+
+}  // namespace umbra

@@ -1,0 +1,292 @@
+// The GL renderer: a shadow pass into a depth texture, then a main pass that
+// lights the scene from the camera with that texture, then read-back.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "core/byte_bounded_lru.hpp"
+#include "gpu/objects.hpp"
+#include "gpu/program.hpp"
+#include "service/render_result.hpp"
+#include "core/light_math.hpp"
+#include "core/request.hpp"
+#include "core/scene.hpp"
+
+namespace umbra {
+
+/// When a frame must give up: render() checks it between the chunks that a
+/// deep or long mesh's draws are split into (see draw_scene_indices) and between
+/// passes.
+struct FrameWatch {
+  std::chrono::steady_clock::time_point until = std::chrono::steady_clock::time_point::max();
+};
+
+/// render() gave up on a frame at its FrameWatch: nothing of it is
+/// returned, and the renderer is ready for the next one (the GL state
+/// restored, the half-drawn shadow map not reused).
+struct FrameCutShort : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Call order: construct with a current GL 4.5 context, then render() any
+/// number of times, destroy before the context. Not thread-safe: it lives on
+/// the GL thread (see render_service.hpp).
+class ShadowRenderer {
+ public:
+  /// Compiles the shaders; throws std::runtime_error with the GLSL log.
+  /// Uploaded scenes are kept while they hold at most `scene_cache_bytes`
+  /// together (the scene being drawn is always kept).
+  explicit ShadowRenderer(std::uint64_t scene_cache_bytes = std::numeric_limits<std::uint64_t>::max());
+
+  /// Renders `request` and reads the chosen output back. `request` must be
+  /// valid (as the request parser guarantees). Throws FrameCutShort once
+  /// past `watch.until` (checked between chunks and passes: a chunk is
+  /// about kChunkMs of work, so the frame ends within about that of it).
+  RenderResult render(const RenderRequest& request, const FrameWatch& watch = {});
+
+  /// Bytes of GL memory kept between requests: cached scenes' buffers, the
+  /// shadow map, the display framebuffer, the depth preview (as allocated:
+  /// llvmpipe holds each in ordinary process memory).
+  std::uint64_t cached_bytes() const;
+  /// Releases what is kept until at most `max_bytes` is: scenes other than
+  /// the last one drawn (least recently used first), then the depth
+  /// preview, the shadow map, the display framebuffer, and last the last
+  /// scene. Returns cached_bytes() after.
+  std::uint64_t release_cached(std::uint64_t max_bytes);
+  /// The part of cached_bytes() that `request`'s frame would draw into as it
+  /// is (a shadow map of its size with enough layers, framebuffers of its
+  /// size): its estimated peak (request_cost.hpp) counts that memory
+  /// already, so releasing it to make room for the frame would only
+  /// allocate it again (a 1 GiB map: seconds of page faults a frame).
+  std::uint64_t bytes_reused_by(const RenderRequest& request) const;
+  /// Bytes of GL memory released since this renderer was made: render
+  /// targets (shadow maps, display and preview framebuffers) and evicted
+  /// scenes' buffers. llvmpipe (Mesa 22.3) keeps much of it until the GL
+  /// context is destroyed: every render target it drew into but the last
+  /// (a 4-layer 4096^2 map: 256 MB after glDeleteTextures; measured in a
+  /// 60-line EGL program), and most of three 999-sphere scenes drawn whole
+  /// (~130 MB). So this is memory the process may still hold: RenderService
+  /// starts a fresh context when it grows too large.
+  std::uint64_t released_gl_bytes() const { return released_gl_bytes_; }
+
+  std::string gl_renderer() const;
+  std::string gl_version() const;
+
+ private:
+  // A scene's triangles, uploaded once per distinct scene (see scenes_).
+  struct SceneGeometry {
+    gl::VertexArray vertex_array;
+    gl::Buffer vertices;
+    gl::Buffer indices;
+    Mesh mesh;           // CPU copy: origin and index ranges (vertices cleared)
+    // Per object: how many layers deep its triangles may lie
+    // (mesh_deepest_layers; 0 for the analytic ones, which the cost
+    // estimate bounds by their bounds).
+    std::vector<double> deep_layers;
+  };
+  // Depth-only framebuffer seen from the light, one array layer per view.
+  struct ShadowPass {
+    gl::Program program;
+    GLint layer = -1;       // u_layer: the view a draw fills
+    gl::Texture depth_map;  // 2D array of DEPTH_COMPONENT32F, size^2 x layers
+    gl::Framebuffer framebuffer;
+    int size = 0;
+    int layers = 0;
+    // What the map holds now, so that a frame whose light, scene and cull
+    // mode are unchanged (a camera-only change) reuses it.
+    bool holds_plan = false;
+    ShadowPlan plan;
+    std::string scene_key;
+    CullMode cull = CullMode::Front;
+    std::vector<bool> planes;  // casting_planes() it was drawn with
+    // Whole layers cleared (the depth output), or only the casters'
+    // rectangles with this many texels around them.
+    bool whole_layers = false;
+    int clear_margin = 0;
+    // Drawn for a frame with the automatic bias, so heavy meshes may be
+    // missing from cascades where that frame's lookups cannot see them
+    // (drop_casters_held_by_earlier_cascades); a frame with the seeds'
+    // bias looks further and must not reuse it.
+    bool automatic_bias = false;
+  };
+  // The camera's view, into an offscreen colour + depth framebuffer.
+  struct DisplayPass {
+    gl::ProgramVariants programs{"scene.vert", "scene.frag", kKeptVariants};  // per DisplayVariant
+    gl::Renderbuffer color;  // RGBA8
+    gl::Renderbuffer depth;  // DEPTH32F_STENCIL8
+    gl::Framebuffer framebuffer;
+    int width = 0, height = 0;
+    // The planes that cast nothing, drawn as cells (receiver_cells.hpp):
+    // this frame's vertices, then the shadowable cells' indices followed by
+    // the others'.
+    gl::VertexArray cells_vertex_array;
+    gl::Buffer cell_vertices;
+    gl::Buffer cell_indices;
+  };
+  // The depth map turned into a grey image for the "depth" output.
+  struct DepthPreviewPass {
+    gl::ProgramVariants programs{"fullscreen.vert", "depth_preview.frag", kKeptVariants};  // per PreviewVariant
+    gl::Texture grey;        // R8 or R16 (depth_bits), map_size^2
+    gl::Framebuffer framebuffer;
+    int size = 0;
+    int bits = 0;
+  };
+  // Compiled variants kept per pass: every combination a client can ask
+  // for is a few hundred, each a large program on a software rasteriser.
+  static constexpr std::size_t kKeptVariants = 24;
+
+  RenderResult render_frame(const RenderRequest& request);
+  /// Makes `scene` the current one (scenes_.front()), uploading it unless a
+  /// scene with the same content is cached; true if it was uploaded.
+  bool use_scene(const Scene& scene);
+  SceneGeometry& scene() { return scenes_.front().value; }
+  const SceneGeometry& scene() const { return scenes_.front().value; }
+  /// Content of the current scene (see scene_key in the .cpp).
+  const std::string& current_scene_key() const { return scenes_.front().key; }
+  std::uint64_t shadow_map_bytes() const;
+  std::uint64_t display_bytes() const;
+  std::uint64_t depth_preview_bytes() const;
+  void resize_shadow_map(int size, int layers);
+  void resize_display(int width, int height);
+  void resize_depth_preview(int size, int bits);
+  /// One draw of nothing that matters into unbind_framebuffer_, with no
+  /// vertex buffer and no texture: Mesa drops its references to the
+  /// buffers, textures and framebuffers of the last frame, so that those
+  /// released are freed now, not at the next request.
+  void unbind_released();
+  // Runs of closed meshes, and of open models, that draw_scene draws with a
+  // call each; past that many, all of their kind in one call.
+  static constexpr std::size_t kMaxRuns = 16;
+  // Triangles from which an object is worth leaving out of a cascade it
+  // shadows nothing in: on llvmpipe about 0.4 ms of a shadow pass.
+  static constexpr std::size_t kHeavyTriangles = 4096;
+  // A mesh more layers deep than this (mesh_deepest_layers) has its draws
+  // split into chunks of about kChunkMs each, the watch checked between
+  // them: one draw call of 4,000 stacked quads is seconds that llvmpipe
+  // cannot interrupt. Ordinary models are at most about 2 (a closed
+  // surface seen without culling), so their draws are never split.
+  static constexpr double kDeepLayers = 4.0;
+  static constexpr double kChunkMs = 20.0;
+  // A mesh whose triangles the estimate prices at more than this in a pass
+  // (mesh_draw_ms: per triangle and per 64 x 64 tile their bounding boxes
+  // cover) is drawn in chunks too: 200,000 slivers across a 4096^2 map are
+  // not deep at all, yet one draw of them is seconds. The teapot is well
+  // under a millisecond.
+  static constexpr double kLongDrawMs = 2.0 * kChunkMs;
+  // The fragments a first chunk is sized for, assuming the deep mesh fills
+  // the view (so never too large): about kChunkMs on the reference machine
+  // (issue 29's stack: 2.5e-5 ms a camera fragment with PCF radius 1, 5e-7
+  // ms a shadow texel). Later chunks are sized by the time the earlier
+  // ones took.
+  static constexpr double kMainChunkFragments = 1 << 20;
+  static constexpr double kShadowChunkFragments = 1 << 25;
+  // The frame's watch, and the chunking state of the pass being drawn.
+  FrameWatch watch_;
+  double pass_pixels_ = 0.0;          // the pass's viewport
+  double ms_per_fragment_ = 0.0;      // kChunkMs over the pass's first chunk of a deep mesh's fragments
+  std::vector<double> pass_draw_ms_;  // per scene object: mesh_draw_ms, the most over the pass's views
+  double chunk_ms_ = 0.0;             // estimated ms a chunk is sized for, adapted to the time chunks take
+  // Draws indices [first, first + count) of the current scene: in one call
+  // unless they hold a deep mesh (kDeepLayers) or a long one (kLongDrawMs),
+  // whose triangles are drawn in chunks with wait_for_chunk() after each,
+  // in index order (the same pixels as one call).
+  void draw_scene_indices(std::size_t first, std::size_t count);
+  // Starts a pass's chunking: `fragments_per_chunk` of a deep mesh in a
+  // viewport of `width` x `height`, and each mesh's draw estimated in the
+  // views `view_projections` of `scene` (the current one).
+  void begin_pass(const Scene& scene, const std::vector<glm::dmat4>& view_projections, double width, double height,
+                  double fragments_per_chunk);
+  // Waits for the GL to finish what was issued (a fence: llvmpipe draws
+  // when flushed), sizes the next chunk by the time this one took, and
+  // throws FrameCutShort if the watch has run out.
+  void wait_for_chunk(std::chrono::steady_clock::time_point chunk_start);
+  void check_watch(const char* where) const;
+  // After a frame that threw: what the passes set is set back, the map it
+  // may have half drawn is not reused.
+  void abandon_frame();
+  // Which of the scene's triangles a draw_scene call draws.
+  enum class MeshPart {
+    All,
+    Closed,  ///< closed meshes only (Mesh::closed_index_count)
+  };
+  // The objects `objects` marks (one flag per scene object; empty: all) in
+  // `part` of the mesh. Closed objects scattered over more than a few runs
+  // are all drawn in one call, and so are open models; what is drawn outside
+  // the view leaves no texel. Planes are drawn exactly as marked.
+  void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects = {}, MeshPart part = MeshPart::All);
+  // One flag per scene object: all of them but the planes `planes` leaves
+  // out (one flag per Mesh::planes entry; empty: none).
+  std::vector<bool> drawn_objects(const std::vector<bool>& planes) const;
+  // The scene's planes that the shadow pass for `light` draws: all of them
+  // for the depth output (it shows what the light sees), else those that
+  // can shadow something (plane_can_shadow).
+  std::vector<bool> casting_planes(const RenderRequest& request, const ShadowPlan& light) const;
+  // Where each object the shadow pass draws (all but the planes that
+  // `planes` leaves out) reaches into each view of `light`: once per frame.
+  // Heavy meshes are left out of cascades where they shadow nothing
+  // (drop_casters_held_by_earlier_cascades), except for the depth output,
+  // which shows whole layers.
+  CasterTexels caster_table(const RenderRequest& request, const ShadowPlan& light,
+                            const std::vector<bool>& planes) const;
+  void upload_frame_block(const RenderRequest& request, const ShadowPlan& light, const std::vector<TexelRect>& casters);
+  void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
+                       const CasterTexels& casters);
+  bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes) const;
+  // Returns how many umbras it drew dark (umbras.hpp).
+  std::size_t run_display_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
+                               const CasterTexels& casters);
+  // The main pass's planes: drawn whole (one flag per Mesh::planes entry),
+  // or in parts whose indices are in display_.cell_indices: per plane, its
+  // umbras drawn dark, the shadows of its objects' bounds (only marked in
+  // the stencil), its shadowable cells and its other cells.
+  struct IndexRange {
+    std::size_t first = 0, count = 0;
+  };
+  struct PlaneDraw {
+    IndexRange dark, bounds, shadowable, unshadowable;
+    // The shadows of the objects' bounds were found (`bounds`, perhaps
+    // none): the shadowable cells need the lookup only inside them.
+    bool lookup_only_near = false;
+  };
+  // Planes past that many are drawn whole: their regions would cost more to
+  // find than they save.
+  static constexpr std::size_t kMaxPlanesInCells = 8;
+  struct CellDraws {
+    std::vector<bool> whole_planes;
+    std::vector<PlaneDraw> planes;  // at most 8: each marks the stencil with its own pair of values
+    std::size_t umbras = 0;         // polygons drawn dark
+  };
+  // Uploads the cells of the planes the shadow pass leaves out (planes[i]
+  // false).
+  CellDraws upload_plane_cells(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
+                               const CasterTexels& casters);
+  void run_depth_preview(const ShadowPlan& light, int image_size, int bits);
+  Image read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth = 8);
+
+  // The last few distinct scenes, keyed by content, most recently used
+  // first, so that clients alternating between scenes do not re-upload them;
+  // at most kCachedScenes and scene_cache_bytes_ (a 1000-sphere scene is
+  // about 280 MB).
+  static constexpr std::size_t kCachedScenes = 8;
+  std::uint64_t scene_cache_bytes_;
+  std::uint64_t released_gl_bytes_ = 0;  // see released_gl_bytes()
+  bool map_allocated_ = false;           // this frame allocated its shadow map (RenderResult)
+  // scenes_.evict_to, counting what goes in released_gl_bytes_.
+  void evict_scenes_to(std::uint64_t max_bytes, std::size_t keep);
+  ByteBoundedLru<SceneGeometry> scenes_;
+  ShadowPass shadow_;
+  DisplayPass display_;
+  DepthPreviewPass preview_;
+  gl::Buffer frame_block_;  // FrameBlock, binding 0: every pass reads it
+  gl::VertexArray empty_vertex_array_;  // for the full-screen triangle
+  // A 1x1 depth-only target for unbind_released(): what the last frame drew
+  // with is bound in Mesa's state until another draw replaces it.
+  gl::Texture unbind_depth_;
+  gl::Framebuffer unbind_framebuffer_;
+};
+
+}  // namespace umbra

@@ -1,0 +1,421 @@
+#include "service/request_cost.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
+#include <glm/vec4.hpp>
+
+#include "core/light_math.hpp"
+#include "core/mesh_instance.hpp"
+#include "core/model.hpp"
+#include "reference/ray_cast.hpp"
+#include "core/scene.hpp"
+#include "gpu/shader_interface.hpp"
+
+namespace umbra {
+
+namespace {
+
+// Calibration: milliseconds per unit of each factor on the reference machine
+// (2 cores shared, llvmpipe LLVM 15, Release build). Measured by posting
+// requests that each stress one factor to umbra-server and reading
+// Server-Timing (shadow, main, readback; the scene upload shows as queue
+// time on a scene's first request), two runs each with a new light time so
+// that no shadow map is reused, then fitting these constants by
+// least squares to cost_factors() of the same requests and rounding up (the
+// larger of the two runs where they disagreed). The requests: the default
+// frame; "shadow" at 1024^2, 2048^2, 4096^2 with pcf_radius 8; "color" at
+// 2048^2 with hard and PCSS filters; map 4096 and 8192 with 4 cascades at
+// 64^2; 300 and 999 spread spheres at 64^2 with map 64; 200 and 999
+// overlapping spheres (map 512..8192, 1..4 cascades, 256^2..1024^2);
+// "exact" for 1000 spread objects at 480x270, 999 overlapping spheres at
+// 256^2, the default scene at 1024^2, and an area light at 512^2.
+// bench/cost_report prints the factors of a request body to repeat this.
+constexpr double kMsPerUploadedTriangle = 9.0e-5;  // tessellate + upload: 772 ms for 9.0 M triangles
+constexpr double kMsPerDrawnTriangle = 1.0e-4;     // per view: 895 ms main, 417..594 ms shadow, 9.0 M
+constexpr double kMsPerShadowTexelLayer = 1.0e-6;  // 999 overlapping spheres: 22..45 s for 3.9e10
+constexpr double kMsPerShadowTexel = 1.5e-6;       // 4 x 8192^2, one object: 375..853 ms for 2.7e8
+constexpr double kMsPerPixel = 1.0e-5;             // shading set-up and read-back
+constexpr double kMsPerPixelLayer = 5.0e-5;        // 999 overlapping spheres, 1024^2: 2.0..3.4 s for 6e7
+constexpr double kMsPerGather = 1.5e-6;            // pcf_radius 8 (81 gathers) at 4096^2: 2.6..3.0 s
+constexpr double kMsPerCameraRay = 1.4e-4;         // default scene, 1024^2: 151..160 ms
+constexpr double kMsPerShadowRay = 2.0e-6;         // area light, 512^2, 64 rays a pixel: 452..490 ms
+constexpr double kMsPerRayObjectTest = 1.2e-5;     // 999 overlapping spheres, 256^2: 108..113 ms
+// Meshes in the ray cast (Embree, renderer/mesh_ray_cast), measured with a
+// throwaway program: a UV sphere of 99 k and 998 k triangles over a floor,
+// the BVH built on one thread, "exact" at 640x360 on two, rounded up.
+constexpr double kMsPerBvhTriangle = 6.0e-4;  // build: 99 k in 44..61 ms, 998 k in 473..489 ms
+// A mesh query and its transforms, per ray (two threads): 640x360 "exact"
+// 56..71 ms, with an area light (64 shadow rays a pixel) 835..920 ms.
+constexpr double kMsPerRayMeshTest = 7.0e-5;
+constexpr std::uint64_t kBvhBytesPerTriangle = 90;  // Embree's memory monitor, buffers included: 83..85
+// A mesh's layers past the first (ViewLayers::mesh_overdraw), measured with
+// issue 29's model: 4,000 stacked 40 x 40 quads (8,000 triangles), one
+// object, each layer nearer the eye and the light than the one before, so
+// every fragment is shaded. Large triangles cost less a fragment than a
+// sphere's small ones (kMsPerPixelLayer), but the shadow lookup runs for
+// each layer. Camera, 256^2 and 512^2, 8.1e7 and 3.2e8 fragments: pcf_radius
+// 0 and 1 1.1..2.4 s at 256^2, 4.9 s at 512^2; pcf_radius 8 10.6 s at 256^2.
+constexpr double kMsPerMeshFragment = 2.5e-5;  // plus kMsPerGather for each of its shadow-map reads
+// Map 2048^2 and 1024^2, 1.3e10 and 3.3e9 texels: 5.2 s and 1.24 s.
+constexpr double kMsPerMeshTexel = 5.0e-7;
+// A triangle tested against a 64 x 64 tile (mesh_tile_tests), measured with
+// issue 29's slivers: triangles 100 x 100 world units corner to corner and
+// 1e-4 wide, one object seen face on from a point light and a camera at
+// 60 units, map 1024^2, 2048^2 and 4096^2 (each sliver's box covers the
+// whole map: 256, 1,024 and 4,096 tiles), 20,000 and 200,000 slivers:
+// Server-Timing's shadow pass over the tiles the estimate counts,
+// rounded up (see the comment at mesh_tile_tests' test).
+constexpr double kMsPerTileTest = 1.0e-5;
+
+// Mesh sizes, as tessellate() builds them (tests check the two agree).
+constexpr std::uint64_t kSphereStacks = 48, kSphereSlices = 96;
+constexpr std::uint64_t kSphereTriangles = 2 * kSphereStacks * kSphereSlices - 2 * kSphereSlices;
+constexpr std::uint64_t kSphereVertices = (kSphereStacks + 1) * (kSphereSlices + 1);
+constexpr std::uint64_t kBoxTriangles = 12, kBoxVertices = 24;
+constexpr std::uint64_t kPlaneTriangles = 2, kPlaneVertices = 4;
+
+std::uint64_t scene_vertices(const Scene& scene) {
+  std::uint64_t n = 0;
+  for (const auto& o : scene.objects)
+    n += o.type == SceneObject::Type::Sphere ? kSphereVertices
+         : o.type == SceneObject::Type::Box  ? kBoxVertices
+         : o.type == SceneObject::Type::Mesh ? mesh_vertex_count(o)
+                                             : kPlaneVertices;
+  return n;
+}
+
+double gathers_per_pixel(const ShadowSettings& shadow) {
+  if (!shadow.enabled) return 0.0;
+  switch (shadow.filter) {
+    case ShadowFilter::Hard: return 1.0;
+    case ShadowFilter::Pcf: return double(shadow.pcf_radius + 1) * double(shadow.pcf_radius + 1);
+    case ShadowFilter::Pcss: return double(kPcssBlockerSamples + kPcssFilterSamples);
+  }
+  return 1.0;
+}
+
+}  // namespace
+
+std::uint64_t scene_triangles(const Scene& scene) {
+  std::uint64_t n = 0;
+  for (const auto& o : scene.objects)
+    n += o.type == SceneObject::Type::Sphere ? kSphereTriangles
+         : o.type == SceneObject::Type::Box  ? kBoxTriangles
+         : o.type == SceneObject::Type::Mesh ? mesh_triangle_count(o)
+                                             : kPlaneTriangles;
+  return n;
+}
+
+namespace {
+
+// Where an object's bounds fall in a view: the share of the image their
+// projected rectangle covers (clipped to it), or around_eye when they reach
+// to or behind a perspective eye, where the projection wraps around.
+struct Coverage {
+  double share = 0.0;
+  bool around_eye = false;
+};
+
+Coverage bounds_coverage(const Aabb& bounds, const glm::dmat4& view_projection) {
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (const glm::dvec3& corner : bounds.corners()) {
+    const glm::dvec4 clip = view_projection * glm::dvec4(corner, 1.0);
+    if (!(clip.w > 1e-12)) return {0.0, true};
+    x0 = std::min(x0, clip.x / clip.w), x1 = std::max(x1, clip.x / clip.w);
+    y0 = std::min(y0, clip.y / clip.w), y1 = std::max(y1, clip.y / clip.w);
+  }
+  const double w = std::min(x1, 1.0) - std::max(x0, -1.0), h = std::min(y1, 1.0) - std::max(y0, -1.0);
+  return {w > 0.0 && h > 0.0 ? w * h / 4.0 : 0.0, false};
+}
+
+// The world direction along which a view's clip x and y stay 0: its
+// forward axis (either sign), orthographic or perspective.
+glm::dvec3 view_forward(const glm::dmat4& view_projection) {
+  const glm::dmat4& m = view_projection;  // column-major: m[column][row]
+  return glm::cross(glm::dvec3(m[0][0], m[1][0], m[2][0]), glm::dvec3(m[0][1], m[1][1], m[2][1]));
+}
+
+// A perspective view's eye, where clip x, y and w are all 0; none for an
+// orthographic view (w does not vary).
+std::optional<glm::dvec3> view_eye(const glm::dmat4& view_projection) {
+  const glm::dmat4& m = view_projection;
+  const glm::dvec3 row0(m[0][0], m[1][0], m[2][0]), row1(m[0][1], m[1][1], m[2][1]), row3(m[0][3], m[1][3], m[2][3]);
+  if (glm::length(row3) <= 1e-9 * glm::length(row0)) return std::nullopt;
+  const glm::dmat3 rows = glm::transpose(glm::dmat3(row0, row1, row3));
+  if (std::abs(glm::determinant(rows)) < 1e-300) return std::nullopt;
+  return glm::inverse(rows) * -glm::dvec3(m[3][0], m[3][1], m[3][3]);
+}
+
+// Whether the main pass will cull closed objects' back faces: the renderer
+// does when the eye is outside every closed object's bounds by the near
+// plane's reach (closed_meshes_seen_from_outside); here by twice that,
+// erring towards drawing every face.
+bool camera_culls_closed_faces(const RenderRequest& request) {
+  const Camera& camera = request.camera;
+  const double aspect = double(request.width) / double(request.height);
+  const double tan_half = std::tan(camera.fov_y_deg * 3.14159265358979323846 / 360.0);
+  const double reach = camera.near_plane * std::sqrt(1.0 + tan_half * tan_half * (1.0 + aspect * aspect));
+  for (const SceneObject& o : request.scene.objects) {
+    const bool closed = o.type == SceneObject::Type::Box || o.type == SceneObject::Type::Sphere ||
+                        (o.type == SceneObject::Type::Mesh && mesh_is_closed(o));
+    if (!closed) continue;
+    const Aabb box = object_bounds(o);
+    if (box.empty()) continue;
+    const glm::dvec3 outside = glm::max(glm::max(box.min - camera.position, camera.position - box.max), 0.0);
+    if (glm::length(outside) <= 2.0 * reach) return false;
+  }
+  return true;
+}
+
+// How deep a mesh's triangles lie seen from a view: along its forward axis
+// for an orthographic view; for a perspective one, the most along the
+// directions from the eye to the bounds' centre and 8 corners. A wide view
+// looks through a mesh at many angles: blinds seen edge on at their centre
+// are thousands of layers deep towards their ends.
+double layers_seen_from(const SceneObject& o, const Aabb& bounds, const std::optional<glm::dvec3>& eye,
+                        const glm::dvec3& forward) {
+  if (!eye) return mesh_layers_along(o, forward);
+  const auto along = [&](const glm::dvec3& point) {
+    const glm::dvec3 toward = point - *eye;
+    return mesh_layers_along(o, toward == glm::dvec3(0.0) ? forward : toward);
+  };
+  double layers = along(bounds.center());
+  for (const glm::dvec3& corner : bounds.corners()) layers = std::max(layers, along(corner));
+  return layers;
+}
+
+}  // namespace
+
+double mesh_tile_tests(const SceneObject& o, const glm::dmat4& view_projection, double width, double height) {
+  if (o.type != SceneObject::Type::Mesh || !o.model || o.model->bounds.empty()) return 0.0;
+  // The bounds' rectangle in NDC (clipped to the view), their nearest clip
+  // w (a linear function: least at a corner) and how far off axis they
+  // reach; bounds reaching behind a perspective eye cover the whole view.
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300, w_min = 1e300;
+  bool around_eye = false;
+  for (const glm::dvec3& corner : object_bounds(o).corners()) {
+    const glm::dvec4 clip = view_projection * glm::dvec4(corner, 1.0);
+    if (!(clip.w > 1e-12)) {
+      around_eye = true;
+      break;
+    }
+    x0 = std::min(x0, clip.x / clip.w), x1 = std::max(x1, clip.x / clip.w);
+    y0 = std::min(y0, clip.y / clip.w), y1 = std::max(y1, clip.y / clip.w);
+    w_min = std::min(w_min, clip.w);
+  }
+  if (around_eye) x0 = y0 = -1.0, x1 = y1 = 1.0;
+  x0 = std::max(x0, -1.0), y0 = std::max(y0, -1.0), x1 = std::min(x1, 1.0), y1 = std::min(y1, 1.0);
+  if (!(x1 > x0 && y1 > y0)) return 0.0;
+  const double rect_pixels = (x1 - x0) * 0.5 * width * (y1 - y0) * 0.5 * height;
+  // Pixels per world unit along screen x and y: the gradient of x/w is
+  // (row0 - (x/w) row3) / w, at most (|row0| + |x/w| |row3|) / w; the
+  // model's scale stretches its edges by at most its largest factor.
+  const glm::dmat4& m = view_projection;  // column-major: m[column][row]
+  const glm::dvec3 row0(m[0][0], m[1][0], m[2][0]), row1(m[0][1], m[1][1], m[2][1]), row3(m[0][3], m[1][3], m[2][3]);
+  const glm::dvec3 factors = glm::abs(o.mesh_scale);
+  const double scale = std::max({factors.x, factors.y, factors.z});
+  const double sx = (glm::length(row0) + std::max(-x0, x1) * glm::length(row3)) * scale * 0.5 * width;
+  const double sy = (glm::length(row1) + std::max(-y0, y1) * glm::length(row3)) * scale * 0.5 * height;
+  double pixels = 0.0;
+  for (const EdgeLengthBin& bin : o.model->edge_lengths)
+    pixels += around_eye ? bin.triangles * rect_pixels
+                         : std::min(bin.squared_edges * sx * sy / (w_min * w_min), bin.triangles * rect_pixels);
+  return pixels / (64.0 * 64.0);
+}
+
+double mesh_draw_ms(const SceneObject& o, const glm::dmat4& view_projection, double width, double height) {
+  return double(mesh_triangle_count(o)) * kMsPerDrawnTriangle +
+         mesh_tile_tests(o, view_projection, width, height) * kMsPerTileTest;
+}
+
+double depth_complexity(const Scene& scene, const glm::dmat4& view_projection) {
+  double sum = 0.0;
+  for (const auto& o : scene.objects) {
+    // Bounds around a perspective eye count as the whole view, the most
+    // such an object can cover.
+    const Coverage c = bounds_coverage(object_bounds(o), view_projection);
+    sum += c.around_eye ? 1.0 : c.share;
+  }
+  return sum;
+}
+
+ViewLayers view_layers(const Scene& scene, const glm::dmat4& view_projection, bool closed_faces_culled) {
+  ViewLayers v;
+  const glm::dvec3 forward = view_forward(view_projection);
+  const std::optional<glm::dvec3> eye = view_eye(view_projection);
+  for (const SceneObject& o : scene.objects) {
+    if (o.type != SceneObject::Type::Mesh || !o.model || o.model->bounds.empty()) continue;
+    const Aabb bounds = object_bounds(o);
+    const Coverage c = bounds_coverage(bounds, view_projection);
+    const double share = c.around_eye ? 1.0 : c.share;
+    if (share <= 0.0) continue;
+    // Bounds around a perspective eye: its triangles may face it from any side.
+    double layers = c.around_eye ? mesh_deepest_layers(o, forward) : layers_seen_from(o, bounds, eye, forward);
+    // A closed surface faces each way with half its area: culling draws one half.
+    if (closed_faces_culled && o.model->closed) layers *= 0.5;
+    v.deepest_mesh = std::max(v.deepest_mesh, layers);
+    v.mesh_overdraw += share * std::max(0.0, layers - 1.0);
+  }
+  return v;
+}
+
+namespace {
+
+// mesh_tile_tests of every mesh object in a view, summed; keeps the most a
+// triangle in f.tiles_per_triangle.
+double count_tile_tests(const Scene& scene, const glm::dmat4& view_projection, double width, double height,
+                        CostFactors& f) {
+  double sum = 0.0;
+  for (const SceneObject& o : scene.objects) {
+    const double tiles = mesh_tile_tests(o, view_projection, width, height);
+    if (tiles <= 0.0) continue;
+    sum += tiles;
+    f.tiles_per_triangle = std::max(f.tiles_per_triangle, tiles / double(std::max<std::uint64_t>(1, mesh_triangle_count(o))));
+  }
+  return sum;
+}
+
+}  // namespace
+
+CostFactors cost_factors(const RenderRequest& request) {
+  CostFactors f;
+  const bool exact = request.output == Output::Exact;
+  const bool depth = request.output == Output::Depth;
+  const bool casts_rays = exact || request.output == Output::Error;
+  const double image_pixels = double(request.width) * double(request.height);
+  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
+  const double camera_layers = depth_complexity(request.scene, camera.projection * camera.view);
+
+  if (!exact) {
+    f.triangles = scene_triangles(request.scene);
+    if (request.shadow.enabled || depth) {
+      const ShadowPlan plan = plan_shadow(request);
+      const double layer_texels = double(plan.layer_size) * double(plan.layer_size);
+      f.shadow_texels = layer_texels * double(plan.views.size());
+      const bool shadow_culls = request.shadow.cull != CullMode::None;
+      for (const ShadowView& view : plan.views) {
+        if (view.empty) continue;
+        ++f.draws;
+        const glm::dmat4 view_projection = view.projection * view.view;
+        f.shadow_texel_layers += layer_texels * std::max(1.0, depth_complexity(request.scene, view_projection));
+        const ViewLayers meshes = view_layers(request.scene, view_projection, shadow_culls);
+        f.mesh_texel_layers += layer_texels * meshes.mesh_overdraw;
+        f.deepest_mesh = std::max(f.deepest_mesh, meshes.deepest_mesh);
+        const double size = double(plan.layer_size);
+        f.mesh_shadow_tile_tests += count_tile_tests(request.scene, view_projection, size, size, f);
+      }
+    }
+    if (depth) {
+      // The preview reads one texel per output pixel; nothing is drawn from the camera.
+      f.pixels = double(request.shadow.map_size) * double(request.shadow.map_size);
+      f.gathers_per_pixel = 1.0;
+    } else {
+      ++f.draws;
+      f.pixels = image_pixels;
+      f.gathers_per_pixel = gathers_per_pixel(request.shadow);
+      f.pixel_layers = image_pixels * std::max(1.0, camera_layers);
+      const ViewLayers meshes =
+          view_layers(request.scene, camera.projection * camera.view, camera_culls_closed_faces(request));
+      f.mesh_pixel_layers = image_pixels * meshes.mesh_overdraw;
+      f.deepest_mesh = std::max(f.deepest_mesh, meshes.deepest_mesh);
+      f.mesh_tile_tests += count_tile_tests(request.scene, camera.projection * camera.view, double(request.width),
+                                            double(request.height), f);
+    }
+    f.mesh_tile_tests += f.mesh_shadow_tile_tests;
+  }
+  if (casts_rays) {
+    f.camera_rays = image_pixels;
+    f.shadow_rays = image_pixels * (request.light.size > 0.0 ? 64.0 : 1.0);
+    f.objects_per_ray = std::log2(double(request.scene.objects.size()) + 1.0) + camera_layers;
+    std::vector<const TriangleModel*> models;
+    for (const SceneObject& o : request.scene.objects) {
+      if (o.type != SceneObject::Type::Mesh) continue;
+      f.meshes_per_ray += 1.0;
+      if (std::find(models.begin(), models.end(), o.model.get()) != models.end()) continue;
+      models.push_back(o.model.get());
+      f.bvh_triangles += mesh_triangle_count(o);
+    }
+    f.meshes_per_ray = std::min(f.meshes_per_ray, f.objects_per_ray);
+  }
+  return f;
+}
+
+const CostPart& RequestCost::dominant() const {
+  return *std::max_element(parts.begin(), parts.end(),
+                           [](const CostPart& a, const CostPart& b) { return a.ms < b.ms; });
+}
+
+RequestCost estimate_cost(const RenderRequest& request) {
+  RequestCost cost;
+  const CostFactors& f = cost.factors = cost_factors(request);
+  const double triangles = double(f.triangles);
+  const bool area_light = request.light.size > 0.0;
+  cost.parts = {
+      {"scene triangles", triangles * (kMsPerUploadedTriangle + kMsPerDrawnTriangle * f.draws), "scene.objects",
+       "use fewer objects (a sphere is " + std::to_string(kSphereTriangles) +
+           " triangles) or smaller models, or fewer shadow.cascades"},
+      {"shadow-map fill", f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel,
+       "shadow.map_size", "lower shadow.map_size or shadow.cascades, or spread overlapping objects apart"},
+      {"pixels", f.pixels * kMsPerPixel + f.pixel_layers * kMsPerPixelLayer,
+       request.output == Output::Depth ? "shadow.map_size" : "width",
+       request.output == Output::Depth ? "lower shadow.map_size" : "lower width and height"},
+      {"mesh overdraw",
+       f.mesh_pixel_layers * (kMsPerMeshFragment + f.gathers_per_pixel * kMsPerGather) +
+           f.mesh_texel_layers * kMsPerMeshTexel,
+       "scene.objects",
+       "a model's triangles lie up to about " + std::to_string(std::llround(f.deepest_mesh)) +
+           " layers deep in a view, each layer drawn in turn: use models whose triangles overlap less, fewer "
+           "of them, or lower width and height and shadow.map_size"},
+      {"mesh triangle extent", f.mesh_tile_tests * kMsPerTileTest,
+       f.mesh_shadow_tile_tests * 2.0 >= f.mesh_tile_tests ? "shadow.map_size" : "width",
+       "a model's triangles each span up to about " + std::to_string(std::llround(f.tiles_per_triangle)) +
+           " tiles of 64 x 64 pixels in a view, and each is tested against every tile its bounding box covers: " +
+           (f.mesh_shadow_tile_tests * 2.0 >= f.mesh_tile_tests ? "lower shadow.map_size, " : "lower width and height, ") +
+           "or use models with smaller triangles, or fewer of them"},
+      {"shadow filter taps", f.pixels * f.gathers_per_pixel * kMsPerGather,
+       request.shadow.filter == ShadowFilter::Pcf ? "shadow.pcf_radius" : "width",
+       request.shadow.filter == ShadowFilter::Pcf ? "lower shadow.pcf_radius, or width and height"
+                                                   : "lower width and height, or use filter \"pcf\""},
+      {"ray cast", (f.camera_rays + f.shadow_rays) *
+                       (f.objects_per_ray * kMsPerRayObjectTest + f.meshes_per_ray * kMsPerRayMeshTest) +
+                       f.camera_rays * kMsPerCameraRay + f.shadow_rays * kMsPerShadowRay,
+       area_light ? "light.size" : "width",
+       area_light ? "an area light casts 64 shadow rays a pixel: lower width and height, or use light.size 0"
+                  : "lower width and height, or use fewer objects"},
+      {"mesh BVH build", double(f.bvh_triangles) * kMsPerBvhTriangle, "scene.objects",
+       "the exact reference builds a BVH of each model's triangles: use smaller models"},
+  };
+  for (const CostPart& part : cost.parts) cost.total_ms += part.ms;
+
+  // Peak memory: what is alive at once in the worst phase.
+  const std::uint64_t pixels = std::uint64_t(request.width) * std::uint64_t(request.height);
+  std::uint64_t bytes = 0;
+  if (request.output != Output::Exact) {
+    // The mesh on the CPU while it is uploaded, and GL's copy of it.
+    const std::uint64_t mesh = scene_vertices(request.scene) * sizeof(Vertex) + f.triangles * 3 * sizeof(std::uint32_t);
+    bytes += 2 * mesh;
+    bytes += std::uint64_t(f.shadow_texels) * sizeof(float);  // DEPTH_COMPONENT32F layers
+    if (request.output == Output::Depth) {
+      const std::uint64_t map = std::uint64_t(request.shadow.map_size) * std::uint64_t(request.shadow.map_size);
+      const std::uint64_t sample = request.depth_bits == 16 ? 2 : 1;
+      bytes += 3 * map * sample;  // preview texture, read-back image, PNG
+    } else {
+      bytes += pixels * 12;     // RGBA8 colour + 32F depth / 8-bit stencil (8 bytes in llvmpipe) renderbuffers
+      bytes += 2 * pixels * 3;  // read-back image and its PNG
+    }
+  }
+  if (request.output == Output::Exact || request.output == Output::Error) {
+    bytes += pixels * (sizeof(ExactPixel) + 1 + 3 + 3);  // per-pixel records, exact, error image and PNG
+    bytes += f.bvh_triangles * kBvhBytesPerTriangle;     // the models' BVHs, as if none were cached
+  }
+  cost.peak_bytes = bytes;
+  return cost;
+}
+
+}  // namespace umbra
