@@ -225,6 +225,16 @@ TEST(Renderer, EachCubeFaceIsReadFromTheLayerItWasDrawnInto) {
   }
 }
 
+// The panel lays the depth PNG's tiles out as the header says, and copies
+// nothing of depth_preview.frag.
+TEST(Renderer, TheDepthOutputSaysHowItsTilesAreLaidOut) {
+  RenderRequest r = request(R"({"output": "depth", "shadow": {"map_size": 64, "cascades": 3}})");
+  EXPECT_EQ(render(r).shadow_views, "cascades; views=3; size=64; grid=2");
+  r.output = Output::Color;
+  r.width = r.height = 32;
+  EXPECT_EQ(render(r).shadow_views, "cascades; views=3; size=64") << "only the depth output is tiled";
+}
+
 TEST(Renderer, ReportsItsGlContext) {
   EXPECT_FALSE(service().info().gl_renderer.empty());
   EXPECT_NE(service().info().gl_version.find("4."), std::string::npos);

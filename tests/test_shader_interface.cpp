@@ -220,6 +220,12 @@ TEST(FramePrelude, ThePreviewGridIsTheSmallestSquareThatHoldsEveryView) {
   const ShadowPlan plan = plan_shadow(r);
   ASSERT_EQ(plan.views.size(), 3u);
   EXPECT_EQ(frame_block(r, plan, Mesh{}, std::vector<TexelRect>(3)).preview_grid, 2);
+  // What the panel is told of it: the grid, and for a cube which face each tile is.
+  EXPECT_EQ(preview_tiles_parameters(plan), "; grid=2");
+  ShadowPlan cube;
+  cube.layout = ShadowLayout::Cube;
+  cube.views.resize(kCubeFaceCount);
+  EXPECT_EQ(preview_tiles_parameters(cube), "; grid=3; faces=+X,-X,+Y,-Y,+Z,-Z");
 }
 
 // The shaders take every location and binding from the prelude: a number

@@ -842,7 +842,7 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
                          : light.layout == ShadowLayout::Cube   ? "cube"
                                                                 : "single";
     result.shadow_views = std::string(layout) + "; views=" + std::to_string(light.views.size()) +
-                          "; size=" + std::to_string(light.layer_size);
+                          "; size=" + std::to_string(light.layer_size) + (depth_output ? preview_tiles_parameters(light) : "");
   }
 
   const auto main_start = Clock::now();
