@@ -4,9 +4,9 @@
 // (cascades, cube faces) the image is a grid of tiles, layer 0 top left,
 // row by row, each layer scaled down to its tile.
 // Variant (PreviewVariant): LIGHT_PERSPECTIVE, VIEW_COUNT.
-layout(location = 0) out vec4 o_color;
+layout(location = FRAG_OUTPUT_COLOR) out vec4 o_color;
 
-layout(binding = 0) uniform sampler2DArray u_shadow_map;
+layout(binding = TEXTURE_UNIT_SHADOW_MAP) uniform sampler2DArray u_shadow_map;
 
 void main() {
   // Row 0 of the read-back image is the top: count tile rows from the top.

@@ -15,12 +15,12 @@ in vec3 v_position;  // relative to the mesh origin
 in vec3 v_normal;
 in vec3 v_color;
 
-layout(location = 0) out vec4 o_color;
+layout(location = FRAG_OUTPUT_COLOR) out vec4 o_color;
 
 #if SHADOWS
 // Window depth in [0, 1] per layer; nearest, no compare; outside the map
 // the border reads 1 (far).
-layout(binding = 0) uniform sampler2DArray u_shadow_map;
+layout(binding = TEXTURE_UNIT_SHADOW_MAP) uniform sampler2DArray u_shadow_map;
 
 // ---------------------------------------------------------------------------
 // The view of the light that holds the point being shaded.
@@ -100,8 +100,10 @@ void set_view_constants(inout View v) {
 }
 
 #if LIGHT_CUBE
-// Faces +X, -X, +Y, -Y, +Z, -Z, each a little wider than 90 degrees so that
-// the face of p's major axis holds p with its filter kernel. A face's
+// Faces +X, -X, +Y, -Y, +Z, -Z (layer CUBE_FACE(axis, negative), the order
+// of cube_face in renderer/core/shader_facts.hpp), each a little wider than
+// 90 degrees so that the face of p's major axis holds p with its filter
+// kernel. A face's
 // rotation is a signed permutation (cube_face_view in
 // renderer/core/light_math.hpp), built here from the axis and sign rather than
 // selected among six matrices: that selection was about a third of a point
@@ -112,7 +114,7 @@ bool choose_view(vec3 p, out View v) {
   vec3 a = abs(d);
   int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
   float s = d[axis] < 0.0 ? -1.0 : 1.0;
-  v.layer = 2 * axis + (s < 0.0 ? 1 : 0);
+  v.layer = CUBE_FACE(axis, s < 0.0);
   // Columns: where the world axes go. Eye (s d.z, d.y, -s d.x) on +-X,
   // (d.x, s d.z, -s d.y) on +-Y, (-s d.x, d.y, -s d.z) on +-Z.
   vec3 x_to = axis == 0 ? vec3(0.0, 0.0, -s) : (axis == 1 ? vec3(1.0, 0.0, 0.0) : vec3(-s, 0.0, 0.0));

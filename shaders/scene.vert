@@ -1,7 +1,7 @@
 // Main pass: the scene from the camera.
-layout(location = 0) in vec3 a_position;  // relative to the mesh origin
-layout(location = 1) in vec3 a_normal;
-layout(location = 2) in vec3 a_color;
+layout(location = ATTRIB_POSITION) in vec3 a_position;  // relative to the mesh origin
+layout(location = ATTRIB_NORMAL) in vec3 a_normal;
+layout(location = ATTRIB_COLOR) in vec3 a_color;
 
 out vec3 v_position;
 out vec3 v_normal;

@@ -13,6 +13,7 @@
 #include "gpu/egl_context.hpp"
 #include "gpu/program.hpp"
 #include "core/light_math.hpp"
+#include "core/shader_facts.hpp"
 #include "reference/ray_cast.hpp"
 #include "render_support.hpp"
 #include "service/render_service.hpp"
@@ -119,6 +120,119 @@ TEST(GlProgram, ABlockWhoseLayoutDiffersFromCxxIsRefused) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("FrameBlock.light_"), std::string::npos) << e.what();
   }
+}
+
+// The other half of FramePrelude.DefinesEachSharedFactAsTheCxxConstant: the
+// linked programs report the numbers the C++ side binds by.
+TEST(GlProgram, EveryProgramHasItsInputsAtTheNumbersCxxBindsThemBy) {
+  gl::EglContext context;
+  DisplayVariant cube;
+  cube.perspective = cube.cube = true;
+  cube.view_count = kCubeFaceCount;
+  const gl::Program programs[] = {
+      gl::build_program("shadow_depth.vert", "shadow_depth.frag", glsl_prelude("")),
+      gl::build_program("scene.vert", "scene.frag", glsl_prelude(DisplayVariant{}.defines())),
+      gl::build_program("scene.vert", "scene.frag", glsl_prelude(cube.defines())),
+      gl::build_program("fullscreen.vert", "depth_preview.frag", glsl_prelude(PreviewVariant{}.defines())),
+  };
+  const char* names[] = {"shadow pass", "main pass", "main pass, cube", "depth preview"};
+  for (int p = 0; p < 4; ++p) {
+    const GLuint id = programs[p].id();
+    SCOPED_TRACE(names[p]);
+    EXPECT_EQ(glGetAttribLocation(id, "a_position"), p < 3 ? kAttribPosition : -1);
+    EXPECT_EQ(glGetAttribLocation(id, "a_normal"), p == 1 || p == 2 ? kAttribNormal : -1);
+    EXPECT_EQ(glGetAttribLocation(id, "a_color"), p == 1 || p == 2 ? kAttribColor : -1);
+    EXPECT_EQ(glGetUniformLocation(id, "u_layer"), p == 0 ? kUniformLocationLayer : -1);
+    if (p > 0) {
+      EXPECT_EQ(glGetFragDataLocation(id, "o_color"), kFragOutputColor);
+      const GLint sampler = glGetUniformLocation(id, "u_shadow_map");
+      ASSERT_GE(sampler, 0);
+      GLint unit = -1;
+      glGetUniformiv(id, sampler, &unit);
+      EXPECT_EQ(unit, kTextureUnitShadowMap);
+    }
+    const GLuint block = glGetUniformBlockIndex(id, "FrameBlock");
+    ASSERT_NE(block, GL_INVALID_INDEX);
+    GLint binding = -1;
+    glGetActiveUniformBlockiv(id, block, GL_UNIFORM_BLOCK_BINDING, &binding);
+    EXPECT_EQ(binding, kUniformBufferFrameBlock);
+  }
+  // A shader that picks its own number is refused.
+  const std::string prelude = glsl_prelude("");
+  const gl::Program own = gl::build_program_from_sources(
+      "own.vert", prelude + "layout(location = 7) in vec3 a_position;\nvoid main() { gl_Position = vec4(a_position, 1.0); }\n",
+      "own.frag", prelude + "layout(location = FRAG_OUTPUT_COLOR) out vec4 o_color;\nvoid main() { o_color = vec4(1.0); }\n");
+  try {
+    gl::check_bindings(own);
+    FAIL() << "an attribute at a location of its own was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("a_position"), std::string::npos) << e.what();
+  }
+}
+
+// A point light in a room of six walls, with a small box between it and
+// each wall: each wall is shadowed by its box only if the shadow pass draws
+// each cube face (light_math's cube_face_view) into the layer that the main
+// pass picks for that face by the point's major axis (scene.frag, CUBE_FACE).
+TEST(Renderer, EachCubeFaceIsReadFromTheLayerItWasDrawnInto) {
+  std::string objects;
+  for (int face = 0; face < kCubeFaceCount; ++face) {  // walls 0..5, in face order
+    glm::dvec3 along(0.0), size(10.0);
+    along[cube_face_axis(face)] = cube_face_negative(face) ? -1.0 : 1.0;
+    size[cube_face_axis(face)] = 0.2;
+    const glm::dvec3 center = 4.1 * along;
+    objects += "{\"type\": \"box\", \"center\": [" + std::to_string(center.x) + "," + std::to_string(center.y) + "," +
+               std::to_string(center.z) + "], \"size\": [" + std::to_string(size.x) + "," + std::to_string(size.y) + "," +
+               std::to_string(size.z) + "]},";
+  }
+  // Each box off the axis by its own amount: the room is symmetric, and a
+  // face read from its opposite's layer must not find a shadow there too.
+  const auto box_center = [](int face) {
+    const int axis = cube_face_axis(face);
+    glm::dvec3 c(0.0);
+    c[axis] = cube_face_negative(face) ? -2.0 : 2.0;
+    c[(axis + 1) % 3] = 0.2 + 0.15 * face;
+    c[(axis + 2) % 3] = -0.3 + 0.1 * face;
+    return c;
+  };
+  for (int face = 0; face < kCubeFaceCount; ++face) {  // the boxes 6..11
+    const glm::dvec3 c = box_center(face);
+    objects += "{\"type\": \"box\", \"center\": [" + std::to_string(c.x) + "," + std::to_string(c.y) + "," +
+               std::to_string(c.z) + "], \"size\": [0.8, 0.8, 0.8]}" + (face + 1 < kCubeFaceCount ? "," : "");
+  }
+  for (int face = 0; face < kCubeFaceCount; ++face) {
+    SCOPED_TRACE(kCubeFaceNames[face]);
+    // From inside the room, beside the face's axis, at the box's shadow on its wall.
+    glm::dvec3 along(0.0), beside(1.5);
+    along[cube_face_axis(face)] = cube_face_negative(face) ? -1.0 : 1.0;
+    beside[cube_face_axis(face)] = 0.0;
+    const glm::dvec3 eye = 1.0 * along + beside, target = 2.0 * box_center(face);
+    const RenderRequest r = request(
+        R"({"width": 96, "height": 96, "output": "shadow", "scene": {"objects": [)" + objects +
+        R"(]}, "light": {"projection": "perspective", "position": [0, 0, 0], "target": [0.3, -1, 0.2]},
+            "camera": {"position": [)" + std::to_string(eye.x) + "," + std::to_string(eye.y) + "," +
+        std::to_string(eye.z) + R"(], "target": [)" + std::to_string(target.x) + "," + std::to_string(target.y) + "," +
+        std::to_string(target.z) + R"(], "up": [0.3, 0.5, 0.4]}})");
+    ASSERT_EQ(plan_shadow(r).layout, ShadowLayout::Cube);
+    const RenderResult result = render(r);
+    const std::vector<ExactPixel> exact = cast_exact_pixels(r);
+    const std::vector<int> shadowed = interior_pixels(r, exact, face, 0.0);
+    const std::vector<int> lit = interior_pixels(r, exact, face, 1.0);
+    ASSERT_GT(shadowed.size(), 20u) << "the view should show the box's shadow on the wall";
+    ASSERT_GT(lit.size(), 20u);
+    for (int i : shadowed) EXPECT_LT(result.image.pixels[i], 40) << "pixel " << i % r.width << "," << i / r.width;
+    for (int i : lit) EXPECT_GT(result.image.pixels[i], 215) << "pixel " << i % r.width << "," << i / r.width;
+  }
+}
+
+// The panel lays the depth PNG's tiles out as the header says, and copies
+// nothing of depth_preview.frag.
+TEST(Renderer, TheDepthOutputSaysHowItsTilesAreLaidOut) {
+  RenderRequest r = request(R"({"output": "depth", "shadow": {"map_size": 64, "cascades": 3}})");
+  EXPECT_EQ(render(r).shadow_views, "cascades; views=3; size=64; grid=2");
+  r.output = Output::Color;
+  r.width = r.height = 32;
+  EXPECT_EQ(render(r).shadow_views, "cascades; views=3; size=64") << "only the depth output is tiled";
 }
 
 TEST(Renderer, ReportsItsGlContext) {

@@ -4,9 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <regex>
+#include <sstream>
 
 #include "core/light_math.hpp"
+#include "core/shader_facts.hpp"
+#include "gpu/embedded_shaders.hpp"
 #include "gpu/shader_interface.hpp"
 
 namespace umbra {
@@ -146,6 +151,110 @@ TEST(FramePrelude, DeclaresEveryBlockMemberAndTheSharedConstants) {
     last_offset = members[i].offset;
   }
   EXPECT_EQ(sizeof(FrameBlock) % 16, 0u);
+}
+
+
+// Magnum's GenericGL_Test, for Umbra: each fact the shaders share with C++
+// is a #define of the prelude with the C++ constant's value.
+TEST(FramePrelude, DefinesEachSharedFactAsTheCxxConstant) {
+  const std::string prelude = glsl_prelude("");
+  const std::pair<const char*, int> facts[] = {
+      {"kMaxViews", kMaxViews},
+      {"kPcssSearchTexels", kPcssSearchTexels},
+      {"kPcssMaxPenumbraTexels", kPcssMaxPenumbraTexels},
+      {"kPcssBlockerSamples", kPcssBlockerSamples},
+      {"kPcssFilterSamples", kPcssFilterSamples},
+      {"ATTRIB_POSITION", kAttribPosition},
+      {"ATTRIB_NORMAL", kAttribNormal},
+      {"ATTRIB_COLOR", kAttribColor},
+      {"FRAG_OUTPUT_COLOR", kFragOutputColor},
+      {"TEXTURE_UNIT_SHADOW_MAP", kTextureUnitShadowMap},
+      {"UNIFORM_LOCATION_LAYER", kUniformLocationLayer},
+      {"UNIFORM_BUFFER_FRAME_BLOCK", kUniformBufferFrameBlock},
+  };
+  for (const auto& [name, value] : facts)
+    EXPECT_NE(prelude.find(std::string("#define ") + name + " " + std::to_string(value) + "\n"), std::string::npos)
+        << name << " is not " << value << " in:\n" << prelude;
+  EXPECT_NE(prelude.find("layout(std140, binding = UNIFORM_BUFFER_FRAME_BLOCK) uniform FrameBlock"), std::string::npos);
+  // The block comes after the #define it names.
+  EXPECT_LT(prelude.find("#define UNIFORM_BUFFER_FRAME_BLOCK"), prelude.find("uniform FrameBlock"));
+}
+
+TEST(FramePrelude, CubeFaceIsTheLayerThatCxxDrawsEachFaceInto) {
+  const std::string prelude = glsl_prelude("");
+  const std::string head = "#define CUBE_FACE(axis, negative) (";
+  const std::size_t at = prelude.find(head);
+  ASSERT_NE(at, std::string::npos) << prelude;
+  // The macro's body, evaluated as GLSL would: per_axis * axis + (negative ? minus : plus).
+  int per_axis = -1, minus = -1, plus = -1;
+  ASSERT_EQ(std::sscanf(prelude.c_str() + at + head.size(), "%d * (axis) + ((negative) ? %d : %d))", &per_axis, &minus,
+                        &plus),
+            3)
+      << prelude.substr(at, 80);
+  for (int face = 0; face < kCubeFaceCount; ++face) {
+    const int axis = cube_face_axis(face);
+    const bool negative = cube_face_negative(face);
+    EXPECT_EQ(per_axis * axis + (negative ? minus : plus), face) << "face " << face;
+    EXPECT_EQ(cube_face(axis, negative), face);
+    // The face's name is its direction, and cube_face_view looks along it.
+    EXPECT_EQ(std::string(kCubeFaceNames[face]), std::string(negative ? "-" : "+") + "XYZ"[axis]);
+    const glm::dvec3 light(1.0, 2.0, 3.0);
+    glm::dvec3 along(0.0);
+    along[axis] = negative ? -1.0 : 1.0;
+    const glm::dvec4 eye = cube_face_view(light, face) * glm::dvec4(light + 2.0 * along, 1.0);
+    EXPECT_NEAR(eye.x, 0.0, 1e-12) << kCubeFaceNames[face];
+    EXPECT_NEAR(eye.y, 0.0, 1e-12) << kCubeFaceNames[face];
+    EXPECT_NEAR(eye.z, -2.0, 1e-12) << kCubeFaceNames[face];
+  }
+}
+
+TEST(FramePrelude, ThePreviewGridIsTheSmallestSquareThatHoldsEveryView) {
+  EXPECT_EQ(preview_tiles_per_row(1), 1);
+  EXPECT_EQ(preview_tiles_per_row(2), 2);
+  EXPECT_EQ(preview_tiles_per_row(4), 2);
+  EXPECT_EQ(preview_tiles_per_row(5), 3);
+  EXPECT_EQ(preview_tiles_per_row(kCubeFaceCount), 3);
+  EXPECT_EQ(preview_tiles_per_row(9), 3);
+  RenderRequest r = default_frame();
+  r.shadow.cascades = 3;
+  const ShadowPlan plan = plan_shadow(r);
+  ASSERT_EQ(plan.views.size(), 3u);
+  EXPECT_EQ(frame_block(r, plan, Mesh{}, std::vector<TexelRect>(3)).preview_grid, 2);
+  // What the panel is told of it: the grid, and for a cube which face each tile is.
+  EXPECT_EQ(preview_tiles_parameters(plan), "; grid=2");
+  ShadowPlan cube;
+  cube.layout = ShadowLayout::Cube;
+  cube.views.resize(kCubeFaceCount);
+  EXPECT_EQ(preview_tiles_parameters(cube), "; grid=3; faces=+X,-X,+Y,-Y,+Z,-Z");
+}
+
+// The shaders take every location and binding from the prelude: a number
+// of their own would be a second copy of a fact C++ holds.
+TEST(ShaderFiles, NameNoNumberOfTheirOwnForALocationOrBinding) {
+  const std::regex numbered(R"(layout\s*\([^)]*\b(location|binding)\s*=\s*[0-9])");
+  // A declaration that C++ binds by number: a vertex shader's input, a
+  // fragment shader's output, any uniform outside the block.
+  const std::regex bound_by_cxx(R"(^\s*(layout\s*\(([^)]*)\)\s*)?(uniform|in|out)\s+\w+\s+\w+\s*;)");
+  ASSERT_FALSE(shader_source_names().empty());
+  int declarations = 0;
+  for (const std::string_view name : shader_source_names()) {
+    const bool vertex = name.size() > 5 && name.substr(name.size() - 5) == ".vert";
+    std::istringstream lines{std::string(shader_source(name))};
+    std::string line;
+    for (int number = 1; std::getline(lines, line); ++number) {
+      const std::string code = line.substr(0, line.find("//"));
+      EXPECT_FALSE(std::regex_search(code, numbered)) << name << ":" << number << ": " << line;
+      std::smatch m;
+      if (!std::regex_search(code, m, bound_by_cxx)) continue;
+      const std::string qualifier = m[3];
+      const bool by_cxx = qualifier == "uniform" || (vertex ? qualifier == "in" : qualifier == "out");
+      if (!by_cxx) continue;  // a varying: matched by name between the stages
+      ++declarations;
+      EXPECT_TRUE(m[1].matched) << name << ":" << number << " leaves its number to GL: " << line;
+    }
+  }
+  // a_position twice, a_normal, a_color, o_color twice, u_layer, u_shadow_map twice.
+  EXPECT_EQ(declarations, 9);
 }
 
 }  // namespace

@@ -385,48 +385,52 @@ function drawLegend(gain) {
 
 // --- The depth map ---------------------------------------------------------------
 // The depth PNG tiles the light's views in a square grid (the server's
-// depth_preview.frag): ceil(sqrt(N)) tiles a side, view 0 top left, row by
-// row; cells past the last view are grey (0.5). Each view's depth spans
-// only part of 0..1, so the panel shows every view on its own canvas,
-// stretched from its nearest texel (black) to its farthest drawn one
-// (white); texels where nothing was drawn hold the far plane (255) and are
-// shown in FAR_COLOUR. The <img> keeps the PNG as sent.
+// depth_preview.frag), laid out as its Umbra-Shadow-Views header says:
+// grid=G tiles a side, view 0 top left, row by row, and for a cube the face
+// each view is (faces=+X,-X,...); cells past the last view are grey (0.5).
+// Each view's depth spans only part of 0..1, so the panel shows every view
+// on its own canvas, stretched from its nearest texel (black) to its
+// farthest drawn one (white); texels where nothing was drawn hold the far
+// plane (255) and are shown in FAR_COLOUR. The <img> keeps the PNG as sent.
 
-const CUBE_FACES = ["+X", "−X", "+Y", "−Y", "+Z", "−Z"];  // light_math.cpp's kAxes, the layers' order
 const FAR_COLOUR = [29, 43, 69];
 const DEPTH_WORK_SIZE = 2048;  // larger maps are read scaled down (nearest texel), to bound the memory
 
-// "cascades; views=3; size=2048" -> { layout: "cascades", views: 3 }; an
-// unknown or missing header: one view.
+// "cube; views=6; size=2048; grid=3; faces=+X,-X,+Y,-Y,+Z,-Z" ->
+// { layout: "cube", views: 6, grid: 3, faces: ["+X", ...] }; an unknown or
+// missing header: one view in one tile.
 function parseViews(header) {
   const layout = ((header || "").split(";")[0] || "").trim() || "single";
   const match = (header || "").match(/views=(\d+)/);
   const views = match ? Math.max(1, Number(match[1])) : 1;
-  return { layout, views };
+  const gridMatch = (header || "").match(/grid=(\d+)/);
+  const grid = gridMatch ? Math.max(1, Number(gridMatch[1])) : 1;
+  const facesMatch = (header || "").match(/faces=([^;\s]+)/);
+  const faces = facesMatch ? facesMatch[1].split(",").map((f) => f.replace("-", "−")) : [];
+  return { layout, views, grid, faces };
 }
 
-function viewLabel(layout, i, views) {
-  if (layout === "cube" && views === 6) return `cube face ${CUBE_FACES[i]}`;
+function viewLabel(layout, i, views, faces) {
+  if (layout === "cube" && faces[i]) return `cube face ${faces[i]}`;
   if (layout === "cascades") return `cascade ${i}`;
   return views === 1 ? "the light's view" : `view ${i}`;
 }
 
 function showDepthTiles(header) {
-  const { layout, views } = parseViews(header);
+  const { layout, views, grid, faces } = parseViews(header);
   const image = $("depth");
   const src = image.src;
   // A newer map may replace this one before it is decoded: draw each with its own layout.
-  image.decode().then(() => { if (image.src === src) drawDepthTiles(image, layout, views); }, () => {});
+  image.decode().then(() => { if (image.src === src) drawDepthTiles(image, layout, views, grid, faces); }, () => {});
 }
 
-function drawDepthTiles(image, layout, views) {
+function drawDepthTiles(image, layout, views, grid, faces) {
   const size = Math.min(image.naturalWidth, DEPTH_WORK_SIZE);
   if (!size) return;
   const work = Object.assign(document.createElement("canvas"), { width: size, height: size });
   const context = work.getContext("2d", { willReadFrequently: true });
   context.imageSmoothingEnabled = false;  // no texel mixed with a neighbour tile's
   context.drawImage(image, 0, 0, size, size);
-  const grid = Math.ceil(Math.sqrt(views) - 1e-9);
   const data = context.getImageData(0, 0, size, size).data;
   const container = $("depth-tiles");
   container.style.setProperty("--depth-columns", String(Math.min(grid, views)));
@@ -436,7 +440,7 @@ function drawDepthTiles(image, layout, views) {
     const column = i % grid, row = Math.floor(i / grid);
     const x0 = Math.round((column * size) / grid), x1 = Math.round(((column + 1) * size) / grid);
     const y0 = Math.round((row * size) / grid), y1 = Math.round(((row + 1) * size) / grid);
-    tiles.push(stretchedTile(data, size, x0, y0, x1 - x0, y1 - y0, viewLabel(layout, i, views)));
+    tiles.push(stretchedTile(data, size, x0, y0, x1 - x0, y1 - y0, viewLabel(layout, i, views, faces)));
   }
   container.replaceChildren(...tiles);
 }

@@ -1,6 +1,6 @@
 #include "core/light_math.hpp"
 
-#include "gpu/shader_interface.hpp"
+#include "core/shader_facts.hpp"
 
 #include <algorithm>
 #include <array>
@@ -60,7 +60,7 @@ glm::dmat4 stable_look_at(const glm::dvec3& eye, const glm::dvec3& target, const
 
 glm::dmat4 cube_face_view(const glm::dvec3& position, int face) {
   glm::dvec3 axis(0.0);
-  axis[face / 2] = face % 2 == 0 ? 1.0 : -1.0;
+  axis[cube_face_axis(face)] = cube_face_negative(face) ? -1.0 : 1.0;
   return stable_look_at(position, position + axis, glm::dvec3(0.0, 1.0, 0.0));
 }
 
@@ -523,10 +523,10 @@ void plan_perspective(ShadowPlan& plan, const RenderRequest& request, const glm:
   // Six faces, each a little wider than 90 degrees so that the filter
   // kernel of a point on a face's edge still falls inside that face.
   plan.layout = ShadowLayout::Cube;
-  plan.layer_size = std::min(request.shadow.map_size, int(std::sqrt(kMaxShadowTexels / 6.0)));
+  plan.layer_size = std::min(request.shadow.map_size, int(std::sqrt(kMaxShadowTexels / kCubeFaceCount)));
   const double face_spare = spare_fraction(reach + 1, plan.layer_size);
   plan.views.clear();
-  for (int face = 0; face < 6; ++face) {
+  for (int face = 0; face < kCubeFaceCount; ++face) {
     ShadowView v;
     v.view = cube_face_view(plan.position, face);
     v.tan_half = 1.0 / (1.0 - face_spare);

@@ -45,6 +45,7 @@ Program build_program(std::string_view vertex_file, std::string_view fragment_fi
   Program program = build_program_from_sources(vertex_file, prelude + std::string(embedded(vertex_file)),
                                                fragment_file, prelude + std::string(embedded(fragment_file)));
   check_block_layout(program);
+  check_bindings(program);
   return program;
 }
 
@@ -101,6 +102,34 @@ Program build_program_from_sources(std::string_view vertex_file, std::string_vie
     throw std::runtime_error("GLSL link error in " + std::string(vertex_file) + " + " + std::string(fragment_file) +
                              ":\n" + info_log(program.id(), glGetProgramiv, glGetProgramInfoLog));
   return program;
+}
+
+void check_bindings(const Program& program) {
+  const GLuint id = program.id();
+  const auto refuse = [](const std::string& what, GLint gl, int cxx) {
+    throw std::runtime_error(what + " is " + std::to_string(gl) + " in GL, " + std::to_string(cxx) +
+                             " in C++ (shader_interface.hpp)");
+  };
+  for (const VertexAttribute& a : kVertexAttributes) {
+    const GLint location = glGetAttribLocation(id, a.glsl_name);
+    if (location >= 0 && location != a.location) refuse(std::string("attribute ") + a.glsl_name, location, a.location);
+  }
+  const GLint output = glGetFragDataLocation(id, "o_color");
+  if (output >= 0 && output != kFragOutputColor) refuse("output o_color", output, kFragOutputColor);
+  const GLint layer = glGetUniformLocation(id, "u_layer");
+  if (layer >= 0 && layer != kUniformLocationLayer) refuse("uniform u_layer's location", layer, kUniformLocationLayer);
+  const GLint shadow_map = glGetUniformLocation(id, "u_shadow_map");
+  if (shadow_map >= 0) {
+    GLint unit = -1;
+    glGetUniformiv(id, shadow_map, &unit);
+    if (unit != kTextureUnitShadowMap) refuse("u_shadow_map's texture unit", unit, kTextureUnitShadowMap);
+  }
+  const GLuint block = glGetUniformBlockIndex(id, "FrameBlock");
+  if (block != GL_INVALID_INDEX) {
+    GLint binding = -1;
+    glGetActiveUniformBlockiv(id, block, GL_UNIFORM_BLOCK_BINDING, &binding);
+    if (binding != kUniformBufferFrameBlock) refuse("FrameBlock's buffer binding", binding, kUniformBufferFrameBlock);
+  }
 }
 
 GLint uniform_location(const Program& program, const char* name) {

@@ -14,7 +14,8 @@ namespace umbra::gl {
 /// each preceded by `prelude` (the #version line, #defines and the uniform
 /// block: see glsl_prelude in shader_interface.hpp; the files have none of
 /// their own). Throws std::runtime_error carrying the GLSL compile or link
-/// log, or naming a FrameBlock member whose layout differs from C++'s.
+/// log, or naming a FrameBlock member whose layout differs from C++'s, or
+/// a binding that differs from C++'s (check_bindings).
 Program build_program(std::string_view vertex_file, std::string_view fragment_file, const std::string& prelude);
 
 /// The same from sources in memory; the names only label error messages.
@@ -42,6 +43,14 @@ class ProgramVariants {
 /// Throws unless every member of the program's FrameBlock (if it uses one)
 /// sits at the offset, with the array stride, that the C++ struct has.
 void check_block_layout(const Program& program);
+
+/// Throws unless every input, output and uniform of the program that the
+/// C++ side binds by number (shader_interface.hpp: vertex attributes, the
+/// colour output, u_layer, u_shadow_map's texture unit, FrameBlock's
+/// buffer binding) sits at that number: a shader that names its own number,
+/// or none, for one of them fails to build instead of reading the wrong
+/// input. Names a program does not use are not checked.
+void check_bindings(const Program& program);
 
 /// A uniform's location; throws if the program has no active uniform of that
 /// name, so a typo fails loudly at start-up instead of drawing silently wrong.

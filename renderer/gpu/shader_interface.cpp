@@ -13,7 +13,8 @@ namespace {
 #define UMBRA_GLSL_MEMBER(type, name) "  " #type " " #name ";\n"
 #define UMBRA_GLSL_ARRAY(type, name, count) "  " #type " " #name "[" #count "];\n"
 constexpr const char* kFrameBlockGlsl =
-    "layout(std140, binding = 0) uniform FrameBlock {\n" UMBRA_FRAME_BLOCK(UMBRA_GLSL_MEMBER, UMBRA_GLSL_ARRAY) "} u;\n";
+    "layout(std140, binding = UNIFORM_BUFFER_FRAME_BLOCK) uniform FrameBlock {\n" UMBRA_FRAME_BLOCK(
+        UMBRA_GLSL_MEMBER, UMBRA_GLSL_ARRAY) "} u;\n";
 #undef UMBRA_GLSL_MEMBER
 #undef UMBRA_GLSL_ARRAY
 
@@ -32,6 +33,16 @@ int filter_code(ShadowFilter filter) {
   }
   return 1;
 }
+
+// CUBE_FACE in the prelude is written from cube_face's values on the
+// assumption that it is linear in the axis.
+constexpr bool cube_face_is_linear() {
+  for (int axis = 0; axis < 3; ++axis)
+    for (bool negative : {false, true})
+      if (cube_face(axis, negative) != cube_face(1, false) * axis + cube_face(0, negative)) return false;
+  return true;
+}
+static_assert(cube_face_is_linear(), "CUBE_FACE cannot be written as GLSL from cube_face");
 
 }  // namespace
 
@@ -122,11 +133,18 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   b.light_size = float(plan.perspective ? request.light.size : sun_disc_tan_radius(request.light));
   b.map_size = float(plan.layer_size);
   b.smooth_normal_span = plan.perspective ? float(mesh.smooth_normal_span) : 0.0f;
-  int grid = 1;
-  while (grid * grid < int(plan.views.size())) ++grid;
-  b.preview_grid = grid;
+  b.preview_grid = preview_tiles_per_row(int(plan.views.size()));
   b.preview_size = float(request.shadow.map_size);
   return b;
+}
+
+std::string preview_tiles_parameters(const ShadowPlan& plan) {
+  std::string p = "; grid=" + std::to_string(preview_tiles_per_row(int(plan.views.size())));
+  if (plan.layout == ShadowLayout::Cube) {
+    p += "; faces=";
+    for (int face = 0; face < kCubeFaceCount; ++face) p += std::string(face ? "," : "") + kCubeFaceNames[face];
+  }
+  return p;
 }
 
 std::string PreviewVariant::defines() const {
@@ -147,6 +165,17 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define FILTER_HARD " << filter_code(ShadowFilter::Hard) << "\n"
     << "#define FILTER_PCF " << filter_code(ShadowFilter::Pcf) << "\n"
     << "#define FILTER_PCSS " << filter_code(ShadowFilter::Pcss) << "\n"
+    // A cube face's layer from its axis (0 x, 1 y, 2 z) and whether it
+    // looks towards minus: cube_face in core/shader_facts.hpp.
+    << "#define CUBE_FACE(axis, negative) (" << cube_face(1, false) << " * (axis) + ((negative) ? "
+    << cube_face(0, true) << " : " << cube_face(0, false) << "))\n"
+    << "#define ATTRIB_POSITION " << kAttribPosition << "\n"
+    << "#define ATTRIB_NORMAL " << kAttribNormal << "\n"
+    << "#define ATTRIB_COLOR " << kAttribColor << "\n"
+    << "#define FRAG_OUTPUT_COLOR " << kFragOutputColor << "\n"
+    << "#define TEXTURE_UNIT_SHADOW_MAP " << kTextureUnitShadowMap << "\n"
+    << "#define UNIFORM_LOCATION_LAYER " << kUniformLocationLayer << "\n"
+    << "#define UNIFORM_BUFFER_FRAME_BLOCK " << kUniformBufferFrameBlock << "\n"
     << extra_defines << kFrameBlockGlsl
     // Each file's own line numbers in compile errors.
     << "#line 1\n";

@@ -2,10 +2,12 @@
 //
 // The GLSL side is generated from this file when a program is built: the
 // uniform block below becomes a `layout(std140) uniform FrameBlock` with
-// the same members, and the constants and variant switches become
-// `#define`s (see glsl_prelude). The shader files therefore declare no
-// uniforms and copy no constants, and a program whose block layout differs
-// from the C++ struct refuses to build (gl::check_block_layout). No GL here.
+// the same members, and the constants, the bindings and the variant
+// switches become `#define`s (see glsl_prelude). The shader files therefore
+// declare no block members, and use no number of their own for a location,
+// a binding or a shared constant; a program whose block layout or bindings
+// differ from C++'s refuses to build (gl::check_block_layout,
+// gl::check_bindings). No GL here.
 #pragma once
 
 #include <cstddef>
@@ -18,25 +20,50 @@
 
 #include "core/light_math.hpp"
 #include "core/request.hpp"
+#include "core/scene.hpp"
+#include "core/shader_facts.hpp"
 
 namespace umbra {
 
 // ---------------------------------------------------------------------------
-// Constants the shaders share with C++ (injected as #defines).
+// Constants the shaders share with C++ (injected as #defines of the same
+// name): those the light math needs too (kMaxViews, the PCSS reach and
+// samples, the cube-face order, the preview grid) are in core/shader_facts.hpp;
+// the GL bindings are here. In the shaders each is the #define in brackets.
 
-/// Views of one light: up to kMaxCascades cascades, or six cube faces.
-inline constexpr int kMaxViews = 6;
-/// PCSS: how far the blocker search reaches, texels; and the widest
-/// penumbra it filters, texels. A view must hold a point with the search's
-/// reach to spare (see filter_reach_texels).
-inline constexpr int kPcssSearchTexels = 32;
-inline constexpr int kPcssMaxPenumbraTexels = 64;
-/// PCSS: samples of the blocker search and of the filter.
-inline constexpr int kPcssBlockerSamples = 16;
-inline constexpr int kPcssFilterSamples = 32;
+static_assert(kMaxCascades <= kMaxViews, "the shaders must hold every cascade");
+
+/// Vertex attribute locations (ATTRIB_POSITION, ATTRIB_NORMAL, ATTRIB_COLOR):
+/// a_position, a_normal, a_color, each a vec3 read from a Vertex.
+inline constexpr int kAttribPosition = 0;
+inline constexpr int kAttribNormal = 1;
+inline constexpr int kAttribColor = 2;
+/// Each attribute with its GLSL name and where it lies in a Vertex: what a
+/// vertex array describes, one entry per attribute.
+struct VertexAttribute {
+  const char* glsl_name;
+  int location;
+  std::size_t offset;  // bytes into Vertex; 3 floats each
+};
+inline constexpr VertexAttribute kVertexAttributes[] = {
+    {"a_position", kAttribPosition, offsetof(Vertex, position)},
+    {"a_normal", kAttribNormal, offsetof(Vertex, normal)},
+    {"a_color", kAttribColor, offsetof(Vertex, color)},
+};
+/// The colour output's location (FRAG_OUTPUT_COLOR): o_color.
+inline constexpr int kFragOutputColor = 0;
+/// The texture unit of the light's depth map array (TEXTURE_UNIT_SHADOW_MAP):
+/// u_shadow_map, in the main pass and the depth preview.
+inline constexpr int kTextureUnitShadowMap = 0;
+/// The uniform location of u_layer (UNIFORM_LOCATION_LAYER): the view
+/// (map layer) a shadow-pass draw fills, set per layer.
+inline constexpr int kUniformLocationLayer = 0;
+/// The uniform buffer binding of FrameBlock (UNIFORM_BUFFER_FRAME_BLOCK).
+inline constexpr int kUniformBufferFrameBlock = 0;
 
 // ---------------------------------------------------------------------------
-// The uniform block, one per frame, shared by every program (binding 0).
+// The uniform block, one per frame, shared by every program (binding
+// kUniformBufferFrameBlock).
 //
 // std140 puts each member at an offset that GL reports; the C++ struct must
 // agree. Members are mat4, vec4, vec2, float or int, and arrays only of mat4
@@ -78,7 +105,8 @@ inline constexpr int kPcssFilterSamples = 32;
   /* A point light: Mesh::smooth_normal_span, which LIGHT_SIDE's facing */                        \
   /* test allows for (scene.vert); 0 for a directional light. */                                  \
   MEMBER(float, smooth_normal_span)                                                                \
-  /* Depth preview: the preview's side in pixels, and tiles per row. */                           \
+  /* Depth preview: the preview's side in pixels, and tiles per row */                            \
+  /* (preview_tiles_per_row). */                                                                  \
   MEMBER(float, preview_size)                                                                      \
   MEMBER(int, preview_grid)
 
@@ -158,6 +186,13 @@ struct PreviewVariant {
   std::string defines() const;
 };
 
+/// How the depth preview lays out the views of `plan` as tiles, for the
+/// panel (appended to Umbra-Shadow-Views on the depth output):
+/// "; grid=<tiles per row>", and for a cube "; faces=+X,-X,+Y,-Y,+Z,-Z",
+/// the face each layer holds. The tiles are layer 0 top left, row by row
+/// (depth_preview.frag).
+std::string preview_tiles_parameters(const ShadowPlan& plan);
+
 /// The block's contents for `request` drawn with the light's views in
 /// `plan`, positions relative to mesh.origin; `casters`: one per view, where
 /// its layer holds anything (caster_texels).
@@ -165,7 +200,7 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
                        const std::vector<TexelRect>& casters);
 
 /// What every program's source starts with: the GLSL version, the shared
-/// constants, `extra_defines`, and the FrameBlock declaration.
+/// constants and bindings, `extra_defines`, and the FrameBlock declaration.
 std::string glsl_prelude(const std::string& extra_defines);
 
 }  // namespace umbra

@@ -70,11 +70,10 @@ bool clears_whole_layer(const TexelRect& rect, int layer_size) {
 void describe_vertices(GLuint vao, GLuint vertices, GLuint indices) {
   glVertexArrayVertexBuffer(vao, 0, vertices, 0, sizeof(Vertex));
   glVertexArrayElementBuffer(vao, indices);
-  const GLuint offsets[3] = {offsetof(Vertex, position), offsetof(Vertex, normal), offsetof(Vertex, color)};
-  for (GLuint attribute = 0; attribute < 3; ++attribute) {
-    glEnableVertexArrayAttrib(vao, attribute);
-    glVertexArrayAttribFormat(vao, attribute, 3, GL_FLOAT, GL_FALSE, offsets[attribute]);
-    glVertexArrayAttribBinding(vao, attribute, 0);
+  for (const VertexAttribute& attribute : kVertexAttributes) {
+    glEnableVertexArrayAttrib(vao, GLuint(attribute.location));
+    glVertexArrayAttribFormat(vao, GLuint(attribute.location), 3, GL_FLOAT, GL_FALSE, GLuint(attribute.offset));
+    glVertexArrayAttribBinding(vao, GLuint(attribute.location), 0);
   }
 }
 
@@ -88,7 +87,7 @@ void draw_indices(std::size_t first, std::size_t count) {
 
 ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_bytes_(scene_cache_bytes) {
   shadow_.program = gl::build_program("shadow_depth.vert", "shadow_depth.frag", glsl_prelude(""));
-  shadow_.layer = gl::uniform_location(shadow_.program, "u_layer");
+  shadow_.layer = kUniformLocationLayer;
   // Built now, so that a GLSL error shows at start-up: the default frame's
   // variant (the others are built when first asked for).
   RenderRequest defaults;
@@ -96,7 +95,7 @@ ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_by
   display_.programs.get(display_variant(defaults, plan_shadow(defaults)).defines());
   frame_block_ = gl::create_buffer();
   glNamedBufferStorage(frame_block_.id(), sizeof(FrameBlock), nullptr, GL_DYNAMIC_STORAGE_BIT);
-  glBindBufferBase(GL_UNIFORM_BUFFER, 0, frame_block_.id());
+  glBindBufferBase(GL_UNIFORM_BUFFER, kUniformBufferFrameBlock, frame_block_.id());
   empty_vertex_array_ = gl::create_vertex_array();
   display_.cells_vertex_array = gl::create_vertex_array();
   display_.cell_vertices = gl::create_buffer();
@@ -215,7 +214,7 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
 }
 
 void ShadowRenderer::unbind_released() {
-  glBindTextureUnit(0, 0);
+  glBindTextureUnit(kTextureUnitShadowMap, 0);
   glBindFramebuffer(GL_FRAMEBUFFER, unbind_framebuffer_.id());
   glViewport(0, 0, 1, 1);
   glUseProgram(shadow_.program.id());
@@ -624,7 +623,7 @@ std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const
   CellDraws cells;
   if (variant.shadows) cells = upload_plane_cells(request, light, planes, casters);
   glUseProgram(display_.programs.get(variant.defines()).id());
-  if (variant.shadows) glBindTextureUnit(0, shadow_.depth_map.id());
+  if (variant.shadows) glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
   glViewport(0, 0, display_.width, display_.height);
   if (request.output == Output::Shadow)
@@ -776,7 +775,7 @@ void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size, 
                          GL_DEPTH_COMPONENT, GL_FLOAT, &far);
   const PreviewVariant variant{light.perspective, int(light.views.size())};
   glUseProgram(preview_.programs.get(variant.defines()).id());
-  glBindTextureUnit(0, shadow_.depth_map.id());
+  glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, preview_.framebuffer.id());
   glViewport(0, 0, preview_.size, preview_.size);
   glDisable(GL_DEPTH_TEST);
@@ -843,7 +842,7 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
                          : light.layout == ShadowLayout::Cube   ? "cube"
                                                                 : "single";
     result.shadow_views = std::string(layout) + "; views=" + std::to_string(light.views.size()) +
-                          "; size=" + std::to_string(light.layer_size);
+                          "; size=" + std::to_string(light.layer_size) + (depth_output ? preview_tiles_parameters(light) : "");
   }
 
   const auto main_start = Clock::now();
