@@ -44,8 +44,6 @@ SERVER_MAY_INCLUDE = [
 KNOWN = {
     ("renderer/gpu/shadow_renderer.hpp", "service/render_result.hpp"):
         "the renderer returns the service's result type (issue 30)",
-    ("renderer/gpu/shadow_renderer.cpp", "service/request_cost.hpp"):
-        "the renderer sizes its draw chunks with the cost model's mesh_draw_ms (issue 30)",
     ("renderer/core/light_math.cpp", "gpu/shader_interface.hpp"):
         "the light's views are sized by constants that the shader interface holds (issue 30)",
     ("server/http_api.cpp", "core/light_math.hpp"):

@@ -8,8 +8,8 @@
 
 #include "gpu/program.hpp"
 #include "core/mesh_instance.hpp"
+#include "plan/draw_cost.hpp"
 #include "plan/receiver_cells.hpp"
-#include "service/request_cost.hpp"
 #include "plan/umbras.hpp"
 #include "gpu/shader_interface.hpp"
 
