@@ -42,8 +42,6 @@ SERVER_MAY_INCLUDE = [
 # listed crossing that no longer happens fails the check too, so that the
 # list only shrinks.
 KNOWN = {
-    ("renderer/gpu/shadow_renderer.hpp", "service/render_result.hpp"):
-        "the renderer returns the service's result type (issue 30)",
     ("renderer/core/light_math.cpp", "gpu/shader_interface.hpp"):
         "the light's views are sized by constants that the shader interface holds (issue 30)",
     ("server/http_api.cpp", "core/light_math.hpp"):

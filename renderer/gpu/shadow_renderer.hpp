@@ -11,7 +11,7 @@
 #include "core/byte_bounded_lru.hpp"
 #include "gpu/objects.hpp"
 #include "gpu/program.hpp"
-#include "service/render_result.hpp"
+#include "core/render_result.hpp"
 #include "core/light_math.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
