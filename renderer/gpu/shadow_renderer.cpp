@@ -56,6 +56,17 @@ void describe_vertices(GLuint vao, GLuint vertices, GLuint indices) {
   }
 }
 
+// Face culling for a DrawRange: closed meshes as the plan says; a plane or
+// an open model has one side, and culling it could drop it entirely.
+void set_cull(CullMode cull) {
+  if (cull == CullMode::None) {
+    glDisable(GL_CULL_FACE);
+  } else {
+    glEnable(GL_CULL_FACE);
+    glCullFace(cull == CullMode::Front ? GL_FRONT : GL_BACK);
+  }
+}
+
 void draw_indices(std::size_t first, std::size_t count) {
   if (count > 0)
     glDrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
@@ -271,12 +282,7 @@ void ShadowRenderer::resize_depth_preview(int size, int bits) {
 void ShadowRenderer::draw_scene(const std::vector<DrawRange>& draws) {
   glBindVertexArray(scene().vertex_array.id());
   for (const DrawRange& draw : draws) {
-    if (draw.cull == CullMode::None) {
-      glDisable(GL_CULL_FACE);
-    } else {
-      glEnable(GL_CULL_FACE);
-      glCullFace(draw.cull == CullMode::Front ? GL_FRONT : GL_BACK);
-    }
+    set_cull(draw.cull);
     draw_scene_indices(draw.first, draw.count);
   }
   glDisable(GL_CULL_FACE);
@@ -453,7 +459,11 @@ void ShadowRenderer::run_display_pass(const RenderRequest& request, const FrameP
     }
     if (step.cells) {
       glBindVertexArray(display_.cells_vertex_array.id());
-      for (const DrawRange& draw : step.draws) draw_indices(draw.first, draw.count);
+      for (const DrawRange& draw : step.draws) {
+        set_cull(draw.cull);
+        draw_indices(draw.first, draw.count);
+      }
+      glDisable(GL_CULL_FACE);
     } else {
       draw_scene(step.draws);
     }

@@ -15,11 +15,11 @@
 #include "core/byte_bounded_lru.hpp"
 #include "gpu/objects.hpp"
 #include "gpu/program.hpp"
-#include "plan/frame_plan.hpp"
-#include "core/render_result.hpp"
 #include "core/light_math.hpp"
+#include "core/render_result.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
+#include "plan/frame_plan.hpp"
 
 namespace umbra {
 
@@ -157,9 +157,9 @@ class ShadowRenderer {
   static constexpr double kChunkMs = 20.0;
   // A mesh whose triangles the estimate prices at more than this in a pass
   // (the plan's object_draw_ms, mesh_draw_ms: per triangle and per 64 x 64
-  // tile their bounding boxes cover) is drawn in chunks too: 200,000 slivers across a 4096^2 map are
-  // not deep at all, yet one draw of them is seconds. The teapot is well
-  // under a millisecond.
+  // tile their bounding boxes cover) is drawn in chunks too: 200,000
+  // slivers across a 4096^2 map are not deep at all, yet one draw of them
+  // is seconds. The teapot is well under a millisecond.
   static constexpr double kLongDrawMs = 2.0 * kChunkMs;
   // The fragments a first chunk is sized for, assuming the deep mesh fills
   // the view (so never too large): about kChunkMs on the reference machine
@@ -195,6 +195,8 @@ class ShadowRenderer {
   // Draws `draws` of the current scene (draw_scene_indices each) with
   // their cull modes; leaves face culling off.
   void draw_scene(const std::vector<DrawRange>& draws);
+  // The passes of `plan`, as it orders them. The display pass reads
+  // `request` only for the shader interface (display_variant).
   void run_shadow_pass(const FramePlan& plan);
   void run_display_pass(const RenderRequest& request, const FramePlan& plan);
   void run_depth_preview(const FramePlan& plan);
