@@ -202,6 +202,48 @@ TEST(FramePlan, AHeavyMeshIsLeftOutOfACascadeItShadowsNothingIn) {
   EXPECT_GT(dropped, 0) << "the teapot is left out of some cascade";
 }
 
+TEST(FramePlan, ScatteredObjectsAreDrawnInOneRangeOfTheirKind) {
+  // A floor and 40 boxes in a row, every other one drawn.
+  Scene scene;
+  SceneObject floor;
+  floor.type = SceneObject::Type::Plane;
+  floor.size = {100, 0, 100};
+  scene.objects.push_back(floor);
+  for (int i = 0; i < 40; ++i) {
+    SceneObject box;
+    box.center = {double(i) * 2.0 - 40.0, 0.5, 0.0};
+    scene.objects.push_back(box);
+  }
+  const Mesh mesh = tessellate(scene);
+  const auto every_other = [&](int boxes) {
+    std::vector<bool> drawn(scene.objects.size(), false);
+    for (int i = 0; i < boxes; ++i) drawn[1 + 2 * i] = true;
+    return drawn;
+  };
+  // 10 runs: a range each, culled as asked.
+  const std::vector<DrawRange> few = scene_draw_ranges(mesh, CullMode::Front, every_other(10));
+  ASSERT_EQ(few.size(), 10u);
+  for (const DrawRange& d : few) {
+    EXPECT_EQ(d.count, 36u);
+    EXPECT_EQ(d.cull, CullMode::Front);
+  }
+  // 20 runs (past kMaxRuns): all closed meshes in one range.
+  const std::vector<DrawRange> many = scene_draw_ranges(mesh, CullMode::Front, every_other(20));
+  ASSERT_EQ(many.size(), 1u);
+  EXPECT_EQ(many[0].first, 0u);
+  EXPECT_EQ(many[0].count, mesh.closed_index_count);
+  // Planes exactly as marked, two-sided, after the closed meshes.
+  std::vector<bool> with_floor = every_other(3);
+  with_floor[0] = true;
+  const std::vector<DrawRange> floor_too = scene_draw_ranges(mesh, CullMode::Back, with_floor);
+  ASSERT_EQ(floor_too.size(), 4u);
+  EXPECT_TRUE(draws_object({floor_too.back()}, mesh, 0));
+  EXPECT_EQ(floor_too.back().cull, CullMode::None);
+  EXPECT_FALSE(draws_object(scene_draw_ranges(mesh, CullMode::Back, every_other(20)), mesh, 0));
+  // Only the closed part.
+  EXPECT_EQ(scene_draw_ranges(mesh, CullMode::Back, with_floor, MeshPart::Closed).size(), 3u);
+}
+
 // LightSplit's scene (test_light_math.cpp): a floor, a box, a sphere near
 // the camera and one far off (too small on screen to be worth splitting).
 RenderRequest split_scene() {

@@ -183,6 +183,7 @@ void append_cell_steps(const std::vector<PlaneDraw>& planes, std::vector<Display
 ShadowPassPlan plan_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
                                 const CasterTexels& casters, const Mesh& mesh, const std::string& scene_key) {
   ShadowPassPlan pass;
+  pass.needed = true;
   std::vector<glm::dmat4> views;
   for (const ShadowView& view : light.views)
     if (!view.empty) views.push_back(view.projection * view.view);
@@ -439,11 +440,8 @@ FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::
   }
   plan.casters = caster_table(request, plan.light, mesh, plan.casting_planes);
   if (plan.shadow.needed) {
-    if (!plan.shadow.reused) {
-      const bool needed = plan.shadow.needed;
+    if (!plan.shadow.reused)
       plan.shadow = plan_shadow_pass(request, plan.light, plan.casting_planes, plan.casters, mesh, scene_key);
-      plan.shadow.needed = needed;
-    }
     plan.shadow_views = describe_views(plan.light);
   }
   if (plan.depth_output) {
