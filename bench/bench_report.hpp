@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "service/render_result.hpp"
+#include "core/render_result.hpp"
 #include "core/request.hpp"
 
 namespace umbra {

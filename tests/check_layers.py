@@ -42,10 +42,6 @@ SERVER_MAY_INCLUDE = [
 # listed crossing that no longer happens fails the check too, so that the
 # list only shrinks.
 KNOWN = {
-    ("renderer/gpu/shadow_renderer.hpp", "service/render_result.hpp"):
-        "the renderer returns the service's result type (issue 30)",
-    ("renderer/gpu/shadow_renderer.cpp", "service/request_cost.hpp"):
-        "the renderer sizes its draw chunks with the cost model's mesh_draw_ms (issue 30)",
     ("server/http_api.cpp", "core/light_math.hpp"):
         "the Umbra-Sun header asks light_at where the sun is (issue 30)",
     ("server/request_parser.cpp", "core/light_math.hpp"):

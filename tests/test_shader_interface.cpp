@@ -13,6 +13,7 @@
 #include "core/shader_facts.hpp"
 #include "gpu/embedded_shaders.hpp"
 #include "gpu/shader_interface.hpp"
+#include "plan/frame_plan.hpp"
 
 namespace umbra {
 namespace {

@@ -138,15 +138,6 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   return b;
 }
 
-std::string preview_tiles_parameters(const ShadowPlan& plan) {
-  std::string p = "; grid=" + std::to_string(preview_tiles_per_row(int(plan.views.size())));
-  if (plan.layout == ShadowLayout::Cube) {
-    p += "; faces=";
-    for (int face = 0; face < kCubeFaceCount; ++face) p += std::string(face ? "," : "") + kCubeFaceNames[face];
-  }
-  return p;
-}
-
 std::string PreviewVariant::defines() const {
   std::ostringstream d;
   d << "#define LIGHT_PERSPECTIVE " << int(perspective) << "\n"

@@ -186,13 +186,6 @@ struct PreviewVariant {
   std::string defines() const;
 };
 
-/// How the depth preview lays out the views of `plan` as tiles, for the
-/// panel (appended to Umbra-Shadow-Views on the depth output):
-/// "; grid=<tiles per row>", and for a cube "; faces=+X,-X,+Y,-Y,+Z,-Z",
-/// the face each layer holds. The tiles are layer 0 top left, row by row
-/// (depth_preview.frag).
-std::string preview_tiles_parameters(const ShadowPlan& plan);
-
 /// The block's contents for `request` drawn with the light's views in
 /// `plan`, positions relative to mesh.origin; `casters`: one per view, where
 /// its layer holds anything (caster_texels).

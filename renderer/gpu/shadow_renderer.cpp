@@ -3,14 +3,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cstddef>
-#include <map>
 #include <stdexcept>
 
 #include "gpu/program.hpp"
 #include "core/mesh_instance.hpp"
-#include "plan/receiver_cells.hpp"
-#include "service/request_cost.hpp"
-#include "plan/umbras.hpp"
+#include "plan/frame_plan.hpp"
 #include "gpu/shader_interface.hpp"
 
 namespace umbra {
@@ -46,25 +43,6 @@ std::string scene_key(const Scene& scene) {
   return key;
 }
 
-// Texels cleared around each layer's casters' rectangle for `shadow`: a
-// point is read for only if its filter (FILTER_READ texels) meets the
-// rectangle, and then reads up to FILTER_READ beyond where it is.
-int clear_margin_texels(const ShadowSettings& shadow) { return 2 * filter_read_texels(shadow) + 1; }
-
-// Whether clearing all of a layer of `layer_size`^2 texels costs less than
-// clearing only `rect` of it. On llvmpipe, glClear of the whole attachment
-// is done tile by tile by the rasteriser threads as they draw, so a tile's
-// depths are written and then drawn over while in cache, whereas
-// glClearTexSubImage writes the rectangle to memory on the GL thread and
-// the draw reads it back. Measured per layer (clear and draw, 960x540):
-// `point-close`'s -Y face, over 90 % of the layer, 7.7 -> 4.5 ms cleared
-// whole; a face of 30 %, about even; of 17 %, 1.4 -> 2.1 ms. A GPU clears
-// whole attachments fastest too.
-bool clears_whole_layer(const TexelRect& rect, int layer_size) {
-  const glm::dvec2 size = rect.max - rect.min;
-  return size.x * size.y > 0.4 * double(layer_size) * double(layer_size);
-}
-
 // Vertex array `vao` reads Vertex records from `vertices` and indices from
 // `indices`.
 void describe_vertices(GLuint vao, GLuint vertices, GLuint indices) {
@@ -74,6 +52,17 @@ void describe_vertices(GLuint vao, GLuint vertices, GLuint indices) {
     glEnableVertexArrayAttrib(vao, GLuint(attribute.location));
     glVertexArrayAttribFormat(vao, GLuint(attribute.location), 3, GL_FLOAT, GL_FALSE, GLuint(attribute.offset));
     glVertexArrayAttribBinding(vao, GLuint(attribute.location), 0);
+  }
+}
+
+// Face culling for a DrawRange: closed meshes as the plan says; a plane or
+// an open model has one side, and culling it could drop it entirely.
+void set_cull(CullMode cull) {
+  if (cull == CullMode::None) {
+    glDisable(GL_CULL_FACE);
+  } else {
+    glEnable(GL_CULL_FACE);
+    glCullFace(cull == CullMode::Front ? GL_FRONT : GL_BACK);
   }
 }
 
@@ -174,7 +163,7 @@ std::uint64_t ShadowRenderer::cached_bytes() const {
 std::uint64_t ShadowRenderer::bytes_reused_by(const RenderRequest& request) const {
   std::uint64_t bytes = 0;
   const ShadowPlan light = plan_shadow(request);
-  const bool needs_map = (request.shadow.enabled && light.direct_light) || request.output == Output::Depth;
+  const bool needs_map = needs_shadow_map(request, light);
   // Only what the frame uses of a map with more layers than it needs.
   if (needs_map && shadow_.size == light.layer_size && shadow_.layers >= int(light.views.size()))
     bytes += std::uint64_t(light.layer_size) * std::uint64_t(light.layer_size) * light.views.size() * sizeof(float);
@@ -198,8 +187,7 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
     shadow_.framebuffer.reset();
     shadow_.depth_map.reset();
     shadow_.size = shadow_.layers = 0;
-    shadow_.holds_plan = false;
-    shadow_.scene_key.clear();
+    shadow_.kept = {};
   }
   if (cached_bytes() > max_bytes) {
     released_gl_bytes_ += display_bytes();
@@ -231,7 +219,7 @@ void ShadowRenderer::resize_shadow_map(int size, int layers) {
   if (shadow_.size == size && shadow_.layers >= layers) return;
   map_allocated_ = true;
   released_gl_bytes_ += shadow_map_bytes();
-  shadow_.holds_plan = false;
+  shadow_.kept.holds_plan = false;
   shadow_.depth_map = gl::create_texture(GL_TEXTURE_2D_ARRAY);
   const GLuint map = shadow_.depth_map.id();
   // 32-bit float depth: precision that holds at every scene scale.
@@ -290,58 +278,21 @@ void ShadowRenderer::resize_depth_preview(int size, int bits) {
   preview_.bits = bits;
 }
 
-void ShadowRenderer::draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects, MeshPart part) {
-  const Mesh& mesh = scene().mesh;
+void ShadowRenderer::draw_scene(const std::vector<DrawRange>& draws) {
   glBindVertexArray(scene().vertex_array.id());
-  // Runs of consecutive objects to draw, one call each: closed meshes, open
-  // models and planes apart (in that order in the index buffer).
-  using Run = std::pair<std::uint32_t, std::uint32_t>;  // first index, count
-  std::vector<bool> is_plane(mesh.bounds.size(), false);
-  for (const PlaneRange& plane : mesh.planes) is_plane[plane.object] = true;
-  std::vector<Run> closed, open_models, planes;
-  for (const ObjectRange& r : mesh.object_ranges) {
-    if ((!objects.empty() && !objects[r.object]) || r.index_count == 0) continue;
-    std::vector<Run>& runs = r.first_index < mesh.closed_index_count ? closed : is_plane[r.object] ? planes : open_models;
-    if (!runs.empty() && runs.back().first + runs.back().second == r.first_index)
-      runs.back().second += r.index_count;
-    else
-      runs.emplace_back(r.first_index, r.index_count);
+  for (const DrawRange& draw : draws) {
+    set_cull(draw.cull);
+    draw_scene_indices(draw.first, draw.count);
   }
-  // Many scattered objects (a thousand spheres, some in the view): one call
-  // for all of their kind costs less than hundreds; those outside the view
-  // draw nothing. Planes keep their flags: a plane left out of the shadow
-  // pass must stay out, and there are few of them.
-  if (closed.size() > kMaxRuns) closed = {Run{0, mesh.closed_index_count}};
-  if (open_models.size() > kMaxRuns) {
-    const std::uint32_t end = open_models.back().first + open_models.back().second;
-    open_models = {Run{open_models.front().first, end - open_models.front().first}};  // no plane lies between
-  }
-  if (part == MeshPart::Closed) open_models.clear(), planes.clear();
-  if (!closed.empty()) {
-    if (closed_mesh_cull == CullMode::None) {
-      glDisable(GL_CULL_FACE);
-    } else {
-      glEnable(GL_CULL_FACE);
-      glCullFace(closed_mesh_cull == CullMode::Front ? GL_FRONT : GL_BACK);
-    }
-    for (const Run& run : closed) draw_scene_indices(run.first, run.second);
-  }
-  // A plane or an open model has one side: culling it could drop it from
-  // the pass entirely.
   glDisable(GL_CULL_FACE);
-  for (const Run& run : open_models) draw_scene_indices(run.first, run.second);
-  for (const Run& run : planes) draw_scene_indices(run.first, run.second);
 }
 
-void ShadowRenderer::begin_pass(const Scene& scene, const std::vector<glm::dmat4>& view_projections, double width,
-                                double height, double fragments_per_chunk) {
+void ShadowRenderer::begin_pass(const std::vector<double>& object_draw_ms, double width, double height,
+                                double fragments_per_chunk) {
   pass_pixels_ = width * height;
   ms_per_fragment_ = kChunkMs / fragments_per_chunk;
   chunk_ms_ = kChunkMs;
-  pass_draw_ms_.assign(scene.objects.size(), 0.0);
-  for (std::size_t i = 0; i < scene.objects.size(); ++i)
-    for (const glm::dmat4& view_projection : view_projections)
-      pass_draw_ms_[i] = std::max(pass_draw_ms_[i], mesh_draw_ms(scene.objects[i], view_projection, width, height));
+  pass_draw_ms_ = object_draw_ms;
 }
 
 void ShadowRenderer::draw_scene_indices(std::size_t first, std::size_t count) {
@@ -399,7 +350,7 @@ void ShadowRenderer::check_watch(const char* where) const {
 
 void ShadowRenderer::abandon_frame() {
   glFinish();
-  shadow_.holds_plan = false;
+  shadow_.kept.holds_plan = false;
   // What run_display_pass and run_depth_preview set, as the constructor
   // and the end of each pass leave it.
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
@@ -415,221 +366,67 @@ void ShadowRenderer::abandon_frame() {
   glDisable(GL_CULL_FACE);
 }
 
-std::vector<bool> ShadowRenderer::drawn_objects(const std::vector<bool>& planes) const {
-  const Mesh& mesh = scene().mesh;
-  std::vector<bool> drawn(mesh.bounds.size(), true);
-  for (std::size_t i = 0; i < mesh.planes.size(); ++i)
-    if (!planes.empty() && !planes[i]) drawn[mesh.planes[i].object] = false;
-  return drawn;
-}
-
-std::vector<bool> ShadowRenderer::casting_planes(const RenderRequest& request, const ShadowPlan& light) const {
-  std::vector<bool> planes;
-  for (const PlaneRange& plane : scene().mesh.planes)
-    planes.push_back(request.output == Output::Depth || plane_can_shadow(plane, light));
-  return planes;
-}
-
-CasterTexels ShadowRenderer::caster_table(const RenderRequest& request, const ShadowPlan& light,
-                                          const std::vector<bool>& planes) const {
-  const Mesh& mesh = scene().mesh;
-  CasterTexels table = caster_texels_by_view(light, mesh.bounds, drawn_objects(planes));
-  if (request.output == Output::Depth || light.layout != ShadowLayout::Cascades) return table;
-  // Only meshes whose triangles cost more to draw again than the test
-  // costs (a few microseconds per box near them), and at most kMaxRuns of
-  // them (draw_scene may draw more in one call, dropped or not).
-  std::vector<bool> heavy(mesh.bounds.size(), false);
-  std::size_t count = 0;
-  for (const ObjectRange& r : mesh.object_ranges)
-    if (r.index_count / 3 >= kHeavyTriangles) heavy[r.object] = true, ++count;
-  if (count == 0 || count > kMaxRuns) return table;
-  drop_casters_held_by_earlier_cascades(light, mesh.bounds, heavy, request.shadow, table);
-  return table;
-}
-
-void ShadowRenderer::upload_frame_block(const RenderRequest& request, const ShadowPlan& light,
-                                        const std::vector<TexelRect>& casters) {
-  const FrameBlock block = frame_block(request, light, scene().mesh, casters);
-  glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
-}
-
-void ShadowRenderer::run_shadow_pass(const RenderRequest& request, const ShadowPlan& light,
-                                     const std::vector<bool>& planes, const CasterTexels& casters) {
+void ShadowRenderer::run_shadow_pass(const FramePlan& plan) {
+  const ShadowPlan& light = plan.light;
   resize_shadow_map(light.layer_size, int(light.views.size()));
   // Whatever the map held is drawn over from here: a frame that stops
   // half way must not leave it to be reused.
-  shadow_.holds_plan = false;
-  std::vector<glm::dmat4> views;
-  for (const ShadowView& view : light.views)
-    if (!view.empty) views.push_back(view.projection * view.view);
-  begin_pass(request.scene, views, double(light.layer_size), double(light.layer_size), kShadowChunkFragments);
+  shadow_.kept.holds_plan = false;
+  begin_pass(plan.shadow.object_draw_ms, double(light.layer_size), double(light.layer_size), kShadowChunkFragments);
   const GLuint framebuffer = shadow_.framebuffer.id();
   glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
   // The map has its own resolution: without its own viewport it would be
   // drawn partly or not at all.
   glViewport(0, 0, light.layer_size, light.layer_size);
   glUseProgram(shadow_.program.id());
-  // The depth output shows whole layers. A frame's main pass reads a layer
-  // only for points whose filter (FILTER_READ texels around them) meets the
-  // casters' rectangle, so only within twice that of it: only that much is
-  // cleared, unless the rectangle is most of the layer. On llvmpipe,
-  // clearing a 2048^2 layer costs ~2 ms, most of what a layer of a few
-  // objects costs once the floor is left out.
-  const bool whole_layers = request.output == Output::Depth;
-  const int margin = clear_margin_texels(request.shadow);
   // What the main pass sets and restores, set here too, so that a frame
   // that ended early (a program that failed to build) leaves no trace:
   // glClear's depth is far, and the shadow program writes no clip distance.
   glClearDepth(1.0);
   glDisable(GL_CLIP_DISTANCE0);
-  for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
-    // An empty view (no object reaches into it) holds no receiver either,
-    // so the main pass never reads its layer: it is not even cleared (the
-    // depth preview clears it before showing it). Nor is a layer that no
-    // drawn object reaches: the main pass sees its rectangle empty.
-    if (light.views[layer].empty || (!whole_layers && casters.by_view[layer].empty())) continue;
-    glNamedFramebufferTextureLayer(framebuffer, GL_DEPTH_ATTACHMENT, shadow_.depth_map.id(), 0, GLint(layer));
-    if (whole_layers || clears_whole_layer(casters.by_view[layer], light.layer_size)) {
+  for (const ShadowLayerDraw& layer : plan.shadow.layers) {
+    glNamedFramebufferTextureLayer(framebuffer, GL_DEPTH_ATTACHMENT, shadow_.depth_map.id(), 0, GLint(layer.layer));
+    if (layer.clear_whole) {
       glClear(GL_DEPTH_BUFFER_BIT);
     } else {
-      const TexelRect& c = casters.by_view[layer];
-      const int x0 = std::max(0, int(c.min.x) - margin), y0 = std::max(0, int(c.min.y) - margin);
-      const int x1 = std::min(light.layer_size, int(c.max.x) + margin);
-      const int y1 = std::min(light.layer_size, int(c.max.y) + margin);
       const float far = 1.0f;
-      glClearTexSubImage(shadow_.depth_map.id(), 0, x0, y0, GLint(layer), x1 - x0, y1 - y0, 1, GL_DEPTH_COMPONENT,
-                         GL_FLOAT, &far);
+      glClearTexSubImage(shadow_.depth_map.id(), 0, layer.x0, layer.y0, GLint(layer.layer), layer.x1 - layer.x0,
+                         layer.y1 - layer.y0, 1, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
     }
-    glProgramUniform1i(shadow_.program.id(), shadow_.layer, GLint(layer));
-    // Culling front faces stores the far side of closed objects: their lit
-    // faces then sit well in front of the stored depth, so no bias is needed
-    // against self-shadowing there, and the bias stays small elsewhere (less
-    // peter panning). See ShadowSettings::cull for why planes are exempt.
-    // Only what reaches into this view: a sphere beside a point light is
-    // in one or two of its six faces, and each face it is drawn into
-    // shades all its vertices.
-    std::vector<bool> in_view;
-    for (const TexelRect& object : casters.by_object[layer]) in_view.push_back(!object.empty());
-    draw_scene(request.shadow.cull, in_view);
+    glProgramUniform1i(shadow_.program.id(), shadow_.layer, GLint(layer.layer));
+    draw_scene(layer.draws);
   }
-  shadow_.holds_plan = true;
-  shadow_.plan = light;
-  shadow_.scene_key = current_scene_key();
-  shadow_.cull = request.shadow.cull;
-  shadow_.planes = planes;
-  shadow_.whole_layers = whole_layers;
-  shadow_.clear_margin = margin;
-  shadow_.automatic_bias = request.shadow.bias.automatic;
+  shadow_.kept = plan.shadow.kept_after;
 }
 
-bool ShadowRenderer::shadow_map_serves(const RenderRequest& request, const ShadowPlan& light,
-                                       const std::vector<bool>& planes) const {
-  // A map cleared only around its casters serves frames whose filter
-  // reads no further than the one it was cleared for, and no depth output.
-  const bool cleared_enough =
-      shadow_.whole_layers ||
-      (request.output != Output::Depth && clear_margin_texels(request.shadow) <= shadow_.clear_margin);
-  // The depth output draws every object into every layer; a map drawn
-  // with the automatic bias may lack some (caster_table).
-  const bool drawn_for_lookups_like_these =
-      shadow_.whole_layers || !shadow_.automatic_bias || request.shadow.bias.automatic;
-  return shadow_.holds_plan && shadow_.scene_key == current_scene_key() && shadow_.cull == request.shadow.cull &&
-         shadow_.planes == planes && cleared_enough && drawn_for_lookups_like_these &&
-         plan_covers(shadow_.plan, light);
-}
-
-ShadowRenderer::CellDraws ShadowRenderer::upload_plane_cells(const RenderRequest& request, const ShadowPlan& light,
-                                                             const std::vector<bool>& planes,
-                                                             const CasterTexels& casters) {
-  const Mesh& mesh = scene().mesh;
-  CellDraws draws;
-  draws.whole_planes.assign(mesh.planes.size(), true);
-  // The seeds' bias moves the point along its normal before it is looked
-  // up: such frames draw every plane whole. So do scenes of many planes,
-  // whose regions would cost more to find than they save.
-  if (!request.shadow.bias.automatic || mesh.planes.size() > kMaxPlanesInCells) return draws;
-  const double margin = double(filter_read_texels(request.shadow)) + 1.0;
-  // One region per view and caster, or past that many pairs one per view
-  // around all its casters (looser, and as cheap for a thousand casters).
-  constexpr std::size_t kMaxRegionPairs = 128;
-  std::size_t pairs = 0;
-  for (const std::vector<TexelRect>& row : casters.by_object)
-    pairs += std::size_t(std::count_if(row.begin(), row.end(), [](const TexelRect& r) { return !r.empty(); }));
-  const bool per_caster = pairs <= kMaxRegionPairs;
-  // Under a light of no size, the umbras of boxes and spheres are drawn
-  // dark without the lookup (umbras.hpp).
-  const bool umbras = request.light.size == 0.0;
-  CellTriangles cells;
-  std::map<double, std::vector<PlanePolygon>> regions_at;  // by plane height
-  for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
-    const PlaneRange& plane = mesh.planes[i];
-    // A plane in the map is a caster: all of it can be shadowed.
-    if (planes[i]) continue;
-    const Aabb& bounds = mesh.bounds[plane.object];
-    PlaneDraw draw;
-    draw.dark.first = cells.dark.size();
-    draw.bounds.first = cells.bounds.size();
-    draw.shadowable.first = cells.shadowable.size();
-    draw.unshadowable.first = cells.unshadowable.size();
-    if (umbras) {
-      const std::vector<PlanePolygon> dark = umbras_on_plane(bounds, light, request.scene.objects, margin);
-      append_dark_triangles(dark, plane.height, plane.color, mesh.origin, cells);
-      draws.umbras += dark.size();
-    }
-    if (const std::optional<std::vector<PlanePolygon>> shadows =
-            shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, margin)) {
-      append_polygon_triangles(*shadows, plane.height, plane.color, mesh.origin, cells, cells.bounds);
-      draw.lookup_only_near = true;
-    }
-    auto at = regions_at.find(plane.height);
-    if (at == regions_at.end())
-      at = regions_at
-               .emplace(plane.height, per_caster ? shadowable_regions(plane.height, light, casters.by_object, margin)
-                                                 : view_regions(plane.height, light, casters.by_view, margin))
-               .first;
-    append_cell_triangles(plane_cells(bounds, at->second), plane.height, plane.color, mesh.origin, cells);
-    draw.dark.count = cells.dark.size() - draw.dark.first;
-    draw.bounds.count = cells.bounds.size() - draw.bounds.first;
-    draw.shadowable.count = cells.shadowable.size() - draw.shadowable.first;
-    draw.unshadowable.count = cells.unshadowable.size() - draw.unshadowable.first;
-    draws.planes.push_back(draw);
-    draws.whole_planes[i] = false;
+void ShadowRenderer::run_display_pass(const RenderRequest& request, const FramePlan& plan) {
+  const DisplayPassPlan& pass = plan.display;
+  resize_display(pass.width, pass.height);
+  begin_pass(pass.object_draw_ms, double(pass.width), double(pass.height), kMainChunkFragments);
+  // The programs of the plan's steps: the frame's variant and those
+  // derived from it.
+  const DisplayVariant variant = display_variant(request, plan.light);
+  if (variant.shadows != pass.shadow_lookup)
+    throw std::logic_error("the frame plan's shadow lookup disagrees with the display variant");
+  const auto program = [&](DisplayProgram which) {
+    DisplayVariant v = which == DisplayProgram::Frame || which == DisplayProgram::LightFacing ? variant
+                                                                                              : without_shadows(variant);
+    if (which == DisplayProgram::Dark) v.direct_light = false;
+    if (which == DisplayProgram::LightFacing) v.light_side = 1;
+    if (which == DisplayProgram::LightAway) v.light_side = -1;
+    return display_.programs.get(v.defines()).id();
+  };
+  if (!pass.cell_indices.empty()) {
+    glNamedBufferData(display_.cell_vertices.id(), GLsizeiptr(pass.cell_vertices.size() * sizeof(Vertex)),
+                      pass.cell_vertices.data(), GL_STREAM_DRAW);
+    glNamedBufferData(display_.cell_indices.id(), GLsizeiptr(pass.cell_indices.size() * sizeof(std::uint32_t)),
+                      pass.cell_indices.data(), GL_STREAM_DRAW);
   }
-  if (draws.planes.empty()) return draws;
-  // One index buffer: every plane's umbras, then the shadows of the
-  // objects' bounds, then the shadowable cells, then the others.
-  std::vector<std::uint32_t> indices = std::move(cells.dark);
-  for (std::vector<std::uint32_t>* part : {&cells.bounds, &cells.shadowable, &cells.unshadowable}) {
-    for (PlaneDraw& draw : draws.planes) {
-      IndexRange& range = part == &cells.bounds ? draw.bounds : part == &cells.shadowable ? draw.shadowable : draw.unshadowable;
-      range.first += indices.size();
-    }
-    indices.insert(indices.end(), part->begin(), part->end());
-  }
-  glNamedBufferData(display_.cell_vertices.id(), GLsizeiptr(cells.vertices.size() * sizeof(Vertex)),
-                    cells.vertices.data(), GL_STREAM_DRAW);
-  glNamedBufferData(display_.cell_indices.id(), GLsizeiptr(indices.size() * sizeof(std::uint32_t)), indices.data(),
-                    GL_STREAM_DRAW);
-  return draws;
-}
-
-std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const ShadowPlan& light,
-                                      const std::vector<bool>& planes, const CasterTexels& casters) {
-  resize_display(request.width, request.height);
-  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
-  begin_pass(request.scene, {camera.projection * camera.view}, double(request.width), double(request.height),
-             kMainChunkFragments);
-  const DisplayVariant variant = display_variant(request, light);
-  CellDraws cells;
-  if (variant.shadows) cells = upload_plane_cells(request, light, planes, casters);
-  glUseProgram(display_.programs.get(variant.defines()).id());
-  if (variant.shadows) glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
+  glUseProgram(program(DisplayProgram::Frame));
+  if (pass.shadow_lookup) glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
   glViewport(0, 0, display_.width, display_.height);
-  if (request.output == Output::Shadow)
-    glClearColor(1.0f, 1.0f, 1.0f, 1.0f);  // no geometry: nothing blocks the light
-  else
-    glClearColor(0.11f, 0.12f, 0.14f, 1.0f);
+  glClearColor(pass.clear_color.r, pass.clear_color.g, pass.clear_color.b, pass.clear_color.a);
   // Reversed depth (reversed_depth_projection): near is 1, far 0, so the
   // nearest surface has the greatest depth. Only this pass; the shadow pass
   // keeps GL's conventional clip volume and depth test.
@@ -638,142 +435,59 @@ std::size_t ShadowRenderer::run_display_pass(const RenderRequest& request, const
   glDepthFunc(GL_GREATER);
   glClearStencil(0);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
-  // A box's far faces, drawn before its near ones, would be shaded in full
-  // and then drawn over: with the camera outside every closed mesh they
-  // are culled (about a sixth of a box scene's main pass on llvmpipe).
-  const CullMode closed_cull =
-      closed_meshes_seen_from_outside(scene().mesh, request.camera, double(request.width) / request.height)
-          ? CullMode::Back
-          : CullMode::None;
-  std::vector<bool> objects = drawn_objects(cells.whole_planes);
-  // The faces of a closed mesh that turn from the light get no direct
-  // light, yet llvmpipe would run the whole shadow lookup for each of
-  // their pixels (it runs both sides of a branch): `contact-line`'s box
-  // face fills a third of the frame. So closed meshes are drawn in two
-  // parts (LIGHT_SIDE, scene.vert): with the lookup where a point may face
-  // the light, without it where none can. Their front faces only: a back
-  // face's normal would be turned to the camera in scene.frag.
-  std::vector<bool> split;
-  if (variant.shadows && closed_cull == CullMode::Back)
-    split = objects_split_by_the_light(scene().mesh, request.camera, request.width, request.height);
-  std::size_t split_count = 0, unsplit_closed = 0;
-  for (const ObjectRange& r : scene().mesh.object_ranges) {
-    if (r.first_index >= scene().mesh.closed_index_count || !objects[r.object] || split.empty()) continue;
-    split[r.object] ? ++split_count : ++unsplit_closed;
-  }
-  // Past kMaxRuns draw_scene draws every closed mesh in one call: the split
-  // would then draw the unsplit ones too, or the last draw the split ones
-  // again. Counting objects, not runs, errs towards fewer draws.
-  if (split_count > kMaxRuns && unsplit_closed > 0) {
-    for (const ObjectRange& r : scene().mesh.object_ranges)
-      if (r.first_index < scene().mesh.closed_index_count) split[r.object] = true;
-  } else if (unsplit_closed > kMaxRuns) {
-    split.clear();
-  }
-  if (std::find(split.begin(), split.end(), true) != split.end()) {
-    for (std::size_t i = 0; i < split.size(); ++i) {
-      split[i] = split[i] && objects[i];
-      objects[i] = objects[i] && !split[i];
+  for (const DisplayStep& step : pass.steps) {
+    glUseProgram(program(step.program));
+    step.clip_by_light_side ? glEnable(GL_CLIP_DISTANCE0) : glDisable(GL_CLIP_DISTANCE0);
+    const StencilStep& stencil = step.stencil;
+    if (stencil.enabled) {
+      // llvmpipe skips the shader for a block of pixels that the early
+      // stencil test rejects (see append_cell_steps in frame_plan.cpp).
+      glEnable(GL_STENCIL_TEST);
+      const GLenum test = stencil.test == StencilStep::Test::Always  ? GL_ALWAYS
+                          : stencil.test == StencilStep::Test::Equal ? GL_EQUAL
+                                                                     : GL_NOTEQUAL;
+      glStencilFunc(test, stencil.ref, GLuint(stencil.mask));
+      glStencilOp(GL_KEEP, GL_KEEP, stencil.replace ? GL_REPLACE : GL_KEEP);
+    } else {
+      glDisable(GL_STENCIL_TEST);
     }
-    DisplayVariant facing = variant;
-    facing.light_side = 1;
-    DisplayVariant away = without_shadows(variant);
-    away.light_side = -1;
-    glEnable(GL_CLIP_DISTANCE0);
-    glUseProgram(display_.programs.get(facing.defines()).id());
-    draw_scene(closed_cull, split, MeshPart::Closed);
-    glUseProgram(display_.programs.get(away.defines()).id());
-    draw_scene(closed_cull, split, MeshPart::Closed);
-    glDisable(GL_CLIP_DISTANCE0);
-    glUseProgram(display_.programs.get(variant.defines()).id());
-  }
-  draw_scene(closed_cull, objects);
-  if (!cells.planes.empty()) {
-    // Plane by plane, with the stencil (llvmpipe skips the shader for a
-    // block of pixels that the early stencil test rejects, not for lanes
-    // that a branch masks off):
-    // 1. the shadows of its objects' bounds, marked `near` and not drawn;
-    // 2. its umbras, with the program of a light that reaches no surface,
-    //    marked `dark` instead;
-    // 3. its shadowable cells with the lookup where marked `near`, then
-    //    lit where marked neither;
-    // 4. its other cells lit where not dark (an umbra never reaches them).
-    // The lookup's pixels are drawn from the cells' triangles, as without
-    // the marks, so it interpolates the same positions. The two marks
-    // differ in their lowest bit only, and each plane has its own pair:
-    // coplanar parts of different planes would not mark each other.
-    // Without the shadows of the bounds (a point light whose foot is
-    // inside an object's bounds), the lookup runs on every shadowable cell
-    // but the umbras.
-    DisplayVariant dark = without_shadows(variant);
-    dark.direct_light = false;
-    const GLuint dark_program = display_.programs.get(dark.defines()).id();
-    const GLuint lookup_program = display_.programs.get(variant.defines()).id();
-    const GLuint lit_program = display_.programs.get(without_shadows(variant).defines()).id();
-    glBindVertexArray(display_.cells_vertex_array.id());
-    glEnable(GL_STENCIL_TEST);
-    static_assert(2 * kMaxPlanesInCells + 1 <= 0xFF, "each plane's two marks fit in the 8-bit stencil");
-    GLint plane_marks = 0;
-    for (const PlaneDraw& draw : cells.planes) {
-      plane_marks += 2;
-      const GLint dark_mark = plane_marks, near_mark = plane_marks + 1;
-      const bool marked_near = draw.lookup_only_near;
-      glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
-      glUseProgram(dark_program);
-      if (draw.bounds.count > 0) {
-        // Marked whatever is in front: only this plane's draws below read
-        // the mark, and they test depth themselves. (With the depth test,
-        // a plane coplanar with one drawn before would be marked where its
-        // polygons lose to that plane by a rounding and drawn lit where its
-        // cells win.)
-        glStencilFunc(GL_ALWAYS, near_mark, 0xFF);
-        glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-        glDepthMask(GL_FALSE);
-        glDepthFunc(GL_ALWAYS);
-        draw_indices(draw.bounds.first, draw.bounds.count);
-        glDepthFunc(GL_GREATER);
-        glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-        glDepthMask(GL_TRUE);
-      }
-      if (draw.dark.count > 0) {
-        glStencilFunc(GL_ALWAYS, dark_mark, 0xFF);
-        draw_indices(draw.dark.first, draw.dark.count);
-      }
-      glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
-      if (draw.shadowable.count > 0) {
-        marked_near ? glStencilFunc(GL_EQUAL, near_mark, 0xFF) : glStencilFunc(GL_NOTEQUAL, dark_mark, 0xFF);
-        glUseProgram(lookup_program);
-        draw_indices(draw.shadowable.first, draw.shadowable.count);
-        if (marked_near) {
-          glStencilFunc(GL_NOTEQUAL, dark_mark, 0xFE);  // neither mark
-          glUseProgram(lit_program);
-          draw_indices(draw.shadowable.first, draw.shadowable.count);
-        }
-      }
-      if (draw.unshadowable.count > 0) {
-        glStencilFunc(GL_NOTEQUAL, dark_mark, 0xFF);
-        glUseProgram(lit_program);
-        draw_indices(draw.unshadowable.first, draw.unshadowable.count);
-      }
+    if (stencil.marks_only) {
+      glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      glDepthMask(GL_FALSE);
+      glDepthFunc(GL_ALWAYS);
     }
-    glDisable(GL_STENCIL_TEST);
+    if (step.cells) {
+      glBindVertexArray(display_.cells_vertex_array.id());
+      for (const DrawRange& draw : step.draws) {
+        set_cull(draw.cull);
+        draw_indices(draw.first, draw.count);
+      }
+      glDisable(GL_CULL_FACE);
+    } else {
+      draw_scene(step.draws);
+    }
+    if (stencil.marks_only) {
+      glDepthFunc(GL_GREATER);
+      glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+      glDepthMask(GL_TRUE);
+    }
   }
+  glDisable(GL_STENCIL_TEST);
+  glDisable(GL_CLIP_DISTANCE0);
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
   glClearDepth(1.0);
   glDepthFunc(GL_LESS);
-  return cells.umbras;
 }
 
-void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size, int bits) {
-  resize_depth_preview(image_size, bits);
-  // The shadow pass leaves empty views' layers as they were: show them as
-  // cleared, far everywhere.
+void ShadowRenderer::run_depth_preview(const FramePlan& plan) {
+  const DepthPreviewPlan& preview = plan.preview;
+  resize_depth_preview(preview.size, preview.bits);
+  const int layer_size = plan.light.layer_size;
   const float far = 1.0f;
-  for (std::size_t layer = 0; layer < light.views.size(); ++layer)
-    if (light.views[layer].empty)
-      glClearTexSubImage(shadow_.depth_map.id(), 0, 0, 0, GLint(layer), light.layer_size, light.layer_size, 1,
-                         GL_DEPTH_COMPONENT, GL_FLOAT, &far);
-  const PreviewVariant variant{light.perspective, int(light.views.size())};
+  for (const int layer : preview.empty_layers)
+    glClearTexSubImage(shadow_.depth_map.id(), 0, 0, 0, GLint(layer), layer_size, layer_size, 1, GL_DEPTH_COMPONENT,
+                       GL_FLOAT, &far);
+  const PreviewVariant variant{preview.perspective, preview.view_count};
   glUseProgram(preview_.programs.get(variant.defines()).id());
   glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, preview_.framebuffer.id());
@@ -784,19 +498,20 @@ void ShadowRenderer::run_depth_preview(const ShadowPlan& light, int image_size, 
   glEnable(GL_DEPTH_TEST);
 }
 
-Image ShadowRenderer::read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth) {
+Image ShadowRenderer::read_pixels(const ReadBack& read_back) {
+  const GLuint framebuffer = read_back.depth_preview ? preview_.framebuffer.id() : display_.framebuffer.id();
   Image image;
-  image.width = width;
-  image.height = height;
-  image.channels = channels;
-  image.bit_depth = bit_depth;
-  image.pixels.resize(image.row_bytes() * std::size_t(height));
+  image.width = read_back.width;
+  image.height = read_back.height;
+  image.channels = read_back.channels;
+  image.bit_depth = read_back.bit_depth;
+  image.pixels.resize(image.row_bytes() * std::size_t(image.height));
   glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
   glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
   // 16 bits: GL writes host-order uint16_t samples, which is what Image holds.
-  const GLenum type = bit_depth == 16 ? GL_UNSIGNED_SHORT : GL_UNSIGNED_BYTE;
-  glReadPixels(0, 0, width, height, channels == 1 ? GL_RED : GL_RGB, type, image.pixels.data());
+  const GLenum type = image.bit_depth == 16 ? GL_UNSIGNED_SHORT : GL_UNSIGNED_BYTE;
+  glReadPixels(0, 0, image.width, image.height, image.channels == 1 ? GL_RED : GL_RGB, type, image.pixels.data());
   image.flip_rows();
   return image;
 }
@@ -816,49 +531,32 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
   map_allocated_ = false;
   result.scene_uploaded = use_scene(request.scene);
   check_watch("the scene's upload");
-  ShadowPlan light = plan_shadow(request);
-  const bool depth_output = request.output == Output::Depth;
-
-  // A sun below the horizon casts no shadow: its frame is ambient only.
-  const bool needs_map = (request.shadow.enabled && light.direct_light) || depth_output;
-  const std::vector<bool> planes = casting_planes(request, light);
-  if (needs_map && shadow_map_serves(request, light, planes)) {
-    // Nothing the map depends on changed (typically only the camera
-    // moved): draw with the views it was made for; shadow_ms stays 0.
-    light = shadow_.plan;
-    result.shadow_reused = true;
-  }
-  const CasterTexels casters = caster_table(request, light, planes);
-  upload_frame_block(request, light, casters.by_view);
-  if (needs_map) {
-    if (!result.shadow_reused) {
-      const auto start = Clock::now();
-      run_shadow_pass(request, light, planes, casters);
-      glFinish();
-      result.timings.shadow_ms = elapsed_ms(start);
-      check_watch("the shadow pass");
-    }
-    const char* layout = light.layout == ShadowLayout::Cascades ? "cascades"
-                         : light.layout == ShadowLayout::Cube   ? "cube"
-                                                                : "single";
-    result.shadow_views = std::string(layout) + "; views=" + std::to_string(light.views.size()) +
-                          "; size=" + std::to_string(light.layer_size) + (depth_output ? preview_tiles_parameters(light) : "");
+  const FramePlan plan = plan_frame(request, scene().mesh, current_scene_key(), shadow_.kept);
+  result.shadow_reused = plan.shadow.reused;
+  result.shadow_views = plan.shadow_views;
+  const FrameBlock block = frame_block(request, plan.light, scene().mesh, plan.casters.by_view);
+  glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
+  if (plan.shadow.needed && !plan.shadow.reused) {
+    // A reused map (typically only the camera moved) leaves shadow_ms 0.
+    const auto start = Clock::now();
+    run_shadow_pass(plan);
+    glFinish();
+    result.timings.shadow_ms = elapsed_ms(start);
+    check_watch("the shadow pass");
   }
 
   const auto main_start = Clock::now();
-  if (depth_output)
-    run_depth_preview(light, request.shadow.map_size, request.depth_bits);
-  else
-    result.umbras = run_display_pass(request, light, planes, casters);
+  if (plan.depth_output) {
+    run_depth_preview(plan);
+  } else {
+    run_display_pass(request, plan);
+    result.umbras = plan.display.umbras;
+  }
   glFinish();
   result.timings.main_ms = elapsed_ms(main_start);
 
   const auto readback_start = Clock::now();
-  if (depth_output)
-    result.image = read_pixels(preview_.framebuffer.id(), preview_.size, preview_.size, 1, preview_.bits);
-  else
-    result.image = read_pixels(display_.framebuffer.id(), display_.width, display_.height,
-                               request.output == Output::Shadow ? 1 : 3);
+  result.image = read_pixels(plan.read_back);
   result.timings.readback_ms = elapsed_ms(readback_start);
   result.shadow_map_allocated = map_allocated_;
   return result;

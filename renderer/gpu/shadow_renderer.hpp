@@ -1,5 +1,9 @@
-// The GL renderer: a shadow pass into a depth texture, then a main pass that
-// lights the scene from the camera with that texture, then read-back.
+// The GL renderer: executes a frame's plan (plan/frame_plan.hpp): a shadow
+// pass into a depth texture, then a main pass that lights the scene from the
+// camera with that texture (or the depth preview), then read-back. What to
+// draw is decided by plan_frame; what is decided here is only how GL holds
+// it (which scenes, maps and programs are kept) and how a long draw is
+// split into chunks while it runs.
 #pragma once
 
 #include <chrono>
@@ -11,10 +15,11 @@
 #include "core/byte_bounded_lru.hpp"
 #include "gpu/objects.hpp"
 #include "gpu/program.hpp"
-#include "service/render_result.hpp"
 #include "core/light_math.hpp"
+#include "core/render_result.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
+#include "plan/frame_plan.hpp"
 
 namespace umbra {
 
@@ -96,22 +101,8 @@ class ShadowRenderer {
     gl::Framebuffer framebuffer;
     int size = 0;
     int layers = 0;
-    // What the map holds now, so that a frame whose light, scene and cull
-    // mode are unchanged (a camera-only change) reuses it.
-    bool holds_plan = false;
-    ShadowPlan plan;
-    std::string scene_key;
-    CullMode cull = CullMode::Front;
-    std::vector<bool> planes;  // casting_planes() it was drawn with
-    // Whole layers cleared (the depth output), or only the casters'
-    // rectangles with this many texels around them.
-    bool whole_layers = false;
-    int clear_margin = 0;
-    // Drawn for a frame with the automatic bias, so heavy meshes may be
-    // missing from cascades where that frame's lookups cannot see them
-    // (drop_casters_held_by_earlier_cascades); a frame with the seeds'
-    // bias looks further and must not reuse it.
-    bool automatic_bias = false;
+    // What the map holds now (plan_frame decides whether it serves a frame).
+    KeptShadowMap kept;
   };
   // The camera's view, into an offscreen colour + depth framebuffer.
   struct DisplayPass {
@@ -121,8 +112,7 @@ class ShadowRenderer {
     gl::Framebuffer framebuffer;
     int width = 0, height = 0;
     // The planes that cast nothing, drawn as cells (receiver_cells.hpp):
-    // this frame's vertices, then the shadowable cells' indices followed by
-    // the others'.
+    // this frame's DisplayPassPlan::cell_vertices and cell_indices.
     gl::VertexArray cells_vertex_array;
     gl::Buffer cell_vertices;
     gl::Buffer cell_indices;
@@ -158,12 +148,6 @@ class ShadowRenderer {
   /// buffers, textures and framebuffers of the last frame, so that those
   /// released are freed now, not at the next request.
   void unbind_released();
-  // Runs of closed meshes, and of open models, that draw_scene draws with a
-  // call each; past that many, all of their kind in one call.
-  static constexpr std::size_t kMaxRuns = 16;
-  // Triangles from which an object is worth leaving out of a cascade it
-  // shadows nothing in: on llvmpipe about 0.4 ms of a shadow pass.
-  static constexpr std::size_t kHeavyTriangles = 4096;
   // A mesh more layers deep than this (mesh_deepest_layers) has its draws
   // split into chunks of about kChunkMs each, the watch checked between
   // them: one draw call of 4,000 stacked quads is seconds that llvmpipe
@@ -172,10 +156,10 @@ class ShadowRenderer {
   static constexpr double kDeepLayers = 4.0;
   static constexpr double kChunkMs = 20.0;
   // A mesh whose triangles the estimate prices at more than this in a pass
-  // (mesh_draw_ms: per triangle and per 64 x 64 tile their bounding boxes
-  // cover) is drawn in chunks too: 200,000 slivers across a 4096^2 map are
-  // not deep at all, yet one draw of them is seconds. The teapot is well
-  // under a millisecond.
+  // (the plan's object_draw_ms, mesh_draw_ms: per triangle and per 64 x 64
+  // tile their bounding boxes cover) is drawn in chunks too: 200,000
+  // slivers across a 4096^2 map are not deep at all, yet one draw of them
+  // is seconds. The teapot is well under a millisecond.
   static constexpr double kLongDrawMs = 2.0 * kChunkMs;
   // The fragments a first chunk is sized for, assuming the deep mesh fills
   // the view (so never too large): about kChunkMs on the reference machine
@@ -188,7 +172,7 @@ class ShadowRenderer {
   FrameWatch watch_;
   double pass_pixels_ = 0.0;          // the pass's viewport
   double ms_per_fragment_ = 0.0;      // kChunkMs over the pass's first chunk of a deep mesh's fragments
-  std::vector<double> pass_draw_ms_;  // per scene object: mesh_draw_ms, the most over the pass's views
+  std::vector<double> pass_draw_ms_;  // per scene object: the plan's object_draw_ms for this pass
   double chunk_ms_ = 0.0;             // estimated ms a chunk is sized for, adapted to the time chunks take
   // Draws indices [first, first + count) of the current scene: in one call
   // unless they hold a deep mesh (kDeepLayers) or a long one (kLongDrawMs),
@@ -196,9 +180,9 @@ class ShadowRenderer {
   // in index order (the same pixels as one call).
   void draw_scene_indices(std::size_t first, std::size_t count);
   // Starts a pass's chunking: `fragments_per_chunk` of a deep mesh in a
-  // viewport of `width` x `height`, and each mesh's draw estimated in the
-  // views `view_projections` of `scene` (the current one).
-  void begin_pass(const Scene& scene, const std::vector<glm::dmat4>& view_projections, double width, double height,
+  // viewport of `width` x `height`, each mesh's draw estimated at
+  // `object_draw_ms` (one per scene object).
+  void begin_pass(const std::vector<double>& object_draw_ms, double width, double height,
                   double fragments_per_chunk);
   // Waits for the GL to finish what was issued (a fence: llvmpipe draws
   // when flushed), sizes the next chunk by the time this one took, and
@@ -208,64 +192,15 @@ class ShadowRenderer {
   // After a frame that threw: what the passes set is set back, the map it
   // may have half drawn is not reused.
   void abandon_frame();
-  // Which of the scene's triangles a draw_scene call draws.
-  enum class MeshPart {
-    All,
-    Closed,  ///< closed meshes only (Mesh::closed_index_count)
-  };
-  // The objects `objects` marks (one flag per scene object; empty: all) in
-  // `part` of the mesh. Closed objects scattered over more than a few runs
-  // are all drawn in one call, and so are open models; what is drawn outside
-  // the view leaves no texel. Planes are drawn exactly as marked.
-  void draw_scene(CullMode closed_mesh_cull, const std::vector<bool>& objects = {}, MeshPart part = MeshPart::All);
-  // One flag per scene object: all of them but the planes `planes` leaves
-  // out (one flag per Mesh::planes entry; empty: none).
-  std::vector<bool> drawn_objects(const std::vector<bool>& planes) const;
-  // The scene's planes that the shadow pass for `light` draws: all of them
-  // for the depth output (it shows what the light sees), else those that
-  // can shadow something (plane_can_shadow).
-  std::vector<bool> casting_planes(const RenderRequest& request, const ShadowPlan& light) const;
-  // Where each object the shadow pass draws (all but the planes that
-  // `planes` leaves out) reaches into each view of `light`: once per frame.
-  // Heavy meshes are left out of cascades where they shadow nothing
-  // (drop_casters_held_by_earlier_cascades), except for the depth output,
-  // which shows whole layers.
-  CasterTexels caster_table(const RenderRequest& request, const ShadowPlan& light,
-                            const std::vector<bool>& planes) const;
-  void upload_frame_block(const RenderRequest& request, const ShadowPlan& light, const std::vector<TexelRect>& casters);
-  void run_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
-                       const CasterTexels& casters);
-  bool shadow_map_serves(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes) const;
-  // Returns how many umbras it drew dark (umbras.hpp).
-  std::size_t run_display_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
-                               const CasterTexels& casters);
-  // The main pass's planes: drawn whole (one flag per Mesh::planes entry),
-  // or in parts whose indices are in display_.cell_indices: per plane, its
-  // umbras drawn dark, the shadows of its objects' bounds (only marked in
-  // the stencil), its shadowable cells and its other cells.
-  struct IndexRange {
-    std::size_t first = 0, count = 0;
-  };
-  struct PlaneDraw {
-    IndexRange dark, bounds, shadowable, unshadowable;
-    // The shadows of the objects' bounds were found (`bounds`, perhaps
-    // none): the shadowable cells need the lookup only inside them.
-    bool lookup_only_near = false;
-  };
-  // Planes past that many are drawn whole: their regions would cost more to
-  // find than they save.
-  static constexpr std::size_t kMaxPlanesInCells = 8;
-  struct CellDraws {
-    std::vector<bool> whole_planes;
-    std::vector<PlaneDraw> planes;  // at most 8: each marks the stencil with its own pair of values
-    std::size_t umbras = 0;         // polygons drawn dark
-  };
-  // Uploads the cells of the planes the shadow pass leaves out (planes[i]
-  // false).
-  CellDraws upload_plane_cells(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
-                               const CasterTexels& casters);
-  void run_depth_preview(const ShadowPlan& light, int image_size, int bits);
-  Image read_pixels(GLuint framebuffer, int width, int height, int channels, int bit_depth = 8);
+  // Draws `draws` of the current scene (draw_scene_indices each) with
+  // their cull modes; leaves face culling off.
+  void draw_scene(const std::vector<DrawRange>& draws);
+  // The passes of `plan`, as it orders them. The display pass reads
+  // `request` only for the shader interface (display_variant).
+  void run_shadow_pass(const FramePlan& plan);
+  void run_display_pass(const RenderRequest& request, const FramePlan& plan);
+  void run_depth_preview(const FramePlan& plan);
+  Image read_pixels(const ReadBack& read_back);
 
   // The last few distinct scenes, keyed by content, most recently used
   // first, so that clients alternating between scenes do not re-upload them;

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/image.hpp"
+#include "core/render_result.hpp"
 #include "reference/ray_cast.hpp"
 
 namespace umbra {
@@ -31,41 +32,7 @@ inline constexpr double kArtifactError = 0.1;
 inline constexpr std::size_t kFinerShare = 16;
 inline constexpr std::size_t kFinerPixels = 4096;
 
-struct ShadowError {
-  /// Pixels measured: they see geometry, are not on a geometric silhouette
-  /// (every 4-neighbour sees the same object) and are not grazing.
-  std::size_t pixels = 0;
-  /// Mean |v - v_exact|, v in [0, 1].
-  double mae = 0.0;
-  /// Share of measured pixels with |v - v_exact| > 0.5, in [0, 1] ...
-  double wrong = 0.0;
-  /// ... split by direction: rendered dark where exactly lit (acne,
-  /// over-shadowing) ...
-  double false_shadow = 0.0;
-  /// ... and rendered lit where exactly dark (peter panning, shadows cut off
-  /// by the light's frustum, leaks).
-  double false_light = 0.0;
-
-  /// Pixels where any shadow technique should be exact, so that a small
-  /// error there is a visible artifact, not blur: they see geometry, are not
-  /// grazing, are exactly lit or exactly dark (never penumbra), and lie more
-  /// than kArtifactMargin pixels (Chebyshev) from every pixel of a 4-neighbour
-  /// pair that differs by
-  /// - a silhouette: `geometry` or `object` differs,
-  /// - a shadow edge: the exact visibility differs at all,
-  /// - a crease: same object, normals' dot product below kCreaseNDotN (a
-  ///   box's edge).
-  /// Filtering and resolution limits blur shadows near those, honestly; away
-  /// from them a value off by 0.1 is something a viewer sees (a dotted line
-  /// along a cascade seam). The image border is no edge. With a finer look
-  /// (measure_shadow_error), an edge between pixel centres near a pixel
-  /// that would be an artifact counts too. Reported so that artifacts = 0
-  /// can be told from "nothing measured".
-  std::size_t interior_pixels = 0;
-  /// Share of interior pixels with |v - v_exact| > kArtifactError, in [0, 1]:
-  /// thin artifacts that `wrong` misses because they stay within 0.5.
-  double artifacts = 0.0;
-};
+// ShadowError: core/render_result.hpp (a frame's result carries it).
 
 /// `rendered` is a 1-channel "shadow" image of the same size as `exact`
 /// (width x height, row 0 at the top).

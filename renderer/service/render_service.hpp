@@ -12,7 +12,7 @@
 #include <string>
 #include <utility>
 
-#include "service/render_result.hpp"
+#include "core/render_result.hpp"
 #include "core/request.hpp"
 #include "service/request_cost.hpp"
 

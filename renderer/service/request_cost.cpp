@@ -13,6 +13,7 @@
 #include "core/light_math.hpp"
 #include "core/mesh_instance.hpp"
 #include "core/model.hpp"
+#include "plan/draw_cost.hpp"
 #include "reference/ray_cast.hpp"
 #include "core/scene.hpp"
 #include "gpu/shader_interface.hpp"
@@ -37,7 +38,8 @@ namespace {
 // 256^2, the default scene at 1024^2, and an area light at 512^2.
 // bench/cost_report prints the factors of a request body to repeat this.
 constexpr double kMsPerUploadedTriangle = 9.0e-5;  // tessellate + upload: 772 ms for 9.0 M triangles
-constexpr double kMsPerDrawnTriangle = 1.0e-4;     // per view: 895 ms main, 417..594 ms shadow, 9.0 M
+// kMsPerDrawnTriangle: plan/draw_cost.hpp, where the renderer sizes its
+// chunked draws by it.
 constexpr double kMsPerShadowTexelLayer = 1.0e-6;  // 999 overlapping spheres: 22..45 s for 3.9e10
 constexpr double kMsPerShadowTexel = 1.5e-6;       // 4 x 8192^2, one object: 375..853 ms for 2.7e8
 constexpr double kMsPerPixel = 1.0e-5;             // shading set-up and read-back
@@ -64,14 +66,7 @@ constexpr std::uint64_t kBvhBytesPerTriangle = 90;  // Embree's memory monitor, 
 constexpr double kMsPerMeshFragment = 2.5e-5;  // plus kMsPerGather for each of its shadow-map reads
 // Map 2048^2 and 1024^2, 1.3e10 and 3.3e9 texels: 5.2 s and 1.24 s.
 constexpr double kMsPerMeshTexel = 5.0e-7;
-// A triangle tested against a 64 x 64 tile (mesh_tile_tests), measured with
-// issue 29's slivers: triangles 100 x 100 world units corner to corner and
-// 1e-4 wide, one object seen face on from a point light and a camera at
-// 60 units, map 1024^2, 2048^2 and 4096^2 (each sliver's box covers the
-// whole map: 256, 1,024 and 4,096 tiles), 20,000 and 200,000 slivers:
-// Server-Timing's shadow pass over the tiles the estimate counts,
-// rounded up (see the comment at mesh_tile_tests' test).
-constexpr double kMsPerTileTest = 1.0e-5;
+// kMsPerTileTest: a triangle tested against a 64 x 64 tile, plan/draw_cost.hpp.
 
 // Mesh sizes, as tessellate() builds them (tests check the two agree).
 constexpr std::uint64_t kSphereStacks = 48, kSphereSlices = 96;
@@ -191,48 +186,6 @@ double layers_seen_from(const SceneObject& o, const Aabb& bounds, const std::opt
 }
 
 }  // namespace
-
-double mesh_tile_tests(const SceneObject& o, const glm::dmat4& view_projection, double width, double height) {
-  if (o.type != SceneObject::Type::Mesh || !o.model || o.model->bounds.empty()) return 0.0;
-  // The bounds' rectangle in NDC (clipped to the view), their nearest clip
-  // w (a linear function: least at a corner) and how far off axis they
-  // reach; bounds reaching behind a perspective eye cover the whole view.
-  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300, w_min = 1e300;
-  bool around_eye = false;
-  for (const glm::dvec3& corner : object_bounds(o).corners()) {
-    const glm::dvec4 clip = view_projection * glm::dvec4(corner, 1.0);
-    if (!(clip.w > 1e-12)) {
-      around_eye = true;
-      break;
-    }
-    x0 = std::min(x0, clip.x / clip.w), x1 = std::max(x1, clip.x / clip.w);
-    y0 = std::min(y0, clip.y / clip.w), y1 = std::max(y1, clip.y / clip.w);
-    w_min = std::min(w_min, clip.w);
-  }
-  if (around_eye) x0 = y0 = -1.0, x1 = y1 = 1.0;
-  x0 = std::max(x0, -1.0), y0 = std::max(y0, -1.0), x1 = std::min(x1, 1.0), y1 = std::min(y1, 1.0);
-  if (!(x1 > x0 && y1 > y0)) return 0.0;
-  const double rect_pixels = (x1 - x0) * 0.5 * width * (y1 - y0) * 0.5 * height;
-  // Pixels per world unit along screen x and y: the gradient of x/w is
-  // (row0 - (x/w) row3) / w, at most (|row0| + |x/w| |row3|) / w; the
-  // model's scale stretches its edges by at most its largest factor.
-  const glm::dmat4& m = view_projection;  // column-major: m[column][row]
-  const glm::dvec3 row0(m[0][0], m[1][0], m[2][0]), row1(m[0][1], m[1][1], m[2][1]), row3(m[0][3], m[1][3], m[2][3]);
-  const glm::dvec3 factors = glm::abs(o.mesh_scale);
-  const double scale = std::max({factors.x, factors.y, factors.z});
-  const double sx = (glm::length(row0) + std::max(-x0, x1) * glm::length(row3)) * scale * 0.5 * width;
-  const double sy = (glm::length(row1) + std::max(-y0, y1) * glm::length(row3)) * scale * 0.5 * height;
-  double pixels = 0.0;
-  for (const EdgeLengthBin& bin : o.model->edge_lengths)
-    pixels += around_eye ? bin.triangles * rect_pixels
-                         : std::min(bin.squared_edges * sx * sy / (w_min * w_min), bin.triangles * rect_pixels);
-  return pixels / (64.0 * 64.0);
-}
-
-double mesh_draw_ms(const SceneObject& o, const glm::dmat4& view_projection, double width, double height) {
-  return double(mesh_triangle_count(o)) * kMsPerDrawnTriangle +
-         mesh_tile_tests(o, view_projection, width, height) * kMsPerTileTest;
-}
 
 double depth_complexity(const Scene& scene, const glm::dmat4& view_projection) {
   double sum = 0.0;

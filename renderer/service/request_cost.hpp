@@ -48,7 +48,8 @@ struct CostFactors {
   /// The deepest mesh in any of those views (ViewLayers::deepest_mesh), for
   /// the advice.
   double deepest_mesh = 0.0;
-  /// 64 x 64 tiles llvmpipe tests mesh triangles against (mesh_tile_tests),
+  /// 64 x 64 tiles llvmpipe tests mesh triangles against (mesh_tile_tests,
+  /// plan/draw_cost.hpp),
   /// summed over the non-empty shadow views and the camera's, and the part
   /// of them in the shadow views. A long thin triangle is tested against
   /// every tile its bounding box covers: 200,000 slivers across a 4096^2
@@ -132,21 +133,5 @@ struct ViewLayers {
   double deepest_mesh = 0.0;
 };
 ViewLayers view_layers(const Scene& scene, const glm::dmat4& view_projection, bool closed_faces_culled);
-
-/// An upper bound on the 64 x 64 tiles llvmpipe tests a mesh object's
-/// triangles against when it draws them into a `width` x `height` view
-/// (0 for other objects): llvmpipe bins a triangle into every tile its
-/// bounding box overlaps, so a long sliver costs about (its length in
-/// pixels / 64)^2 tile tests however thin it is. Each triangle's box is at
-/// most its longest edge squared (TriangleModel::edge_lengths) times the
-/// view's stretch at the object's nearest point, and at most the object's
-/// bounds' rectangle in the view. O(the model's edge length bins).
-double mesh_tile_tests(const SceneObject& mesh, const glm::dmat4& view_projection, double width, double height);
-
-/// Estimated milliseconds to draw a mesh object's triangles into that view,
-/// depth only, as the estimate prices them: per triangle and per tile test
-/// (not the fragments of its layers, ViewLayers). What the renderer sizes
-/// the chunks of a long draw by.
-double mesh_draw_ms(const SceneObject& mesh, const glm::dmat4& view_projection, double width, double height);
 
 }  // namespace umbra

@@ -1,0 +1,74 @@
+// What one render job hands back.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+
+#include "core/image.hpp"
+
+namespace umbra {
+
+/// How far a rendered "shadow" image is from the exact reference
+/// (reference/shadow_error.hpp measures it).
+struct ShadowError {
+  /// Pixels measured: they see geometry, are not on a geometric silhouette
+  /// (every 4-neighbour sees the same object) and are not grazing.
+  std::size_t pixels = 0;
+  /// Mean |v - v_exact|, v in [0, 1].
+  double mae = 0.0;
+  /// Share of measured pixels with |v - v_exact| > 0.5, in [0, 1] ...
+  double wrong = 0.0;
+  /// ... split by direction: rendered dark where exactly lit (acne,
+  /// over-shadowing) ...
+  double false_shadow = 0.0;
+  /// ... and rendered lit where exactly dark (peter panning, shadows cut off
+  /// by the light's frustum, leaks).
+  double false_light = 0.0;
+
+  /// Pixels where any shadow technique should be exact, so that a small
+  /// error there is a visible artifact, not blur: they see geometry, are not
+  /// grazing, are exactly lit or exactly dark (never penumbra), and lie more
+  /// than kArtifactMargin pixels (Chebyshev) from every pixel of a 4-neighbour
+  /// pair that differs by
+  /// - a silhouette: `geometry` or `object` differs,
+  /// - a shadow edge: the exact visibility differs at all,
+  /// - a crease: same object, normals' dot product below kCreaseNDotN (a
+  ///   box's edge).
+  /// Filtering and resolution limits blur shadows near those, honestly; away
+  /// from them a value off by 0.1 is something a viewer sees (a dotted line
+  /// along a cascade seam). The image border is no edge. With a finer look
+  /// (measure_shadow_error), an edge between pixel centres near a pixel
+  /// that would be an artifact counts too. Reported so that artifacts = 0
+  /// can be told from "nothing measured".
+  std::size_t interior_pixels = 0;
+  /// Share of interior pixels with |v - v_exact| > kArtifactError, in [0, 1]:
+  /// thin artifacts that `wrong` misses because they stay within 0.5.
+  double artifacts = 0.0;
+};
+
+struct RenderResult {
+  Image image;
+  FrameTimings timings;
+  /// Output "error" only: the error measures of the rendered shadow term
+  /// against the exact reference.
+  std::optional<ShadowError> error;
+  /// How the light's shadow was laid out, when a shadow pass ran:
+  /// "single", "cascades" or "cube"; the number of views and the texels per
+  /// side of each (e.g. "cascades; views=3; size=2048").
+  std::string shadow_views;
+  /// The shadow map from an earlier frame served this one (nothing it
+  /// depends on changed), so no shadow pass ran.
+  bool shadow_reused = false;
+  /// The scene's meshes had to be uploaded (not among the cached scenes).
+  bool scene_uploaded = false;
+  /// The frame allocated its shadow map: a size or layer count the kept one
+  /// lacks, or none was kept.
+  bool shadow_map_allocated = false;
+  /// Umbras the main pass drew dark without the shadow lookup
+  /// (renderer/plan/umbras.hpp): where a box or sphere hides a light of no size
+  /// from a floor.
+  std::size_t umbras = 0;
+};
+
+}  // namespace umbra

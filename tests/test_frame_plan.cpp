@@ -1,0 +1,415 @@
+// What a frame draws (plan/frame_plan.hpp), decided without a GL context:
+// which planes and meshes each layer of the shadow pass draws and how it is
+// cleared, when the kept map serves, the main pass's steps and stencil
+// protocol, the depth preview and the read-back.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "core/light_math.hpp"
+#include "core/request.hpp"
+#include "core/scene.hpp"
+#include "plan/frame_plan.hpp"
+
+namespace umbra {
+namespace {
+
+RenderRequest builtin(const char* name) {
+  RenderRequest r;
+  const BuiltinScene* s = find_builtin_scene(name);
+  r.scene.name = s->name;
+  r.scene.objects = s->objects;
+  r.camera.position = s->camera_position;
+  r.camera.target = s->camera_target;
+  r.light.position = s->light_position;
+  return r;
+}
+
+// The plan of `r`'s frame with nothing kept in the shadow map.
+FramePlan fresh_plan(const RenderRequest& r) { return plan_frame(r, tessellate(r.scene), "scene", KeptShadowMap{}); }
+
+// Whether `draws` draw any of object `object`'s triangles.
+bool draws_object(const std::vector<DrawRange>& draws, const Mesh& mesh, std::size_t object) {
+  for (const ObjectRange& o : mesh.object_ranges) {
+    if (o.object != object || o.index_count == 0) continue;
+    for (const DrawRange& d : draws)
+      if (d.first < std::size_t(o.first_index) + o.index_count && o.first_index < d.first + d.count) return true;
+  }
+  return false;
+}
+
+std::size_t first_of_type(const Scene& scene, SceneObject::Type type) {
+  for (std::size_t i = 0; i < scene.objects.size(); ++i)
+    if (scene.objects[i].type == type) return i;
+  ADD_FAILURE() << "no such object";
+  return 0;
+}
+
+TEST(FramePlan, ACameraOnlyChangeReusesTheMap) {
+  RenderRequest r = builtin("three-cubes");
+  r.light.projection = LightProjection::Perspective;  // its views do not follow the camera
+  const Mesh mesh = tessellate(r.scene);
+  const FramePlan first = plan_frame(r, mesh, "scene", KeptShadowMap{});
+  ASSERT_TRUE(first.shadow.needed);
+  EXPECT_FALSE(first.shadow.reused);
+  EXPECT_FALSE(first.shadow.layers.empty());
+  const KeptShadowMap kept = first.shadow.kept_after;
+  EXPECT_TRUE(kept.holds_plan);
+
+  RenderRequest moved = r;
+  moved.camera.position += glm::dvec3(0.3, -0.2, 0.1);
+  const FramePlan second = plan_frame(moved, mesh, "scene", kept);
+  EXPECT_TRUE(second.shadow.reused);
+  EXPECT_TRUE(second.shadow.layers.empty()) << "no shadow pass";
+  EXPECT_EQ(second.light.views.size(), kept.plan.views.size());
+  EXPECT_EQ(second.shadow_views, first.shadow_views);
+
+  // What the map depends on changed: drawn again.
+  EXPECT_FALSE(plan_frame(moved, mesh, "another scene", kept).shadow.reused);
+  RenderRequest culled = moved;
+  culled.shadow.cull = CullMode::Back;
+  EXPECT_FALSE(plan_frame(culled, mesh, "scene", kept).shadow.reused);
+  RenderRequest lit_elsewhere = moved;
+  lit_elsewhere.light.position += glm::dvec3(1.0, 0.0, 0.0);
+  EXPECT_FALSE(plan_frame(lit_elsewhere, mesh, "scene", kept).shadow.reused);
+  // A wider filter reads past the rectangles the map was cleared around.
+  RenderRequest wider = moved;
+  wider.shadow.pcf_radius = 6;
+  EXPECT_FALSE(plan_frame(wider, mesh, "scene", kept).shadow.reused);
+  // The depth output shows whole layers; this map was cleared in rectangles.
+  RenderRequest depth = moved;
+  depth.output = Output::Depth;
+  EXPECT_FALSE(plan_frame(depth, mesh, "scene", kept).shadow.reused);
+  KeptShadowMap cut_short = kept;
+  cut_short.holds_plan = false;
+  EXPECT_FALSE(plan_frame(moved, mesh, "scene", cut_short).shadow.reused);
+}
+
+TEST(FramePlan, APlaneThatCanShadowNothingIsLeftOutOfTheShadowPass) {
+  const RenderRequest r = builtin("three-cubes");  // lit from above: the floor hides nothing
+  const Mesh mesh = tessellate(r.scene);
+  const std::size_t floor = first_of_type(r.scene, SceneObject::Type::Plane);
+  const FramePlan plan = fresh_plan(r);
+  ASSERT_EQ(plan.casting_planes.size(), 1u);
+  EXPECT_FALSE(plan.casting_planes[0]);
+  ASSERT_FALSE(plan.shadow.layers.empty());
+  for (const ShadowLayerDraw& layer : plan.shadow.layers) {
+    EXPECT_FALSE(draws_object(layer.draws, mesh, floor)) << "layer " << layer.layer;
+    EXPECT_TRUE(draws_object(layer.draws, mesh, 1) || draws_object(layer.draws, mesh, 2) ||
+                draws_object(layer.draws, mesh, 3))
+        << "a layer drawn holds a box";
+  }
+  // Lit from below, the floor hides the boxes: it casts.
+  RenderRequest below = r;
+  below.light.position = {-2.0, -4.0, -1.0};
+  EXPECT_TRUE(fresh_plan(below).casting_planes[0]);
+}
+
+TEST(FramePlan, TheDepthOutputClearsWholeLayersAndDrawsEveryPlane) {
+  RenderRequest r = builtin("three-cubes");
+  r.output = Output::Depth;
+  const Mesh mesh = tessellate(r.scene);
+  const FramePlan plan = fresh_plan(r);
+  EXPECT_TRUE(plan.depth_output);
+  ASSERT_TRUE(plan.shadow.needed);
+  EXPECT_EQ(plan.casting_planes, std::vector<bool>{true});
+  std::size_t non_empty = 0;
+  for (const ShadowView& view : plan.light.views) non_empty += !view.empty;
+  EXPECT_EQ(plan.shadow.layers.size(), non_empty);
+  for (const ShadowLayerDraw& layer : plan.shadow.layers) {
+    EXPECT_TRUE(layer.clear_whole) << "layer " << layer.layer;
+    EXPECT_TRUE(draws_object(layer.draws, mesh, 0)) << "the floor, in layer " << layer.layer;
+  }
+  EXPECT_TRUE(plan.shadow.kept_after.whole_layers);
+  EXPECT_TRUE(plan.display.steps.empty()) << "no main pass";
+  EXPECT_EQ(plan.preview.size, r.shadow.map_size);
+  EXPECT_EQ(plan.preview.view_count, int(plan.light.views.size()));
+
+  // The colour output clears only around the casters where they are small
+  // in the layer.
+  RenderRequest color = r;
+  color.output = Output::Color;
+  color.shadow.map_size = 4096;
+  const FramePlan colour_plan = fresh_plan(color);
+  bool some_rectangle = false;
+  for (const ShadowLayerDraw& layer : colour_plan.shadow.layers) {
+    if (layer.clear_whole) continue;
+    some_rectangle = true;
+    EXPECT_LT(layer.x0, layer.x1);
+    EXPECT_LT(layer.y0, layer.y1);
+    EXPECT_GE(layer.x0, 0);
+    EXPECT_LE(layer.x1, colour_plan.light.layer_size);
+  }
+  EXPECT_TRUE(some_rectangle);
+}
+
+TEST(FramePlan, ReadBack) {
+  RenderRequest r = builtin("three-cubes");
+  r.width = 320;
+  r.height = 200;
+  const ReadBack colour = fresh_plan(r).read_back;
+  EXPECT_FALSE(colour.depth_preview);
+  EXPECT_EQ(colour.width, 320);
+  EXPECT_EQ(colour.height, 200);
+  EXPECT_EQ(colour.channels, 3);
+  EXPECT_EQ(colour.bit_depth, 8);
+  r.output = Output::Shadow;
+  EXPECT_EQ(fresh_plan(r).read_back.channels, 1);
+  EXPECT_EQ(fresh_plan(r).display.clear_color, glm::vec4(1.0f)) << "shadow output: nothing blocks the light";
+  r.output = Output::Depth;
+  r.shadow.map_size = 512;
+  r.depth_bits = 16;
+  const ReadBack depth = fresh_plan(r).read_back;
+  EXPECT_TRUE(depth.depth_preview);
+  EXPECT_EQ(depth.width, 512);
+  EXPECT_EQ(depth.height, 512);
+  EXPECT_EQ(depth.channels, 1);
+  EXPECT_EQ(depth.bit_depth, 16);
+  r.depth_bits = 8;
+  EXPECT_EQ(fresh_plan(r).read_back.bit_depth, 8);
+}
+
+TEST(FramePlan, AHeavyMeshIsLeftOutOfACascadeItShadowsNothingIn) {
+  int dropped = 0;
+  for (double time = 0.0; time < 18.0; time += 1.5) {
+    RenderRequest r = builtin("teapot");
+    r.time = time;
+    const Mesh mesh = tessellate(r.scene);
+    const std::size_t teapot = first_of_type(r.scene, SceneObject::Type::Mesh);
+    const FramePlan plan = plan_frame(r, mesh, "scene", KeptShadowMap{});
+    if (plan.light.layout != ShadowLayout::Cascades) continue;
+    const CasterTexels all = caster_texels_by_view(plan.light, mesh.bounds, drawn_objects(mesh, plan.casting_planes));
+    for (std::size_t k = 0; k < plan.light.views.size(); ++k) {
+      const bool reaches = !all.by_object[k][teapot].empty();
+      // A layer left with nothing to draw is not drawn at all.
+      bool drawn = false;
+      for (const ShadowLayerDraw& layer : plan.shadow.layers)
+        drawn = drawn || (layer.layer == int(k) && draws_object(layer.draws, mesh, teapot));
+      EXPECT_EQ(drawn, !plan.casters.by_object[k][teapot].empty()) << "t=" << time;
+      if (k == 0) {
+        EXPECT_EQ(drawn, reaches) << "the first cascade keeps all";
+      }
+      dropped += reaches && !drawn;
+    }
+    // The depth output shows whole layers: nothing is left out.
+    r.output = Output::Depth;
+    const FramePlan depth = plan_frame(r, mesh, "scene", KeptShadowMap{});
+    for (const ShadowLayerDraw& layer : depth.shadow.layers)
+      EXPECT_EQ(draws_object(layer.draws, mesh, teapot), !all.by_object[layer.layer][teapot].empty()) << "t=" << time;
+  }
+  EXPECT_GT(dropped, 0) << "the teapot is left out of some cascade";
+}
+
+TEST(FramePlan, ScatteredObjectsAreDrawnInOneRangeOfTheirKind) {
+  // A floor and 40 boxes in a row, every other one drawn.
+  Scene scene;
+  SceneObject floor;
+  floor.type = SceneObject::Type::Plane;
+  floor.size = {100, 0, 100};
+  scene.objects.push_back(floor);
+  for (int i = 0; i < 40; ++i) {
+    SceneObject box;
+    box.center = {double(i) * 2.0 - 40.0, 0.5, 0.0};
+    scene.objects.push_back(box);
+  }
+  const Mesh mesh = tessellate(scene);
+  const auto every_other = [&](int boxes) {
+    std::vector<bool> drawn(scene.objects.size(), false);
+    for (int i = 0; i < boxes; ++i) drawn[1 + 2 * i] = true;
+    return drawn;
+  };
+  // 10 runs: a range each, culled as asked.
+  const std::vector<DrawRange> few = scene_draw_ranges(mesh, CullMode::Front, every_other(10));
+  ASSERT_EQ(few.size(), 10u);
+  for (const DrawRange& d : few) {
+    EXPECT_EQ(d.count, 36u);
+    EXPECT_EQ(d.cull, CullMode::Front);
+  }
+  // 20 runs (past kMaxRuns): all closed meshes in one range.
+  const std::vector<DrawRange> many = scene_draw_ranges(mesh, CullMode::Front, every_other(20));
+  ASSERT_EQ(many.size(), 1u);
+  EXPECT_EQ(many[0].first, 0u);
+  EXPECT_EQ(many[0].count, mesh.closed_index_count);
+  // Planes exactly as marked, two-sided, after the closed meshes.
+  std::vector<bool> with_floor = every_other(3);
+  with_floor[0] = true;
+  const std::vector<DrawRange> floor_too = scene_draw_ranges(mesh, CullMode::Back, with_floor);
+  ASSERT_EQ(floor_too.size(), 4u);
+  EXPECT_TRUE(draws_object({floor_too.back()}, mesh, 0));
+  EXPECT_EQ(floor_too.back().cull, CullMode::None);
+  EXPECT_FALSE(draws_object(scene_draw_ranges(mesh, CullMode::Back, every_other(20)), mesh, 0));
+  // Only the closed part.
+  EXPECT_EQ(scene_draw_ranges(mesh, CullMode::Back, with_floor, MeshPart::Closed).size(), 3u);
+}
+
+// LightSplit's scene (test_light_math.cpp): a floor, a box, a sphere near
+// the camera and one far off (too small on screen to be worth splitting).
+RenderRequest split_scene() {
+  RenderRequest r;
+  SceneObject plane;
+  plane.type = SceneObject::Type::Plane;
+  plane.size = {20, 1, 20};
+  SceneObject box;
+  box.type = SceneObject::Type::Box;
+  box.center = {0, 0.5, 0};
+  SceneObject near_sphere;
+  near_sphere.type = SceneObject::Type::Sphere;
+  near_sphere.center = {0, 1, 3};
+  near_sphere.radius = 1.0;
+  SceneObject far_sphere = near_sphere;
+  far_sphere.center = {0, 1, -40};
+  r.scene.objects = {plane, box, near_sphere, far_sphere};
+  r.camera.position = {0, 2, 8};
+  r.camera.target = {0, 1, 0};
+  r.width = 640;
+  r.height = 360;
+  return r;
+}
+
+TEST(FramePlan, ClosedMeshesAreDrawnInTwoPartsByLightSide) {
+  const RenderRequest r = split_scene();
+  const Mesh mesh = tessellate(r.scene);
+  const FramePlan plan = fresh_plan(r);
+  const std::vector<DisplayStep>& steps = plan.display.steps;
+  ASSERT_GE(steps.size(), 3u);
+  EXPECT_EQ(steps[0].kind, DisplayStep::Kind::ClosedFacingLight);
+  EXPECT_EQ(steps[0].program, DisplayProgram::LightFacing);
+  EXPECT_EQ(steps[1].kind, DisplayStep::Kind::ClosedAwayFromLight);
+  EXPECT_EQ(steps[1].program, DisplayProgram::LightAway);
+  EXPECT_EQ(steps[2].kind, DisplayStep::Kind::Objects);
+  EXPECT_EQ(steps[2].program, DisplayProgram::Frame);
+  for (int i : {0, 1}) {
+    EXPECT_TRUE(steps[i].clip_by_light_side);
+    EXPECT_FALSE(steps[i].cells);
+    EXPECT_TRUE(draws_object(steps[i].draws, mesh, 1)) << "the box";
+    EXPECT_TRUE(draws_object(steps[i].draws, mesh, 2)) << "the near sphere";
+    EXPECT_FALSE(draws_object(steps[i].draws, mesh, 3)) << "the far sphere";
+    EXPECT_FALSE(draws_object(steps[i].draws, mesh, 0)) << "the floor";
+    for (const DrawRange& d : steps[i].draws) EXPECT_EQ(d.cull, CullMode::Back) << "seen from outside";
+  }
+  EXPECT_FALSE(steps[2].clip_by_light_side);
+  EXPECT_FALSE(draws_object(steps[2].draws, mesh, 1));
+  EXPECT_FALSE(draws_object(steps[2].draws, mesh, 2));
+  EXPECT_TRUE(draws_object(steps[2].draws, mesh, 3));
+
+  // Without the shadow lookup there is nothing to spare: one step draws all.
+  RenderRequest unshadowed = r;
+  unshadowed.shadow.enabled = false;
+  const FramePlan flat = fresh_plan(unshadowed);
+  ASSERT_EQ(flat.display.steps.size(), 1u);
+  EXPECT_EQ(flat.display.steps[0].kind, DisplayStep::Kind::Objects);
+  for (std::size_t object = 0; object < 4; ++object)
+    EXPECT_TRUE(draws_object(flat.display.steps[0].draws, mesh, object)) << object;
+  EXPECT_FALSE(flat.shadow.needed);
+  EXPECT_TRUE(flat.shadow_views.empty());
+
+  // From inside the box its back faces are what the camera sees: no
+  // culling, and so no split.
+  RenderRequest inside = r;
+  inside.camera.position = {0.1, 0.5, 0.2};
+  for (const DisplayStep& step : fresh_plan(inside).display.steps) {
+    EXPECT_NE(step.kind, DisplayStep::Kind::ClosedFacingLight);
+    for (const DrawRange& d : step.draws) EXPECT_EQ(d.cull, CullMode::None);
+  }
+}
+
+TEST(FramePlan, TheFloorsCellsFollowTheStencilStepsInOrder) {
+  // three-cubes' floor under a light of no size (umbras, shadows of the
+  // boxes' bounds, shadowable cells and others), and a second floor beside
+  // it at the same height (neither hides anything from the light).
+  RenderRequest r = builtin("three-cubes");
+  SceneObject second_floor = r.scene.objects[0];
+  second_floor.center = {40.0, -0.5, 0.0};
+  second_floor.size = {20.0, 0.0, 20.0};
+  r.scene.objects.push_back(second_floor);
+  const Mesh mesh = tessellate(r.scene);
+  const FramePlan plan = fresh_plan(r);
+  const DisplayPassPlan& display = plan.display;
+  EXPECT_GT(display.umbras, 0u);
+  std::vector<DisplayStep> cells;
+  for (const DisplayStep& step : display.steps)
+    if (step.cells) cells.push_back(step);
+    else EXPECT_TRUE(cells.empty()) << "the scene's objects first, then the cells";
+  ASSERT_FALSE(cells.empty());
+  using Kind = DisplayStep::Kind;
+  using Test = StencilStep::Test;
+  for (const DisplayStep& step : display.steps) {
+    if (step.kind == Kind::Objects) {
+      EXPECT_FALSE(draws_object(step.draws, mesh, 0)) << "the floor is drawn in cells";
+    }
+  }
+  std::size_t last_plane = 0;
+  int last_kind = -1;
+  for (const DisplayStep& step : cells) {
+    // Plane by plane, each in the order of the protocol.
+    if (step.plane != last_plane) last_kind = -1;
+    EXPECT_GE(step.plane, last_plane);
+    EXPECT_GT(int(step.kind), last_kind) << "plane " << step.plane;
+    last_plane = step.plane, last_kind = int(step.kind);
+    for (const DrawRange& d : step.draws) {
+      EXPECT_GT(d.count, 0u);
+      EXPECT_LE(d.first + d.count, display.cell_indices.size());
+    }
+    const int dark_mark = 2 * int(step.plane) + 2, near_mark = dark_mark + 1;
+    const StencilStep& s = step.stencil;
+    EXPECT_TRUE(s.enabled);
+    switch (step.kind) {
+      case Kind::BoundsMarks:
+        EXPECT_EQ(step.program, DisplayProgram::Dark);
+        EXPECT_TRUE(s.marks_only && s.replace);
+        EXPECT_EQ(s.test, Test::Always);
+        EXPECT_EQ(s.ref, near_mark);
+        break;
+      case Kind::DarkUmbras:
+        EXPECT_EQ(step.program, DisplayProgram::Dark);
+        EXPECT_TRUE(s.replace && !s.marks_only);
+        EXPECT_EQ(s.test, Test::Always);
+        EXPECT_EQ(s.ref, dark_mark);
+        break;
+      case Kind::ShadowableLookup:
+        EXPECT_EQ(step.program, DisplayProgram::Frame);
+        EXPECT_FALSE(s.replace);
+        EXPECT_EQ(s.test, Test::Equal) << "the lookup only where near";
+        EXPECT_EQ(s.ref, near_mark);
+        EXPECT_EQ(s.mask, 0xFF);
+        break;
+      case Kind::ShadowableLit:
+        EXPECT_EQ(step.program, DisplayProgram::Lit);
+        EXPECT_EQ(s.test, Test::NotEqual);
+        EXPECT_EQ(s.ref, dark_mark);
+        EXPECT_EQ(s.mask, 0xFE) << "neither mark";
+        break;
+      case Kind::UnshadowableCells:
+        EXPECT_EQ(step.program, DisplayProgram::Lit);
+        EXPECT_EQ(s.test, Test::NotEqual);
+        EXPECT_EQ(s.ref, dark_mark);
+        EXPECT_EQ(s.mask, 0xFF);
+        break;
+      default:
+        ADD_FAILURE() << "a scene step among the cells";
+    }
+  }
+  // The first floor has every kind of step.
+  std::vector<Kind> first_floor;
+  for (const DisplayStep& step : cells)
+    if (step.plane == 0) first_floor.push_back(step.kind);
+  EXPECT_EQ(first_floor, (std::vector<Kind>{Kind::BoundsMarks, Kind::DarkUmbras, Kind::ShadowableLookup,
+                                            Kind::ShadowableLit, Kind::UnshadowableCells}));
+  EXPECT_TRUE(std::any_of(cells.begin(), cells.end(), [](const DisplayStep& s) { return s.plane == 1; }));
+
+  // The seeds' bias draws every plane whole: no cells.
+  RenderRequest seeds_bias = r;
+  seeds_bias.shadow.bias.automatic = false;
+  const FramePlan whole = fresh_plan(seeds_bias);
+  EXPECT_TRUE(whole.display.cell_indices.empty());
+  for (const DisplayStep& step : whole.display.steps) EXPECT_FALSE(step.cells);
+  // A light with a size has no umbras drawn dark.
+  RenderRequest soft = r;
+  soft.light.size = 0.2;
+  for (const DisplayStep& step : fresh_plan(soft).display.steps) EXPECT_NE(step.kind, Kind::DarkUmbras);
+}
+
+}  // namespace
+}  // namespace umbra
