@@ -12,8 +12,6 @@
 #include <nlohmann/json.hpp>
 
 #include "core/builtin_models.hpp"
-#include "core/light_math.hpp"
-#include "core/mesh_instance.hpp"
 #include "core/scene.hpp"
 #include "core/sun_position.hpp"
 #include "request_fields.hpp"
@@ -508,7 +506,7 @@ void read_model(const json* model, const ObjectField& row, const std::string& pa
 
 // The placed model must stay where float precision holds, like any position.
 void check_mesh_reach(const SceneObject& o, const std::string& path) {
-  const Aabb bounds = mesh_bounds(o);
+  const Aabb bounds = object_bounds(o);  // a mesh's: mesh_bounds
   if (bounds.empty()) return;
   const glm::dvec3 far_corner = glm::max(glm::abs(bounds.min), glm::abs(bounds.max));
   const double reach = std::max({far_corner.x, far_corner.y, far_corner.z});
@@ -616,7 +614,7 @@ void check_consistency(const RenderRequest& q, const std::set<std::string>& sent
 
 // Fields that were sent but cannot change this output: each row's used_when.
 std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<std::string>& sent) {
-  const bool sun_down = q.light.sun && !light_at(q.light, q.time).direct;
+  const bool sun_down = q.light.sun && !above_horizon(sun_at(*q.light.sun, q.time));
   const FieldUse use = field_use(q, sun_down);
   std::vector<std::string> unused;
   for (const RequestField& row : request_fields())

@@ -48,12 +48,6 @@ KNOWN = {
         "the renderer sizes its draw chunks with the cost model's mesh_draw_ms (issue 30)",
     ("renderer/core/light_math.cpp", "gpu/shader_interface.hpp"):
         "the light's views are sized by constants that the shader interface holds (issue 30)",
-    ("server/http_api.cpp", "core/light_math.hpp"):
-        "the Umbra-Sun header asks light_at where the sun is (issue 30)",
-    ("server/request_parser.cpp", "core/light_math.hpp"):
-        "Umbra-Unused-Fields asks light_at whether the sun is down (issue 30)",
-    ("server/request_parser.cpp", "core/mesh_instance.hpp"):
-        "the parser bounds a mesh object's size with mesh_bounds (issue 30)",
 }
 GL_INCLUDE = re.compile(r'#\s*include\s*[<"](GL/|EGL/|gpu/gl\.hpp)')
 GL_CALL = re.compile(r"\b(gl[A-Z]\w*|egl[A-Z]\w*)\s*\(")

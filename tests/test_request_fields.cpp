@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/light_math.hpp"
+#include "core/sun_position.hpp"
 #include "request_fields.hpp"
 #include "request_parser.hpp"
 
@@ -219,6 +220,27 @@ TEST(RequestFields, UnusedFieldsAreTheRowsThatSayUnused) {
     if (!request_field(path).used(use)) expected.push_back(path);
   EXPECT_EQ(p.unused_fields, expected);
   EXPECT_EQ(expected, (std::vector<std::string>{"shadow.ortho_half_size", "shadow.pcf_radius"}));
+}
+
+// What the server asks about a sun (sun_position.hpp, which it may see) is
+// what the renderer's light_at places the light by.
+TEST(RequestFields, TheServersSunIsLightAts) {
+  int down = 0, up = 0;
+  for (const double latitude : {-70.0, 0.0, 48.8566, 78.2}) {
+    for (double time = 0.0; time < 86400.0; time += 3600.0 * 1.7) {
+      Light light;
+      light.sun = SunClock{latitude, 2.35, 1.8e9, 30.0};
+      const LightState state = light_at(light, time);
+      const SunAngles sun = sun_at(*light.sun, time);
+      ASSERT_TRUE(state.sun);
+      EXPECT_EQ(state.sun->azimuth_deg, sun.azimuth_deg);
+      EXPECT_EQ(state.sun->elevation_deg, sun.elevation_deg);
+      EXPECT_EQ(state.direct, above_horizon(sun)) << latitude << " " << time;
+      ++(state.direct ? up : down);
+    }
+  }
+  EXPECT_GT(up, 0);
+  EXPECT_GT(down, 0);
 }
 
 }  // namespace
