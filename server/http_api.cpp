@@ -13,10 +13,10 @@
 #include "client_socket.hpp"
 #include "assets/folder_file.hpp"
 #include "assets/gltf_loader.hpp"
-#include "core/light_math.hpp"
 #include "png.hpp"
 #include "request_parser.hpp"
 #include "core/scene.hpp"
+#include "core/sun_position.hpp"
 #include "web_assets.hpp"
 
 namespace umbra {
@@ -91,8 +91,7 @@ std::string content_type_for(const std::string& path) {
 // Umbra-Sun: where a sun light's sun stood for this image (docs/api.md), so
 // that clients and tests read what was used; "" for an orbiting light.
 std::string sun_header(const RenderRequest& request) {
-  const std::optional<SunAngles> sun = light_at(request.light, request.time).sun;
-  return sun ? format_sun_angles(*sun) : "";
+  return request.light.sun ? format_sun_angles(sun_at(*request.light.sun, request.time)) : "";
 }
 
 std::string server_timing(const FrameTimings& t, double encode_ms, double queue_ms) {

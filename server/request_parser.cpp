@@ -3,18 +3,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <initializer_list>
+#include <map>
 #include <set>
+#include <stdexcept>
 #include <utility>
 
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
 #include "core/builtin_models.hpp"
-#include "core/light_math.hpp"
-#include "core/mesh_instance.hpp"
 #include "core/scene.hpp"
 #include "core/sun_position.hpp"
+#include "request_fields.hpp"
 
 namespace umbra {
 
@@ -211,12 +211,15 @@ int read_integer(const json& j, const std::string& path, int lo, int hi) {
   return int(v);
 }
 
-// The depth output's bits per sample: exactly 8 or 16, the two depths a grey
-// PNG sample can take that an 8- or 16-bit texture reads back as.
-int read_depth_bits(const json& j, const std::string& path) {
+// One of `numbers` (depth_bits: 8 or 16, the two depths a grey PNG sample
+// can take that an 8- or 16-bit texture reads back as).
+double read_one_of(const json& j, const std::string& path, const std::vector<double>& numbers) {
   const double v = read_number(j, path);
-  if (v != 8.0 && v != 16.0) reject(path, "must be 8 or 16, got " + format_number(v));
-  return int(v);
+  if (std::find(numbers.begin(), numbers.end(), v) != numbers.end()) return v;
+  std::string list;
+  for (std::size_t i = 0; i < numbers.size(); ++i)
+    list += (i == 0 ? "" : i + 1 == numbers.size() ? " or " : ", ") + format_number(numbers[i]);
+  reject(path, "must be " + list + ", got " + format_number(v));
 }
 
 bool read_boolean(const json& j, const std::string& path) {
@@ -225,16 +228,13 @@ bool read_boolean(const json& j, const std::string& path) {
 }
 
 // One of `choices`; returns its position.
-std::size_t read_choice(const json& j, const std::string& path, std::initializer_list<const char*> choices) {
+std::size_t read_choice(const json& j, const std::string& path, const std::vector<std::string>& choices) {
   std::string list;
-  for (const char* c : choices) list += std::string(list.empty() ? "" : ", ") + "\"" + c + "\"";
+  for (const std::string& c : choices) list += std::string(list.empty() ? "" : ", ") + "\"" + c + "\"";
   if (!j.is_string()) reject(path, "must be one of " + list + ", not " + type_name(j));
   const std::string& s = j.get_ref<const std::string&>();
-  std::size_t i = 0;
-  for (const char* c : choices) {
-    if (s == c) return i;
-    ++i;
-  }
+  const auto it = std::find(choices.begin(), choices.end(), s);
+  if (it != choices.end()) return std::size_t(it - choices.begin());
   reject(path, "must be one of " + list + ", got " + quote_text(s));
 }
 
@@ -246,12 +246,8 @@ glm::dvec3 read_vec3(const json& j, const std::string& path, double lo, double h
   return v;
 }
 
-glm::dvec3 read_position(const json& j, const std::string& path) {
-  return read_vec3(j, path, -RequestLimits::kMaxCoordinate, RequestLimits::kMaxCoordinate);
-}
-
-// [r, g, b] each in [0, 1], or "#rrggbb" (each byte / 255).
-glm::dvec3 read_color(const json& j, const std::string& path) {
+// [r, g, b] each in [lo, hi] ([0, 1]), or "#rrggbb" (each byte / 255).
+glm::dvec3 read_color(const json& j, const std::string& path, double lo, double hi) {
   if (j.is_string()) {
     const std::string& s = j.get_ref<const std::string&>();
     const bool shaped = s.size() == 7 && s[0] == '#' &&
@@ -261,38 +257,104 @@ glm::dvec3 read_color(const json& j, const std::string& path) {
     for (int i = 0; i < 3; ++i) c[i] = std::stoi(s.substr(1 + 2 * i, 2), nullptr, 16) / 255.0;
     return c;
   }
-  return read_vec3(j, path, 0.0, 1.0);
+  return read_vec3(j, path, lo, hi);
 }
 
-double read_extent(const json& j, const std::string& path) {
-  return read_number(j, path, RequestLimits::kMinExtent, RequestLimits::kMaxExtent);
+// A row's value, read as its type says, each number in the row's range.
+// (Text, Object, Scene and ObjectList rows are read by the sections below.)
+template <class Target>
+FieldValue read_value(const json& j, const std::string& path, const FieldRow<Target>& row, const Target& target) {
+  FieldValue value;
+  if (!row.word.empty() && j.is_string()) {
+    read_choice(j, path, {row.word});
+    value.word = true;
+    return value;
+  }
+  const FieldRange range = row.range_rule ? row.range_rule(target) : row.range;
+  switch (row.type) {
+    case FieldType::Integer:
+      value.number = read_integer(j, path, int(range.min), int(range.max));
+      break;
+    case FieldType::IntegerChoice:
+      value.number = read_one_of(j, path, row.numbers);
+      break;
+    case FieldType::Number:
+      value.number = read_number(j, path, range.min, range.max, range.open_min, range.open_max);
+      break;
+    case FieldType::Boolean:
+      value.flag = read_boolean(j, path);
+      break;
+    case FieldType::Choice:
+      value.choice = read_choice(j, path, row.choices);
+      break;
+    case FieldType::Vec3:
+      value.vec = read_vec3(j, path, range.min, range.max);
+      break;
+    case FieldType::Size2:
+      if (!j.is_array() || j.size() != 2) reject(path, "must be an array of 2 numbers [sx, sz]");
+      value.vec.x = read_number(j[0], index(path, 0), range.min, range.max);
+      value.vec.y = 0.0;
+      value.vec.z = read_number(j[1], index(path, 1), range.min, range.max);
+      break;
+    case FieldType::Color:
+      value.vec = read_color(j, path, range.min, range.max);
+      break;
+    case FieldType::NumberOrVec3:
+      if (j.is_number())
+        value.vec = glm::dvec3(read_number(j, path, range.min, range.max));
+      else if (j.is_array())
+        value.vec = read_vec3(j, path, range.min, range.max);
+      else
+        reject(path, std::string("must be a number or an array of 3 numbers, not ") + type_name(j));
+      break;
+    case FieldType::Text:
+    case FieldType::Object:
+    case FieldType::Scene:
+    case FieldType::ObjectList:
+      throw std::logic_error("request_parser: " + row.path + " is read by its own section");
+  }
+  return value;
+}
+
+// A row's default stored in its member, read as a sent value would be.
+template <class Target>
+void apply_default(const FieldRow<Target>& row, Target& target) {
+  if (row.default_value.is_null() || row.set == nullptr) return;
+  FieldValue value;
+  if (row.type == FieldType::Object)
+    value.word = true;  // an object's default is its word ("auto")
+  else
+    value = read_value(row.default_value, row.path, row, target);
+  row.set(target, value);
+}
+
+// ", "-joined, for a message.
+std::string listed(const std::vector<std::string>& keys) {
+  std::string list;
+  for (const std::string& k : keys) list += (list.empty() ? "" : ", ") + k;
+  return list;
 }
 
 // Walks an object's members, rejecting any key not in `allowed`, and records
 // which fields the client sent.
 class ObjectReader {
  public:
-  ObjectReader(const json& j, std::string path, std::initializer_list<const char*> allowed,
-               std::set<std::string>& sent)
+  ObjectReader(const json& j, std::string path, const std::vector<std::string>& allowed, std::set<std::string>& sent)
       : object_(j), path_(std::move(path)), sent_(sent) {
     if (!j.is_object()) reject(path_, std::string("must be an object, not ") + type_name(j));
     for (const auto& item : j.items()) {
       const std::string& key = item.key();
-      const bool known = std::any_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; });
-      if (!known) {
-        std::string list;
-        for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
-        reject(join(path_, key), "unknown field (expected one of: " + list + ")");
-      }
+      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end())
+        reject(join(path_, key), "unknown field (expected one of: " + listed(allowed) + ")");
       sent_.insert(join(path_, key));
     }
   }
 
-  const json* get(const char* key) const {
+  const json* get(const std::string& key) const {
     const auto it = object_.find(key);
     return it == object_.end() ? nullptr : &*it;
   }
-  std::string path(const char* key) const { return join(path_, key); }
+  std::string path(const std::string& key) const { return join(path_, key); }
 
  private:
   const json& object_;
@@ -301,13 +363,125 @@ class ObjectReader {
 };
 
 // ---------------------------------------------------------------------------
-// The request, section by section.
+// The request, section by section, through its rows (request_fields.hpp).
 
-// A mesh object: an instance of a model the server holds.
-void read_mesh(const json& j, const std::string& path, std::set<std::string>& sent, const ModelLookup& find_model,
-               SceneObject& o) {
-  o.type = SceneObject::Type::Mesh;
-  ObjectReader r(j, path, {"type", "model", "position", "rotation_deg", "scale", "color"}, sent);
+// The keys the object at `parent` takes, in the rows' order.
+const std::vector<std::string>& keys_in(const std::string& parent) {
+  static const std::map<std::string, std::vector<std::string>> keys = [] {
+    std::map<std::string, std::vector<std::string>> m;
+    for (const RequestField& row : request_fields()) m[row.parent()].push_back(row.key());
+    return m;
+  }();
+  return keys.at(parent);
+}
+
+// A scene object's keys, per type: "type" and the type's rows.
+const std::vector<std::string>& keys_of(std::size_t shape) {
+  static const std::vector<std::vector<std::string>> keys = [] {
+    std::vector<std::vector<std::string>> all;
+    for (const ShapeFields& s : shape_fields()) {
+      all.push_back({"type"});
+      for (const ObjectField& row : s.rows) all.back().push_back(row.key());
+    }
+    return all;
+  }();
+  return keys[shape];
+}
+
+const std::vector<std::string>& shape_names() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n;
+    for (const ShapeFields& s : shape_fields()) n.push_back(s.type);
+    return n;
+  }();
+  return names;
+}
+
+// Every body field's default that holds whatever else is sent, in order
+// (not the rows of an object that is absent unless sent: light.sun).
+void apply_request_defaults(RenderRequest& q) {
+  static const std::vector<const RequestField*> rows = [] {
+    std::vector<const RequestField*> r;
+    std::set<std::string> optional;
+    for (const RequestField& row : request_fields()) {
+      if (optional.count(row.parent())) {
+        if (row.type == FieldType::Object) optional.insert(row.path);
+        continue;
+      }
+      if (row.optional_object) optional.insert(row.path);
+      else r.push_back(&row);
+    }
+    return r;
+  }();
+  for (const RequestField* row : rows) apply_default(*row, q);
+}
+
+void read_field(const json& j, const RequestField& row, RenderRequest& q, std::set<std::string>& sent);
+
+// The object at `parent` ("camera", "light.sun"): its keys checked, then each
+// row's value read in order.
+void read_rows(const json& j, const std::string& parent, RenderRequest& q, std::set<std::string>& sent) {
+  ObjectReader r(j, parent, keys_in(parent), sent);
+  for (const RequestField* row : request_fields_in(parent)) {
+    const json* v = r.get(row->key());
+    if (v == nullptr) {
+      if (!row->required.empty()) reject(row->path, row->required);
+      continue;
+    }
+    read_field(*v, *row, q, sent);
+  }
+}
+
+// light.sun.utc: an RFC 3339 text, the instant in the years the sun's
+// position is computed for.
+double read_utc(const json& utc, const std::string& path) {
+  if (!utc.is_string())
+    reject(path, std::string("must be an RFC 3339 date-time string such as \"2026-12-21T14:00:00Z\", not ") +
+                     type_name(utc));
+  std::string why;
+  const std::optional<double> instant = parse_utc(utc.get_ref<const std::string&>(), &why);
+  if (!instant) reject(path, quote_text(utc.get<std::string>()) + " is not an RFC 3339 date-time: " + why);
+  // The offset applied, the instant itself must lie in those years (UTC).
+  if (*instant < RequestLimits::kMinSunUnixSeconds || *instant >= RequestLimits::kMaxSunUnixSeconds)
+    reject(path, "years 0001 to " + std::to_string(RequestLimits::kMaxSunYear) + " (UTC) are supported");
+  return *instant;
+}
+
+void read_field(const json& j, const RequestField& row, RenderRequest& q, std::set<std::string>& sent) {
+  switch (row.type) {
+    case FieldType::Object: {
+      FieldValue value;
+      if (!row.word.empty() && j.is_string()) {
+        read_choice(j, row.path, {row.word});
+        value.word = true;
+        row.set(q, value);
+        return;
+      }
+      if (row.set) row.set(q, value);
+      if (row.optional_object)
+        for (const RequestField* below : request_fields_in(row.path)) apply_default(*below, q);
+      read_rows(j, row.path, q, sent);
+      return;
+    }
+    case FieldType::Text: {
+      FieldValue value;
+      value.number = read_utc(j, row.path);  // light.sun.utc, the body's one Text row
+      row.set(q, value);
+      return;
+    }
+    default:
+      row.set(q, read_value(j, row.path, row, q));
+  }
+}
+
+// Reads the body's field `key` (a row at the root) if it was sent.
+void read_sent(const ObjectReader& r, const char* key, RenderRequest& q, std::set<std::string>& sent) {
+  if (const json* v = r.get(key)) read_field(*v, request_field(key), q, sent);
+}
+
+// A mesh object's "model": an instance of a model the server holds.
+void read_model(const json* model, const ObjectField& row, const std::string& path, const ModelLookup& find_model,
+                SceneObject& o) {
   // Written only for a refusal: up to 1000 mesh objects are read per request.
   const auto how_to_upload = [] {
     std::string builtins;
@@ -316,85 +490,66 @@ void read_mesh(const json& j, const std::string& path, std::set<std::string>& se
            "or by its file name if the server loaded it with --models DIR, or name a built-in model (" +
            builtins + ")";
   };
-  const json* model = r.get("model");
-  if (model == nullptr) reject(r.path("model"), "is required: a model's id or name; " + how_to_upload());
+  if (model == nullptr) reject(path, row.required + how_to_upload());
   if (!model->is_string())
-    reject(r.path("model"), std::string("must be a string (a model's id or name), not ") + type_name(*model));
+    reject(path, std::string("must be a string (a model's id or name), not ") + type_name(*model));
   const std::string& key = model->get_ref<const std::string&>();
   std::optional<FoundModel> found = find_model ? find_model(key) : std::nullopt;
   // The built-in models, when the server's store does not answer for that
   // name (a --models folder may hold its own "teapot"; then that one wins).
   if (!found || !found->model)
     if (const BuiltinModel* builtin = find_builtin_model(key)) found = FoundModel{builtin->id, builtin->model};
-  if (!found || !found->model)
-    reject(r.path("model"), "unknown model " + quote_text(key) + ": " + how_to_upload());
+  if (!found || !found->model) reject(path, "unknown model " + quote_text(key) + ": " + how_to_upload());
   o.model = std::move(found->model);
   o.model_id = std::move(found->id);
-  if (auto v = r.get("position")) o.center = read_position(*v, r.path("position"));
-  if (auto v = r.get("rotation_deg")) o.rotation_deg = read_vec3(*v, r.path("rotation_deg"), -36000.0, 36000.0);
-  if (auto v = r.get("scale")) {
-    if (v->is_number())
-      o.mesh_scale = glm::dvec3(read_extent(*v, r.path("scale")));
-    else if (v->is_array())
-      o.mesh_scale = read_vec3(*v, r.path("scale"), RequestLimits::kMinExtent, RequestLimits::kMaxExtent);
-    else
-      reject(r.path("scale"), std::string("must be a number or an array of 3 numbers, not ") + type_name(*v));
-  }
-  if (auto v = r.get("color")) {
-    o.color = read_color(*v, r.path("color"));
-    o.mesh_color_override = true;
-  }
-  // The placed model must stay where float precision holds, like any position.
-  const Aabb bounds = mesh_bounds(o);
-  if (!bounds.empty()) {
-    const glm::dvec3 far_corner = glm::max(glm::abs(bounds.min), glm::abs(bounds.max));
-    const double reach = std::max({far_corner.x, far_corner.y, far_corner.z});
-    if (reach > RequestLimits::kMaxCoordinate)
-      reject(path, "the model placed with this position, rotation_deg and scale reaches coordinate " +
-                       format_number(reach) + ", beyond the limit " + format_number(RequestLimits::kMaxCoordinate));
-  }
 }
 
+// The placed model must stay where float precision holds, like any position.
+void check_mesh_reach(const SceneObject& o, const std::string& path) {
+  const Aabb bounds = object_bounds(o);  // a mesh's: mesh_bounds
+  if (bounds.empty()) return;
+  const glm::dvec3 far_corner = glm::max(glm::abs(bounds.min), glm::abs(bounds.max));
+  const double reach = std::max({far_corner.x, far_corner.y, far_corner.z});
+  if (reach > RequestLimits::kMaxCoordinate)
+    reject(path, "the model placed with this position, rotation_deg and scale reaches coordinate " +
+                     format_number(reach) + ", beyond the limit " + format_number(RequestLimits::kMaxCoordinate));
+}
+
+// A scene object: its type's rows (shape_fields), the type's own first, then
+// the late ones (center, color), each default applied before.
 SceneObject read_object(const json& j, const std::string& path, std::set<std::string>& sent,
                         const ModelLookup& find_model) {
   if (!j.is_object()) reject(path, std::string("must be an object, not ") + type_name(j));
   const auto type_it = j.find("type");
-  if (type_it == j.end()) reject(join(path, "type"), "is required: \"plane\", \"box\", \"sphere\" or \"mesh\"");
+  if (type_it == j.end()) {
+    std::string list;
+    const std::vector<std::string>& names = shape_names();
+    for (std::size_t i = 0; i < names.size(); ++i)
+      list += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + ("\"" + names[i] + "\"");
+    reject(join(path, "type"), "is required: " + list);
+  }
+  const std::size_t type = read_choice(*type_it, join(path, "type"), shape_names());
+  const ShapeFields& shape = shape_fields()[type];
   SceneObject o;
-  switch (read_choice(*type_it, join(path, "type"), {"plane", "box", "sphere", "mesh"})) {
-    case 0: {
-      o.type = SceneObject::Type::Plane;
-      ObjectReader r(j, path, {"type", "center", "size", "color"}, sent);
-      o.size = {10.0, 0.0, 10.0};
-      if (auto v = r.get("size")) {
-        if (!v->is_array() || v->size() != 2) reject(r.path("size"), "must be an array of 2 numbers [sx, sz]");
-        o.size = {read_extent((*v)[0], index(r.path("size"), 0)), 0.0, read_extent((*v)[1], index(r.path("size"), 1))};
+  o.type = shape.kind;
+  ObjectReader r(j, path, keys_of(type), sent);
+  for (const ObjectField& row : shape.rows) apply_default(row, o);
+  for (const bool late : {false, true}) {
+    for (const ObjectField& row : shape.rows) {
+      if (row.read_late != late) continue;
+      const json* v = r.get(row.key());
+      if (row.type == FieldType::Text) {
+        read_model(v, row, r.path(row.key()), find_model, o);  // a mesh's "model", the objects' one Text row
+        continue;
       }
-      if (auto v = r.get("center")) o.center = read_position(*v, r.path("center"));
-      if (auto v = r.get("color")) o.color = read_color(*v, r.path("color"));
-      break;
-    }
-    case 1: {
-      o.type = SceneObject::Type::Box;
-      ObjectReader r(j, path, {"type", "center", "size", "rotation_y_deg", "color"}, sent);
-      if (auto v = r.get("size")) o.size = read_vec3(*v, r.path("size"), RequestLimits::kMinExtent, RequestLimits::kMaxExtent);
-      if (auto v = r.get("rotation_y_deg")) o.rotation_y_deg = read_number(*v, r.path("rotation_y_deg"), -36000.0, 36000.0);
-      if (auto v = r.get("center")) o.center = read_position(*v, r.path("center"));
-      if (auto v = r.get("color")) o.color = read_color(*v, r.path("color"));
-      break;
-    }
-    case 3:
-      read_mesh(j, path, sent, find_model, o);
-      break;
-    default: {
-      o.type = SceneObject::Type::Sphere;
-      ObjectReader r(j, path, {"type", "center", "radius", "color"}, sent);
-      if (auto v = r.get("radius")) o.radius = read_extent(*v, r.path("radius"));
-      if (auto v = r.get("center")) o.center = read_position(*v, r.path("center"));
-      if (auto v = r.get("color")) o.color = read_color(*v, r.path("color"));
-      break;
+      if (v == nullptr) {
+        if (!row.required.empty()) reject(r.path(row.key()), row.required);
+        continue;
+      }
+      row.set(o, read_value(*v, r.path(row.key()), row, o));
     }
   }
+  if (o.type == SceneObject::Type::Mesh) check_mesh_reach(o, path);
   return o;
 }
 
@@ -404,7 +559,7 @@ Scene read_scene(const json* j, const BuiltinScene*& builtin, std::set<std::stri
   Scene scene;
   builtin = nullptr;
   if (j == nullptr || j->is_string()) {
-    const std::string name = j == nullptr ? "cube-on-plane" : j->get<std::string>();
+    const std::string name = j == nullptr ? request_field("scene").default_value.get<std::string>() : j->get<std::string>();
     builtin = find_builtin_scene(name);
     if (builtin == nullptr) {
       std::string list;
@@ -415,9 +570,9 @@ Scene read_scene(const json* j, const BuiltinScene*& builtin, std::set<std::stri
     scene.objects = builtin->objects;
     return scene;
   }
-  ObjectReader r(*j, "scene", {"objects"}, sent);
+  ObjectReader r(*j, "scene", keys_in("scene"), sent);
   const json* objects = r.get("objects");
-  if (objects == nullptr) reject("scene.objects", "is required for a custom scene");
+  if (objects == nullptr) reject("scene.objects", request_field("scene.objects").required);
   if (!objects->is_array()) reject("scene.objects", std::string("must be an array, not ") + type_name(*objects));
   if (objects->size() > RequestLimits::kMaxObjects)
     reject("scene.objects", "at most " + std::to_string(RequestLimits::kMaxObjects) + " objects, got " +
@@ -425,112 +580,6 @@ Scene read_scene(const json* j, const BuiltinScene*& builtin, std::set<std::stri
   for (std::size_t i = 0; i < objects->size(); ++i)
     scene.objects.push_back(read_object((*objects)[i], index("scene.objects", i), sent, find_model));
   return scene;
-}
-
-void read_camera(const json* j, Camera& c, std::set<std::string>& sent) {
-  if (j == nullptr) return;
-  ObjectReader r(*j, "camera", {"position", "target", "up", "fov_y_deg", "near", "far"}, sent);
-  if (auto v = r.get("position")) c.position = read_position(*v, r.path("position"));
-  if (auto v = r.get("target")) c.target = read_position(*v, r.path("target"));
-  if (auto v = r.get("up")) c.up = read_vec3(*v, r.path("up"), -RequestLimits::kMaxCoordinate, RequestLimits::kMaxCoordinate);
-  if (auto v = r.get("fov_y_deg"))
-    c.fov_y_deg = read_number(*v, r.path("fov_y_deg"), RequestLimits::kMinFovDeg, 180.0, false, true);
-  if (auto v = r.get("near")) c.near_plane = read_number(*v, r.path("near"), 0.0, RequestLimits::kMaxExtent, true);
-  if (auto v = r.get("far")) c.far_plane = read_number(*v, r.path("far"), 0.0, 1e9, true);
-}
-
-// light.sun: where and when the sun is seen. Latitude, longitude and utc
-// are required: a sun at a default place would be a guess.
-SunClock read_sun(const json& j, std::set<std::string>& sent) {
-  ObjectReader r(j, "light.sun", {"latitude", "longitude", "utc", "north_deg"}, sent);
-  SunClock sun;
-  const auto required = [&](const char* key) {
-    const json* v = r.get(key);
-    if (v == nullptr) reject(r.path(key), "is required for a sun light");
-    return v;
-  };
-  sun.latitude_deg = read_number(*required("latitude"), r.path("latitude"), -90.0, 90.0);
-  sun.longitude_deg = read_number(*required("longitude"), r.path("longitude"), -180.0, 180.0);
-  const json& utc = *required("utc");
-  if (!utc.is_string())
-    reject(r.path("utc"), std::string("must be an RFC 3339 date-time string such as \"2026-12-21T14:00:00Z\", not ") +
-                              type_name(utc));
-  std::string why;
-  const std::optional<double> instant = parse_utc(utc.get_ref<const std::string&>(), &why);
-  if (!instant) reject(r.path("utc"), quote_text(utc.get<std::string>()) + " is not an RFC 3339 date-time: " + why);
-  // The offset applied, the instant itself must lie in those years (UTC).
-  if (*instant < RequestLimits::kMinSunUnixSeconds || *instant >= RequestLimits::kMaxSunUnixSeconds)
-    reject(r.path("utc"), "years 0001 to " + std::to_string(RequestLimits::kMaxSunYear) + " (UTC) are supported");
-  sun.utc_unix_s = *instant;
-  if (auto v = r.get("north_deg")) sun.north_deg = read_number(*v, r.path("north_deg"), -360.0, 360.0);
-  return sun;
-}
-
-void read_light(const json* j, Light& l, std::set<std::string>& sent) {
-  if (j == nullptr) return;
-  ObjectReader r(*j, "light",
-                 {"position", "target", "color", "ambient", "projection", "fov_y_deg", "size", "orbit_deg_per_s", "sun"},
-                 sent);
-  if (auto v = r.get("position")) l.position = read_position(*v, r.path("position"));
-  if (auto v = r.get("target")) l.target = read_position(*v, r.path("target"));
-  if (auto v = r.get("color")) l.color = read_color(*v, r.path("color"));
-  if (auto v = r.get("ambient")) l.ambient = read_number(*v, r.path("ambient"), 0.0, 1.0);
-  if (auto v = r.get("projection"))
-    l.projection = read_choice(*v, r.path("projection"), {"orthographic", "perspective"}) == 0
-                       ? LightProjection::Orthographic
-                       : LightProjection::Perspective;
-  if (auto v = r.get("fov_y_deg"))
-    l.fov_y_deg = read_number(*v, r.path("fov_y_deg"), RequestLimits::kMinFovDeg, 180.0, false, true);
-  if (auto v = r.get("size")) {
-    const bool perspective = l.projection == LightProjection::Perspective;
-    l.size = read_number(*v, r.path("size"), 0.0,
-                         perspective ? RequestLimits::kMaxExtent : RequestLimits::kMaxLightAngularSize);
-  }
-  if (auto v = r.get("orbit_deg_per_s"))
-    l.orbit_deg_per_s = read_number(*v, r.path("orbit_deg_per_s"), -RequestLimits::kMaxOrbitSpeed, RequestLimits::kMaxOrbitSpeed);
-  if (auto v = r.get("sun")) {
-    if (!v->is_object()) reject(r.path("sun"), std::string("must be an object, not ") + type_name(*v));
-    l.sun = read_sun(*v, sent);
-    if (l.projection == LightProjection::Perspective)
-      reject(r.path("projection"), "a sun light is directional: \"orthographic\" (or leave projection out)");
-  }
-}
-
-void read_shadow(const json* j, ShadowSettings& s, std::set<std::string>& sent) {
-  if (j == nullptr) return;
-  ObjectReader r(*j, "shadow",
-                 {"enabled", "map_size", "filter", "pcf_radius", "bias", "cull", "fit", "cascades", "ortho_half_size", "near",
-                  "far"},
-                 sent);
-  if (auto v = r.get("enabled")) s.enabled = read_boolean(*v, r.path("enabled"));
-  if (auto v = r.get("map_size")) s.map_size = read_integer(*v, r.path("map_size"), 64, 8192);
-  if (auto v = r.get("filter"))
-    s.filter = ShadowFilter(read_choice(*v, r.path("filter"), {"hard", "pcf", "pcss"}));
-  if (auto v = r.get("pcf_radius")) s.pcf_radius = read_integer(*v, r.path("pcf_radius"), 0, 8);
-  if (auto v = r.get("bias")) {
-    if (v->is_string()) {
-      read_choice(*v, r.path("bias"), {"auto"});
-    } else {
-      ObjectReader b(*v, r.path("bias"), {"constant", "slope", "normal_offset"}, sent);
-      s.bias.automatic = false;
-      if (auto c = b.get("constant")) s.bias.constant = read_number(*c, b.path("constant"), 0.0, 1.0);
-      if (auto c = b.get("slope")) s.bias.slope = read_number(*c, b.path("slope"), 0.0, 1.0);
-      if (auto c = b.get("normal_offset")) s.bias.normal_offset = read_number(*c, b.path("normal_offset"), 0.0, 64.0);
-    }
-  }
-  if (auto v = r.get("cull")) s.cull = CullMode(read_choice(*v, r.path("cull"), {"front", "back", "none"}));
-  if (auto v = r.get("fit")) s.fit = FrustumFit(read_choice(*v, r.path("fit"), {"scene", "fixed"}));
-  if (auto v = r.get("cascades")) {
-    if (v->is_string())
-      read_choice(*v, r.path("cascades"), {"auto"});
-    else
-      s.cascades = read_integer(*v, r.path("cascades"), 1, kMaxCascades);
-  }
-  if (auto v = r.get("ortho_half_size")) s.ortho_half_size = read_extent(*v, r.path("ortho_half_size"));
-  if (auto v = r.get("near"))
-    s.near_plane = read_number(*v, r.path("near"), -RequestLimits::kMaxExtent, RequestLimits::kMaxExtent);
-  if (auto v = r.get("far"))
-    s.far_plane = read_number(*v, r.path("far"), -RequestLimits::kMaxExtent, RequestLimits::kMaxExtent);
 }
 
 // Rules that involve several fields.
@@ -562,68 +611,23 @@ void check_consistency(const RenderRequest& q, const std::set<std::string>& sent
     reject("shadow.filter", "an area light (light.size > 0) needs \"pcss\"; \"hard\" and \"pcf\" model an ideal light");
 }
 
-// Fields that were sent but cannot change this output.
+
+// Fields that were sent but cannot change this output: each row's used_when.
 std::vector<std::string> unused_fields(const RenderRequest& q, const std::set<std::string>& sent) {
+  const bool sun_down = q.light.sun && !above_horizon(sun_at(*q.light.sun, q.time));
+  const FieldUse use = field_use(q, sun_down);
   std::vector<std::string> unused;
-  const auto mark = [&](const std::string& field) {
-    if (sent.count(field)) unused.push_back(field);
-  };
-  const bool depth = q.output == Output::Depth;
-  // A sun below the horizon lights nothing directly: its frame draws no
-  // shadow, as if shadows were off (the depth output still draws the map).
-  // So these fields may come and go from the list while Play crosses sunset.
-  const bool sun_down = q.light.sun && !light_at(q.light, q.time).direct;
-  const bool shadowed = q.shadow.enabled && !sun_down;
-  const bool shadow_pass = shadowed || depth;
-  const bool fixed = q.shadow.fit == FrustumFit::Fixed;
-  const bool perspective = q.light.projection == LightProjection::Perspective;
-  if (!fixed || !perspective) mark("light.fov_y_deg");
-  // A sun places the light: it does not orbit, and only the position's
-  // distance from the target is kept, which fit "fixed" measures near and
-  // far from.
-  if (q.light.sun) {
-    mark("light.orbit_deg_per_s");
-    if (!fixed || !shadow_pass) mark("light.position");
-    if (sun_down && !depth) mark("shadow.enabled");
-  }
-  if (!fixed || perspective) mark("shadow.ortho_half_size");
-  if (!fixed || !shadow_pass) mark("shadow.near"), mark("shadow.far");
-  if (fixed || perspective) mark("shadow.cascades");
-  if (!shadow_pass) {
-    for (const char* f : {"shadow.map_size", "shadow.cull", "shadow.fit", "shadow.cascades", "shadow.ortho_half_size"})
-      mark(f);
-  }
-  const bool filtering = shadowed && !depth;
-  const bool pcf_used = q.shadow.filter == ShadowFilter::Pcf ||
-                        (q.shadow.filter == ShadowFilter::Pcss && q.light.size == 0.0);
-  if (!filtering || !pcf_used) mark("shadow.pcf_radius");
-  if (!filtering) {
-    for (const char* f : {"shadow.filter", "shadow.bias", "shadow.bias.constant", "shadow.bias.slope",
-                          "shadow.bias.normal_offset", "light.size"})
-      mark(f);
-  }
-  // An orthographic light fitted to the scene is fitted to what the camera
-  // sees: then the camera and image size shape even the depth map.
-  const bool camera_fitted = !fixed && !perspective;
-  if (!depth) mark("depth_bits");
-  if (depth) {
-    for (const char* f : {"light.color", "light.ambient"}) mark(f);
-    if (!camera_fitted) {
-      for (const char* f : {"width", "height", "camera", "camera.position", "camera.target", "camera.up",
-                            "camera.fov_y_deg", "camera.near", "camera.far"})
-        mark(f);
-    }
-  }
+  for (const RequestField& row : request_fields())
+    if (!row.used(use) && sent.count(row.path)) unused.push_back(row.path);
   std::sort(unused.begin(), unused.end());
-  unused.erase(std::unique(unused.begin(), unused.end()), unused.end());
   return unused;
 }
 
 RenderRequest read_request(const json& root, Route route, std::set<std::string>& sent, const ModelLookup& find_model,
                            bool& output_overridden) {
-  ObjectReader r(root, "", {"width", "height", "scene", "camera", "light", "time", "shadow", "output", "depth_bits"},
-                 sent);
+  ObjectReader r(root, "", keys_in(""), sent);
   RenderRequest q;
+  apply_request_defaults(q);
   const BuiltinScene* builtin = nullptr;
   q.scene = read_scene(r.get("scene"), builtin, sent, find_model);
   // Defaults that depend on the scene: a built-in scene's own camera and
@@ -639,9 +643,9 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
     q.light.position = d.light_position;
     q.light.target = d.light_target;
   }
-  if (auto v = r.get("width")) q.width = read_integer(*v, "width", 16, 4096);
-  if (auto v = r.get("height")) q.height = read_integer(*v, "height", 16, 4096);
-  read_camera(r.get("camera"), q.camera, sent);
+  read_sent(r, "width", q, sent);
+  read_sent(r, "height", q, sent);
+  read_sent(r, "camera", q, sent);
   // A custom scene without a camera.far is seen whole: far reaches the far
   // side of its bounds from wherever the camera stands (the fixed 100 cut
   // away a 200 x 200 floor, and half of three-cubes' when posted back).
@@ -652,9 +656,11 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
       q.camera.far_plane = std::max(q.camera.far_plane, 1.01 * reach);
     }
   }
-  // The light's projection decides the range of light.size: read it first.
-  read_light(r.get("light"), q.light, sent);
-  if (auto v = r.get("time")) q.time = read_number(*v, "time", -RequestLimits::kMaxTime, RequestLimits::kMaxTime);
+  // The light's projection decides the range of light.size: its row is read first.
+  read_sent(r, "light", q, sent);
+  if (q.light.sun && q.light.projection == LightProjection::Perspective)
+    reject("light.projection", "a sun light is directional: \"orthographic\" (or leave projection out)");
+  read_sent(r, "time", q, sent);
   // A sun's clock reads utc + time: that instant, not utc alone, must lie
   // in the years the sun's position is computed for.
   if (q.light.sun) {
@@ -663,11 +669,10 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
       reject("time", "light.sun.utc + time must lie in years 0001 to " + std::to_string(RequestLimits::kMaxSunYear) +
                          " (UTC); it is " + format_utc(clock));
   }
-  read_shadow(r.get("shadow"), q.shadow, sent);
+  read_sent(r, "shadow", q, sent);
   // An area light with no filter named gets the filter that models it.
   if (q.light.size > 0.0 && !sent.count("shadow.filter")) q.shadow.filter = ShadowFilter::Pcss;
-  if (auto v = r.get("output"))
-    q.output = Output(read_choice(*v, "output", {"color", "depth", "shadow", "exact", "error"}));
+  read_sent(r, "output", q, sent);
   // POST /api/depth takes the same body as /api/render (docs/api.md) and
   // always draws the depth map: any output /api/render takes is accepted,
   // and one other than "depth" is reported unused (Umbra-Unused-Fields),
@@ -676,7 +681,7 @@ RenderRequest read_request(const json& root, Route route, std::set<std::string>&
     output_overridden = sent.count("output") && q.output != Output::Depth;
     q.output = Output::Depth;
   }
-  if (auto v = r.get("depth_bits")) q.depth_bits = read_depth_bits(*v, "depth_bits");
+  read_sent(r, "depth_bits", q, sent);
   check_consistency(q, sent);
   return q;
 }

@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "request_fields.hpp"
 #include "request_parser.hpp"
 #include "core/scene.hpp"
 
@@ -354,6 +355,164 @@ TEST(ApiDocument, EveryNumericRangeIsWhatTheParserTakes) {
     }
   }
   EXPECT_GE(checked, 120);
+}
+
+// ---------------------------------------------------------------------------
+// The field table (server/request_fields.hpp) row by row: each row's
+// property in the document has the row's type, default, range, enum and
+// required-ness, and a description holding the row's doc line; each request
+// property of the document has a row.
+
+// The component that describes the object at `parent` ("" for the body).
+std::string component_of(const std::string& parent) {
+  return parent.empty() ? std::string(kRequestSchema) : request_field(parent).schema;
+}
+
+// The number (or integer) schema inside a property: itself, its items, or a
+// branch of oneOf; nullptr if none.
+const json* numeric_schema(const json& s) {
+  if (!s.is_object()) return nullptr;
+  if (s.contains("type") && (s["type"] == "number" || s["type"] == "integer")) return &s;
+  if (s.contains("items")) return numeric_schema(s["items"]);
+  if (s.contains("oneOf"))
+    for (const json& branch : s["oneOf"])
+      if (const json* found = numeric_schema(branch)) return found;
+  return nullptr;
+}
+
+// The array schema of a property (itself or a oneOf branch): its item count.
+int array_items(const json& s) {
+  if (s.value("type", "") == "array") return s.value("minItems", -1) == s.value("maxItems", -2) ? s.value("minItems", 0) : -1;
+  if (s.contains("oneOf"))
+    for (const json& branch : s["oneOf"])
+      if (int n = array_items(branch); n != 0) return n;
+  return 0;
+}
+
+bool has_const(const json& s, const std::string& word) {
+  if (s.value("const", json()) == word) return true;
+  if (s.contains("oneOf"))
+    for (const json& branch : s["oneOf"])
+      if (has_const(branch, word)) return true;
+  return false;
+}
+
+bool refers_to(const json& s, const std::string& component) {
+  const std::string ref = "#/components/schemas/" + component;
+  if (s.value("$ref", "") == ref) return true;
+  if (s.contains("oneOf"))
+    for (const json& branch : s["oneOf"])
+      if (refers_to(branch, component)) return true;
+  return false;
+}
+
+template <class Target>
+void expect_row_in_document(const FieldRow<Target>& row, const std::string& component, const json& schemas) {
+  const std::string where = component + "." + row.key() + " (row " + row.path + ")";
+  const json& owner = schemas[component];
+  if (!owner.contains("properties") || !owner["properties"].contains(row.key())) {
+    ADD_FAILURE() << where << ": docs/openapi.json has no such property";
+    return;
+  }
+  const json& p = owner["properties"][row.key()];
+  EXPECT_EQ(p.value("default", json()), row.default_value) << where << ": default";
+  const bool required = owner.contains("required") && std::find(owner["required"].begin(), owner["required"].end(),
+                                                                row.key()) != owner["required"].end();
+  EXPECT_EQ(required, !row.required.empty()) << where << ": required";
+  if (!row.doc.empty()) {
+    EXPECT_NE(p.value("description", "").find(row.doc), std::string::npos)
+        << where << ": the description does not say \"" << row.doc << "\"";
+  }
+  if (!row.word.empty()) {
+    EXPECT_TRUE(has_const(p, row.word)) << where << ": does not take \"" << row.word << "\"";
+  }
+  const json* number = numeric_schema(p);
+  switch (row.type) {
+    case FieldType::Integer:
+    case FieldType::Number:
+    case FieldType::Vec3:
+    case FieldType::Size2:
+    case FieldType::Color:
+    case FieldType::NumberOrVec3: {
+      if (number == nullptr) {
+        ADD_FAILURE() << where << ": no numeric schema";
+        break;
+      }
+      const bool integer = row.type == FieldType::Integer;
+      EXPECT_EQ((*number)["type"], integer ? "integer" : "number") << where;
+      EXPECT_EQ(number->value(row.range.open_min ? "exclusiveMinimum" : "minimum", json()), row.range.min)
+          << where << ": minimum";
+      EXPECT_EQ(number->value(row.range.open_max ? "exclusiveMaximum" : "maximum", json()), row.range.max)
+          << where << ": maximum";
+      const int items = row.type == FieldType::Vec3 || row.type == FieldType::Color || row.type == FieldType::NumberOrVec3
+                            ? 3
+                        : row.type == FieldType::Size2 ? 2
+                                                       : 0;
+      EXPECT_EQ(array_items(p), items) << where << ": items";
+      break;
+    }
+    case FieldType::IntegerChoice:
+      EXPECT_EQ(p.value("type", ""), "integer") << where;
+      EXPECT_EQ(p.value("enum", json()), json(row.numbers)) << where << ": enum";
+      break;
+    case FieldType::Choice:
+      EXPECT_EQ(p.value("type", ""), "string") << where;
+      EXPECT_EQ(p.value("enum", json()), json(row.choices)) << where << ": enum";
+      break;
+    case FieldType::Boolean:
+      EXPECT_EQ(p.value("type", ""), "boolean") << where;
+      break;
+    case FieldType::Text:
+      EXPECT_EQ(p.value("type", ""), "string") << where;
+      break;
+    case FieldType::Object:
+    case FieldType::Scene:
+      EXPECT_TRUE(refers_to(p, row.schema)) << where << ": not a $ref to " << row.schema;
+      break;
+    case FieldType::ObjectList:
+      EXPECT_EQ(p.value("maxItems", json()), row.range.max) << where << ": maxItems";
+      break;
+  }
+}
+
+TEST(ApiDocument, EveryFieldRowIsInTheDocument) {
+  const json schemas = load_document()["components"]["schemas"];
+  for (const RequestField& row : request_fields()) expect_row_in_document(row, component_of(row.parent()), schemas);
+  for (const ShapeFields& shape : shape_fields()) {
+    EXPECT_EQ(schemas[shape.schema]["properties"]["type"], json({{"const", shape.type}})) << shape.schema;
+    for (const ObjectField& row : shape.rows) expect_row_in_document(row, shape.schema, schemas);
+  }
+}
+
+TEST(ApiDocument, EveryRequestPropertyInTheDocumentHasARow) {
+  const json schemas = load_document()["components"]["schemas"];
+  // The request's components, and the key each property's row has.
+  std::map<std::string, std::string> parents = {{kRequestSchema, ""}};
+  for (const RequestField& row : request_fields())
+    if (!row.schema.empty()) parents[row.schema] = row.path;
+  int checked = 0;
+  for (const auto& [component, parent] : parents) {
+    for (const auto& [property, p] : schemas[component]["properties"].items()) {
+      const std::string path = parent.empty() ? property : parent + "." + property;
+      EXPECT_NO_THROW(request_field(path)) << component << "." << property << " has no row " << path;
+      ++checked;
+    }
+  }
+  // A scene object: one group of rows per type, in the document's order.
+  json refs = json::array(), mapping = json::object();
+  for (const ShapeFields& shape : shape_fields()) {
+    refs.push_back({{"$ref", "#/components/schemas/" + shape.schema}});
+    mapping[shape.type] = "#/components/schemas/" + shape.schema;
+    for (const auto& [property, p] : schemas[shape.schema]["properties"].items()) {
+      const bool has_row = property == "type" || std::any_of(shape.rows.begin(), shape.rows.end(),
+                                                             [&](const ObjectField& r) { return r.path == property; });
+      EXPECT_TRUE(has_row) << shape.schema << "." << property << " has no row in the " << shape.type << " group";
+      ++checked;
+    }
+  }
+  EXPECT_EQ(schemas["SceneObject"]["oneOf"], refs);
+  EXPECT_EQ(schemas["SceneObject"]["discriminator"]["mapping"], mapping);
+  EXPECT_GE(checked, 60);
 }
 
 TEST(ApiDocument, TheBuiltInSceneNamesAreTheServers) {

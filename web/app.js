@@ -38,7 +38,7 @@ function buildRequest() {
   // the settings allow.
   const target = ["ltx", "lty", "ltz"].map(number);
   if (target.some((x) => x !== 0)) light.target = target;
-  if (number("orbit") !== DEFAULT_ORBIT_DEG_PER_S) light.orbit_deg_per_s = number("orbit");
+  if (number("orbit") !== apiDefault("Light", "orbit_deg_per_s")) light.orbit_deg_per_s = number("orbit");
   if (sun) {
     // The sun places the light: no position (its default distance serves
     // fit "fixed"), target, projection or orbit speed to send.
@@ -501,7 +501,6 @@ function stretchedTile(data, size, x0, y0, width, height, label) {
 // the fields and the time (reloading shows the same light); the request and
 // "Copy as curl" send the position at time 0.
 
-const DEFAULT_ORBIT_DEG_PER_S = 20;
 const LIGHT_FIELDS = ["lx", "ly", "lz"];
 const LIGHT_TARGET_FIELDS = ["ltx", "lty", "ltz"];
 
@@ -645,7 +644,6 @@ function moveLight(dx, dy, height) {
 // in flight arrives, so dragging runs at the panel's frame rate.
 
 const CAMERA_FIELDS = { position: ["cx", "cy", "cz"], target: ["ctx", "cty", "ctz"] };
-const CAMERA_FOV_DEG = 45;  // the server's default fov_y_deg, which the panel never changes
 const POLAR_MARGIN = 0.01;  // radians kept from the poles: straight up or down, "up" would be undefined
 const sceneCameras = new Map();  // built-in scene name -> its camera, from GET /api/scenes
 const sceneObjects = new Map();  // built-in scene name -> its objects, from GET /api/scenes
@@ -754,7 +752,7 @@ function dolly(camera, factor) {
 function pan(camera, dx, dy, height) {
   const offset = sub(camera.position, camera.target);
   const distance = Math.hypot(...offset);
-  const perPixel = (2 * distance * Math.tan((CAMERA_FOV_DEG * Math.PI) / 360)) / height;
+  const perPixel = (2 * distance * Math.tan((apiDefault("Camera", "fov_y_deg") * Math.PI) / 360)) / height;
   const forward = scale(offset, -1 / distance);
   let right = cross(forward, [0, 1, 0]);
   right = scale(right, 1 / (Math.hypot(...right) || 1));
@@ -1053,10 +1051,82 @@ async function getJson(path) {
   }
 }
 
+// --- The API's defaults -------------------------------------------------------------
+// The controls start at the API's own defaults, read from the server's
+// OpenAPI document (GET /api/openapi.json) rather than copied into the page:
+// each control below names the field whose default it takes. They become
+// the controls' default values, so that the address (saveToUrl) still
+// leaves out whatever is unchanged. The camera's field of view, which the
+// panel never changes, is the document's too.
+
+const DEFAULTS_FROM_API = {
+  // control id: [component of components.schemas, property]
+  view: ["RenderRequest", "output"],
+  time: ["RenderRequest", "time"],
+  projection: ["Light", "projection"],
+  color: ["Light", "color"],
+  orbit: ["Light", "orbit_deg_per_s"],
+  ambient: ["Light", "ambient"],
+  size: ["Light", "size"],
+  sun_north: ["Sun", "north_deg"],
+  enabled: ["Shadow", "enabled"],
+  filter: ["Shadow", "filter"],
+  pcf_radius: ["Shadow", "pcf_radius"],
+  map_size: ["Shadow", "map_size"],
+  fit: ["Shadow", "fit"],
+  cascades: ["Shadow", "cascades"],
+  near: ["Shadow", "near"],
+  far: ["Shadow", "far"],
+  half: ["Shadow", "ortho_half_size"],
+};
+let apiSchemas = null;  // components.schemas of GET /api/openapi.json
+
+// A field's default in the document; undefined if it has none (or the
+// document could not be read).
+function apiDefault(component, property) {
+  const schema = apiSchemas && apiSchemas[component];
+  const field = schema && schema.properties && schema.properties[property];
+  return field ? field.default : undefined;
+}
+
+// "#rrggbb" for a linear [r, g, b] in 0..1, as the API reads it back.
+function hexColor(rgb) {
+  return `#${rgb.map((c) => Math.round(c * 255).toString(16).padStart(2, "0")).join("")}`;
+}
+
+function setDefault(e, value) {
+  if (e.type === "checkbox") {
+    e.defaultChecked = e.checked = value === true;
+  } else if (e.tagName === "SELECT") {
+    for (const option of e.options) option.defaultSelected = option.selected = option.value === String(value);
+  } else {
+    e.defaultValue = e.value = e.type === "color" && Array.isArray(value) ? hexColor(value) : String(value);
+  }
+}
+
+function applyApiDefaults(apiDocument) {
+  apiSchemas = apiDocument && apiDocument.components && apiDocument.components.schemas;
+  if (!apiSchemas) {
+    showError("The server's API document (GET /api/openapi.json) could not be read: the controls have no defaults.");
+    return;
+  }
+  for (const [id, [component, property]] of Object.entries(DEFAULTS_FROM_API)) {
+    const value = apiDefault(component, property);
+    if (value !== undefined) setDefault($(id), value);
+  }
+  const target = apiDefault("Light", "target");
+  if (Array.isArray(target)) LIGHT_TARGET_FIELDS.forEach((id, i) => setDefault($(id), target[i]));
+  const [width, height] = [apiDefault("RenderRequest", "width"), apiDefault("RenderRequest", "height")];
+  setDefault($("resolution"), `${width}x${height}`);
+}
+
 // Without the lists (an older or unreachable server) the page's own two
 // scenes stay, and the first frame reports what is wrong.
 async function loadChoices() {
-  const [scenes, held] = await Promise.all([getJson("/api/scenes"), getJson("/api/models")]);
+  const [scenes, held, apiDocument] = await Promise.all([
+    getJson("/api/scenes"), getJson("/api/models"), getJson("/api/openapi.json"),
+  ]);
+  applyApiDefaults(apiDocument);
   if (scenes && Array.isArray(scenes.scenes) && scenes.scenes.length) fillScenes(scenes.scenes);
   if (held && Array.isArray(held.models)) for (const model of held.models) addModel(model);
 }

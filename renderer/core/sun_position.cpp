@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <iterator>
 
+#include "core/request.hpp"
+
 namespace umbra {
 namespace {
 
@@ -845,6 +847,10 @@ std::string format_sun_angles(const SunAngles& sun) {
   char buffer[96];
   std::snprintf(buffer, sizeof buffer, "azimuth_deg=%.4f; elevation_deg=%.4f", azimuth, four_places(sun.elevation_deg));
   return buffer;
+}
+
+SunAngles sun_at(const SunClock& clock, double time) {
+  return solar_position(clock.latitude_deg, clock.longitude_deg, clock.utc_unix_s + time);
 }
 
 }  // namespace umbra

@@ -117,6 +117,18 @@ std::optional<double> parse_utc(std::string_view text, std::string* why);
 // (3 billion years) are clamped to it.
 std::string format_utc(double unix_seconds);
 
+struct SunClock;  // core/request.hpp
+
+// Where a sun light's sun stands `time` seconds after its clock's instant:
+// solar_position at clock.utc_unix_s + time, as light_at (light_math.hpp)
+// places the light. For those that must not see the light math (the server:
+// Umbra-Sun, Umbra-Unused-Fields).
+SunAngles sun_at(const SunClock& clock, double time);
+
+// Whether the sun's direct light arrives: its disc's centre above the
+// horizon (light_at's `direct`).
+inline bool above_horizon(const SunAngles& sun) { return sun.elevation_deg > 0.0; }
+
 // "azimuth_deg=<A>; elevation_deg=<E>", each to 4 decimals: the value of the
 // Umbra-Sun response header (docs/api.md). Rounded before printing, so that
 // an azimuth of 359.99996 reads 0.0000 (never 360.0000) and -0.00001 reads
