@@ -14,6 +14,7 @@
 #include "assets/folder_file.hpp"
 #include "assets/gltf_loader.hpp"
 #include "png.hpp"
+#include "request_fields.hpp"
 #include "request_parser.hpp"
 #include "core/scene.hpp"
 #include "core/sun_position.hpp"
@@ -40,26 +41,6 @@ bool starts_with_ci(const std::string& s, const char* prefix) {
 
 
 json vec3_json(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
-
-// Same form as a custom scene's object in a request body.
-json object_json(const SceneObject& o) {
-  switch (o.type) {
-    case SceneObject::Type::Plane:
-      return {{"type", "plane"}, {"center", vec3_json(o.center)}, {"size", {o.size.x, o.size.z}}, {"color", vec3_json(o.color)}};
-    case SceneObject::Type::Box:
-      return {{"type", "box"}, {"center", vec3_json(o.center)}, {"size", vec3_json(o.size)},
-              {"rotation_y_deg", o.rotation_y_deg}, {"color", vec3_json(o.color)}};
-    case SceneObject::Type::Sphere:
-      return {{"type", "sphere"}, {"center", vec3_json(o.center)}, {"radius", o.radius}, {"color", vec3_json(o.color)}};
-    case SceneObject::Type::Mesh: {
-      json j = {{"type", "mesh"}, {"model", o.model_id}, {"position", vec3_json(o.center)},
-                {"rotation_deg", vec3_json(o.rotation_deg)}, {"scale", vec3_json(o.mesh_scale)}};
-      if (o.mesh_color_override) j["color"] = vec3_json(o.color);
-      return j;
-    }
-  }
-  return {};
-}
 
 // How GET /api/models and POST /api/models describe one model.
 json model_json(const HeldModel& held) {
@@ -458,7 +439,7 @@ void HttpApi::scenes(const HttpRequest&, HttpResponse& res) {
   json scenes = json::array();
   for (const auto& s : builtin_scenes()) {
     json objects = json::array();
-    for (const auto& o : s.objects) objects.push_back(object_json(o));
+    for (const auto& o : s.objects) objects.push_back(write_object(o));
     scenes.push_back({{"name", s.name},
                       {"description", s.description},
                       {"objects", objects},

@@ -86,6 +86,10 @@ class Row {
     f_.used_when = rule;
     return *this;
   }
+  Row& written_by(typename FieldRow<Target>::Getter get) {
+    f_.get = get;
+    return *this;
+  }
   Row& schema(const char* schema) {
     f_.schema = schema;
     return *this;
@@ -309,8 +313,21 @@ std::vector<RequestField> make_request_fields() {
 
 // The rows every primitive shares: where it is and its colour, read after
 // its own fields.
+// Getters of the common kinds: the member as it is stored.
+template <glm::dvec3 O::*member>
+bool vector_of(const O& o, V& v) {
+  v.vec = o.*member;
+  return true;
+}
+template <double O::*member>
+bool number_of(const O& o, V& v) {
+  v.number = o.*member;
+  return true;
+}
+
 ObjectField center_row() {
   return OR("center", FieldType::Vec3, [](O& o, const V& v) { o.center = v.vec; }, "Its centre.")
+      .written_by(vector_of<&O::center>)
       .in(-L::kMaxCoordinate, L::kMaxCoordinate)
       .by_default(kOrigin)
       .read_late();
@@ -318,6 +335,7 @@ ObjectField center_row() {
 ObjectField color_row() {
   return OR("color", FieldType::Color, [](O& o, const V& v) { o.color = v.vec; },
             "A colour: `[r, g, b]` in 0..1 or `\"#rrggbb\"`.")
+      .written_by(vector_of<&O::color>)
       .in(0.0, 1.0)
       .by_default(json::array({0.8, 0.8, 0.8}))
       .read_late();
@@ -329,22 +347,26 @@ std::vector<ShapeFields> make_shape_fields() {
                     {center_row(),
                      OR("size", FieldType::Size2, [](O& o, const V& v) { o.size = v.vec; },
                         "[sx, sz], full edge lengths along X and Z.")
+                         .written_by(vector_of<&O::size>)
                          .in(L::kMinExtent, L::kMaxExtent)
                          .by_default(json::array({10, 10})),
                      color_row()}});
   shapes.push_back({"box", O::Type::Box, "BoxObject",
                     {center_row(),
                      OR("size", FieldType::Vec3, [](O& o, const V& v) { o.size = v.vec; }, "[sx, sy, sz], full edge lengths.")
+                         .written_by(vector_of<&O::size>)
                          .in(L::kMinExtent, L::kMaxExtent)
                          .by_default(json::array({1, 1, 1})),
                      OR("rotation_y_deg", FieldType::Number, [](O& o, const V& v) { o.rotation_y_deg = v.number; },
                         "Rotation about its own vertical axis, degrees, counter-clockwise seen from +Y.")
+                         .written_by(number_of<&O::rotation_y_deg>)
                          .in(-36000.0, 36000.0)
                          .by_default(0),
                      color_row()}});
   shapes.push_back({"sphere", O::Type::Sphere, "SphereObject",
                     {center_row(),
                      OR("radius", FieldType::Number, [](O& o, const V& v) { o.radius = v.number; }, "Radius, world units.")
+                         .written_by(number_of<&O::radius>)
                          .in(L::kMinExtent, L::kMaxExtent)
                          .by_default(0.5),
                      color_row()}});
@@ -352,15 +374,22 @@ std::vector<ShapeFields> make_shape_fields() {
       {"mesh", O::Type::Mesh, "MeshObject",
        {// Looked up by the parser among the server's and the built-in models.
         OR("model", FieldType::Text, nullptr, "A held model's id (`sha256:<hex>`) or name")
+            .written_by([](const O& o, V& v) {
+              v.text = o.model_id;
+              return true;
+            })
             .required("is required: a model's id or name; "),
         OR("position", FieldType::Vec3, [](O& o, const V& v) { o.center = v.vec; }, "Where the model-space origin goes.")
+            .written_by(vector_of<&O::center>)
             .in(-L::kMaxCoordinate, L::kMaxCoordinate)
             .by_default(kOrigin),
         OR("rotation_deg", FieldType::Vec3, [](O& o, const V& v) { o.rotation_deg = v.vec; },
            "Rotations about X, Y and Z, degrees, right-handed; X applied first.")
+            .written_by(vector_of<&O::rotation_deg>)
             .in(-36000.0, 36000.0)
             .by_default(kOrigin),
         OR("scale", FieldType::NumberOrVec3, [](O& o, const V& v) { o.mesh_scale = v.vec; }, "A number, or [sx, sy, sz].")
+            .written_by(vector_of<&O::mesh_scale>)
             .in(L::kMinExtent, L::kMaxExtent)
             .by_default(1),
         // No default: the model's own base colours.
@@ -370,6 +399,10 @@ std::vector<ShapeFields> make_shape_fields() {
              o.mesh_color_override = true;
            },
            "Overrides every base colour of the model.")
+            .written_by([](const O& o, V& v) {
+              v.vec = o.color;
+              return o.mesh_color_override;
+            })
             .in(0.0, 1.0)}});
   return shapes;
 }
@@ -401,6 +434,46 @@ const RequestField& request_field(std::string_view path) {
 const std::vector<ShapeFields>& shape_fields() {
   static const std::vector<ShapeFields> shapes = make_shape_fields();
   return shapes;
+}
+
+const ShapeFields& shape_fields_of(SceneObject::Type kind) {
+  for (const ShapeFields& shape : shape_fields())
+    if (shape.kind == kind) return shape;
+  throw std::out_of_range("no fields for this object type");
+}
+
+namespace {
+
+// A value as the parser reads it for `row`'s type.
+json write_value(const ObjectField& row, const FieldValue& v) {
+  switch (row.type) {
+    case FieldType::Integer:
+    case FieldType::IntegerChoice:
+    case FieldType::Number: return v.number;
+    case FieldType::Boolean: return v.flag;
+    case FieldType::Choice: return row.choices.at(v.choice);
+    case FieldType::Size2: return json::array({v.vec.x, v.vec.z});
+    case FieldType::Vec3:
+    case FieldType::Color:
+    case FieldType::NumberOrVec3: return json::array({v.vec.x, v.vec.y, v.vec.z});
+    case FieldType::Text: return v.text;
+    case FieldType::Object:
+    case FieldType::Scene:
+    case FieldType::ObjectList: break;
+  }
+  throw std::logic_error("write_value: an object field of type " + std::to_string(int(row.type)) + " (" + row.path + ")");
+}
+
+}  // namespace
+
+json write_object(const SceneObject& object) {
+  const ShapeFields& shape = shape_fields_of(object.type);
+  json j = {{"type", shape.type}};
+  for (const ObjectField& row : shape.rows) {
+    FieldValue v;
+    if (row.get && row.get(object, v)) j[row.key()] = write_value(row, v);
+  }
+  return j;
 }
 
 }  // namespace umbra

@@ -53,6 +53,7 @@ struct FieldValue {
   glm::dvec3 vec{0.0};     ///< Vec3, Size2 as (sx, 0, sz), Color, NumberOrVec3
   std::size_t choice = 0;  ///< Choice: the position in the row's `choices`
   bool word = false;       ///< the row's `word` was given instead of a value
+  std::string text;        ///< Text, as written (a row's getter: a mesh's model id)
 };
 
 /// What decides whether a field can change the output asked for: the rows'
@@ -78,6 +79,9 @@ FieldUse field_use(const RenderRequest& request, bool sun_down);
 template <class Target>
 struct FieldRow {
   using Setter = void (*)(Target&, const FieldValue&);
+  /// Reads the member back for the JSON writer (write_object): false where
+  /// the field is not written (a mesh's colour it does not override).
+  using Getter = bool (*)(const Target&, FieldValue&);
   using RangeRule = FieldRange (*)(const Target&);
   using UseRule = bool (*)(const FieldUse&);
 
@@ -88,6 +92,8 @@ struct FieldRow {
   /// Stores a read value in the member it fills (Object rows: called before
   /// the rows below are read, with `word` set when the word was given).
   Setter set = nullptr;
+  /// The setter's inverse, for the JSON writer; object fields have one each.
+  Getter get = nullptr;
   /// Numbers, integers, and each component of a vector. The document's range.
   FieldRange range{};
   /// Set where the range depends on fields read before this one (light.size:
@@ -153,5 +159,12 @@ const RequestField& request_field(std::string_view path);
 
 /// The scene object types, in the order the API lists them.
 const std::vector<ShapeFields>& shape_fields();
+/// The group of `kind`; throws std::out_of_range if there is none.
+const ShapeFields& shape_fields_of(SceneObject::Type kind);
+
+/// `object` as the API writes it (GET /api/scenes): its "type" and every
+/// field its rows read back, in the form the parser reads (a plane's size
+/// as [sx, sz]). Parsing it gives the same object.
+nlohmann::json write_object(const SceneObject& object);
 
 }  // namespace umbra

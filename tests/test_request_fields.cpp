@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/builtin_models.hpp"
 #include "core/light_math.hpp"
 #include "core/sun_position.hpp"
 #include "request_fields.hpp"
@@ -241,6 +242,53 @@ TEST(RequestFields, TheServersSunIsLightAts) {
   }
   EXPECT_GT(up, 0);
   EXPECT_GT(down, 0);
+}
+
+// The JSON writer (GET /api/scenes) is the rows read back: every object
+// field has a getter, and what is written parses to the same object.
+TEST(RequestFields, EveryObjectFieldIsWrittenBack) {
+  for (const ShapeFields& shape : shape_fields())
+    for (const ObjectField& row : shape.rows) EXPECT_NE(row.get, nullptr) << shape.type << "." << row.path;
+}
+
+TEST(RequestFields, AWrittenObjectParsesToTheSameObject) {
+  std::vector<SceneObject> objects;
+  for (const BuiltinScene& scene : builtin_scenes())
+    for (const SceneObject& o : scene.objects) objects.push_back(o);
+  // One of each type with no field at its default.
+  auto object = [](SceneObject::Type type, glm::dvec3 center, glm::dvec3 color) {
+    SceneObject o;
+    o.type = type;
+    o.center = center;
+    o.color = color;
+    return o;
+  };
+  SceneObject plane = object(SceneObject::Type::Plane, {1.5, -2, 3.25}, {0.1, 0.2, 0.3});
+  plane.size = {4, 0, 7.5};
+  SceneObject box = object(SceneObject::Type::Box, {0, 0.5, -1}, {0.9, 0.5, 0.25});
+  box.size = {1, 2, 3};
+  box.rotation_y_deg = 33.5;
+  SceneObject sphere = object(SceneObject::Type::Sphere, {2, 1, 2}, {0.3, 0.6, 0.9});
+  sphere.radius = 0.75;
+  SceneObject mesh = object(SceneObject::Type::Mesh, {1, 0, -1}, {0.2, 0.4, 0.6});
+  const BuiltinModel* teapot = find_builtin_model("teapot");
+  ASSERT_NE(teapot, nullptr);
+  mesh.model = teapot->model;
+  mesh.model_id = teapot->id;
+  mesh.rotation_deg = {10, 20, 30};
+  mesh.mesh_scale = {0.5, 1.5, 2.5};
+  mesh.mesh_color_override = true;
+  objects.insert(objects.end(), {plane, box, sphere, mesh});
+  std::set<SceneObject::Type> types;
+  for (const SceneObject& o : objects) {
+    types.insert(o.type);
+    const json written = write_object(o);
+    const RenderRequest q = parse_ok(json{{"scene", {{"objects", json::array({written})}}}}.dump());
+    ASSERT_EQ(q.scene.objects.size(), 1u) << written.dump();
+    EXPECT_EQ(text(q.scene.objects[0]), text(o)) << written.dump();
+    EXPECT_EQ(q.scene.objects[0].model_id, o.model_id) << written.dump();
+  }
+  EXPECT_EQ(types.size(), shape_fields().size()) << "an object type is not covered";
 }
 
 }  // namespace
