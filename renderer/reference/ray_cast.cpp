@@ -15,6 +15,7 @@
 #include "core/light_math.hpp"
 #include "reference/mesh_ray_cast.hpp"
 #include "core/scene.hpp"
+#include "core/shapes/shape.hpp"
 
 namespace umbra {
 
@@ -22,69 +23,13 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Nearest hit distance of one primitive in (t_min, t_max), with its outward
-// normal; kInf when missed.
+// Nearest hit distance of one analytic primitive in (t_min, t_max), with
+// its outward normal; kInf when missed. The shape's own exact test
+// (core/shapes); a kind without one (a mesh) is cast through its MeshRays.
 double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double t_min, double t_max,
                  glm::dvec3& normal) {
-  switch (o.type) {
-    case SceneObject::Type::Plane: {
-      if (dir.y == 0.0) return kInf;
-      const double t = (o.center.y - origin.y) / dir.y;
-      if (!(t > t_min && t < t_max)) return kInf;
-      const glm::dvec3 p = origin + t * dir;
-      if (std::abs(p.x - o.center.x) > 0.5 * o.size.x || std::abs(p.z - o.center.z) > 0.5 * o.size.z) return kInf;
-      normal = {0.0, 1.0, 0.0};
-      return t;
-    }
-    case SceneObject::Type::Box: {
-      // In the box's own frame it is axis-aligned: the slab test.
-      const glm::dvec3 o_local = rotate_y(origin - o.center, -o.rotation_y_deg);
-      const glm::dvec3 d_local = rotate_y(dir, -o.rotation_y_deg);
-      const glm::dvec3 half = 0.5 * o.size;
-      double t0 = -kInf, t1 = kInf;
-      int axis0 = 0, axis1 = 0;
-      for (int k = 0; k < 3; ++k) {
-        if (d_local[k] == 0.0) {
-          if (std::abs(o_local[k]) > half[k]) return kInf;
-          continue;
-        }
-        double a = (-half[k] - o_local[k]) / d_local[k];
-        double b = (half[k] - o_local[k]) / d_local[k];
-        if (a > b) std::swap(a, b);
-        if (a > t0) t0 = a, axis0 = k;
-        if (b < t1) t1 = b, axis1 = k;
-        if (t0 > t1) return kInf;
-      }
-      double t = t0;
-      int axis = axis0;
-      if (!(t > t_min)) t = t1, axis = axis1;  // the origin is inside: the exit
-      if (!(t > t_min && t < t_max)) return kInf;
-      glm::dvec3 n_local(0.0);
-      n_local[axis] = (o_local[axis] + t * d_local[axis]) > 0.0 ? 1.0 : -1.0;
-      normal = rotate_y(n_local, o.rotation_y_deg);
-      return t;
-    }
-    case SceneObject::Type::Sphere: {
-      const glm::dvec3 oc = origin - o.center;
-      const double b = glm::dot(oc, dir);
-      const double c = glm::dot(oc, oc) - o.radius * o.radius;
-      const double disc = b * b - c;
-      if (disc < 0.0) return kInf;
-      const double root = std::sqrt(disc);
-      // The numerically stable pair of roots.
-      const double q = b > 0.0 ? -b - root : -b + root;
-      double ta = q, tb = q != 0.0 ? c / q : -b;
-      if (ta > tb) std::swap(ta, tb);
-      const double t = ta > t_min ? ta : tb;
-      if (!(t > t_min && t < t_max)) return kInf;
-      normal = glm::normalize(origin + t * dir - o.center);
-      return t;
-    }
-    case SceneObject::Type::Mesh:
-      break;  // RayScene casts meshes through their MeshRays
-
-  }
-  return kInf;
+  const auto exact = shape_kind(o.type).intersect;
+  return exact ? exact(o, origin, dir, t_min, t_max, normal) : kInf;
 }
 
 // Whether the ray meets `box` (grown by a relative hair, so that rounding
@@ -220,7 +165,8 @@ RayScene::RayScene(const Scene& scene, const std::function<bool()>& stop_request
     centers[i] = bounds[i].center();
     // A mesh whose model has no triangles has empty bounds: nothing to hit.
     if (bounds[i].empty()) continue;
-    if (o.type == SceneObject::Type::Mesh) {
+    // A kind with no exact test of its own is a triangle model: Embree's.
+    if (!shape_kind(o.type).intersect) {
       try {
         meshes_[i] = std::make_unique<const MeshRays>(o, model_bvh(o.model, stop_requested));
       } catch (const BvhBuildStopped&) {

@@ -1,7 +1,8 @@
 // The exact reference: the API's "shadow" quantity computed by casting rays
 // on the CPU against the scene as it is: the analytic primitives (plane,
-// rotated box, sphere) in double precision, and mesh objects' triangles
-// through Embree (mesh_ray_cast.hpp). No GL and no shadow map, so it is what
+// rotated box, sphere) in double precision, each by its shape's own exact
+// test (core/shapes), and mesh objects' triangles through Embree
+// (mesh_ray_cast.hpp). No GL and no shadow map, so it is what
 // the GL output is judged against.
 #pragma once
 
