@@ -13,6 +13,8 @@
 #include <glm/matrix.hpp>
 #include <glm/trigonometric.hpp>
 
+#include "core/lights/light_kind.hpp"
+
 namespace umbra {
 
 glm::dvec3 orbit_light_position(const Light& light, double time) {
@@ -27,20 +29,8 @@ glm::dvec3 sun_direction(double azimuth_deg, double elevation_deg, double north_
   return {std::cos(elevation) * std::sin(azimuth), std::sin(elevation), -std::cos(elevation) * std::cos(azimuth)};
 }
 
-LightState light_at(const Light& light, double time) {
-  LightState state;
-  if (!light.sun) {
-    state.position = orbit_light_position(light, time);
-    return state;
-  }
-  const SunClock& clock = *light.sun;
-  const SunAngles sun = solar_position(clock.latitude_deg, clock.longitude_deg, clock.utc_unix_s + time);
-  state.sun = sun;
-  state.direct = sun.elevation_deg > 0.0;
-  state.position = light.target + sun_direction(sun.azimuth_deg, sun.elevation_deg, clock.north_deg) *
-                                       glm::length(light.position - light.target);
-  return state;
-}
+// Each kind places itself (core/lights/).
+LightState light_at(const Light& light, double time) { return light_kind(light).place(light, time); }
 
 double sun_disc_tan_radius(const Light& light) { return std::tan(glm::radians(0.5 * light.size)); }
 

@@ -13,6 +13,7 @@
 #include <glm/trigonometric.hpp>
 
 #include "core/light_math.hpp"
+#include "core/lights/light_kind.hpp"
 #include "reference/mesh_ray_cast.hpp"
 #include "core/scene.hpp"
 #include "core/shapes/shape.hpp"
@@ -88,8 +89,7 @@ void basis(const glm::dvec3& axis, glm::dvec3& u, glm::dvec3& v) {
 // Unit direction from `point` towards the light's centre: towards its
 // position for a point light, against its direction of travel otherwise.
 glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_position, const glm::dvec3& point) {
-  return light.projection == LightProjection::Perspective ? glm::normalize(light_position - point)
-                                                          : glm::normalize(light_position - light.target);
+  return light_kind(light).direction_to_light(light, light_position, point);
 }
 
 // An analytic surface at `point`: its normal is its plane's, and rays leave

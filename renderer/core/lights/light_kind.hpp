@@ -1,0 +1,42 @@
+// A light kind is one file (as Filament has one update per light type):
+// what places it at a moment of the animation, and which way a point sees
+// it. One row per kind (LightKind), picked by light_kind(); light_at and
+// the exact reference call through it. Pure CPU code, no GL.
+//
+// The kinds: "point" (perspective, orbiting), "directional" (orthographic,
+// orbiting), "sun" (orthographic, placed by the sun's position).
+#pragma once
+
+#include <string_view>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/light_math.hpp"
+#include "core/request.hpp"
+
+namespace umbra {
+
+struct LightKind {
+  /// Unique among the rows.
+  const char* name;
+  /// How its shadow map looks from it: from a point (perspective: a cone or
+  /// a cube), or along a direction (orthographic: cascades).
+  LightProjection projection;
+  /// Where it stands `time` seconds into the animation (light_at).
+  LightState (*place)(const Light& light, double time);
+  /// The unit direction from `point` towards the light's centre, the light
+  /// standing at `light_position` (placed): towards that position for a
+  /// point light, against its direction of travel otherwise.
+  glm::dvec3 (*direction_to_light)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& point);
+};
+
+/// Every kind.
+const std::vector<const LightKind*>& light_kinds();
+/// The kind of `light`: a sun when it has one (a sun is orthographic,
+/// Light::sun), else by its projection.
+const LightKind& light_kind(const Light& light);
+/// The row named `name`, or null.
+const LightKind* find_light_kind(std::string_view name);
+
+}  // namespace umbra
