@@ -9,6 +9,7 @@
 
 #include "core/light_math.hpp"
 #include "core/lights/light_kind.hpp"
+#include "core/scene.hpp"
 
 namespace umbra {
 namespace {
@@ -87,6 +88,32 @@ TEST(LightKinds, TheSunIsPlacedByTheSunAndGivesNoDirectLightBelowTheHorizon) {
   const LightState night = kind.place(light, 10.0 * 3600.0);  // midnight
   EXPECT_FALSE(night.direct);
   EXPECT_LT(night.sun->elevation_deg, 0.0);
+}
+
+// Each kind fits its own views: a point light's are perspective (a cone or
+// a cube), a directional light's and the sun's orthographic (cascades).
+TEST(LightKinds, EachKindFitsViewsOfItsProjection) {
+  RenderRequest request;
+  request.scene.objects = find_builtin_scene("three-cubes")->objects;
+  for (const LightKind* kind : light_kinds()) {
+    SCOPED_TRACE(kind->name);
+    request.light = Light{};
+    request.light.projection = kind->projection;
+    if (std::string(kind->name) == "sun") request.light.sun = SunClock{48.85, 2.35, 1718892000.0, 0.0};
+    ASSERT_EQ(&light_kind(request.light), kind);
+    const ShadowPlan plan = plan_shadow(request);
+    ASSERT_FALSE(plan.views.empty());
+    for (const ShadowView& view : plan.views) {
+      if (kind->projection == LightProjection::Perspective)
+        EXPECT_GT(view.tan_half, 0.0);
+      else
+        EXPECT_EQ(view.tan_half, 0.0);
+    }
+    if (kind->projection == LightProjection::Perspective)
+      EXPECT_NE(plan.layout, ShadowLayout::Cascades);
+    else
+      EXPECT_NE(plan.layout, ShadowLayout::Cube);
+  }
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // A light kind is one file (as Filament has one update per light type):
-// what places it at a moment of the animation, and which way a point sees
-// it. One row per kind (LightKind), picked by light_kind(); light_at and
+// what places it at a moment of the animation, which way a point sees it,
+// and the views its shadow map is drawn from. One row per kind (LightKind), picked by light_kind(); light_at and
 // the exact reference call through it. Pure CPU code, no GL.
 //
 // The kinds: "point" (perspective, orbiting), "directional" (orthographic,
@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include <glm/mat4x4.hpp>
 #include <glm/vec3.hpp>
 
 #include "core/light_math.hpp"
@@ -29,6 +30,10 @@ struct LightKind {
   /// standing at `light_position` (placed): towards that position for a
   /// point light, against its direction of travel otherwise.
   glm::dvec3 (*direction_to_light)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& point);
+  /// Its shadow views fitted to the scene (fit "scene", plan_shadow), the
+  /// light placed at plan.position and looking along `light_view`: sets
+  /// plan.views and plan.layout, and may lower plan.layer_size.
+  void (*fit_views)(ShadowPlan& plan, const RenderRequest& request, const glm::dmat4& light_view);
 };
 
 /// Every kind.

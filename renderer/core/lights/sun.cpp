@@ -5,6 +5,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/lights/light_kind.hpp"
+#include "core/lights/view_fitting.hpp"
 #include "core/sun_position.hpp"
 
 namespace umbra {
@@ -29,6 +30,7 @@ glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_positi
 }  // namespace
 
 extern const LightKind kSunLight;  // listed in lights.cpp
-const LightKind kSunLight = {"sun", LightProjection::Orthographic, place, direction_to_light};
+// Its views are a directional light's.
+const LightKind kSunLight = {"sun", LightProjection::Orthographic, place, direction_to_light, fit_orthographic_views};
 
 }  // namespace umbra
