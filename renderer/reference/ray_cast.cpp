@@ -111,45 +111,45 @@ const glm::dvec3& leaving_towards(const RayHit& s, const glm::dvec3& direction) 
   return glm::dot(s.geometric_normal, direction) >= 0.0 ? s.leave_front : s.leave_back;
 }
 
+// A shadow ray from a surface to the light: where it starts (off the
+// surface on the side it leaves by), its unit direction and how far it goes.
+struct ShadowRay {
+  const glm::dvec3* origin;
+  glm::dvec3 direction;
+  double length;
+};
+
+ShadowRay shadow_ray(const RayHit& surface, const LightAim& aim) {
+  if (aim.finite) {
+    const glm::dvec3& origin = leaving_towards(surface, aim.at - surface.point);
+    const double length = glm::length(aim.at - origin);
+    return {&origin, (aim.at - origin) / length, length};
+  }
+  return {&leaving_towards(surface, aim.at), aim.at, kInf};
+}
+
 }  // namespace
 
 // See ray_cast.hpp; `rays` indexes request.scene.
 double exact_visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
                         const RayHit& surface) {
   const Light& light = request.light;
-  const bool perspective = light.projection == LightProjection::Perspective;
+  const LightKind& kind = light_kind(light);
   const glm::dvec3& point = surface.point;
   const glm::dvec3& normal = surface.normal;
   const glm::dvec3 to_light_center = direction_to_light(light, light_position, point);
   if (glm::dot(normal, to_light_center) <= 0.0) return 0.0;
   if (light.size <= 0.0) {
-    if (!perspective) return rays.occluded(leaving_towards(surface, to_light_center), to_light_center, kInf) ? 0.0 : 1.0;
-    const glm::dvec3& origin = leaving_towards(surface, light_position - point);
-    const double distance = glm::length(light_position - origin);
-    return rays.occluded(origin, (light_position - origin) / distance, distance) ? 0.0 : 1.0;
+    const ShadowRay ray = shadow_ray(surface, kind.aim_at_center(light, light_position, to_light_center));
+    return rays.occluded(*ray.origin, ray.direction, ray.length) ? 0.0 : 1.0;
   }
   glm::dvec3 u, v;
   basis(to_light_center, u, v);
-  // Orthographic: the sun's disc, directions within half the angular diameter.
-  const double spread = perspective ? 0.0 : sun_disc_tan_radius(light);
   int seen = 0;
   const auto& samples = disc_samples();
   for (const glm::dvec2& s : samples) {
-    glm::dvec3 dir;
-    double t_max = kInf;
-    const glm::dvec3* origin;
-    if (perspective) {
-      // A spherical light of radius `size` seen from the point is a disc
-      // facing it.
-      const glm::dvec3 target = light_position + light.size * (s.x * u + s.y * v);
-      origin = &leaving_towards(surface, target - point);
-      t_max = glm::length(target - *origin);
-      dir = (target - *origin) / t_max;
-    } else {
-      dir = glm::normalize(to_light_center + spread * (s.x * u + s.y * v));
-      origin = &leaving_towards(surface, dir);
-    }
-    if (glm::dot(normal, dir) > 0.0 && !rays.occluded(*origin, dir, t_max)) ++seen;
+    const ShadowRay ray = shadow_ray(surface, kind.aim_at_disc(light, light_position, to_light_center, s.x * u + s.y * v));
+    if (glm::dot(normal, ray.direction) > 0.0 && !rays.occluded(*ray.origin, ray.direction, ray.length)) ++seen;
   }
   return double(seen) / double(samples.size());
 }

@@ -18,6 +18,13 @@
 
 namespace umbra {
 
+/// Where a ray from a lit point goes to reach the light: to a point (`finite`:
+/// the ray ends there) or along a unit direction (to infinity).
+struct LightAim {
+  glm::dvec3 at{0.0};
+  bool finite = false;
+};
+
 struct LightKind {
   /// Unique among the rows.
   const char* name;
@@ -30,6 +37,13 @@ struct LightKind {
   /// standing at `light_position` (placed): towards that position for a
   /// point light, against its direction of travel otherwise.
   glm::dvec3 (*direction_to_light)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& point);
+  /// The exact reference's shadow rays, `to_center` being direction_to_light's
+  /// answer: to the light's centre (a light of no size), and to a point of an
+  /// area light (light.size > 0), `disc` being the point's offset on the
+  /// unit disc that faces the lit point (perpendicular to to_center).
+  LightAim (*aim_at_center)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& to_center);
+  LightAim (*aim_at_disc)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& to_center,
+                          const glm::dvec3& disc);
   /// Its shadow views fitted to the scene (fit "scene", plan_shadow), the
   /// light placed at plan.position and looking along `light_view`: sets
   /// plan.views and plan.layout, and may lower plan.layer_size.

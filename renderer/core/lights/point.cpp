@@ -26,6 +26,15 @@ glm::dvec3 direction_to_light(const Light&, const glm::dvec3& light_position, co
   return glm::normalize(light_position - point);
 }
 
+LightAim aim_at_center(const Light&, const glm::dvec3& light_position, const glm::dvec3&) {
+  return {light_position, true};
+}
+
+// A spherical light of radius `size` seen from the point is a disc facing it.
+LightAim aim_at_disc(const Light& light, const glm::dvec3& light_position, const glm::dvec3&, const glm::dvec3& disc) {
+  return {light_position + light.size * disc, true};
+}
+
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 // Near and far of a perspective view from what of the objects lies inside
@@ -98,6 +107,8 @@ void plan_perspective(ShadowPlan& plan, const RenderRequest& request, const glm:
 }  // namespace
 
 extern const LightKind kPointLight;  // listed in lights.cpp
-const LightKind kPointLight = {"point", LightProjection::Perspective, place, direction_to_light, plan_perspective};
+const LightKind kPointLight = {
+    "point", LightProjection::Perspective, place, direction_to_light, aim_at_center, aim_at_disc, plan_perspective,
+};
 
 }  // namespace umbra
