@@ -92,34 +92,28 @@ TEST(LightKinds, TheSunIsPlacedByTheSunAndGivesNoDirectLightBelowTheHorizon) {
   EXPECT_LT(night.sun->elevation_deg, 0.0);
 }
 
-// A point light's shadow rays end at it (its centre, or a point of its
-// sphere seen as a disc); a directional light's and the sun's go to
-// infinity, within half the disc's angular diameter of its centre.
-TEST(LightKinds, ShadowRaysAimAtThePointLightOrAlongTheDirection) {
+// A point light is seen as a disc of its radius at its position; a
+// directional light or the sun as a cone of directions around the one
+// towards it, as wide as half its angular diameter.
+TEST(LightKinds, APointSeesAPointLightAsADiscAndADirectionalOneAsACone) {
   Light light;
   light.size = 0.5;
   const glm::dvec3 position(1, 4, 2), to_center = glm::normalize(glm::dvec3(1, 2, 3));
-  const glm::dvec3 disc = 0.8 * glm::normalize(glm::cross(to_center, glm::dvec3(0, 1, 0)));
   light.projection = LightProjection::Perspective;
-  const LightKind& point = light_kind(light);
-  EXPECT_TRUE(point.aim_at_center(light, position, to_center).finite);
-  expect_near(point.aim_at_center(light, position, to_center).at, position);
-  EXPECT_TRUE(point.aim_at_disc(light, position, to_center, disc).finite);
-  expect_near(point.aim_at_disc(light, position, to_center, disc).at, position + 0.5 * disc);
+  const LightDisc disc = light_kind(light).disc_seen_from(light, position, to_center);
+  EXPECT_TRUE(disc.finite);
+  expect_near(disc.center, position);
+  EXPECT_EQ(disc.radius, 0.5);
   light.size = 4.0;  // degrees
   for (const bool sun : {false, true}) {
     light.projection = LightProjection::Orthographic;
     if (sun) light.sun = SunClock{};
     const LightKind& kind = light_kind(light);
     SCOPED_TRACE(kind.name);
-    EXPECT_FALSE(kind.aim_at_center(light, position, to_center).finite);
-    expect_near(kind.aim_at_center(light, position, to_center).at, to_center);
-    const LightAim edge = kind.aim_at_disc(light, position, to_center, disc);
-    EXPECT_FALSE(edge.finite);
-    EXPECT_NEAR(glm::length(edge.at), 1.0, 1e-12);
-    // 0.8 of the way to the rim of a disc 4 degrees across.
-    EXPECT_NEAR(std::atan(glm::length(glm::cross(edge.at, to_center)) / glm::dot(edge.at, to_center)),
-                std::atan(0.8 * std::tan(glm::radians(2.0))), 1e-12);
+    const LightDisc cone = kind.disc_seen_from(light, position, to_center);
+    EXPECT_FALSE(cone.finite);
+    expect_near(cone.center, to_center);
+    EXPECT_NEAR(cone.radius, std::tan(glm::radians(2.0)), 1e-15);
   }
 }
 

@@ -119,13 +119,15 @@ struct ShadowRay {
   double length;
 };
 
-ShadowRay shadow_ray(const RayHit& surface, const LightAim& aim) {
-  if (aim.finite) {
-    const glm::dvec3& origin = leaving_towards(surface, aim.at - surface.point);
-    const double length = glm::length(aim.at - origin);
-    return {&origin, (aim.at - origin) / length, length};
+// The ray from `surface` to a point of the light (`finite`) or along a
+// unit direction.
+ShadowRay shadow_ray(const RayHit& surface, const glm::dvec3& at, bool finite) {
+  if (finite) {
+    const glm::dvec3& origin = leaving_towards(surface, at - surface.point);
+    const double length = glm::length(at - origin);
+    return {&origin, (at - origin) / length, length};
   }
-  return {&leaving_towards(surface, aim.at), aim.at, kInf};
+  return {&leaving_towards(surface, at), at, kInf};
 }
 
 }  // namespace
@@ -134,13 +136,13 @@ ShadowRay shadow_ray(const RayHit& surface, const LightAim& aim) {
 double exact_visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
                         const RayHit& surface) {
   const Light& light = request.light;
-  const LightKind& kind = light_kind(light);
   const glm::dvec3& point = surface.point;
   const glm::dvec3& normal = surface.normal;
   const glm::dvec3 to_light_center = direction_to_light(light, light_position, point);
   if (glm::dot(normal, to_light_center) <= 0.0) return 0.0;
+  const LightDisc disc = light_kind(light).disc_seen_from(light, light_position, to_light_center);
   if (light.size <= 0.0) {
-    const ShadowRay ray = shadow_ray(surface, kind.aim_at_center(light, light_position, to_light_center));
+    const ShadowRay ray = shadow_ray(surface, disc.center, disc.finite);
     return rays.occluded(*ray.origin, ray.direction, ray.length) ? 0.0 : 1.0;
   }
   glm::dvec3 u, v;
@@ -148,7 +150,10 @@ double exact_visibility(const RayScene& rays, const RenderRequest& request, cons
   int seen = 0;
   const auto& samples = disc_samples();
   for (const glm::dvec2& s : samples) {
-    const ShadowRay ray = shadow_ray(surface, kind.aim_at_disc(light, light_position, to_light_center, s.x * u + s.y * v));
+    // A point of the disc, or a direction of the cone.
+    const glm::dvec3 at = disc.finite ? disc.center + disc.radius * (s.x * u + s.y * v)
+                                      : glm::normalize(disc.center + disc.radius * (s.x * u + s.y * v));
+    const ShadowRay ray = shadow_ray(surface, at, disc.finite);
     if (glm::dot(normal, ray.direction) > 0.0 && !rays.occluded(*ray.origin, ray.direction, ray.length)) ++seen;
   }
   return double(seen) / double(samples.size());

@@ -26,11 +26,9 @@ glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_positi
   return glm::normalize(light_position - light.target);
 }
 
-LightAim aim_at_center(const Light&, const glm::dvec3&, const glm::dvec3& to_center) { return {to_center, false}; }
-
 // A disc of angular diameter `size`: directions within half of it.
-LightAim aim_at_disc(const Light& light, const glm::dvec3&, const glm::dvec3& to_center, const glm::dvec3& disc) {
-  return {glm::normalize(to_center + sun_disc_tan_radius(light) * disc), false};
+LightDisc disc_seen_from(const Light& light, const glm::dvec3&, const glm::dvec3& to_center) {
+  return {to_center, sun_disc_tan_radius(light), false};
 }
 
 // Boxes below named `Extent` hold light view-space points; `Aabb` world ones.
@@ -179,7 +177,7 @@ void fit_orthographic_views(ShadowPlan& plan, const RenderRequest& request, cons
 
 extern const LightKind kDirectionalLight;  // listed in lights.cpp
 const LightKind kDirectionalLight = {
-    "directional", LightProjection::Orthographic, place, direction_to_light, aim_at_center, aim_at_disc,
+    "directional", LightProjection::Orthographic, place, direction_to_light, disc_seen_from,
     fit_orthographic_views,
 };
 

@@ -18,10 +18,15 @@
 
 namespace umbra {
 
-/// Where a ray from a lit point goes to reach the light: to a point (`finite`:
-/// the ray ends there) or along a unit direction (to infinity).
-struct LightAim {
-  glm::dvec3 at{0.0};
+/// The light as a lit point sees it, what the exact reference's shadow rays
+/// aim at: for a finite light (`finite`), a disc centred at `center` of
+/// radius `radius` (world units) facing the point, the rays ending on it;
+/// otherwise a cone of directions around the unit direction `center`, of
+/// angular radius atan(`radius`), the rays going to infinity. An ideal light
+/// (size 0) has radius 0.
+struct LightDisc {
+  glm::dvec3 center{0.0};
+  double radius = 0.0;
   bool finite = false;
 };
 
@@ -37,13 +42,9 @@ struct LightKind {
   /// standing at `light_position` (placed): towards that position for a
   /// point light, against its direction of travel otherwise.
   glm::dvec3 (*direction_to_light)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& point);
-  /// The exact reference's shadow rays, `to_center` being direction_to_light's
-  /// answer: to the light's centre (a light of no size), and to a point of an
-  /// area light (light.size > 0), `disc` being the point's offset on the
-  /// unit disc that faces the lit point (perpendicular to to_center).
-  LightAim (*aim_at_center)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& to_center);
-  LightAim (*aim_at_disc)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& to_center,
-                          const glm::dvec3& disc);
+  /// The light seen from a point (the exact reference's shadow rays),
+  /// `to_center` being direction_to_light's answer for that point.
+  LightDisc (*disc_seen_from)(const Light& light, const glm::dvec3& light_position, const glm::dvec3& to_center);
   /// Its shadow views fitted to the scene (fit "scene", plan_shadow), the
   /// light placed at plan.position and looking along `light_view`: sets
   /// plan.views and plan.layout, and may lower plan.layer_size.

@@ -26,13 +26,9 @@ glm::dvec3 direction_to_light(const Light&, const glm::dvec3& light_position, co
   return glm::normalize(light_position - point);
 }
 
-LightAim aim_at_center(const Light&, const glm::dvec3& light_position, const glm::dvec3&) {
-  return {light_position, true};
-}
-
 // A spherical light of radius `size` seen from the point is a disc facing it.
-LightAim aim_at_disc(const Light& light, const glm::dvec3& light_position, const glm::dvec3&, const glm::dvec3& disc) {
-  return {light_position + light.size * disc, true};
+LightDisc disc_seen_from(const Light& light, const glm::dvec3& light_position, const glm::dvec3&) {
+  return {light_position, light.size, true};
 }
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
@@ -108,7 +104,7 @@ void plan_perspective(ShadowPlan& plan, const RenderRequest& request, const glm:
 
 extern const LightKind kPointLight;  // listed in lights.cpp
 const LightKind kPointLight = {
-    "point", LightProjection::Perspective, place, direction_to_light, aim_at_center, aim_at_disc, plan_perspective,
+    "point", LightProjection::Perspective, place, direction_to_light, disc_seen_from, plan_perspective,
 };
 
 }  // namespace umbra

@@ -27,11 +27,9 @@ glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_positi
   return glm::normalize(light_position - light.target);
 }
 
-LightAim aim_at_center(const Light&, const glm::dvec3&, const glm::dvec3& to_center) { return {to_center, false}; }
-
 // A disc of angular diameter `size`: directions within half of it.
-LightAim aim_at_disc(const Light& light, const glm::dvec3&, const glm::dvec3& to_center, const glm::dvec3& disc) {
-  return {glm::normalize(to_center + sun_disc_tan_radius(light) * disc), false};
+LightDisc disc_seen_from(const Light& light, const glm::dvec3&, const glm::dvec3& to_center) {
+  return {to_center, sun_disc_tan_radius(light), false};
 }
 
 }  // namespace
@@ -39,7 +37,7 @@ LightAim aim_at_disc(const Light& light, const glm::dvec3&, const glm::dvec3& to
 extern const LightKind kSunLight;  // listed in lights.cpp
 // Its views are a directional light's.
 const LightKind kSunLight = {
-    "sun", LightProjection::Orthographic, place, direction_to_light, aim_at_center, aim_at_disc,
+    "sun", LightProjection::Orthographic, place, direction_to_light, disc_seen_from,
     fit_orthographic_views,
 };
 
