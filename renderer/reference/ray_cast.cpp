@@ -24,15 +24,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Nearest hit distance of one analytic primitive in (t_min, t_max), with
-// its outward normal; kInf when missed. The shape's own exact test
-// (core/shapes); a kind without one (a mesh) is cast through its MeshRays.
-double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double t_min, double t_max,
-                 glm::dvec3& normal) {
-  const auto exact = shape_kind(o.type).intersect;
-  return exact ? exact(o, origin, dir, t_min, t_max, normal) : kInf;
-}
-
 // Whether the ray meets `box` (grown by a relative hair, so that rounding
 // never makes it miss what the exact primitive test would hit) within
 // (t_min, t_max).
@@ -162,6 +153,7 @@ double exact_visibility(const RayScene& rays, const RenderRequest& request, cons
 RayScene::RayScene(const Scene& scene, const std::function<bool()>& stop_requested) : scene_(scene) {
   const std::size_t n = scene.objects.size();
   meshes_.resize(n);
+  exact_.resize(n);
   std::vector<Aabb> bounds(n);
   std::vector<glm::dvec3> centers(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -170,8 +162,9 @@ RayScene::RayScene(const Scene& scene, const std::function<bool()>& stop_request
     centers[i] = bounds[i].center();
     // A mesh whose model has no triangles has empty bounds: nothing to hit.
     if (bounds[i].empty()) continue;
-    // A kind with no exact test of its own is a triangle model: Embree's.
-    if (!shape_kind(o.type).intersect) {
+    // A kind with no exact test of its own (a mesh) is a triangle model: Embree's.
+    exact_[i] = shape_kind(o.type).intersect;
+    if (!exact_[i]) {
       try {
         meshes_[i] = std::make_unique<const MeshRays>(o, model_bvh(o.model, stop_requested));
       } catch (const BvhBuildStopped&) {
@@ -251,7 +244,7 @@ std::optional<RayHit> RayScene::cast(const glm::dvec3& origin, const glm::dvec3&
       mesh_hit = mesh->intersect(origin, direction, t_min, limit);
       if (mesh_hit) t = mesh_hit->t;
     } else {
-      t = intersect(scene_.objects[i], origin, direction, t_min, limit, normal);
+      t = exact_[i](scene_.objects[i], origin, direction, t_min, limit, normal);
     }
     if (t < best.t || (t == best.t && best.object >= 0 && i < best.object)) {
       best.t = t;
@@ -286,7 +279,7 @@ bool RayScene::occluded(const glm::dvec3& origin, const glm::dvec3& direction, d
       hit = mesh->occluded(origin, direction, t_max);
     } else {
       glm::dvec3 unused;
-      hit = intersect(scene_.objects[i], origin, direction, 0.0, t_max, unused) < kInf;
+      hit = exact_[i](scene_.objects[i], origin, direction, 0.0, t_max, unused) < kInf;
     }
     return !hit;
   });

@@ -20,6 +20,7 @@
 #include "core/light_math.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
+#include "core/shapes/shape.hpp"
 
 namespace umbra {
 
@@ -96,6 +97,9 @@ class RayScene {
   std::vector<Node> nodes_;
   // Per object: its mesh rays for a mesh object with triangles, else null.
   std::vector<std::unique_ptr<const MeshRays>> meshes_;
+  // Per object: its shape's exact intersection (null for a mesh), looked
+  // up once here rather than for every ray.
+  std::vector<ShapeIntersect> exact_;
 };
 
 /// First hit of the ray origin + t * direction (unit) with t in (t_min, t_max).

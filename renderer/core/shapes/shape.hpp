@@ -18,6 +18,10 @@
 
 namespace umbra {
 
+/// An exact ray intersection (ShapeKind::intersect).
+using ShapeIntersect = double (*)(const SceneObject& object, const glm::dvec3& origin, const glm::dvec3& direction,
+                                  double t_min, double t_max, glm::dvec3& normal);
+
 /// What the renderer knows of one kind of SceneObject. Every function takes
 /// an object of this kind (its `type` is the row's).
 struct ShapeKind {
@@ -48,8 +52,7 @@ struct ShapeKind {
   /// `normal` to the unit outward normal there; +infinity on a miss (normal
   /// untouched). Null for a triangle model: the reference layer casts those
   /// through Embree (reference/mesh_ray_cast.hpp), which core cannot call.
-  double (*intersect)(const SceneObject& object, const glm::dvec3& origin, const glm::dvec3& direction, double t_min,
-                      double t_max, glm::dvec3& normal);
+  ShapeIntersect intersect;
   /// Umbra support (plan/umbras.hpp points_inside): points whose convex
   /// hull lies inside the object shrunk by `margin` world units on every
   /// side and between world heights `low` and `high`; none where nothing is
