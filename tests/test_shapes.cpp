@@ -160,6 +160,7 @@ TEST(Shapes, EveryRowHasWhatEveryCallerCalls) {
     EXPECT_NE(kind->tessellate, nullptr);
     EXPECT_NE(kind->triangles, nullptr);
     EXPECT_NE(kind->vertices, nullptr);
+    EXPECT_FALSE(objects_of(kind->type).empty()) << "no test objects for this kind: add them to objects_of";
   }
   // Only meshes go to Embree (RayScene builds a MeshRays for a row without intersect).
   for (const ShapeKind* kind : shape_kinds())
