@@ -40,7 +40,8 @@ struct LightState {
   std::optional<SunAngles> sun;
 };
 
-/// The one update function for every kind of light, by what places it:
+/// The one update function for every kind of light, each kind placing
+/// itself (its row's `place`, core/lights/light_kind.hpp):
 /// - orbiting (no light.sun): orbit_light_position(light, time);
 /// - a sun: target + sun_direction x |position - target|, the sun's position
 ///   at sun.utc_unix_s + time seconds (solar_position, NREL SPA); its direct

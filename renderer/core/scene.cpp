@@ -9,7 +9,7 @@
 #include <glm/trigonometric.hpp>
 
 #include "core/builtin_models.hpp"
-#include "core/mesh_instance.hpp"
+#include "core/shapes/shape.hpp"
 
 namespace umbra {
 
@@ -75,30 +75,7 @@ constexpr glm::dvec3 kFloorColor{0.72, 0.66, 0.58};
 
 }  // namespace
 
-Aabb object_bounds(const SceneObject& o) {
-  Aabb b;
-  switch (o.type) {
-    case SceneObject::Type::Plane:
-      b.extend(o.center - glm::dvec3(o.size.x, 0.0, o.size.z) * 0.5);
-      b.extend(o.center + glm::dvec3(o.size.x, 0.0, o.size.z) * 0.5);
-      break;
-    case SceneObject::Type::Box:
-      for (int i = 0; i < 8; ++i) {
-        const glm::dvec3 local{(i & 1 ? 0.5 : -0.5) * o.size.x, (i & 2 ? 0.5 : -0.5) * o.size.y,
-                               (i & 4 ? 0.5 : -0.5) * o.size.z};
-        b.extend(o.center + rotate_y(local, o.rotation_y_deg));
-      }
-      break;
-    case SceneObject::Type::Sphere:
-      b.extend(o.center - glm::dvec3(o.radius));
-      b.extend(o.center + glm::dvec3(o.radius));
-      break;
-    case SceneObject::Type::Mesh:
-      b = mesh_bounds(o);
-      break;
-  }
-  return b;
-}
+Aabb object_bounds(const SceneObject& o) { return shape_kind(o.type).bounds(o); }
 
 Aabb scene_bounds(const Scene& scene) {
   Aabb b;
@@ -169,72 +146,6 @@ SceneViewDefaults default_view_for(const Scene& scene) {
 
 namespace {
 
-struct MeshBuilder {
-  Mesh& mesh;
-
-  std::uint32_t vertex(const glm::dvec3& p, const glm::dvec3& n, const glm::dvec3& c) {
-    const glm::dvec3 local = p - mesh.origin;
-    mesh.vertices.push_back({{float(local.x), float(local.y), float(local.z)},
-                             {float(n.x), float(n.y), float(n.z)},
-                             {float(c.x), float(c.y), float(c.z)}});
-    return std::uint32_t(mesh.vertices.size() - 1);
-  }
-
-  // A rectangle centred at `center` spanning +-u and +-v, facing u x v.
-  void quad(const glm::dvec3& center, const glm::dvec3& u, const glm::dvec3& v, const glm::dvec3& color) {
-    const glm::dvec3 n = glm::normalize(glm::cross(u, v));
-    const std::uint32_t a = vertex(center - u - v, n, color);
-    const std::uint32_t b = vertex(center + u - v, n, color);
-    const std::uint32_t c = vertex(center + u + v, n, color);
-    const std::uint32_t d = vertex(center - u + v, n, color);
-    mesh.indices.insert(mesh.indices.end(), {a, b, c, a, c, d});
-  }
-
-  void box(const SceneObject& o) {
-    const glm::dvec3 half = o.size * 0.5;
-    const glm::dvec3 axes[3] = {rotate_y({1, 0, 0}, o.rotation_y_deg), {0, 1, 0},
-                                rotate_y({0, 0, 1}, o.rotation_y_deg)};
-    for (int k = 0; k < 3; ++k) {
-      for (double sign : {1.0, -1.0}) {
-        const glm::dvec3 n = axes[k] * sign;
-        const int iu = (k + 1) % 3, iv = (k + 2) % 3;
-        // u x v must equal n: (axes[iu] x axes[iv]) = axes[k] for a right-handed frame.
-        const glm::dvec3 u = axes[iu] * half[iu];
-        const glm::dvec3 v = axes[iv] * (half[iv] * sign);
-        quad(o.center + n * half[k], u, v, o.color);
-      }
-    }
-  }
-
-  void sphere(const SceneObject& o) {
-    // A UV sphere fine enough that its silhouette departs from the true
-    // sphere by < 0.1 % of the radius (1 - cos(pi / 96)).
-    constexpr int kStacks = 48, kSlices = 96;
-    constexpr double kPi = 3.14159265358979323846;
-    const std::uint32_t first = std::uint32_t(mesh.vertices.size());
-    for (int i = 0; i <= kStacks; ++i) {
-      const double theta = kPi * i / kStacks;
-      for (int j = 0; j <= kSlices; ++j) {
-        const double phi = 2.0 * kPi * j / kSlices;
-        const glm::dvec3 n{std::sin(theta) * std::cos(phi), std::cos(theta), -std::sin(theta) * std::sin(phi)};
-        vertex(o.center + n * o.radius, n, o.color);
-      }
-    }
-    const std::uint32_t row = kSlices + 1;
-    for (int i = 0; i < kStacks; ++i) {
-      for (int j = 0; j < kSlices; ++j) {
-        const std::uint32_t a = first + i * row + j, b = a + row, c = b + 1, d = a + 1;
-        if (i != 0) mesh.indices.insert(mesh.indices.end(), {a, b, d});
-        if (i != kStacks - 1) mesh.indices.insert(mesh.indices.end(), {d, b, c});
-      }
-    }
-  }
-
-  void plane(const SceneObject& o) {
-    quad(o.center, {0.5 * o.size.x, 0, 0}, {0, 0, -0.5 * o.size.z}, o.color);
-  }
-};
-
 // Mesh::smooth_normal_span of the triangles in indices [0, count).
 double smooth_normal_span(const std::vector<Vertex>& vertices, const std::vector<std::uint32_t>& indices,
                           std::uint32_t count) {
@@ -256,7 +167,6 @@ Mesh tessellate(const Scene& scene) {
   Mesh mesh;
   const Aabb bounds = scene_bounds(scene);
   mesh.origin = bounds.empty() ? glm::dvec3(0.0) : bounds.center();
-  MeshBuilder builder{mesh};
   // Appends object i's triangles with `append` and records where they lie.
   const auto record = [&mesh](std::size_t i, auto&& append) {
     const auto first = std::uint32_t(mesh.indices.size());
@@ -265,9 +175,8 @@ Mesh tessellate(const Scene& scene) {
   };
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const SceneObject& o = scene.objects[i];
-    if (o.type == SceneObject::Type::Box) record(i, [&] { builder.box(o); });
-    if (o.type == SceneObject::Type::Sphere) record(i, [&] { builder.sphere(o); });
-    if (o.type == SceneObject::Type::Mesh && mesh_is_closed(o)) record(i, [&] { append_mesh_instance(o, mesh); });
+    const ShapeKind& kind = shape_kind(o.type);
+    if (kind.closed(o)) record(i, [&] { kind.tessellate(o, mesh); });
   }
   mesh.closed_index_count = std::uint32_t(mesh.indices.size());
   mesh.smooth_normal_span = smooth_normal_span(mesh.vertices, mesh.indices, mesh.closed_index_count);
@@ -276,7 +185,8 @@ Mesh tessellate(const Scene& scene) {
   // the light as a caster.
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const SceneObject& o = scene.objects[i];
-    if (o.type == SceneObject::Type::Mesh && !mesh_is_closed(o)) record(i, [&] { append_mesh_instance(o, mesh); });
+    const ShapeKind& kind = shape_kind(o.type);
+    if (!kind.closed(o) && !kind.horizontal_plane) record(i, [&] { kind.tessellate(o, mesh); });
   }
   // Planes last, each with its own range: the shadow pass leaves out those
   // that cannot shadow anything under the frame's light.
@@ -286,14 +196,14 @@ Mesh tessellate(const Scene& scene) {
   // be drawn into every layer of the map.
   std::vector<Aabb> surfaces;
   for (std::size_t j = 0; j < scene.objects.size(); ++j)
-    surfaces.push_back(scene.objects[j].type == SceneObject::Type::Mesh ? mesh_surface_bounds(scene.objects[j])
-                                                                        : mesh.bounds[j]);
+    surfaces.push_back(shape_kind(scene.objects[j].type).surface_bounds(scene.objects[j]));
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const SceneObject& o = scene.objects[i];
-    if (o.type != SceneObject::Type::Plane) continue;
+    const ShapeKind& kind = shape_kind(o.type);
+    if (!kind.horizontal_plane) continue;
     PlaneRange range;
     range.object = i;
-    record(i, [&] { builder.plane(o); });
+    record(i, [&] { kind.tessellate(o, mesh); });
     range.height = o.center.y;
     range.color = o.color;
     for (std::size_t j = 0; j < scene.objects.size(); ++j) {

@@ -11,6 +11,8 @@
 #include <glm/mat4x4.hpp>
 #include <glm/vec4.hpp>
 
+#include "core/shapes/shape.hpp"
+
 namespace umbra {
 
 namespace {
@@ -169,34 +171,9 @@ bool lights_plane_from_above(const ShadowPlan& light, double y) {
 }  // namespace
 
 std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, double low, double high) {
-  std::vector<glm::dvec3> points;
-  if (object.type == SceneObject::Type::Box) {
-    const glm::dvec3 half = 0.5 * object.size - margin;
-    const double bottom = std::max(object.center.y - half.y, low), top = std::min(object.center.y + half.y, high);
-    if (!(half.x > 0.0 && half.y > 0.0 && half.z > 0.0 && bottom < top)) return points;
-    for (int i = 0; i < 8; ++i) {
-      const glm::dvec3 corner = rotate_y({i & 1 ? half.x : -half.x, 0.0, i & 2 ? half.z : -half.z}, object.rotation_y_deg);
-      points.emplace_back(object.center.x + corner.x, i & 4 ? top : bottom, object.center.z + corner.z);
-    }
-  } else if (object.type == SceneObject::Type::Sphere) {
-    const double radius = object.radius - margin;
-    if (!(radius > 0.0)) return points;
-    // Rings of 16 points on the sphere at five latitudes, and where the
-    // slab's faces cut it: their hull lies inside the sphere and the slab.
-    std::vector<double> heights{low, high};
-    for (const double degrees : {-60.0, -30.0, 0.0, 30.0, 60.0})
-      heights.push_back(object.center.y + radius * std::sin(degrees * 3.14159265358979323846 / 180.0));
-    for (const double h : heights) {
-      const double dy = h - object.center.y;
-      if (!(h >= low && h <= high && std::abs(dy) < radius)) continue;
-      const double ring = std::sqrt(radius * radius - dy * dy);
-      for (int k = 0; k < 16; ++k) {
-        const double angle = k * (2.0 * 3.14159265358979323846 / 16.0);
-        points.emplace_back(object.center.x + ring * std::cos(angle), h, object.center.z + ring * std::sin(angle));
-      }
-    }
-  }
-  return points;
+  // Each shape's own (core/shapes): a box's corners, rings on a sphere.
+  const auto inside = shape_kind(object.type).points_inside;
+  return inside ? inside(object, margin, low, high) : std::vector<glm::dvec3>{};
 }
 
 std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& light,

@@ -13,79 +13,16 @@
 #include <glm/trigonometric.hpp>
 
 #include "core/light_math.hpp"
+#include "core/lights/light_kind.hpp"
 #include "reference/mesh_ray_cast.hpp"
 #include "core/scene.hpp"
+#include "core/shapes/shape.hpp"
 
 namespace umbra {
 
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// Nearest hit distance of one primitive in (t_min, t_max), with its outward
-// normal; kInf when missed.
-double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double t_min, double t_max,
-                 glm::dvec3& normal) {
-  switch (o.type) {
-    case SceneObject::Type::Plane: {
-      if (dir.y == 0.0) return kInf;
-      const double t = (o.center.y - origin.y) / dir.y;
-      if (!(t > t_min && t < t_max)) return kInf;
-      const glm::dvec3 p = origin + t * dir;
-      if (std::abs(p.x - o.center.x) > 0.5 * o.size.x || std::abs(p.z - o.center.z) > 0.5 * o.size.z) return kInf;
-      normal = {0.0, 1.0, 0.0};
-      return t;
-    }
-    case SceneObject::Type::Box: {
-      // In the box's own frame it is axis-aligned: the slab test.
-      const glm::dvec3 o_local = rotate_y(origin - o.center, -o.rotation_y_deg);
-      const glm::dvec3 d_local = rotate_y(dir, -o.rotation_y_deg);
-      const glm::dvec3 half = 0.5 * o.size;
-      double t0 = -kInf, t1 = kInf;
-      int axis0 = 0, axis1 = 0;
-      for (int k = 0; k < 3; ++k) {
-        if (d_local[k] == 0.0) {
-          if (std::abs(o_local[k]) > half[k]) return kInf;
-          continue;
-        }
-        double a = (-half[k] - o_local[k]) / d_local[k];
-        double b = (half[k] - o_local[k]) / d_local[k];
-        if (a > b) std::swap(a, b);
-        if (a > t0) t0 = a, axis0 = k;
-        if (b < t1) t1 = b, axis1 = k;
-        if (t0 > t1) return kInf;
-      }
-      double t = t0;
-      int axis = axis0;
-      if (!(t > t_min)) t = t1, axis = axis1;  // the origin is inside: the exit
-      if (!(t > t_min && t < t_max)) return kInf;
-      glm::dvec3 n_local(0.0);
-      n_local[axis] = (o_local[axis] + t * d_local[axis]) > 0.0 ? 1.0 : -1.0;
-      normal = rotate_y(n_local, o.rotation_y_deg);
-      return t;
-    }
-    case SceneObject::Type::Sphere: {
-      const glm::dvec3 oc = origin - o.center;
-      const double b = glm::dot(oc, dir);
-      const double c = glm::dot(oc, oc) - o.radius * o.radius;
-      const double disc = b * b - c;
-      if (disc < 0.0) return kInf;
-      const double root = std::sqrt(disc);
-      // The numerically stable pair of roots.
-      const double q = b > 0.0 ? -b - root : -b + root;
-      double ta = q, tb = q != 0.0 ? c / q : -b;
-      if (ta > tb) std::swap(ta, tb);
-      const double t = ta > t_min ? ta : tb;
-      if (!(t > t_min && t < t_max)) return kInf;
-      normal = glm::normalize(origin + t * dir - o.center);
-      return t;
-    }
-    case SceneObject::Type::Mesh:
-      break;  // RayScene casts meshes through their MeshRays
-
-  }
-  return kInf;
-}
 
 // Whether the ray meets `box` (grown by a relative hair, so that rounding
 // never makes it miss what the exact primitive test would hit) within
@@ -143,8 +80,7 @@ void basis(const glm::dvec3& axis, glm::dvec3& u, glm::dvec3& v) {
 // Unit direction from `point` towards the light's centre: towards its
 // position for a point light, against its direction of travel otherwise.
 glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_position, const glm::dvec3& point) {
-  return light.projection == LightProjection::Perspective ? glm::normalize(light_position - point)
-                                                          : glm::normalize(light_position - light.target);
+  return light_kind(light).direction_to_light(light, light_position, point);
 }
 
 // An analytic surface at `point`: its normal is its plane's, and rays leave
@@ -166,45 +102,50 @@ const glm::dvec3& leaving_towards(const RayHit& s, const glm::dvec3& direction) 
   return glm::dot(s.geometric_normal, direction) >= 0.0 ? s.leave_front : s.leave_back;
 }
 
+// A shadow ray from a surface to the light: where it starts (off the
+// surface on the side it leaves by), its unit direction and how far it goes.
+struct ShadowRay {
+  const glm::dvec3* origin;
+  glm::dvec3 direction;
+  double length;
+};
+
+// The ray from `surface` to a point of the light (`finite`) or along a
+// unit direction.
+ShadowRay shadow_ray(const RayHit& surface, const glm::dvec3& at, bool finite) {
+  if (finite) {
+    const glm::dvec3& origin = leaving_towards(surface, at - surface.point);
+    const double length = glm::length(at - origin);
+    return {&origin, (at - origin) / length, length};
+  }
+  return {&leaving_towards(surface, at), at, kInf};
+}
+
 }  // namespace
 
 // See ray_cast.hpp; `rays` indexes request.scene.
 double exact_visibility(const RayScene& rays, const RenderRequest& request, const glm::dvec3& light_position,
                         const RayHit& surface) {
   const Light& light = request.light;
-  const bool perspective = light.projection == LightProjection::Perspective;
   const glm::dvec3& point = surface.point;
   const glm::dvec3& normal = surface.normal;
   const glm::dvec3 to_light_center = direction_to_light(light, light_position, point);
   if (glm::dot(normal, to_light_center) <= 0.0) return 0.0;
+  const LightDisc disc = light_kind(light).disc_seen_from(light, light_position, to_light_center);
   if (light.size <= 0.0) {
-    if (!perspective) return rays.occluded(leaving_towards(surface, to_light_center), to_light_center, kInf) ? 0.0 : 1.0;
-    const glm::dvec3& origin = leaving_towards(surface, light_position - point);
-    const double distance = glm::length(light_position - origin);
-    return rays.occluded(origin, (light_position - origin) / distance, distance) ? 0.0 : 1.0;
+    const ShadowRay ray = shadow_ray(surface, disc.center, disc.finite);
+    return rays.occluded(*ray.origin, ray.direction, ray.length) ? 0.0 : 1.0;
   }
   glm::dvec3 u, v;
   basis(to_light_center, u, v);
-  // Orthographic: the sun's disc, directions within half the angular diameter.
-  const double spread = perspective ? 0.0 : sun_disc_tan_radius(light);
   int seen = 0;
   const auto& samples = disc_samples();
   for (const glm::dvec2& s : samples) {
-    glm::dvec3 dir;
-    double t_max = kInf;
-    const glm::dvec3* origin;
-    if (perspective) {
-      // A spherical light of radius `size` seen from the point is a disc
-      // facing it.
-      const glm::dvec3 target = light_position + light.size * (s.x * u + s.y * v);
-      origin = &leaving_towards(surface, target - point);
-      t_max = glm::length(target - *origin);
-      dir = (target - *origin) / t_max;
-    } else {
-      dir = glm::normalize(to_light_center + spread * (s.x * u + s.y * v));
-      origin = &leaving_towards(surface, dir);
-    }
-    if (glm::dot(normal, dir) > 0.0 && !rays.occluded(*origin, dir, t_max)) ++seen;
+    // A point of the disc, or a direction of the cone.
+    const glm::dvec3 at = disc.finite ? disc.center + disc.radius * (s.x * u + s.y * v)
+                                      : glm::normalize(disc.center + disc.radius * (s.x * u + s.y * v));
+    const ShadowRay ray = shadow_ray(surface, at, disc.finite);
+    if (glm::dot(normal, ray.direction) > 0.0 && !rays.occluded(*ray.origin, ray.direction, ray.length)) ++seen;
   }
   return double(seen) / double(samples.size());
 }
@@ -212,6 +153,7 @@ double exact_visibility(const RayScene& rays, const RenderRequest& request, cons
 RayScene::RayScene(const Scene& scene, const std::function<bool()>& stop_requested) : scene_(scene) {
   const std::size_t n = scene.objects.size();
   meshes_.resize(n);
+  exact_.resize(n);
   std::vector<Aabb> bounds(n);
   std::vector<glm::dvec3> centers(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -220,7 +162,9 @@ RayScene::RayScene(const Scene& scene, const std::function<bool()>& stop_request
     centers[i] = bounds[i].center();
     // A mesh whose model has no triangles has empty bounds: nothing to hit.
     if (bounds[i].empty()) continue;
-    if (o.type == SceneObject::Type::Mesh) {
+    // A kind with no exact test of its own (a mesh) is a triangle model: Embree's.
+    exact_[i] = shape_kind(o.type).intersect;
+    if (!exact_[i]) {
       try {
         meshes_[i] = std::make_unique<const MeshRays>(o, model_bvh(o.model, stop_requested));
       } catch (const BvhBuildStopped&) {
@@ -300,7 +244,7 @@ std::optional<RayHit> RayScene::cast(const glm::dvec3& origin, const glm::dvec3&
       mesh_hit = mesh->intersect(origin, direction, t_min, limit);
       if (mesh_hit) t = mesh_hit->t;
     } else {
-      t = intersect(scene_.objects[i], origin, direction, t_min, limit, normal);
+      t = exact_[i](scene_.objects[i], origin, direction, t_min, limit, normal);
     }
     if (t < best.t || (t == best.t && best.object >= 0 && i < best.object)) {
       best.t = t;
@@ -335,7 +279,7 @@ bool RayScene::occluded(const glm::dvec3& origin, const glm::dvec3& direction, d
       hit = mesh->occluded(origin, direction, t_max);
     } else {
       glm::dvec3 unused;
-      hit = intersect(scene_.objects[i], origin, direction, 0.0, t_max, unused) < kInf;
+      hit = exact_[i](scene_.objects[i], origin, direction, 0.0, t_max, unused) < kInf;
     }
     return !hit;
   });

@@ -1,7 +1,8 @@
 // The exact reference: the API's "shadow" quantity computed by casting rays
 // on the CPU against the scene as it is: the analytic primitives (plane,
-// rotated box, sphere) in double precision, and mesh objects' triangles
-// through Embree (mesh_ray_cast.hpp). No GL and no shadow map, so it is what
+// rotated box, sphere) in double precision, each by its shape's own exact
+// test (core/shapes), and mesh objects' triangles through Embree
+// (mesh_ray_cast.hpp). No GL and no shadow map, so it is what
 // the GL output is judged against.
 #pragma once
 
@@ -19,6 +20,7 @@
 #include "core/light_math.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
+#include "core/shapes/shape.hpp"
 
 namespace umbra {
 
@@ -95,6 +97,9 @@ class RayScene {
   std::vector<Node> nodes_;
   // Per object: its mesh rays for a mesh object with triangles, else null.
   std::vector<std::unique_ptr<const MeshRays>> meshes_;
+  // Per object: its shape's exact intersection (null for a mesh), looked
+  // up once here rather than for every ray.
+  std::vector<ShapeIntersect> exact_;
 };
 
 /// First hit of the ray origin + t * direction (unit) with t in (t_min, t_max).

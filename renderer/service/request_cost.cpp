@@ -16,6 +16,7 @@
 #include "plan/draw_cost.hpp"
 #include "reference/ray_cast.hpp"
 #include "core/scene.hpp"
+#include "core/shapes/shape.hpp"
 #include "gpu/shader_interface.hpp"
 
 namespace umbra {
@@ -68,20 +69,11 @@ constexpr double kMsPerMeshFragment = 2.5e-5;  // plus kMsPerGather for each of 
 constexpr double kMsPerMeshTexel = 5.0e-7;
 // kMsPerTileTest: a triangle tested against a 64 x 64 tile, plan/draw_cost.hpp.
 
-// Mesh sizes, as tessellate() builds them (tests check the two agree).
-constexpr std::uint64_t kSphereStacks = 48, kSphereSlices = 96;
-constexpr std::uint64_t kSphereTriangles = 2 * kSphereStacks * kSphereSlices - 2 * kSphereSlices;
-constexpr std::uint64_t kSphereVertices = (kSphereStacks + 1) * (kSphereSlices + 1);
-constexpr std::uint64_t kBoxTriangles = 12, kBoxVertices = 24;
-constexpr std::uint64_t kPlaneTriangles = 2, kPlaneVertices = 4;
-
+// Mesh sizes, as tessellate() builds them: each shape's row says (test_shapes
+// checks it against its tessellation).
 std::uint64_t scene_vertices(const Scene& scene) {
   std::uint64_t n = 0;
-  for (const auto& o : scene.objects)
-    n += o.type == SceneObject::Type::Sphere ? kSphereVertices
-         : o.type == SceneObject::Type::Box  ? kBoxVertices
-         : o.type == SceneObject::Type::Mesh ? mesh_vertex_count(o)
-                                             : kPlaneVertices;
+  for (const auto& o : scene.objects) n += shape_kind(o.type).vertices(o);
   return n;
 }
 
@@ -99,11 +91,7 @@ double gathers_per_pixel(const ShadowSettings& shadow) {
 
 std::uint64_t scene_triangles(const Scene& scene) {
   std::uint64_t n = 0;
-  for (const auto& o : scene.objects)
-    n += o.type == SceneObject::Type::Sphere ? kSphereTriangles
-         : o.type == SceneObject::Type::Box  ? kBoxTriangles
-         : o.type == SceneObject::Type::Mesh ? mesh_triangle_count(o)
-                                             : kPlaneTriangles;
+  for (const auto& o : scene.objects) n += shape_kind(o.type).triangles(o);
   return n;
 }
 
@@ -157,9 +145,7 @@ bool camera_culls_closed_faces(const RenderRequest& request) {
   const double tan_half = std::tan(camera.fov_y_deg * 3.14159265358979323846 / 360.0);
   const double reach = camera.near_plane * std::sqrt(1.0 + tan_half * tan_half * (1.0 + aspect * aspect));
   for (const SceneObject& o : request.scene.objects) {
-    const bool closed = o.type == SceneObject::Type::Box || o.type == SceneObject::Type::Sphere ||
-                        (o.type == SceneObject::Type::Mesh && mesh_is_closed(o));
-    if (!closed) continue;
+    if (!shape_kind(o.type).closed(o)) continue;
     const Aabb box = object_bounds(o);
     if (box.empty()) continue;
     const glm::dvec3 outside = glm::max(glm::max(box.min - camera.position, camera.position - box.max), 0.0);
@@ -288,7 +274,9 @@ CostFactors cost_factors(const RenderRequest& request) {
     f.objects_per_ray = std::log2(double(request.scene.objects.size()) + 1.0) + camera_layers;
     std::vector<const TriangleModel*> models;
     for (const SceneObject& o : request.scene.objects) {
-      if (o.type != SceneObject::Type::Mesh) continue;
+      // The kinds with an exact test of their own are tested in closed form;
+      // the others (meshes) through a BVH of their model (RayScene).
+      if (shape_kind(o.type).intersect) continue;
       f.meshes_per_ray += 1.0;
       if (std::find(models.begin(), models.end(), o.model.get()) != models.end()) continue;
       models.push_back(o.model.get());
@@ -311,7 +299,8 @@ RequestCost estimate_cost(const RenderRequest& request) {
   const bool area_light = request.light.size > 0.0;
   cost.parts = {
       {"scene triangles", triangles * (kMsPerUploadedTriangle + kMsPerDrawnTriangle * f.draws), "scene.objects",
-       "use fewer objects (a sphere is " + std::to_string(kSphereTriangles) +
+       "use fewer objects (a sphere is " +
+           std::to_string(shape_kind(SceneObject::Type::Sphere).triangles(SceneObject{})) +
            " triangles) or smaller models, or fewer shadow.cascades"},
       {"shadow-map fill", f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel,
        "shadow.map_size", "lower shadow.map_size or shadow.cascades, or spread overlapping objects apart"},

@@ -1,0 +1,101 @@
+// The sphere: `radius` about `center`. Closed; tessellated as a UV sphere.
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "core/shapes/mesh_builder.hpp"
+#include "core/shapes/shape.hpp"
+
+namespace umbra {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// A UV sphere fine enough that its silhouette departs from the true
+// sphere by < 0.1 % of the radius (1 - cos(pi / 96)).
+constexpr int kStacks = 48, kSlices = 96;
+
+Aabb bounds(const SceneObject& o) {
+  Aabb b;
+  b.extend(o.center - glm::dvec3(o.radius));
+  b.extend(o.center + glm::dvec3(o.radius));
+  return b;
+}
+
+bool closed(const SceneObject&) { return true; }
+
+void tessellate(const SceneObject& o, Mesh& mesh) {
+  MeshBuilder builder{mesh};
+  constexpr double kPi = 3.14159265358979323846;
+  const std::uint32_t first = std::uint32_t(mesh.vertices.size());
+  for (int i = 0; i <= kStacks; ++i) {
+    const double theta = kPi * i / kStacks;
+    for (int j = 0; j <= kSlices; ++j) {
+      const double phi = 2.0 * kPi * j / kSlices;
+      const glm::dvec3 n{std::sin(theta) * std::cos(phi), std::cos(theta), -std::sin(theta) * std::sin(phi)};
+      builder.vertex(o.center + n * o.radius, n, o.color);
+    }
+  }
+  const std::uint32_t row = kSlices + 1;
+  for (int i = 0; i < kStacks; ++i) {
+    for (int j = 0; j < kSlices; ++j) {
+      const std::uint32_t a = first + i * row + j, b = a + row, c = b + 1, d = a + 1;
+      if (i != 0) mesh.indices.insert(mesh.indices.end(), {a, b, d});
+      if (i != kStacks - 1) mesh.indices.insert(mesh.indices.end(), {d, b, c});
+    }
+  }
+}
+
+// Two triangles a cell, but one at each pole's row of cells.
+std::uint64_t triangles(const SceneObject&) { return 2 * kStacks * kSlices - 2 * kSlices; }
+std::uint64_t vertices(const SceneObject&) { return (kStacks + 1) * (kSlices + 1); }
+
+double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double t_min, double t_max,
+                 glm::dvec3& normal) {
+  const glm::dvec3 oc = origin - o.center;
+  const double b = glm::dot(oc, dir);
+  const double c = glm::dot(oc, oc) - o.radius * o.radius;
+  const double disc = b * b - c;
+  if (disc < 0.0) return kInf;
+  const double root = std::sqrt(disc);
+  // The numerically stable pair of roots.
+  const double q = b > 0.0 ? -b - root : -b + root;
+  double ta = q, tb = q != 0.0 ? c / q : -b;
+  if (ta > tb) std::swap(ta, tb);
+  const double t = ta > t_min ? ta : tb;
+  if (!(t > t_min && t < t_max)) return kInf;
+  normal = glm::normalize(origin + t * dir - o.center);
+  return t;
+}
+
+std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, double low, double high) {
+  std::vector<glm::dvec3> points;
+  const double radius = object.radius - margin;
+  if (!(radius > 0.0)) return points;
+  // Rings of 16 points on the sphere at five latitudes, and where the
+  // slab's faces cut it: their hull lies inside the sphere and the slab.
+  std::vector<double> heights{low, high};
+  for (const double degrees : {-60.0, -30.0, 0.0, 30.0, 60.0})
+    heights.push_back(object.center.y + radius * std::sin(degrees * 3.14159265358979323846 / 180.0));
+  for (const double h : heights) {
+    const double dy = h - object.center.y;
+    if (!(h >= low && h <= high && std::abs(dy) < radius)) continue;
+    const double ring = std::sqrt(radius * radius - dy * dy);
+    for (int k = 0; k < 16; ++k) {
+      const double angle = k * (2.0 * 3.14159265358979323846 / 16.0);
+      points.emplace_back(object.center.x + ring * std::cos(angle), h, object.center.z + ring * std::sin(angle));
+    }
+  }
+  return points;
+}
+
+}  // namespace
+
+extern const ShapeKind kSphereShape;  // listed in shapes.cpp
+const ShapeKind kSphereShape = {
+    SceneObject::Type::Sphere, "sphere", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
+    vertices, intersect, points_inside,
+};
+
+}  // namespace umbra
