@@ -13,6 +13,8 @@
 
 #include <glm/vec3.hpp>
 
+#include "core/shapes/shape_list.hpp"
+
 namespace umbra {
 
 struct TriangleModel;  // model.hpp
@@ -20,7 +22,10 @@ struct TriangleModel;  // model.hpp
 /// One object of a scene, in world units: an analytic primitive or an
 /// instance of a triangle model (mesh_instance.hpp).
 struct SceneObject {
-  enum class Type { Plane, Box, Sphere, Mesh };
+  // One value per shape kind (core/shapes/shape_list.hpp).
+#define UMBRA_SHAPE_TYPE(value, row) value,
+  enum class Type { UMBRA_SHAPE_KINDS(UMBRA_SHAPE_TYPE) };
+#undef UMBRA_SHAPE_TYPE
   Type type = Type::Box;
   /// Centre of the primitive; a mesh's position (where its model-space
   /// origin goes).

@@ -1,16 +1,20 @@
 // The table of shape kinds: one row per SceneObject::Type, each defined in
-// its own file here.
+// its own file here and listed in shape_list.hpp.
 #include <cstddef>
 
 #include "core/shapes/shape.hpp"
 
 namespace umbra {
 
-extern const ShapeKind kPlaneShape, kBoxShape, kSphereShape, kMeshShape;
+#define UMBRA_SHAPE_ROW_DECLARATION(value, row) extern const ShapeKind row;
+UMBRA_SHAPE_KINDS(UMBRA_SHAPE_ROW_DECLARATION)
+#undef UMBRA_SHAPE_ROW_DECLARATION
 
 const std::vector<const ShapeKind*>& shape_kinds() {
   // In SceneObject::Type order (test_shapes checks it): shape_kind indexes it.
-  static const std::vector<const ShapeKind*> kinds = {&kPlaneShape, &kBoxShape, &kSphereShape, &kMeshShape};
+#define UMBRA_SHAPE_ROW_ADDRESS(value, row) &row,
+  static const std::vector<const ShapeKind*> kinds = {UMBRA_SHAPE_KINDS(UMBRA_SHAPE_ROW_ADDRESS)};
+#undef UMBRA_SHAPE_ROW_ADDRESS
   return kinds;
 }
 
