@@ -86,14 +86,9 @@ std::map<std::string, json> parser_defaults() {
   const Light& l = q.light;
   const ShadowSettings& s = q.shadow;
   const DepthBias bias = parse_ok(R"({"shadow": {"bias": {}}})").shadow.bias;
-  const RenderRequest custom = parse_ok(
-      R"({"scene": {"objects": [{"type": "plane"}, {"type": "box"}, {"type": "sphere"}, {"type": "mesh", "model": "teapot"}]}})");
-  const SceneObject plane = custom.scene.objects.at(0), box = custom.scene.objects.at(1),
-                    sphere = custom.scene.objects.at(2), mesh = custom.scene.objects.at(3);
   const SunClock sun =
       *parse_ok(R"({"light": {"sun": {"latitude": 0, "longitude": 0, "utc": "2000-01-01T00:00:00Z"}}})").light.sun;
-  const auto scale = [](const glm::dvec3& v) { return v.x == v.y && v.y == v.z ? json(v.x) : vec(v); };
-  return {
+  std::map<std::string, json> defaults = {
       {"RenderRequest.width", q.width},
       {"RenderRequest.height", q.height},
       {"RenderRequest.scene", q.scene.name},
@@ -126,20 +121,23 @@ std::map<std::string, json> parser_defaults() {
       {"BiasObject.constant", bias.constant},
       {"BiasObject.slope", bias.slope},
       {"BiasObject.normal_offset", bias.normal_offset},
-      {"PlaneObject.center", vec(plane.center)},
-      {"PlaneObject.size", json::array({plane.size.x, plane.size.z})},
-      {"PlaneObject.color", vec(plane.color)},
-      {"BoxObject.center", vec(box.center)},
-      {"BoxObject.size", vec(box.size)},
-      {"BoxObject.rotation_y_deg", box.rotation_y_deg},
-      {"BoxObject.color", vec(box.color)},
-      {"SphereObject.center", vec(sphere.center)},
-      {"SphereObject.radius", sphere.radius},
-      {"SphereObject.color", vec(sphere.color)},
-      {"MeshObject.position", vec(mesh.center)},
-      {"MeshObject.rotation_deg", vec(mesh.rotation_deg)},
-      {"MeshObject.scale", scale(mesh.mesh_scale)},
   };
+  // Each object type: an object with only its type (a mesh needs its model),
+  // as the parser fills it, written back by its rows (write_object).
+  for (const ShapeFields& shape : shape_fields()) {
+    json o = {{"type", shape.type}};
+    if (shape.kind == SceneObject::Type::Mesh) o["model"] = "teapot";  // built in: found without a store
+    const RenderRequest parsed = parse_ok(json{{"scene", {{"objects", json::array({o})}}}}.dump());
+    const json written = write_object(parsed.scene.objects.at(0));
+    for (const ObjectField& row : shape.rows) {
+      if (row.default_value.is_null() || !written.contains(row.key())) continue;
+      json value = written[row.key()];
+      // "A number, or [sx, sy, sz]": the document gives the number.
+      if (row.type == FieldType::NumberOrVec3 && value[0] == value[1] && value[1] == value[2]) value = value[0];
+      defaults[shape.schema + "." + row.key()] = value;
+    }
+  }
+  return defaults;
 }
 
 TEST(ApiDocument, EveryDefaultInTheDocumentIsTheParsers) {
@@ -245,12 +243,9 @@ std::optional<RangeCase> range_case(const std::string& component, const std::str
     return RangeCase{{{"shadow", shadow}}, "shadow." + property};
   }
   if (component == "BiasObject") return RangeCase{{{"shadow", {{"bias", {{property, value}}}}}}, "shadow.bias." + property};
-  for (const char* object : {"BoxObject", "SphereObject", "PlaneObject", "MeshObject"}) {
-    if (component != object) continue;
-    const std::string type = component == "BoxObject"      ? "box"
-                             : component == "SphereObject" ? "sphere"
-                             : component == "PlaneObject"  ? "plane"
-                                                           : "mesh";
+  for (const ShapeFields& shape : shape_fields()) {
+    if (component != shape.schema) continue;
+    const std::string& type = shape.type;
     json o = {{"type", type}, {property, value}};
     if (type == "mesh") o["model"] = "teapot";  // built in: found without a store
     return RangeCase{{{"scene", {{"objects", json::array({o})}}}}, "scene.objects[0]." + property};
