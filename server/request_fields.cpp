@@ -404,6 +404,23 @@ std::vector<ShapeFields> make_shape_fields() {
               return o.mesh_color_override;
             })
             .in(0.0, 1.0)}});
+  // A vertical axis whose middle is `center`, capped (core/shapes/cylinder.cpp):
+  // its height is stored as size.y, as a box's.
+  shapes.push_back({"cylinder", O::Type::Cylinder, "CylinderObject",
+                    {center_row(),
+                     OR("radius", FieldType::Number, [](O& o, const V& v) { o.radius = v.number; }, "Radius, world units.")
+                         .written_by(number_of<&O::radius>)
+                         .in(L::kMinExtent, L::kMaxExtent)
+                         .by_default(0.5),
+                     OR("height", FieldType::Number, [](O& o, const V& v) { o.size.y = v.number; },
+                        "Height along its vertical axis, world units; `center` is its middle.")
+                         .written_by([](const O& o, V& v) {
+                           v.number = o.size.y;
+                           return true;
+                         })
+                         .in(L::kMinExtent, L::kMaxExtent)
+                         .by_default(1),
+                     color_row()}});
   return shapes;
 }
 

@@ -278,7 +278,10 @@ TEST(RequestFields, AWrittenObjectParsesToTheSameObject) {
   mesh.rotation_deg = {10, 20, 30};
   mesh.mesh_scale = {0.5, 1.5, 2.5};
   mesh.mesh_color_override = true;
-  objects.insert(objects.end(), {plane, box, sphere, mesh});
+  SceneObject cylinder = object(SceneObject::Type::Cylinder, {-3, 2.5, 4}, {0.7, 0.1, 0.4});
+  cylinder.radius = 0.25;
+  cylinder.size.y = 5;
+  objects.insert(objects.end(), {plane, box, sphere, mesh, cylinder});
   std::set<SceneObject::Type> types;
   for (const SceneObject& o : objects) {
     types.insert(o.type);

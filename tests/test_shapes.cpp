@@ -42,6 +42,7 @@ std::vector<SceneObject> objects_of(SceneObject::Type type) {
     case SceneObject::Type::Plane:
     case SceneObject::Type::Box:
     case SceneObject::Type::Sphere:
+    case SceneObject::Type::Cylinder:  // size.y: its height
       add({0, 0, 0}, {1, 1, 1}, 0.5, 0.0);
       add({3, -2, 5}, {4, 0.5, 2}, 2.5, 30.0);
       add({-100, 40, 7}, {0.01, 3, 20}, 0.01, 123.0);
@@ -118,6 +119,9 @@ double tessellation_error(const SceneObject& o) {
   const Aabb b = shape_kind(o.type).bounds(o);
   const double rounding = 1e-6 * (glm::length(b.max) + glm::length(b.min) + glm::length(b.extent())) + 1e-9;
   if (o.type == SceneObject::Type::Sphere) return o.radius * (1.0 - std::cos(kPi / 48.0)) + rounding;
+  // A cylinder's side is a prism of 96 faces: each sags inside by the
+  // sagitta of an arc of 2 pi / 96.
+  if (o.type == SceneObject::Type::Cylinder) return o.radius * (1.0 - std::cos(kPi / 96.0)) + rounding;
   return rounding;
 }
 
@@ -131,7 +135,8 @@ glm::dvec3 random_direction(std::mt19937& random) {
 
 TEST(Shapes, TheTableIsInTypeOrderAndItsNamesAreUniqueAndRoundTrip) {
   const std::vector<SceneObject::Type> types = {SceneObject::Type::Plane, SceneObject::Type::Box,
-                                                SceneObject::Type::Sphere, SceneObject::Type::Mesh};
+                                                SceneObject::Type::Sphere, SceneObject::Type::Mesh,
+                                                SceneObject::Type::Cylinder};
   ASSERT_EQ(shape_kinds().size(), types.size());
   std::set<std::string> names;
   for (std::size_t i = 0; i < types.size(); ++i) {
@@ -147,6 +152,7 @@ TEST(Shapes, TheTableIsInTypeOrderAndItsNamesAreUniqueAndRoundTrip) {
   EXPECT_EQ(find_shape_kind("box"), &shape_kind(SceneObject::Type::Box));
   EXPECT_EQ(find_shape_kind("sphere"), &shape_kind(SceneObject::Type::Sphere));
   EXPECT_EQ(find_shape_kind("mesh"), &shape_kind(SceneObject::Type::Mesh));
+  EXPECT_EQ(find_shape_kind("cylinder"), &shape_kind(SceneObject::Type::Cylinder));
   EXPECT_EQ(find_shape_kind("Box"), nullptr);
   EXPECT_EQ(find_shape_kind(""), nullptr);
 }

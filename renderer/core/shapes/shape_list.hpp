@@ -10,4 +10,5 @@
   X(Plane, kPlaneShape)      \
   X(Box, kBoxShape)          \
   X(Sphere, kSphereShape)    \
-  X(Mesh, kMeshShape)
+  X(Mesh, kMeshShape)        \
+  X(Cylinder, kCylinderShape)
