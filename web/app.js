@@ -1114,10 +1114,25 @@ function applyApiDefaults(apiDocument) {
     const value = apiDefault(component, property);
     if (value !== undefined) setDefault($(id), value);
   }
+  describeObjectTypes();
   const target = apiDefault("Light", "target");
   if (Array.isArray(target)) LIGHT_TARGET_FIELDS.forEach((id, i) => setDefault($(id), target[i]));
   const [width, height] = [apiDefault("RenderRequest", "width"), apiDefault("RenderRequest", "height")];
   setDefault($("resolution"), `${width}x${height}`);
+}
+
+// The editor's list of object types and their fields, from the document's
+// SceneObject (each type's component), so that a type the server gains
+// (cylinder, say) is listed without a change here.
+function describeObjectTypes() {
+  const mapping = apiSchemas.SceneObject && apiSchemas.SceneObject.discriminator && apiSchemas.SceneObject.discriminator.mapping;
+  if (!mapping) return;
+  const types = Object.entries(mapping).map(([type, ref]) => {
+    const schema = apiSchemas[ref.split("/").pop()];
+    const fields = schema && schema.properties ? Object.keys(schema.properties).filter((f) => f !== "type") : [];
+    return `${type} (${fields.join(", ")})`;
+  });
+  $("object-types").textContent = `Object types: ${types.join("; ")}. See the API's SceneObject for each field's range and default.`;
 }
 
 // Without the lists (an older or unreachable server) the page's own two

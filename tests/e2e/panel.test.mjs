@@ -818,6 +818,21 @@ try {
     await waitForNewImages(other, { frame: "", depth: "" });
     assert.deepEqual(JSON.parse(await other.evaluate(() => window.__umbra.lastRenderBody)), body);
     await other.close();
+    // The object types come from the served document: every one is listed,
+    // and a cylinder (the newest) renders from the editor.
+    const served = await (await fetch(`http://127.0.0.1:${port}/api/openapi.json`)).json();
+    const types = Object.keys(served.components.schemas.SceneObject.discriminator.mapping);
+    assert.ok(types.includes("cylinder"), "the document has the cylinder");
+    const hint = await page.$eval("#object-types", (p) => p.textContent);
+    for (const type of types) assert.ok(hint.includes(`${type} (`), `the editor lists ${type}: ${hint}`);
+    assert.match(hint, /cylinder \(center, radius, height, color\)/);
+    const columns = { scene: { objects: [{ type: "plane" }, { type: "cylinder", center: [0, 1, 0], radius: 0.3, height: 2 }] } };
+    await page.fill("#scene-json", JSON.stringify(columns));
+    before = await currentSources(page);
+    await page.click("#render-json");
+    await waitForNewImages(page, before);
+    assert.deepEqual(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).scene, columns.scene);
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "the cylinder renders: no error shown");
     // Bad JSON is marked and nothing is sent.
     await page.waitForFunction(() => window.__umbra.inFlight === 0);
     const sent = await page.evaluate(() => window.__umbra.sent);
