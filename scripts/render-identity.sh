@@ -10,7 +10,9 @@
 #   --size WxH    override each scene's image size (default: as the scene has
 #                 it, 960x540 when it has none)
 #   --keep DIR    leave the PNGs in DIR/before and DIR/after
-# Exit status 0 when every PNG is identical, 1 when any differs or fails.
+# Exit status 0 when every PNG is identical, 1 when any differs or fails. A
+# scene the build before refuses with 400 (it uses a field or object type
+# added since) is counted as new, not as a difference.
 # REV is built in a git worktree under the keep folder (./build-identity by
 # default, reused between runs); the working tree in its build-worktree
 # (./build, with its own options, is left alone).
@@ -73,8 +75,13 @@ try:
                 png = urllib.request.urlopen(req, timeout=900).read()
                 open(f"{out}/{name}.{output}.png", "wb").write(png)
             except Exception as e:
-                failed += 1
                 detail = e.read().decode(errors="replace") if hasattr(e, "read") else ""
+                if getattr(e, "code", 0) == 400:
+                    # A scene this build cannot read (a field or type added
+                    # since): listed, and compared as new, not as a failure.
+                    open(f"{out}/refused.txt", "a").write(f"{name}.{output}.png {detail}\n")
+                    continue
+                failed += 1
                 print(f"  {name} {output}: {e} {detail}", file=sys.stderr)
     sys.exit(1 if failed else 0)
 finally:
@@ -88,7 +95,7 @@ render "$keep/build-$rev/server/umbra-server" "$keep/before" || status=1
 echo "rendering with the working tree..."
 render "$keep/build-worktree/server/umbra-server" "$keep/after" || status=1
 
-same=0 differ=0
+same=0 differ=0 new=0
 for f in "$keep"/before/*.png; do
   name=$(basename "$f")
   if [ ! -f "$keep/after/$name" ]; then
@@ -100,7 +107,14 @@ for f in "$keep"/before/*.png; do
   fi
 done
 for f in "$keep"/after/*.png; do
-  [ -f "$keep/before/$(basename "$f")" ] || { echo "missing before: $(basename "$f")"; differ=$((differ + 1)); }
+  name=$(basename "$f")
+  [ -f "$keep/before/$name" ] && continue
+  if grep -q "^$name " "$keep/before/refused.txt" 2>/dev/null; then
+    new=$((new + 1))
+  else
+    echo "missing before: $name"; differ=$((differ + 1))
+  fi
 done
+[ "$new" -eq 0 ] || echo "$new PNGs new: scenes the build before refuses (400; see $keep/before/refused.txt)"
 echo "$same PNGs identical, $differ different or missing (before $rev, after the working tree)"
 [ "$differ" -eq 0 ] && [ "$status" -eq 0 ]

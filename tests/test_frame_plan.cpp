@@ -411,5 +411,50 @@ TEST(FramePlan, TheFloorsCellsFollowTheStencilStepsInOrder) {
   for (const DisplayStep& step : fresh_plan(soft).display.steps) EXPECT_NE(step.kind, Kind::DarkUmbras);
 }
 
+// The frame's shader variant is the plan's decision: the GL side builds the
+// programs it names and decides nothing.
+TEST(FramePlan, TheDisplayVariantIsDecidedInThePlan) {
+  RenderRequest shadowed = builtin("three-cubes");
+  RenderRequest off = shadowed;
+  off.shadow.enabled = false;
+  RenderRequest shadow_output = shadowed;
+  shadow_output.output = Output::Shadow;
+  RenderRequest point = shadowed;
+  point.light.projection = LightProjection::Perspective;
+  for (const RenderRequest& r : {shadowed, off, shadow_output, point}) {
+    const FramePlan plan = fresh_plan(r);
+    const DisplayVariant expected = display_variant(r, plan.light);
+    EXPECT_EQ(plan.display.variant.shadows, expected.shadows);
+    EXPECT_EQ(plan.display.variant.shadow_output, expected.shadow_output);
+    EXPECT_EQ(plan.display.variant.perspective, expected.perspective);
+    EXPECT_EQ(plan.display.variant.view_count, expected.view_count);
+    EXPECT_EQ(plan.display.variant.pcf_radius, expected.pcf_radius);
+    EXPECT_EQ(plan.display.shadow_lookup, plan.display.variant.shadows) << "the steps and the program disagree";
+  }
+  EXPECT_TRUE(fresh_plan(shadowed).display.variant.shadows);
+  EXPECT_FALSE(fresh_plan(off).display.variant.shadows);
+  EXPECT_TRUE(fresh_plan(shadow_output).display.variant.shadow_output);
+  EXPECT_TRUE(fresh_plan(point).display.variant.perspective);
+}
+
+TEST(FramePlan, EachStepsProgramDerivesFromTheFramesVariant) {
+  const DisplayVariant frame = fresh_plan(builtin("three-cubes")).display.variant;
+  ASSERT_TRUE(frame.shadows);
+  const DisplayVariant lit = program_variant(frame, DisplayProgram::Lit);
+  EXPECT_FALSE(lit.shadows);
+  EXPECT_TRUE(lit.direct_light);
+  const DisplayVariant dark = program_variant(frame, DisplayProgram::Dark);
+  EXPECT_FALSE(dark.shadows);
+  EXPECT_FALSE(dark.direct_light) << "an umbra is drawn with ambient light only";
+  const DisplayVariant facing = program_variant(frame, DisplayProgram::LightFacing);
+  EXPECT_TRUE(facing.shadows) << "the part that may face the light keeps the lookup";
+  EXPECT_EQ(facing.light_side, 1);
+  const DisplayVariant away = program_variant(frame, DisplayProgram::LightAway);
+  EXPECT_FALSE(away.shadows);
+  EXPECT_EQ(away.light_side, -1);
+  EXPECT_EQ(program_variant(frame, DisplayProgram::Frame).light_side, 0);
+  EXPECT_EQ(program_variant(frame, DisplayProgram::Frame).filter, frame.filter);
+}
+
 }  // namespace
 }  // namespace umbra

@@ -99,7 +99,7 @@ TEST(GlProgram, EveryKindOfVariantBuildsWithTheBlockLayoutOfCxx) {
     variants.push_back(away);
   }
   // Each builds, and build_program checks every FrameBlock member's offset.
-  for (const DisplayVariant& v : variants) EXPECT_NO_THROW(programs.get(v.defines())) << v.defines();
+  for (const DisplayVariant& v : variants) EXPECT_NO_THROW(programs.get(variant_defines(v))) << variant_defines(v);
   EXPECT_EQ(programs.size(), 4u);  // the most recently used four are kept
 }
 
@@ -131,9 +131,9 @@ TEST(GlProgram, EveryProgramHasItsInputsAtTheNumbersCxxBindsThemBy) {
   cube.view_count = kCubeFaceCount;
   const gl::Program programs[] = {
       gl::build_program("shadow_depth.vert", "shadow_depth.frag", glsl_prelude("")),
-      gl::build_program("scene.vert", "scene.frag", glsl_prelude(DisplayVariant{}.defines())),
-      gl::build_program("scene.vert", "scene.frag", glsl_prelude(cube.defines())),
-      gl::build_program("fullscreen.vert", "depth_preview.frag", glsl_prelude(PreviewVariant{}.defines())),
+      gl::build_program("scene.vert", "scene.frag", glsl_prelude(variant_defines(DisplayVariant{}))),
+      gl::build_program("scene.vert", "scene.frag", glsl_prelude(variant_defines(cube))),
+      gl::build_program("fullscreen.vert", "depth_preview.frag", glsl_prelude(variant_defines(PreviewVariant{}))),
   };
   const char* names[] = {"shadow pass", "main pass", "main pass, cube", "depth preview"};
   for (int p = 0; p < 4; ++p) {

@@ -51,48 +51,21 @@ const BlockMember* frame_block_members(std::size_t& count) {
   return kFrameBlockMembers;
 }
 
-std::string DisplayVariant::defines() const {
+std::string variant_defines(const DisplayVariant& v) {
   std::ostringstream d;
-  d << "#define SHADOWS " << int(shadows) << "\n"
-    << "#define DIRECT_LIGHT " << int(direct_light) << "\n"
-    << "#define OUTPUT_SHADOW " << int(shadow_output) << "\n"
-    << "#define LIGHT_PERSPECTIVE " << int(perspective) << "\n"
-    << "#define LIGHT_CUBE " << int(cube) << "\n"
-    << "#define VIEW_COUNT " << view_count << "\n"
-    << "#define FILTER " << filter_code(filter) << "\n"
-    << "#define PCF_RADIUS " << pcf_radius << "\n"
-    << "#define BIAS_AUTO " << int(bias_auto) << "\n"
-    << "#define FILTER_REACH " << filter_reach << "\n"
-    << "#define FILTER_READ " << filter_read << "\n"
-    << "#define LIGHT_SIDE " << light_side << "\n";
+  d << "#define SHADOWS " << int(v.shadows) << "\n"
+    << "#define DIRECT_LIGHT " << int(v.direct_light) << "\n"
+    << "#define OUTPUT_SHADOW " << int(v.shadow_output) << "\n"
+    << "#define LIGHT_PERSPECTIVE " << int(v.perspective) << "\n"
+    << "#define LIGHT_CUBE " << int(v.cube) << "\n"
+    << "#define VIEW_COUNT " << v.view_count << "\n"
+    << "#define FILTER " << filter_code(v.filter) << "\n"
+    << "#define PCF_RADIUS " << v.pcf_radius << "\n"
+    << "#define BIAS_AUTO " << int(v.bias_auto) << "\n"
+    << "#define FILTER_REACH " << v.filter_reach << "\n"
+    << "#define FILTER_READ " << v.filter_read << "\n"
+    << "#define LIGHT_SIDE " << v.light_side << "\n";
   return d.str();
-}
-
-DisplayVariant without_shadows(const DisplayVariant& v) {
-  DisplayVariant lit;
-  lit.shadows = false;
-  lit.direct_light = v.direct_light;
-  lit.shadow_output = v.shadow_output;
-  lit.perspective = v.perspective;
-  return lit;
-}
-
-DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& plan) {
-  DisplayVariant v;
-  v.direct_light = plan.direct_light;
-  v.shadow_output = request.output == Output::Shadow;
-  v.perspective = plan.perspective;
-  if (!(request.shadow.enabled && plan.direct_light)) return without_shadows(v);
-  const ShadowSettings& s = request.shadow;
-  v.cube = plan.layout == ShadowLayout::Cube;
-  v.view_count = int(plan.views.size());
-  // PCSS with an ideal light (size 0) has no penumbra to find: it is PCF.
-  v.filter = s.filter == ShadowFilter::Pcss && request.light.size <= 0.0 ? ShadowFilter::Pcf : s.filter;
-  v.pcf_radius = v.filter == ShadowFilter::Pcf ? s.pcf_radius : 0;
-  v.bias_auto = s.bias.automatic;
-  v.filter_reach = filter_reach_texels(s);
-  v.filter_read = filter_read_texels(s);
-  return v;
 }
 
 FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, const Mesh& mesh,
@@ -138,10 +111,10 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   return b;
 }
 
-std::string PreviewVariant::defines() const {
+std::string variant_defines(const PreviewVariant& v) {
   std::ostringstream d;
-  d << "#define LIGHT_PERSPECTIVE " << int(perspective) << "\n"
-    << "#define VIEW_COUNT " << view_count << "\n";
+  d << "#define LIGHT_PERSPECTIVE " << int(v.perspective) << "\n"
+    << "#define VIEW_COUNT " << v.view_count << "\n";
   return d.str();
 }
 

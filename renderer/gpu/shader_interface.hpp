@@ -20,6 +20,7 @@
 
 #include "core/light_math.hpp"
 #include "core/request.hpp"
+#include "plan/shader_variants.hpp"
 #include "core/scene.hpp"
 #include "core/shader_facts.hpp"
 
@@ -141,50 +142,12 @@ struct BlockMember {
 const BlockMember* frame_block_members(std::size_t& count);
 
 // ---------------------------------------------------------------------------
-// Variants: each switch is a compile-time #define, so the shader has no
-// branch on a uniform (a software rasteriser runs both sides of a branch it
-// cannot prove uniform, and cannot fold it away) and every loop has a
-// constant trip count.
+// Variants (plan/shader_variants.hpp decides them): each switch becomes a
+// compile-time #define here.
 
-/// The main pass's variant for one frame.
-struct DisplayVariant {
-  bool shadows = true;          // SHADOWS: 0 draws no shadow term at all
-  bool direct_light = true;     // DIRECT_LIGHT: 0 (a sun below the horizon): ambient only, visibility 0
-  bool shadow_output = false;   // OUTPUT_SHADOW: visibility as grey, not colour
-  bool perspective = false;     // LIGHT_PERSPECTIVE: point light
-  bool cube = false;            // LIGHT_CUBE: six faces, picked by major axis
-  int view_count = 1;           // VIEW_COUNT: 1..kMaxViews
-  ShadowFilter filter = ShadowFilter::Pcf;  // FILTER: FILTER_HARD / _PCF / _PCSS
-  int pcf_radius = 1;           // PCF_RADIUS: 0..8
-  bool bias_auto = true;        // BIAS_AUTO: receiver plane vs the seeds' bias
-  int filter_reach = 2;         // FILTER_REACH: see filter_reach_texels
-  int filter_read = 3;          // FILTER_READ: see filter_read_texels
-  /// LIGHT_SIDE: closed meshes are drawn in two parts, split where their
-  /// points may start to face the light (scene.vert): 1 the part that may
-  /// face it, -1 the part that cannot (lit by ambient only, visibility 0),
-  /// 0 whole (everything else).
-  int light_side = 0;
-
-  /// The #define lines that select this variant.
-  std::string defines() const;
-};
-
-/// The main pass's variant for `request` drawn with the light's views in
-/// `plan`. Switches that cannot matter are left at their defaults (no shadow
-/// pass: no filter), so equal frames share one program.
-DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& plan);
-
-/// `v` with no shadow term (and the shadow switches at their defaults, as
-/// display_variant leaves them): the program for points no caster can
-/// shadow, the same one a frame without shadows uses.
-DisplayVariant without_shadows(const DisplayVariant& v);
-
-/// The depth preview's variant.
-struct PreviewVariant {
-  bool perspective = false;  // LIGHT_PERSPECTIVE: linearise the stored depth
-  int view_count = 1;        // VIEW_COUNT: tiles drawn
-  std::string defines() const;
-};
+/// The #define lines that select `v`.
+std::string variant_defines(const DisplayVariant& v);
+std::string variant_defines(const PreviewVariant& v);
 
 /// The block's contents for `request` drawn with the light's views in
 /// `plan`, positions relative to mesh.origin; `casters`: one per view, where

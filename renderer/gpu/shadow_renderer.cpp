@@ -81,7 +81,7 @@ ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_by
   // variant (the others are built when first asked for).
   RenderRequest defaults;
   defaults.scene.objects.push_back({});
-  display_.programs.get(display_variant(defaults, plan_shadow(defaults)).defines());
+  display_.programs.get(variant_defines(display_variant(defaults, plan_shadow(defaults))));
   frame_block_ = gl::create_buffer();
   glNamedBufferStorage(frame_block_.id(), sizeof(FrameBlock), nullptr, GL_DYNAMIC_STORAGE_BIT);
   glBindBufferBase(GL_UNIFORM_BUFFER, kUniformBufferFrameBlock, frame_block_.id());
@@ -399,22 +399,14 @@ void ShadowRenderer::run_shadow_pass(const FramePlan& plan) {
   shadow_.kept = plan.shadow.kept_after;
 }
 
-void ShadowRenderer::run_display_pass(const RenderRequest& request, const FramePlan& plan) {
+void ShadowRenderer::run_display_pass(const FramePlan& plan) {
   const DisplayPassPlan& pass = plan.display;
   resize_display(pass.width, pass.height);
   begin_pass(pass.object_draw_ms, double(pass.width), double(pass.height), kMainChunkFragments);
   // The programs of the plan's steps: the frame's variant and those
   // derived from it.
-  const DisplayVariant variant = display_variant(request, plan.light);
-  if (variant.shadows != pass.shadow_lookup)
-    throw std::logic_error("the frame plan's shadow lookup disagrees with the display variant");
   const auto program = [&](DisplayProgram which) {
-    DisplayVariant v = which == DisplayProgram::Frame || which == DisplayProgram::LightFacing ? variant
-                                                                                              : without_shadows(variant);
-    if (which == DisplayProgram::Dark) v.direct_light = false;
-    if (which == DisplayProgram::LightFacing) v.light_side = 1;
-    if (which == DisplayProgram::LightAway) v.light_side = -1;
-    return display_.programs.get(v.defines()).id();
+    return display_.programs.get(variant_defines(program_variant(pass.variant, which))).id();
   };
   if (!pass.cell_indices.empty()) {
     glNamedBufferData(display_.cell_vertices.id(), GLsizeiptr(pass.cell_vertices.size() * sizeof(Vertex)),
@@ -488,7 +480,7 @@ void ShadowRenderer::run_depth_preview(const FramePlan& plan) {
     glClearTexSubImage(shadow_.depth_map.id(), 0, 0, 0, GLint(layer), layer_size, layer_size, 1, GL_DEPTH_COMPONENT,
                        GL_FLOAT, &far);
   const PreviewVariant variant{preview.perspective, preview.view_count};
-  glUseProgram(preview_.programs.get(variant.defines()).id());
+  glUseProgram(preview_.programs.get(variant_defines(variant)).id());
   glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, preview_.framebuffer.id());
   glViewport(0, 0, preview_.size, preview_.size);
@@ -549,7 +541,7 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
   if (plan.depth_output) {
     run_depth_preview(plan);
   } else {
-    run_display_pass(request, plan);
+    run_display_pass(plan);
     result.umbras = plan.display.umbras;
   }
   glFinish();

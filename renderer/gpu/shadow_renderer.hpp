@@ -195,10 +195,9 @@ class ShadowRenderer {
   // Draws `draws` of the current scene (draw_scene_indices each) with
   // their cull modes; leaves face culling off.
   void draw_scene(const std::vector<DrawRange>& draws);
-  // The passes of `plan`, as it orders them. The display pass reads
-  // `request` only for the shader interface (display_variant).
+  // The passes of `plan`, as it orders them.
   void run_shadow_pass(const FramePlan& plan);
-  void run_display_pass(const RenderRequest& request, const FramePlan& plan);
+  void run_display_pass(const FramePlan& plan);
   void run_depth_preview(const FramePlan& plan);
   Image read_pixels(const ReadBack& read_back);
 

@@ -245,6 +245,7 @@ DisplayPassPlan plan_display_pass(const RenderRequest& request, const ShadowPlan
   // Shadow output: no geometry, nothing blocks the light.
   pass.clear_color = request.output == Output::Shadow ? glm::vec4(1.0f, 1.0f, 1.0f, 1.0f)
                                                       : glm::vec4(0.11f, 0.12f, 0.14f, 1.0f);
+  pass.variant = display_variant(request, light);
   pass.shadow_lookup = request.shadow.enabled && light.direct_light;
   const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
   pass.object_draw_ms =
@@ -326,6 +327,14 @@ std::string preview_tiles_parameters(const ShadowPlan& plan) {
     for (int face = 0; face < kCubeFaceCount; ++face) p += std::string(face ? "," : "") + kCubeFaceNames[face];
   }
   return p;
+}
+
+DisplayVariant program_variant(const DisplayVariant& frame, DisplayProgram which) {
+  DisplayVariant v = which == DisplayProgram::Frame || which == DisplayProgram::LightFacing ? frame : without_shadows(frame);
+  if (which == DisplayProgram::Dark) v.direct_light = false;
+  if (which == DisplayProgram::LightFacing) v.light_side = 1;
+  if (which == DisplayProgram::LightAway) v.light_side = -1;
+  return v;
 }
 
 bool needs_shadow_map(const RenderRequest& request, const ShadowPlan& light) {

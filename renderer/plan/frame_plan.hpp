@@ -25,6 +25,7 @@
 #include "core/light_math.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
+#include "plan/shader_variants.hpp"
 
 namespace umbra {
 
@@ -99,7 +100,7 @@ struct ShadowPassPlan {
 };
 
 /// The program a display step draws with: the frame's main-pass variant
-/// (gpu/shader_interface.hpp's display_variant) or one derived from it.
+/// (DisplayPassPlan::variant) or one derived from it (program_variant).
 enum class DisplayProgram {
   Frame,        ///< the frame's variant: with the shadow lookup when it has one
   Lit,          ///< without_shadows(frame): no lookup
@@ -107,6 +108,9 @@ enum class DisplayProgram {
   LightFacing,  ///< the frame's, LIGHT_SIDE 1: closed meshes' part that may face the light
   LightAway,    ///< without_shadows(frame), LIGHT_SIDE -1: the part that cannot
 };
+
+/// The variant `which` draws with, given the frame's.
+DisplayVariant program_variant(const DisplayVariant& frame, DisplayProgram which);
 
 /// The stencil test a display step draws with (8-bit stencil, cleared to 0).
 struct StencilStep {
@@ -145,7 +149,11 @@ struct DisplayStep {
 struct DisplayPassPlan {
   int width = 0, height = 0;
   glm::vec4 clear_color{0.0f};
-  /// The frame's variant has the shadow lookup (shadows enabled, direct light).
+  /// The frame's main-pass variant (display_variant); each step's program
+  /// is it or one derived from it (program_variant).
+  DisplayVariant variant;
+  /// The frame's variant has the shadow lookup (shadows enabled, direct
+  /// light): variant.shadows.
   bool shadow_lookup = false;
   /// Per scene object: mesh_draw_ms in the camera's view.
   std::vector<double> object_draw_ms;
