@@ -498,7 +498,8 @@ TEST(ApiDocument, EveryRequestPropertyInTheDocumentHasARow) {
   for (const ShapeFields& shape : shape_fields()) {
     refs.push_back({{"$ref", "#/components/schemas/" + shape.schema}});
     mapping[shape.type] = "#/components/schemas/" + shape.schema;
-    for (const auto& [property, p] : schemas[shape.schema]["properties"].items()) {
+    for (const auto& item : schemas[shape.schema]["properties"].items()) {
+      const std::string property = item.key();  // a named copy: C++17 lambdas cannot capture a structured binding
       const bool has_row = property == "type" || std::any_of(shape.rows.begin(), shape.rows.end(),
                                                              [&](const ObjectField& r) { return r.path == property; });
       EXPECT_TRUE(has_row) << shape.schema << "." << property << " has no row in the " << shape.type << " group";
