@@ -11,21 +11,11 @@
 #include "core/light_math.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
+#include "scene_support.hpp"
 #include "plan/frame_plan.hpp"
 
 namespace umbra {
 namespace {
-
-RenderRequest builtin(const char* name) {
-  RenderRequest r;
-  const BuiltinScene* s = find_builtin_scene(name);
-  r.scene.name = s->name;
-  r.scene.objects = s->objects;
-  r.camera.position = s->camera_position;
-  r.camera.target = s->camera_target;
-  r.light.position = s->light_position;
-  return r;
-}
 
 // The plan of `r`'s frame with nothing kept in the shadow map.
 FramePlan fresh_plan(const RenderRequest& r) { return plan_frame(r, tessellate(r.scene), "scene", KeptShadowMap{}); }
@@ -48,7 +38,7 @@ std::size_t first_of_type(const Scene& scene, SceneObject::Type type) {
 }
 
 TEST(FramePlan, ACameraOnlyChangeReusesTheMap) {
-  RenderRequest r = builtin("three-cubes");
+  RenderRequest r = test::builtin_request("three-cubes");
   r.light.projection = LightProjection::Perspective;  // its views do not follow the camera
   const Mesh mesh = tessellate(r.scene);
   const FramePlan first = plan_frame(r, mesh, "scene", KeptShadowMap{});
@@ -88,7 +78,7 @@ TEST(FramePlan, ACameraOnlyChangeReusesTheMap) {
 }
 
 TEST(FramePlan, APlaneThatCanShadowNothingIsLeftOutOfTheShadowPass) {
-  const RenderRequest r = builtin("three-cubes");  // lit from above: the floor hides nothing
+  const RenderRequest r = test::builtin_request("three-cubes");  // lit from above: the floor hides nothing
   const Mesh mesh = tessellate(r.scene);
   const std::size_t floor = first_of_type(r.scene, SceneObject::Type::Plane);
   const FramePlan plan = fresh_plan(r);
@@ -108,7 +98,7 @@ TEST(FramePlan, APlaneThatCanShadowNothingIsLeftOutOfTheShadowPass) {
 }
 
 TEST(FramePlan, TheDepthOutputClearsWholeLayersAndDrawsEveryPlane) {
-  RenderRequest r = builtin("three-cubes");
+  RenderRequest r = test::builtin_request("three-cubes");
   r.output = Output::Depth;
   const Mesh mesh = tessellate(r.scene);
   const FramePlan plan = fresh_plan(r);
@@ -146,7 +136,7 @@ TEST(FramePlan, TheDepthOutputClearsWholeLayersAndDrawsEveryPlane) {
 }
 
 TEST(FramePlan, ReadBack) {
-  RenderRequest r = builtin("three-cubes");
+  RenderRequest r = test::builtin_request("three-cubes");
   r.width = 320;
   r.height = 200;
   const ReadBack colour = fresh_plan(r).read_back;
@@ -174,7 +164,7 @@ TEST(FramePlan, ReadBack) {
 TEST(FramePlan, AHeavyMeshIsLeftOutOfACascadeItShadowsNothingIn) {
   int dropped = 0;
   for (double time = 0.0; time < 18.0; time += 1.5) {
-    RenderRequest r = builtin("teapot");
+    RenderRequest r = test::builtin_request("teapot");
     r.time = time;
     const Mesh mesh = tessellate(r.scene);
     const std::size_t teapot = first_of_type(r.scene, SceneObject::Type::Mesh);
@@ -319,7 +309,7 @@ TEST(FramePlan, TheFloorsCellsFollowTheStencilStepsInOrder) {
   // three-cubes' floor under a light of no size (umbras, shadows of the
   // boxes' bounds, shadowable cells and others), and a second floor beside
   // it at the same height (neither hides anything from the light).
-  RenderRequest r = builtin("three-cubes");
+  RenderRequest r = test::builtin_request("three-cubes");
   SceneObject second_floor = r.scene.objects[0];
   second_floor.center = {40.0, -0.5, 0.0};
   second_floor.size = {20.0, 0.0, 20.0};
@@ -414,7 +404,7 @@ TEST(FramePlan, TheFloorsCellsFollowTheStencilStepsInOrder) {
 // The frame's shader variant is the plan's decision: the GL side builds the
 // programs it names and decides nothing.
 TEST(FramePlan, TheDisplayVariantIsDecidedInThePlan) {
-  RenderRequest shadowed = builtin("three-cubes");
+  RenderRequest shadowed = test::builtin_request("three-cubes");
   RenderRequest off = shadowed;
   off.shadow.enabled = false;
   RenderRequest shadow_output = shadowed;
@@ -429,7 +419,6 @@ TEST(FramePlan, TheDisplayVariantIsDecidedInThePlan) {
     EXPECT_EQ(plan.display.variant.perspective, expected.perspective);
     EXPECT_EQ(plan.display.variant.view_count, expected.view_count);
     EXPECT_EQ(plan.display.variant.pcf_radius, expected.pcf_radius);
-    EXPECT_EQ(plan.display.shadow_lookup, plan.display.variant.shadows) << "the steps and the program disagree";
   }
   EXPECT_TRUE(fresh_plan(shadowed).display.variant.shadows);
   EXPECT_FALSE(fresh_plan(off).display.variant.shadows);
@@ -438,7 +427,7 @@ TEST(FramePlan, TheDisplayVariantIsDecidedInThePlan) {
 }
 
 TEST(FramePlan, EachStepsProgramDerivesFromTheFramesVariant) {
-  const DisplayVariant frame = fresh_plan(builtin("three-cubes")).display.variant;
+  const DisplayVariant frame = fresh_plan(test::builtin_request("three-cubes")).display.variant;
   ASSERT_TRUE(frame.shadows);
   const DisplayVariant lit = program_variant(frame, DisplayProgram::Lit);
   EXPECT_FALSE(lit.shadows);

@@ -415,7 +415,7 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
                       pass.cell_indices.data(), GL_STREAM_DRAW);
   }
   glUseProgram(program(DisplayProgram::Frame));
-  if (pass.shadow_lookup) glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
+  if (pass.variant.shadows) glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
   glViewport(0, 0, display_.width, display_.height);
   glClearColor(pass.clear_color.r, pass.clear_color.g, pass.clear_color.b, pass.clear_color.a);

@@ -246,12 +246,11 @@ DisplayPassPlan plan_display_pass(const RenderRequest& request, const ShadowPlan
   pass.clear_color = request.output == Output::Shadow ? glm::vec4(1.0f, 1.0f, 1.0f, 1.0f)
                                                       : glm::vec4(0.11f, 0.12f, 0.14f, 1.0f);
   pass.variant = display_variant(request, light);
-  pass.shadow_lookup = request.shadow.enabled && light.direct_light;
   const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
   pass.object_draw_ms =
       object_draw_ms(request.scene, {camera.projection * camera.view}, double(request.width), double(request.height));
   CellDraws cells;
-  if (pass.shadow_lookup) cells = plane_cells_of(request, light, mesh, planes, casters);
+  if (pass.variant.shadows) cells = plane_cells_of(request, light, mesh, planes, casters);
   pass.umbras = cells.umbras;
   pass.cell_vertices = std::move(cells.vertices);
   pass.cell_indices = std::move(cells.indices);
@@ -270,7 +269,7 @@ DisplayPassPlan plan_display_pass(const RenderRequest& request, const ShadowPlan
   // the light, without it where none can. Their front faces only: a back
   // face's normal would be turned to the camera in scene.frag.
   std::vector<bool> split;
-  if (pass.shadow_lookup && closed_cull == CullMode::Back)
+  if (pass.variant.shadows && closed_cull == CullMode::Back)
     split = objects_split_by_the_light(mesh, request.camera, request.width, request.height);
   std::size_t split_count = 0, unsplit_closed = 0;
   for (const ObjectRange& r : mesh.object_ranges) {

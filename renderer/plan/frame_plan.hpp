@@ -150,11 +150,9 @@ struct DisplayPassPlan {
   int width = 0, height = 0;
   glm::vec4 clear_color{0.0f};
   /// The frame's main-pass variant (display_variant); each step's program
-  /// is it or one derived from it (program_variant).
+  /// is it or one derived from it (program_variant). `variant.shadows`:
+  /// the frame has the shadow lookup (shadows enabled, direct light).
   DisplayVariant variant;
-  /// The frame's variant has the shadow lookup (shadows enabled, direct
-  /// light): variant.shadows.
-  bool shadow_lookup = false;
   /// Per scene object: mesh_draw_ms in the camera's view.
   std::vector<double> object_draw_ms;
   /// The cells of the planes the shadow pass leaves out (receiver_cells.hpp),
