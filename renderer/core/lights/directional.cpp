@@ -16,12 +16,6 @@ namespace umbra {
 
 namespace {
 
-LightState place(const Light& light, double time) {
-  LightState state;
-  state.position = orbit_light_position(light, time);
-  return state;
-}
-
 glm::dvec3 direction_to_light(const Light& light, const glm::dvec3& light_position, const glm::dvec3&) {
   return glm::normalize(light_position - light.target);
 }
@@ -177,7 +171,7 @@ void fit_orthographic_views(ShadowPlan& plan, const RenderRequest& request, cons
 
 extern const LightKind kDirectionalLight;  // listed in lights.cpp
 const LightKind kDirectionalLight = {
-    "directional", LightProjection::Orthographic, place, direction_to_light, disc_seen_from,
+    "directional", LightProjection::Orthographic, place_on_orbit, direction_to_light, disc_seen_from,
     fit_orthographic_views,
 };
 

@@ -51,6 +51,10 @@ struct LightKind {
   void (*fit_views)(ShadowPlan& plan, const RenderRequest& request, const glm::dmat4& light_view);
 };
 
+/// The place of both orbiting kinds (point, directional): on the orbit
+/// (orbit_light_position), its light always direct.
+LightState place_on_orbit(const Light& light, double time);
+
 /// Every kind.
 const std::vector<const LightKind*>& light_kinds();
 /// The kind of `light`: a sun when it has one (a sun is orthographic,

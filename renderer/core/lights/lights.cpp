@@ -5,6 +5,12 @@ namespace umbra {
 
 extern const LightKind kPointLight, kDirectionalLight, kSunLight;
 
+LightState place_on_orbit(const Light& light, double time) {
+  LightState state;
+  state.position = orbit_light_position(light, time);
+  return state;
+}
+
 const std::vector<const LightKind*>& light_kinds() {
   static const std::vector<const LightKind*> kinds = {&kPointLight, &kDirectionalLight, &kSunLight};
   return kinds;

@@ -17,12 +17,6 @@ namespace umbra {
 
 namespace {
 
-LightState place(const Light& light, double time) {
-  LightState state;
-  state.position = orbit_light_position(light, time);
-  return state;
-}
-
 glm::dvec3 direction_to_light(const Light&, const glm::dvec3& light_position, const glm::dvec3& point) {
   return glm::normalize(light_position - point);
 }
@@ -105,7 +99,7 @@ void plan_perspective(ShadowPlan& plan, const RenderRequest& request, const glm:
 
 extern const LightKind kPointLight;  // listed in lights.cpp
 const LightKind kPointLight = {
-    "point", LightProjection::Perspective, place, direction_to_light, disc_seen_from, plan_perspective,
+    "point", LightProjection::Perspective, place_on_orbit, direction_to_light, disc_seen_from, plan_perspective,
 };
 
 }  // namespace umbra
