@@ -16,8 +16,8 @@ import sys
 
 def help_flags(binary):
     """{flag: default text or None} from `umbra-server --help`."""
-    text = subprocess.run([binary, "--help"], capture_output=True, text=True).stdout
-    text += subprocess.run([binary, "--help"], capture_output=True, text=True).stderr
+    ran = subprocess.run([binary, "--help"], capture_output=True, text=True)
+    text = ran.stdout + ran.stderr
     flags = {}
     current = None
     for line in text.split("\n"):

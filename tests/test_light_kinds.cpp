@@ -12,15 +12,12 @@
 #include "core/light_math.hpp"
 #include "core/lights/light_kind.hpp"
 #include "core/scene.hpp"
+#include "scene_support.hpp"
 
 namespace umbra {
 namespace {
 
-void expect_near(const glm::dvec3& a, const glm::dvec3& b, double tolerance = 1e-12) {
-  EXPECT_NEAR(a.x, b.x, tolerance);
-  EXPECT_NEAR(a.y, b.y, tolerance);
-  EXPECT_NEAR(a.z, b.z, tolerance);
-}
+using test::expect_near;
 
 TEST(LightKinds, NamesAreUniqueAndRoundTrip) {
   std::set<std::string> names;

@@ -11,6 +11,7 @@
 
 #include "core/light_math.hpp"
 #include "core/scene.hpp"
+#include "scene_support.hpp"
 
 namespace umbra {
 namespace {
@@ -658,11 +659,7 @@ TEST(PlanCovers, ACameraFittedMapServesOnlyWhatItHolds) {
 namespace umbra {
 namespace {
 
-void expect_near(const glm::dvec3& got, const glm::dvec3& want, double tolerance = 1e-12) {
-  EXPECT_NEAR(got.x, want.x, tolerance);
-  EXPECT_NEAR(got.y, want.y, tolerance);
-  EXPECT_NEAR(got.z, want.z, tolerance);
-}
+using test::expect_near;
 
 TEST(SunLight, SceneAxesAreNorthMinusZEastPlusXAndNorthDegTurnsClockwiseFromAbove) {
   const double s30 = std::sin(glm::radians(30.0)), c30 = std::cos(glm::radians(30.0));

@@ -11,6 +11,7 @@
 #include "core/light_math.hpp"
 #include "plan/receiver_cells.hpp"
 #include "core/scene.hpp"
+#include "scene_support.hpp"
 
 namespace umbra {
 namespace {
@@ -112,20 +113,8 @@ TEST(ReceiverCells, ManyRegionsAreMergedButEveryOneStaysShadowable) {
   EXPECT_FALSE(cell_of(99, -99));  // far from all of them
 }
 
-// A built-in scene as its own defaults show it.
-RenderRequest builtin(const char* name) {
-  RenderRequest r;
-  const BuiltinScene* s = find_builtin_scene(name);
-  r.scene.name = s->name;
-  r.scene.objects = s->objects;
-  r.camera.position = s->camera_position;
-  r.camera.target = s->camera_target;
-  r.light.position = s->light_position;
-  return r;
-}
-
 TEST(ReceiverCells, OneRegionPerViewAroundAllItsCastersHoldsThePerCasterOnes) {
-  const RenderRequest r = builtin("three-cubes");
+  const RenderRequest r = test::builtin_request("three-cubes");
   const ShadowPlan plan = plan_shadow(r);
   const Mesh mesh = tessellate(r.scene);
   std::vector<bool> drawn(mesh.bounds.size(), true);
@@ -210,17 +199,17 @@ void expect_every_readable_point_shadowable(RenderRequest r) {
 }
 
 TEST(ReceiverCells, EveryFloorPointThatCanReadACasterIsInAShadowableCell) {
-  RenderRequest sun = builtin("three-cubes");  // cascades
+  RenderRequest sun = test::builtin_request("three-cubes");  // cascades
   expect_every_readable_point_shadowable(sun);
   sun.shadow.filter = ShadowFilter::Pcss;  // reads 65 texels out
   sun.light.size = 2.0;
   expect_every_readable_point_shadowable(sun);
-  RenderRequest cone = builtin("three-cubes");  // one cone from high above
+  RenderRequest cone = test::builtin_request("three-cubes");  // one cone from high above
   cone.light.projection = LightProjection::Perspective;
   cone.light.position = {0.5, 40.0, 0.5};
   ASSERT_EQ(plan_shadow(cone).layout, ShadowLayout::Single);
   expect_every_readable_point_shadowable(cone);
-  RenderRequest faces = builtin("three-cubes");  // six faces, amid the cubes
+  RenderRequest faces = test::builtin_request("three-cubes");  // six faces, amid the cubes
   faces.light.projection = LightProjection::Perspective;
   faces.light.position = {0.2, 1.5, 0.3};
   ASSERT_EQ(plan_shadow(faces).layout, ShadowLayout::Cube);
