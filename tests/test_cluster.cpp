@@ -17,6 +17,7 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -42,17 +43,28 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-// A port no one listens on now (the kernel's pick, released at once).
-int free_port() {
+// True if a server could bind 127.0.0.1:port now (with SO_REUSEADDR, as
+// umbra-server and HAProxy do).
+bool bindable(int port) {
   const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  const int yes = 1;
+  setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   sockaddr_in address{};
   address.sin_family = AF_INET;
   address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address);
-  socklen_t length = sizeof address;
-  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
+  address.sin_port = htons(std::uint16_t(port));
+  const bool bound = bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0;
   close(fd);
-  return ntohs(address.sin_port);
+  return bound;
+}
+
+// The lowest port the kernel gives outgoing connections as their source
+// (net.ipv4.ip_local_port_range).
+int ephemeral_ports_start() {
+  std::ifstream range("/proc/sys/net/ipv4/ip_local_port_range");
+  int low = 32768;
+  range >> low;
+  return low;
 }
 
 // True if something accepts connections on 127.0.0.1:port.
@@ -68,12 +80,19 @@ bool listening(int port) {
 }
 
 // A port with `after` free ports right above it (the script's servers go
-// on port + 1 .. port + after), or 0.
+// on port + 1 .. port + after), or 0. Below the kernel's ephemeral range: a
+// port there is never handed to an outgoing connection, so one found free
+// stays free until the script binds it. (A port the kernel picked for us
+// could be taken as a source port by any client in between: render1 then
+// failed to listen, under the sanitizers.)
 int free_port_with(int after) {
-  for (int tries = 0; tries < 50; ++tries) {
-    const int p = free_port();
-    bool free = p + after < 65536;
-    for (int i = 1; i <= after && free; ++i) free = !listening(p + i);
+  const int below = ephemeral_ports_start();
+  std::mt19937 random(std::random_device{}());
+  std::uniform_int_distribution<int> pick(std::max(1024, below - 10000), below - after - 1);
+  for (int tries = 0; tries < 200; ++tries) {
+    const int p = pick(random);
+    bool free = true;
+    for (int i = 0; i <= after && free; ++i) free = bindable(p + i) && !listening(p + i);
     if (free) return p;
   }
   return 0;
