@@ -470,6 +470,13 @@ try {
     await page.mouse.move(box[0] + box[2] / 2 + 120, box[1] + box[3] / 2 + 40, { steps: 6 });
     await page.mouse.up();
     await waitForNewImages(page, before);
+    // The drag's last position is sent once the request in flight is
+    // answered: wait until the page has sent what its fields show.
+    await page.waitForFunction(() => {
+      const body = JSON.parse(window.__umbra.lastRenderBody);
+      const fields = ["cx", "cy", "cz"].map((id) => Number(document.getElementById(id).value));
+      return window.__umbra.inFlight === 0 && body.camera && body.camera.position.every((x, i) => x === fields[i]);
+    }, null, { timeout: 60000 }).catch(() => {});  // on timeout the assertions below say what differs
     const moved = await cameraInUse(page);
     assert.ok(moved.sent, "the next request has a camera");
     assert.deepEqual(moved.target, start.target, "orbiting keeps the target");
