@@ -86,6 +86,12 @@ std::string server_timing(const FrameTimings& t, double encode_ms, double queue_
     std::snprintf(buffer, sizeof buffer, ", raycast;dur=%.3f", *t.ray_cast_ms);
     timing += buffer;
   }
+  // Filter "exact": the ray cast of the pixels the maps left uncertain, on
+  // the GL thread after the passes.
+  if (t.settle_ms) {
+    std::snprintf(buffer, sizeof buffer, ", settle;dur=%.3f", *t.settle_ms);
+    timing += buffer;
+  }
   return timing;
 }
 
@@ -299,7 +305,7 @@ void HttpApi::add_cors_headers(HttpResponse& res) const {
   res.set_header("Vary", "Origin");
   res.set_header("Access-Control-Expose-Headers",
                  "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error, Umbra-Sun, "
-                 "WWW-Authenticate");
+                 "Umbra-Certified, WWW-Authenticate");
   res.set_header("Timing-Allow-Origin", options_.cors_origin);
 }
 
@@ -545,6 +551,13 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   }
   if (!result.shadow_views.empty()) res.set_header("Umbra-Shadow-Views", result.shadow_views);
   if (!sun.empty()) res.set_header("Umbra-Sun", sun);
+  if (result.certified) {
+    const CertifiedShare& c = *result.certified;
+    char buffer[160];
+    std::snprintf(buffer, sizeof buffer, "uncertain=%.4f%%, ray_cast=%zu, pixels=%zu",
+                  c.pixels > 0 ? 100.0 * double(c.ray_cast) / double(c.pixels) : 0.0, c.ray_cast, c.pixels);
+    res.set_header("Umbra-Certified", buffer);
+  }
   if (result.error) {
     const ShadowError& e = *result.error;
     // New fields go last, so that clients parsing the first ones keep working.

@@ -87,6 +87,7 @@ void Metrics::frame_answered(const std::string& output, int status, const FrameT
   stage_seconds_["encode"].observe(encode_ms / 1000.0);
   stage_seconds_["queue"].observe(queue_ms / 1000.0);
   if (timings->ray_cast_ms) stage_seconds_["raycast"].observe(*timings->ray_cast_ms / 1000.0);
+  if (timings->settle_ms) stage_seconds_["settle"].observe(*timings->settle_ms / 1000.0);
 }
 
 std::string Metrics::exposition(const MetricsGauges& g) const {
@@ -114,8 +115,8 @@ std::string Metrics::exposition(const MetricsGauges& g) const {
       sample(out, "umbra_frames_total",
              "output=\"" + escape_label_value(key.first) + "\",status=\"" + std::to_string(key.second) + "\"", double(n));
     header(out, "umbra_render_stage_seconds", "histogram",
-           "Each stage of the frames rendered: shadow, main, readback, encode, queue and, for exact and error, "
-           "raycast (beside the GL passes).");
+           "Each stage of the frames rendered: shadow, main, readback, encode, queue, for exact and error "
+           "raycast (beside the GL passes), and for filter exact settle (the ray cast of uncertain pixels).");
     for (const auto& [stage, h] : stage_seconds_)
       h.write(out, "umbra_render_stage_seconds", "stage=\"" + stage + "\"");
   }

@@ -21,6 +21,8 @@ FieldUse field_use(const RenderRequest& q, bool sun_down) {
   u.fixed = q.shadow.fit == FrustumFit::Fixed;
   u.perspective = q.light.projection == LightProjection::Perspective;
   u.filtering = u.shadowed && !u.depth;
+  // Filter "exact" reads no bias: its maps prove, or the ray cast decides.
+  u.certified = u.filtering && q.shadow.filter == ShadowFilter::Exact;
   u.pcf_used = q.shadow.filter == ShadowFilter::Pcf || (q.shadow.filter == ShadowFilter::Pcss && q.light.size == 0.0);
   // An orthographic light fitted to the scene is fitted to what the camera
   // sees: then the camera and image size shape even the depth map.
@@ -109,6 +111,7 @@ const json kOrigin = json::array({0, 0, 0});
 bool sees_camera(const FieldUse& u) { return !u.depth || u.camera_fitted; }
 bool lights_colour(const FieldUse& u) { return !u.depth; }
 bool filters(const FieldUse& u) { return u.filtering; }
+bool biases(const FieldUse& u) { return u.filtering && !u.certified; }
 bool draws_map(const FieldUse& u) { return u.shadow_pass; }
 bool fixed_map(const FieldUse& u) { return u.fixed && u.shadow_pass; }
 
@@ -238,7 +241,7 @@ std::vector<RequestField> make_request_fields() {
           .used_when(draws_map),
       R("shadow.filter", FieldType::Choice, [](Q& q, const V& v) { q.shadow.filter = ShadowFilter(v.choice); },
         "`hard`: one texel.")
-          .choices({"hard", "pcf", "pcss"})
+          .choices({"hard", "pcf", "pcss", "exact"})
           .by_default("pcf")
           .used_when(filters),
       R("shadow.pcf_radius", FieldType::Integer, [](Q& q, const V& v) { q.shadow.pcf_radius = int(v.number); },
@@ -250,27 +253,27 @@ std::vector<RequestField> make_request_fields() {
           .word("auto")
           .by_default("auto")
           .schema("BiasObject")
-          .used_when(filters),
+          .used_when(biases),
       R("shadow.bias.constant", FieldType::Number, [](Q& q, const V& v) { q.shadow.bias.constant = v.number; },
         "The smallest bias, depth-buffer units")
           .in(0.0, 1.0)
           .by_default(0.005)
-          .used_when(filters),
+          .used_when(biases),
       R("shadow.bias.slope", FieldType::Number, [](Q& q, const V& v) { q.shadow.bias.slope = v.number; },
         "The bias at grazing light is slope x (1 - N.L), depth-buffer units")
           .in(0.0, 1.0)
           .by_default(0.05)
-          .used_when(filters),
+          .used_when(biases),
       R("shadow.bias.normal_offset", FieldType::Number, [](Q& q, const V& v) { q.shadow.bias.normal_offset = v.number; },
         "Texels.")
           .in(0.0, 64.0)
           .by_default(0)
-          .used_when(filters),
+          .used_when(biases),
       R("shadow.cull", FieldType::Choice, [](Q& q, const V& v) { q.shadow.cull = CullMode(v.choice); },
         "Faces culled in the shadow pass")
           .choices({"front", "back", "none"})
           .by_default("front")
-          .used_when(draws_map),
+          .used_when([](const FieldUse& u) { return u.shadow_pass && !u.certified; }),
       R("shadow.fit", FieldType::Choice, [](Q& q, const V& v) { q.shadow.fit = FrustumFit(v.choice); },
         "`scene`: the light's views, near and far fitted to what the image needs")
           .choices({"scene", "fixed"})

@@ -68,6 +68,7 @@ struct FieldUse {
   bool fixed = false;          ///< shadow.fit "fixed"
   bool perspective = false;    ///< a perspective light
   bool filtering = false;      ///< the frame samples a shadow map (shadowed, not depth)
+  bool certified = false;      ///< ... with filter "exact": no bias, every face drawn
   bool pcf_used = false;       ///< the filter runs PCF (pcf, or pcss with an ideal light)
   bool camera_fitted = false;  ///< an orthographic light fitted to the scene: to what the camera sees
 };

@@ -608,7 +608,13 @@ void check_consistency(const RenderRequest& q, const std::set<std::string>& sent
     reject("shadow.cascades",
            "cascades split an orthographic light's map; a perspective light uses one cone or cube faces by itself");
   if (q.light.size > 0.0 && s.filter != ShadowFilter::Pcss && sent.count("shadow.filter"))
-    reject("shadow.filter", "an area light (light.size > 0) needs \"pcss\"; \"hard\" and \"pcf\" model an ideal light");
+    reject("shadow.filter", s.filter == ShadowFilter::Exact
+                                ? "\"exact\" certifies hard shadows, of a light of no size (light.size 0); an area "
+                                  "light (light.size > 0) needs \"pcss\""
+                                : "an area light (light.size > 0) needs \"pcss\"; \"hard\" and \"pcf\" model an ideal light");
+  if (s.filter == ShadowFilter::Exact && s.fit == FrustumFit::Fixed && q.light.projection == LightProjection::Perspective)
+    reject("shadow.fit", "filter \"exact\" with a point light needs shadow.fit \"scene\": a fixed frustum's near "
+                         "plane may cut casters off before the light");
 }
 
 

@@ -377,6 +377,106 @@ float pcss(View v, Receiver r) {
 }
 #endif
 
+#if FILTER == FILTER_EXACT
+#include "certificate.glsl"
+// ---------------------------------------------------------------------------
+// Filter "exact": a verdict per pixel instead of a filtered guess. The maps
+// (certify.frag) prove a point lit or shadowed, or the pixel is left to the
+// CPU's ray cast (reference/certified_frame.hpp). Why each rule is sound:
+// docs/certified-shadows.md.
+layout(location = FRAG_OUTPUT_CERTIFICATE) out uint o_certificate;
+layout(location = FRAG_OUTPUT_UNLIT) out vec4 o_unlit;
+layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
+layout(binding = TEXTURE_UNIT_CERTIFY_NEAREST) uniform sampler2DArray u_nearest;
+layout(binding = TEXTURE_UNIT_CERTIFY_NEAREST_OWNER) uniform usampler2DArray u_nearest_owner;
+layout(binding = TEXTURE_UNIT_CERTIFY_OTHERS) uniform sampler2DArray u_others;
+layout(binding = TEXTURE_UNIT_CERTIFY_CENTRE_TRIANGLE) uniform usampler2DArray u_centre_triangle;
+
+// What the camera sees at this pixel, and how far the exact surface along
+// the same camera ray may lie from the rasterised point.
+struct Seen {
+  vec3 p;                 // the rasterised point (relative to the mesh origin)
+  vec3 geometric_normal;  // its triangle's plane, facing the camera
+  int triangle;
+  uint object;
+  vec4 facts;             // object_facts
+  float reach;            // world units: the exact point lies within this of p
+};
+
+// The verdict on a point that faces the light with margin: the maps'
+// proof of light or of shadow, or none.
+uint verdict_by_maps(Seen s) {
+  View v;
+  if (!choose_view(s.p, v)) return CERTIFICATE_UNCERTAIN;
+  float depth = -v.eye.z;
+#if LIGHT_PERSPECTIVE
+  float texel_world = v.texel.x * depth;
+  float window_per_world = v.near * v.far / ((v.far - v.near) * depth * depth);
+#else
+  float texel_world = min(v.texel.x, v.texel.y);
+  float window_per_world = 1.0 / (v.far - v.near);
+#endif
+  // Where the exact point's light ray can pass: a square of texels, and
+  // a window depth, each widened by `reach`.
+  float spread = s.reach / texel_world + 1e-3;
+  if (spread > 0.5) return CERTIFICATE_UNCERTAIN;
+  vec2 t = (v.ndc.xy * 0.5 + 0.5) * u.map_size;
+  vec2 lo = t - spread, hi = t + spread;
+  float z = v.ndc.z * 0.5 + 0.5;
+  float dz = s.reach * window_per_world + 2e-6;
+  if (any(lessThan(lo, vec2(1.0))) || any(greaterThan(hi, vec2(u.map_size - 1.0))) || z - dz <= 0.0 || z + dz >= 1.0)
+    return CERTIFICATE_UNCERTAIN;
+  uint own = owner_of(s.triangle);
+  // Lit: in every texel the ray can cross, everything but the point's own
+  // owner lies behind it (conservative depths: nothing is nearer anywhere
+  // in the texel).
+  bool lit = true;
+  ivec2 first = ivec2(floor(lo)), last = ivec2(floor(hi));
+  for (int y = 0; y < 2; ++y) {
+    for (int x = 0; x < 2; ++x) {
+      ivec3 texel = ivec3(first + ivec2(x, y), v.layer);
+      if (texel.x > last.x || texel.y > last.y) continue;
+      float nearest = texelFetch(u_nearest, texel, 0).r;
+      float others = texelFetch(u_nearest_owner, texel, 0).r == own ? texelFetch(u_others, texel, 0).r : nearest;
+      lit = lit && others > z + dz;
+    }
+  }
+  if (lit) return CERTIFICATE_LIT;
+  // Shadowed: one triangle holds every texel centre around the square (so,
+  // being convex, the square too) and lies in front of the point by more
+  // than dz even at its farthest centre (a plane is affine between them).
+  // A convex object's own triangles are no proof: they are its
+  // tessellation, not the surface the reference sees.
+  ivec2 c0 = ivec2(floor(lo - 0.5)), c1 = ivec2(floor(hi - 0.5)) + 1;
+  uint triangle = texelFetch(u_centre_triangle, ivec3(c0, v.layer), 0).r;
+  if (triangle == 0u) return CERTIFICATE_UNCERTAIN;
+  bool model = has_flag(s.facts, OBJECT_FLAG_MODEL);
+  if (!model && object_of(int(triangle - 1u)) == s.object) return CERTIFICATE_UNCERTAIN;
+  float farthest = 0.0;
+  for (int y = 0; y < 3; ++y) {
+    for (int x = 0; x < 3; ++x) {
+      ivec2 c = c0 + ivec2(x, y);
+      if (c.x > c1.x || c.y > c1.y) continue;
+      if (texelFetch(u_centre_triangle, ivec3(c, v.layer), 0).r != triangle) return CERTIFICATE_UNCERTAIN;
+      farthest = max(farthest, texelFetch(u_shadow_map, ivec3(c, v.layer), 0).r);
+    }
+  }
+  return farthest < z - dz ? CERTIFICATE_DARK : CERTIFICATE_UNCERTAIN;
+}
+
+// The pixel's verdict. n_dot_l is the GL's (interpolated normal), which
+// the reference computes the same way for a model and exactly for a shape.
+uint certify(Seen s, float n_dot_l, vec3 to_light) {
+  float normal_slack = sin(s.facts.y) + 1e-4;
+  if (n_dot_l < -normal_slack) return CERTIFICATE_DARK;  // faces away: no direct light, here or exactly
+  if (n_dot_l <= normal_slack) return CERTIFICATE_UNCERTAIN;
+  // The own-owner rule holds where the point's plane faces the light, and
+  // for a closed shape only from outside.
+  if (dot(s.geometric_normal, to_light) <= normal_slack) return CERTIFICATE_UNCERTAIN;
+  if (has_flag(s.facts, OBJECT_FLAG_CLOSED) && !gl_FrontFacing) return CERTIFICATE_UNCERTAIN;
+  return verdict_by_maps(s);
+}
+#else
 // Fraction of the direct light reaching point p (1 lit, 0 shadowed).
 float shadow_visibility(vec3 p, vec3 geometric_normal, float n_dot_l) {
   // Outside every view (beside the light's frustum, before near, beyond
@@ -404,6 +504,7 @@ float shadow_visibility(vec3 p, vec3 geometric_normal, float n_dot_l) {
   return pcf(v, r, PCF_RADIUS);
 #endif
 }
+#endif  // FILTER_EXACT
 #endif  // SHADOWS
 
 void main() {
@@ -425,8 +526,39 @@ void main() {
   // taken here, outside any branch.
   vec3 geometric_normal = normalize(cross(dFdx(v_position), dFdy(v_position)));
   if (dot(geometric_normal, normal) < 0.0) geometric_normal = -geometric_normal;
+#if FILTER == FILTER_EXACT
+  Seen seen;
+  seen.p = v_position;
+  vec3 to_eye = u.camera_position.xyz - v_position;
+  seen.geometric_normal = dot(geometric_normal, to_eye) < 0.0 ? -geometric_normal : geometric_normal;
+  seen.triangle = u_triangle_base + gl_PrimitiveID;
+  seen.object = object_of(seen.triangle);
+  seen.facts = object_facts(seen.object);
+  // The exact surface along this pixel's camera ray: within the shape's
+  // tessellation distance of the face (further along a ray that meets the
+  // face obliquely; a curved shape seen at a grazing angle is left to the
+  // ray cast), and within rounding: 1/50 of the pixel's footprint on the
+  // surface (the rasteriser snaps vertices to 1/256 pixel) and float
+  // rounding: about 10 ulps of the coordinates involved (the object's
+  // extent, the point's and the camera's), and for a model more than the
+  // reference's offset off its surface (256 ulps of its extent,
+  // offset_off_surface).
+  float cos_view = abs(dot(normalize(to_eye), seen.geometric_normal));
+  float rounding = has_flag(seen.facts, OBJECT_FLAG_MODEL) ? 3e-5 : 1e-6;
+  seen.reach = seen.facts.x / max(cos_view, 0.2) + 0.02 * (length(dFdx(v_position)) + length(dFdy(v_position))) +
+               rounding * seen.facts.w + 1e-6 * (length(v_position) + length(to_eye));
+  uint verdict = seen.facts.x > 0.0 && cos_view < 0.2 ? CERTIFICATE_UNCERTAIN : certify(seen, n_dot_l, to_light);
+  // Which side of the light the surface turns to: the reference's camera
+  // ray may meet the face beside a crease instead (the CPU casts where
+  // this or the object changes between pixels).
+  o_certificate = ((seen.object + 1u) << 3) | (n_dot_l > 0.0 ? 4u : 0u) | verdict;
+  // The ray cast settles an uncertain pixel: drawn lit here, and unlit in
+  // o_unlit, for the CPU to pick from.
+  float visibility = verdict == CERTIFICATE_DARK ? 0.0 : 1.0;
+#else
   // Surfaces facing away from the light get no direct light at all.
   float visibility = n_dot_l > 0.0 ? shadow_visibility(v_position, geometric_normal, n_dot_l) : 0.0;
+#endif
 #elif DIRECT_LIGHT
   float visibility = n_dot_l > 0.0 ? 1.0 : 0.0;
 #else
@@ -446,5 +578,11 @@ void main() {
   vec3 specular = n_dot_l > 0.0 ? direct * 0.25 * pow(max(dot(normal, halfway), 0.0), 64.0) * light_color : vec3(0.0);
   vec3 lighting = (ambient * light_color + visibility * (diffuse + specular)) * albedo;
   o_color = vec4(clamp(lighting, 0.0, 1.0), 1.0);
+#if SHADOWS && FILTER == FILTER_EXACT
+  o_unlit = vec4(clamp(ambient * light_color * albedo, 0.0, 1.0), 1.0);
+#endif
+#endif
+#if OUTPUT_SHADOW && SHADOWS && FILTER == FILTER_EXACT
+  o_unlit = vec4(0.0, 0.0, 0.0, 1.0);
 #endif
 }

@@ -445,5 +445,44 @@ TEST(FramePlan, EachStepsProgramDerivesFromTheFramesVariant) {
   EXPECT_EQ(program_variant(frame, DisplayProgram::Frame).filter, frame.filter);
 }
 
+// Filter "exact": the certified maps of every view, whole, every object
+// but the planes that shadow nothing; one main-pass step with the
+// certificates read back; nothing reused or kept.
+TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {
+  RenderRequest r = test::builtin_request("three-cubes");
+  r.shadow.filter = ShadowFilter::Exact;
+  const Mesh mesh = tessellate(r.scene);
+  const FramePlan plan = plan_frame(r, mesh, "scene", KeptShadowMap{});
+  EXPECT_TRUE(plan.shadow.certify);
+  EXPECT_FALSE(plan.shadow.reused);
+  EXPECT_FALSE(plan.shadow.kept_after.holds_plan);
+  ASSERT_EQ(plan.shadow.layers.size(), plan.light.views.size());
+  for (const ShadowLayerDraw& layer : plan.shadow.layers) {
+    EXPECT_TRUE(layer.clear_whole);
+    for (const DrawRange& draw : layer.draws) EXPECT_EQ(draw.cull, CullMode::None);
+  }
+  EXPECT_TRUE(plan.display.certificates);
+  ASSERT_EQ(plan.display.steps.size(), 1u);
+  EXPECT_EQ(plan.display.steps[0].kind, DisplayStep::Kind::Objects);
+  EXPECT_EQ(plan.display.umbras, 0u);
+  EXPECT_TRUE(plan.display.cell_indices.empty());
+  EXPECT_EQ(plan.display.variant.filter, ShadowFilter::Exact);
+  EXPECT_TRUE(plan.read_back.certificates);
+  EXPECT_TRUE(plan.read_back.unlit);
+  // The floor shadows nothing (every cube stands on it): left out.
+  std::size_t drawn = 0;
+  for (const DrawRange& draw : plan.shadow.layers[0].draws) drawn += draw.count;
+  EXPECT_LT(drawn, mesh.closed_index_count + mesh.open_index_count);
+  // The shadow output reads no unlit colours; the depth output and a frame
+  // without shadows are not certified.
+  r.output = Output::Shadow;
+  EXPECT_FALSE(plan_frame(r, mesh, "scene", KeptShadowMap{}).read_back.unlit);
+  r.output = Output::Depth;
+  EXPECT_FALSE(plan_frame(r, mesh, "scene", KeptShadowMap{}).shadow.certify);
+  r.output = Output::Color;
+  r.shadow.enabled = false;
+  EXPECT_FALSE(plan_frame(r, mesh, "scene", KeptShadowMap{}).display.certificates);
+}
+
 }  // namespace
 }  // namespace umbra

@@ -592,3 +592,29 @@ TEST(RequestParser, AHugeStringOrKeyIsQuotedBackCutShort) {
 
 }  // namespace
 }  // namespace umbra
+
+namespace umbra {
+namespace {
+
+// Filter "exact" (docs/certified-shadows.md): hard shadows only, and a
+// point light's views fitted to the scene; it reads no bias, radius or cull.
+TEST(RequestParser, FilterExactIsForALightOfNoSizeAndAFittedPointLight) {
+  ParsedRequest ok = parse_render_request(R"({"shadow": {"filter": "exact", "pcf_radius": 2, "cull": "back"}})");
+  ASSERT_TRUE(ok.ok()) << ok.error.message;
+  EXPECT_EQ(ok.request->shadow.filter, ShadowFilter::Exact);
+  for (const char* unused : {"shadow.pcf_radius", "shadow.cull"})
+    EXPECT_NE(std::find(ok.unused_fields.begin(), ok.unused_fields.end(), unused), ok.unused_fields.end()) << unused;
+  ParsedRequest area = parse_render_request(R"({"light": {"size": 2}, "shadow": {"filter": "exact"}})");
+  ASSERT_FALSE(area.ok());
+  EXPECT_EQ(area.error.field, "shadow.filter");
+  EXPECT_NE(area.error.message.find("light.size 0"), std::string::npos) << area.error.message;
+  ParsedRequest fixed = parse_render_request(
+      R"({"light": {"projection": "perspective"}, "shadow": {"filter": "exact", "fit": "fixed"}})");
+  ASSERT_FALSE(fixed.ok());
+  EXPECT_EQ(fixed.error.field, "shadow.fit");
+  // An orthographic light with a fixed frustum is certified like any other.
+  EXPECT_TRUE(parse_render_request(R"({"shadow": {"filter": "exact", "fit": "fixed"}})").ok());
+}
+
+}  // namespace
+}  // namespace umbra

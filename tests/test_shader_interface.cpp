@@ -254,8 +254,11 @@ TEST(ShaderFiles, NameNoNumberOfTheirOwnForALocationOrBinding) {
       EXPECT_TRUE(m[1].matched) << name << ":" << number << " leaves its number to GL: " << line;
     }
   }
-  // a_position twice, a_normal, a_color, o_color twice, u_layer, u_shadow_map twice.
-  EXPECT_EQ(declarations, 9);
+  // a_position twice, a_normal, a_color, o_color twice, u_layer, u_shadow_map twice; filter "exact"'s:
+  // certificate.glsl's two buffer textures, certify.geom's u_layer and u_triangle_base, certify.frag's
+  // u_triangle_base, o_triangle, u_layer, o_owner and u_nearest_owner, scene.frag's o_certificate,
+  // o_unlit, u_triangle_base and four maps.
+  EXPECT_EQ(declarations, 25);
 }
 
 }  // namespace

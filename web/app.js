@@ -185,6 +185,7 @@ async function post(path, body) {
     sun: response.headers.get("Umbra-Sun"),
     views: response.headers.get("Umbra-Shadow-Views"),
     figures: response.headers.get("Umbra-Shadow-Error"),
+    certified: response.headers.get("Umbra-Certified"),
   };
 }
 
@@ -252,8 +253,10 @@ async function requestFrame() {
     const ms = performance.now() - started;
     const fps = state.playing ? ` · ${(1000 / ms).toFixed(1)} frames/s` : "";
     $("timing").textContent =
-      `server: shadow ${fmt(t.shadow)} · main ${fmt(t.main)} · readback ${fmt(t.readback)} · encode ${fmt(t.encode)} ms` +
+      `server: shadow ${fmt(t.shadow)} · main ${fmt(t.main)} · readback ${fmt(t.readback)} · encode ${fmt(t.encode)}` +
+      (t.settle !== undefined ? ` · settle ${fmt(t.settle)}` : "") + " ms" +
       ` · round trip ${ms.toFixed(0)} ms${fps}` + (frame.views ? ` · light views: ${frame.views}` : "") +
+      (frame.certified ? ` · ${certifiedText(frame.certified)}` : "") +
       (frame.unused ? ` · unused: ${frame.unused}` : "");
     $("frame-info").textContent = `(${body.output}, t = ${body.time.toFixed(2)} s)`;
     clearError();
@@ -269,6 +272,15 @@ async function requestFrame() {
 
 function fmt(v) {
   return v === undefined ? "–" : v.toFixed(1);
+}
+
+// Filter "exact": "uncertain=0.2288%, ray_cast=1186, pixels=518400" ->
+// "certified: 0.2288 % of pixels ray cast (1,186 of 518,400)".
+function certifiedText(header) {
+  const f = parseFigures(header);
+  if (!("uncertain" in f)) return `certified: ${header}`;
+  const count = (key) => (/^\d+$/.test(f[key] || "") ? Number(f[key]).toLocaleString("en") : "?");
+  return `certified: ${f.uncertain.replace("%", " %")} of pixels ray cast (${count("ray_cast")} of ${count("pixels")})`;
 }
 
 function togglePlay() {
@@ -908,7 +920,7 @@ function fieldsHeld() {
 }
 
 // A light's size softens shadows with the PCSS filter only (the server
-// refuses a size with "pcf" or "hard"): setting a size chooses PCSS, and
+// refuses a size with "pcf", "hard" or "exact"): setting a size chooses PCSS, and
 // choosing another filter afterwards says that the size is not used.
 function syncSizeNote(changed) {
   const soft = number("size") > 0 && $("enabled").checked;

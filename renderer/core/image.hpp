@@ -55,6 +55,9 @@ struct FrameTimings {
   /// The CPU ray cast of the exact reference ("exact", "error"), which runs
   /// beside the GL passes, not inside any of them; nullopt when none ran.
   std::optional<double> ray_cast_ms;
+  /// Filter "exact": the CPU ray cast of the pixels the shadow maps could
+  /// not settle (reference/certified_frame.hpp); nullopt for other filters.
+  std::optional<double> settle_ms;
 };
 
 }  // namespace umbra

@@ -106,6 +106,9 @@ int filter_reach_texels(const ShadowSettings& shadow) {
     case ShadowFilter::Hard: return 1;
     case ShadowFilter::Pcf: return shadow.pcf_radius + 1;
     case ShadowFilter::Pcss: return kPcssSearchTexels + 1;  // the blocker search's reach
+    // The certificate reads the texels a point's footprint (at most 1.5
+    // texels wide) and the texel centres around it meet.
+    case ShadowFilter::Exact: return 2;
   }
   return 1;
 }
@@ -116,6 +119,7 @@ int filter_read_texels(const ShadowSettings& shadow) {
     // Bilinear taps R texels out read one texel further, rounded up.
     case ShadowFilter::Pcf: return shadow.pcf_radius + 2;
     case ShadowFilter::Pcss: return std::max(kPcssSearchTexels, kPcssMaxPenumbraTexels) + 1;
+    case ShadowFilter::Exact: return 2;
   }
   return 1;
 }

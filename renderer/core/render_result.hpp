@@ -3,7 +3,9 @@
 
 #include <cstddef>
 #include <optional>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "core/image.hpp"
 
@@ -47,6 +49,28 @@ struct ShadowError {
   double artifacts = 0.0;
 };
 
+/// Filter "exact": what the main pass proved of each pixel, read back
+/// beside the image for the CPU to settle the rest
+/// (reference/certified_frame.hpp).
+struct PixelCertificates {
+  /// Per pixel (width x height, row 0 at the top): (object + 1) << 3 |
+  /// facing << 2 | verdict: object = the scene object the pixel sees (0:
+  /// none, the background), facing = 1 where its surface turns towards the
+  /// light (N.L > 0), verdict = kCertainlyLit, kCertainlyDark or kUncertain.
+  std::vector<std::uint32_t> codes;
+  /// The colour output only: each pixel shaded with visibility 0 (ambient
+  /// alone), what an uncertain pixel that the ray cast finds dark shows.
+  /// `image` holds it shaded with visibility 1 there.
+  Image unlit;
+  static constexpr std::uint32_t kCertainlyLit = 0, kCertainlyDark = 1, kUncertain = 2;
+};
+
+/// How filter "exact" settled a frame's pixels.
+struct CertifiedShare {
+  std::size_t pixels = 0;     ///< width x height
+  std::size_t ray_cast = 0;   ///< pixels the maps could not settle (or on a silhouette), ray cast
+};
+
 struct RenderResult {
   Image image;
   FrameTimings timings;
@@ -69,6 +93,10 @@ struct RenderResult {
   /// (renderer/plan/umbras.hpp): where a box or sphere hides a light of no size
   /// from a floor.
   std::size_t umbras = 0;
+  /// Filter "exact", before the CPU settles it: the main pass's verdicts.
+  std::optional<PixelCertificates> certificates;
+  /// Filter "exact", once settled: how many pixels were ray cast.
+  std::optional<CertifiedShare> certified;
 };
 
 }  // namespace umbra

@@ -131,6 +131,11 @@ enum class ShadowFilter {
   /// Percentage-closer soft shadows: penumbra width from light.size and the
   /// average blocker distance.
   Pcss,
+  /// Certified hard shadows (a light of no size only): each pixel the
+  /// shadow maps prove lit or shadowed takes that answer, every other one
+  /// is ray cast, so the shadow term equals the exact reference's
+  /// (docs/certified-shadows.md).
+  Exact,
 };
 
 enum class CullMode { Front, Back, None };

@@ -1,5 +1,7 @@
 #include "gpu/program.hpp"
 
+#include <algorithm>
+#include <optional>
 #include <stdexcept>
 
 #include "gpu/embedded_shaders.hpp"
@@ -39,11 +41,41 @@ std::string_view embedded(std::string_view file) {
   return source;
 }
 
+// `file`'s text with each line `#include "name"` replaced by the embedded
+// file `name` (one level: GLSL has no includes of its own), line numbers
+// kept for compile errors.
+std::string with_includes(std::string_view file) {
+  const std::string_view text = embedded(file);
+  std::string out;
+  std::size_t line = 1, at = 0;
+  while (at < text.size()) {
+    const std::size_t end = std::min(text.find('\n', at), text.size());
+    const std::string_view current = text.substr(at, end - at);
+    constexpr std::string_view kInclude = "#include \"";
+    if (current.substr(0, kInclude.size()) == kInclude && current.back() == '"') {
+      out += embedded(current.substr(kInclude.size(), current.size() - kInclude.size() - 1));
+      out += "\n#line " + std::to_string(line + 1) + "\n";
+    } else {
+      out += current;
+      out += '\n';
+    }
+    ++line;
+    at = end + 1;
+  }
+  return out;
+}
+
 }  // namespace
 
 Program build_program(std::string_view vertex_file, std::string_view fragment_file, const std::string& prelude) {
-  Program program = build_program_from_sources(vertex_file, prelude + std::string(embedded(vertex_file)),
-                                               fragment_file, prelude + std::string(embedded(fragment_file)));
+  return build_program(vertex_file, "", fragment_file, prelude);
+}
+
+Program build_program(std::string_view vertex_file, std::string_view geometry_file, std::string_view fragment_file,
+                      const std::string& prelude) {
+  Program program = build_program_from_sources(
+      vertex_file, prelude + with_includes(vertex_file), fragment_file, prelude + with_includes(fragment_file),
+      geometry_file, geometry_file.empty() ? std::string() : prelude + with_includes(geometry_file));
   check_block_layout(program);
   check_bindings(program);
   return program;
@@ -55,7 +87,7 @@ const Program& ProgramVariants::get(const std::string& defines) {
     kept_.splice(kept_.begin(), kept_, it);
     return kept_.front().second;
   }
-  Program built = build_program(vertex_file_, fragment_file_, glsl_prelude(defines));
+  Program built = build_program(vertex_file_, geometry_file_, fragment_file_, glsl_prelude(defines));
   // Room first, so the program returned is never the one evicted.
   while (!kept_.empty() && kept_.size() >= capacity_) kept_.pop_back();
   kept_.emplace_front(defines, std::move(built));
@@ -89,12 +121,18 @@ void check_block_layout(const Program& program) {
 }
 
 Program build_program_from_sources(std::string_view vertex_file, std::string_view vertex_source,
-                                   std::string_view fragment_file, std::string_view fragment_source) {
+                                   std::string_view fragment_file, std::string_view fragment_source,
+                                   std::string_view geometry_file, std::string_view geometry_source) {
   const Shader vertex = compile(GL_VERTEX_SHADER, vertex_file, vertex_source);
   const Shader fragment = compile(GL_FRAGMENT_SHADER, fragment_file, fragment_source);
   Program program(glCreateProgram());
   glAttachShader(program.id(), vertex.id());
   glAttachShader(program.id(), fragment.id());
+  std::optional<Shader> geometry;
+  if (!geometry_source.empty()) {
+    geometry.emplace(compile(GL_GEOMETRY_SHADER, geometry_file, geometry_source));
+    glAttachShader(program.id(), geometry->id());
+  }
   glLinkProgram(program.id());
   GLint ok = GL_FALSE;
   glGetProgramiv(program.id(), GL_LINK_STATUS, &ok);
@@ -118,11 +156,19 @@ void check_bindings(const Program& program) {
   if (output >= 0 && output != kFragOutputColor) refuse("output o_color", output, kFragOutputColor);
   const GLint layer = glGetUniformLocation(id, "u_layer");
   if (layer >= 0 && layer != kUniformLocationLayer) refuse("uniform u_layer's location", layer, kUniformLocationLayer);
-  const GLint shadow_map = glGetUniformLocation(id, "u_shadow_map");
-  if (shadow_map >= 0) {
+  for (const auto& [name, cxx] : {std::pair{"o_certificate", kFragOutputCertificate}, std::pair{"o_unlit", kFragOutputUnlit}}) {
+    const GLint at = glGetFragDataLocation(id, name);
+    if (at >= 0 && at != cxx) refuse(std::string("output ") + name, at, cxx);
+  }
+  const GLint base = glGetUniformLocation(id, "u_triangle_base");
+  if (base >= 0 && base != kUniformLocationTriangleBase)
+    refuse("uniform u_triangle_base's location", base, kUniformLocationTriangleBase);
+  for (const TextureUnit& texture : kTextureUnits) {
+    const GLint sampler = glGetUniformLocation(id, texture.glsl_name);
+    if (sampler < 0) continue;
     GLint unit = -1;
-    glGetUniformiv(id, shadow_map, &unit);
-    if (unit != kTextureUnitShadowMap) refuse("u_shadow_map's texture unit", unit, kTextureUnitShadowMap);
+    glGetUniformiv(id, sampler, &unit);
+    if (unit != texture.unit) refuse(std::string(texture.glsl_name) + "'s texture unit", unit, texture.unit);
   }
   const GLuint block = glGetUniformBlockIndex(id, "FrameBlock");
   if (block != GL_INVALID_INDEX) {

@@ -16,11 +16,16 @@ namespace umbra::gl {
 /// their own). Throws std::runtime_error carrying the GLSL compile or link
 /// log, or naming a FrameBlock member whose layout differs from C++'s, or
 /// a binding that differs from C++'s (check_bindings).
+/// A line `#include "name"` in a file is replaced by the embedded file `name`.
 Program build_program(std::string_view vertex_file, std::string_view fragment_file, const std::string& prelude);
+/// The same with a geometry shader (none if `geometry_file` is empty).
+Program build_program(std::string_view vertex_file, std::string_view geometry_file, std::string_view fragment_file,
+                      const std::string& prelude);
 
 /// The same from sources in memory; the names only label error messages.
 Program build_program_from_sources(std::string_view vertex_name, std::string_view vertex_source,
-                                   std::string_view fragment_name, std::string_view fragment_source);
+                                   std::string_view fragment_name, std::string_view fragment_source,
+                                   std::string_view geometry_name = {}, std::string_view geometry_source = {});
 
 /// The variants of one vertex + fragment pair, built when first asked for,
 /// each selected by its #define lines; the `capacity` most recently used are
@@ -29,13 +34,19 @@ class ProgramVariants {
  public:
   ProgramVariants(std::string vertex_file, std::string fragment_file, std::size_t capacity)
       : vertex_file_(std::move(vertex_file)), fragment_file_(std::move(fragment_file)), capacity_(capacity) {}
+  /// With a geometry shader.
+  ProgramVariants(std::string vertex_file, std::string geometry_file, std::string fragment_file, std::size_t capacity)
+      : vertex_file_(std::move(vertex_file)),
+        geometry_file_(std::move(geometry_file)),
+        fragment_file_(std::move(fragment_file)),
+        capacity_(capacity) {}
   /// The program for `defines`, built with glsl_prelude(defines) if it is
   /// not kept; throws as build_program does.
   const Program& get(const std::string& defines);
   std::size_t size() const { return kept_.size(); }
 
  private:
-  std::string vertex_file_, fragment_file_;
+  std::string vertex_file_, geometry_file_, fragment_file_;
   std::size_t capacity_;
   std::list<std::pair<std::string, Program>> kept_;  // most recently used first
 };

@@ -1,9 +1,14 @@
 #include "gpu/shader_interface.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
 
 #include <glm/ext/matrix_transform.hpp>
+
+#include "core/render_result.hpp"
+#include "core/shapes/shape.hpp"
 
 namespace umbra {
 
@@ -30,6 +35,7 @@ int filter_code(ShadowFilter filter) {
     case ShadowFilter::Hard: return 0;
     case ShadowFilter::Pcf: return 1;
     case ShadowFilter::Pcss: return 2;
+    case ShadowFilter::Exact: return 3;
   }
   return 1;
 }
@@ -111,6 +117,27 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   return b;
 }
 
+std::string variant_defines(CertifyPass pass, bool perspective) {
+  return "#define CERTIFY_PASS " + std::to_string(int(pass)) + "\n#define LIGHT_PERSPECTIVE " +
+         std::to_string(int(perspective)) + "\n";
+}
+
+std::vector<glm::vec4> object_facts(const Scene& scene, const glm::dvec3& origin) {
+  std::vector<glm::vec4> facts;
+  facts.reserve(scene.objects.size());
+  for (const SceneObject& o : scene.objects) {
+    const TessellationError error = tessellation_error(o);
+    const Aabb b = object_bounds(o);
+    double extent = 0.0;
+    for (int i = 0; i < 3; ++i)
+      extent = std::max({extent, std::abs(b.min[i] - origin[i]), std::abs(b.max[i] - origin[i])});
+    const bool model = o.type == SceneObject::Type::Mesh;
+    const int flags = (model ? kObjectFlagModel : 0) | (shape_kind(o.type).closed(o) ? kObjectFlagClosed : 0);
+    facts.emplace_back(float(error.distance), float(error.normal_angle), float(flags), float(extent));
+  }
+  return facts;
+}
+
 std::string variant_defines(const PreviewVariant& v) {
   std::ostringstream d;
   d << "#define LIGHT_PERSPECTIVE " << int(v.perspective) << "\n"
@@ -129,6 +156,7 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define FILTER_HARD " << filter_code(ShadowFilter::Hard) << "\n"
     << "#define FILTER_PCF " << filter_code(ShadowFilter::Pcf) << "\n"
     << "#define FILTER_PCSS " << filter_code(ShadowFilter::Pcss) << "\n"
+    << "#define FILTER_EXACT " << filter_code(ShadowFilter::Exact) << "\n"
     // A cube face's layer from its axis (0 x, 1 y, 2 z) and whether it
     // looks towards minus: cube_face in core/shader_facts.hpp.
     << "#define CUBE_FACE(axis, negative) (" << cube_face(1, false) << " * (axis) + ((negative) ? "
@@ -137,7 +165,19 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define ATTRIB_NORMAL " << kAttribNormal << "\n"
     << "#define ATTRIB_COLOR " << kAttribColor << "\n"
     << "#define FRAG_OUTPUT_COLOR " << kFragOutputColor << "\n"
-    << "#define TEXTURE_UNIT_SHADOW_MAP " << kTextureUnitShadowMap << "\n"
+    << "#define FRAG_OUTPUT_CERTIFICATE " << kFragOutputCertificate << "\n"
+    << "#define FRAG_OUTPUT_UNLIT " << kFragOutputUnlit << "\n"
+    << "#define UNIFORM_LOCATION_TRIANGLE_BASE " << kUniformLocationTriangleBase << "\n"
+    << "#define CERTIFICATE_LIT " << PixelCertificates::kCertainlyLit << "u\n"
+    << "#define CERTIFICATE_DARK " << PixelCertificates::kCertainlyDark << "u\n"
+    << "#define CERTIFICATE_UNCERTAIN " << PixelCertificates::kUncertain << "u\n"
+    << "#define OBJECT_FLAG_MODEL " << kObjectFlagModel << "\n"
+    << "#define OBJECT_FLAG_CLOSED " << kObjectFlagClosed << "\n"
+    << "#define CERTIFY_CENTRE " << int(CertifyPass::Centre) << "\n"
+    << "#define CERTIFY_NEAREST " << int(CertifyPass::Nearest) << "\n"
+    << "#define CERTIFY_OTHERS " << int(CertifyPass::Others) << "\n";
+  for (const TextureUnit& unit : kTextureUnits) s << "#define " << unit.define << " " << unit.unit << "\n";
+  s
     << "#define UNIFORM_LOCATION_LAYER " << kUniformLocationLayer << "\n"
     << "#define UNIFORM_BUFFER_FRAME_BLOCK " << kUniformBufferFrameBlock << "\n"
     << extra_defines << kFrameBlockGlsl

@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
@@ -61,6 +62,51 @@ inline constexpr int kTextureUnitShadowMap = 0;
 inline constexpr int kUniformLocationLayer = 0;
 /// The uniform buffer binding of FrameBlock (UNIFORM_BUFFER_FRAME_BLOCK).
 inline constexpr int kUniformBufferFrameBlock = 0;
+
+// Filter "exact" (docs/certified-shadows.md).
+/// The main pass's certificate output (FRAG_OUTPUT_CERTIFICATE): o_certificate,
+/// a uint (PixelCertificates::codes); and the pixel shaded with
+/// visibility 0 (FRAG_OUTPUT_UNLIT): o_unlit.
+inline constexpr int kFragOutputCertificate = 1;
+inline constexpr int kFragOutputUnlit = 2;
+/// u_triangle_base's location (UNIFORM_LOCATION_TRIANGLE_BASE): the first
+/// triangle of a draw (its first index / 3), so that first +
+/// gl_PrimitiveID names a triangle of the scene's index buffer.
+inline constexpr int kUniformLocationTriangleBase = 1;
+inline constexpr int kTextureUnitCertifyNearest = 1;
+inline constexpr int kTextureUnitCertifyNearestOwner = 2;
+inline constexpr int kTextureUnitCertifyOthers = 3;
+inline constexpr int kTextureUnitCertifyCentreTriangle = 4;
+inline constexpr int kTextureUnitTriangleObjects = 5;
+inline constexpr int kTextureUnitObjectFacts = 6;
+/// Every texture unit a shader binds, with its sampler's GLSL name and
+/// the #define that carries it.
+struct TextureUnit {
+  const char* glsl_name;
+  const char* define;
+  int unit;
+};
+inline constexpr TextureUnit kTextureUnits[] = {
+    {"u_shadow_map", "TEXTURE_UNIT_SHADOW_MAP", kTextureUnitShadowMap},
+    // The conservative maps (certify.frag): nearest depth and its owner,
+    // the others' nearest depth, the triangle at each texel centre.
+    {"u_nearest", "TEXTURE_UNIT_CERTIFY_NEAREST", kTextureUnitCertifyNearest},
+    {"u_nearest_owner", "TEXTURE_UNIT_CERTIFY_NEAREST_OWNER", kTextureUnitCertifyNearestOwner},
+    {"u_others", "TEXTURE_UNIT_CERTIFY_OTHERS", kTextureUnitCertifyOthers},
+    {"u_centre_triangle", "TEXTURE_UNIT_CERTIFY_CENTRE_TRIANGLE", kTextureUnitCertifyCentreTriangle},
+    // Buffer textures of the scene: each triangle's object, each object's facts.
+    {"u_triangle_objects", "TEXTURE_UNIT_TRIANGLE_OBJECTS", kTextureUnitTriangleObjects},
+    {"u_object_facts", "TEXTURE_UNIT_OBJECT_FACTS", kTextureUnitObjectFacts},
+};
+/// certificate.glsl's object facts: flags in z (OBJECT_FLAG_MODEL, OBJECT_FLAG_CLOSED).
+inline constexpr int kObjectFlagModel = 1;
+inline constexpr int kObjectFlagClosed = 2;
+/// certify.frag's passes (CERTIFY_PASS: CERTIFY_CENTRE, _NEAREST, _OTHERS).
+enum class CertifyPass { Centre = 0, Nearest = 1, Others = 2 };
+std::string variant_defines(CertifyPass pass, bool perspective);
+/// Per object of `scene`, certificate.glsl's facts (4 floats each), for
+/// positions relative to `origin`.
+std::vector<glm::vec4> object_facts(const Scene& scene, const glm::dvec3& origin);
 
 // ---------------------------------------------------------------------------
 // The uniform block, one per frame, shared by every program (binding

@@ -66,13 +66,39 @@ void set_cull(CullMode cull) {
   }
 }
 
-void draw_indices(std::size_t first, std::size_t count) {
+void draw_elements(std::size_t first, std::size_t count) {
   if (count > 0)
     glDrawElements(GL_TRIANGLES, GLsizei(count), GL_UNSIGNED_INT,
                    reinterpret_cast<const void*>(first * sizeof(std::uint32_t)));
 }
 
+// A texture array of `layers` layers of size^2 texels, read texel by texel.
+gl::Texture texel_array(GLenum format, int size, int layers) {
+  gl::Texture texture = gl::create_texture(GL_TEXTURE_2D_ARRAY);
+  glTextureStorage3D(texture.id(), 1, format, size, size, layers);
+  // Nearest: an integer texture with any other filter is incomplete.
+  glTextureParameteri(texture.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTextureParameteri(texture.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTextureParameteri(texture.id(), GL_TEXTURE_COMPARE_MODE, GL_NONE);
+  return texture;
+}
+
+// A buffer texture of `format` holding `bytes` from `data`.
+void make_buffer_texture(gl::Buffer& buffer, gl::Texture& texture, GLenum format, const void* data, std::size_t bytes) {
+  buffer = gl::create_buffer();
+  glNamedBufferStorage(buffer.id(), GLsizeiptr(std::max<std::size_t>(bytes, 16)), nullptr, GL_DYNAMIC_STORAGE_BIT);
+  if (bytes > 0) glNamedBufferSubData(buffer.id(), 0, GLsizeiptr(bytes), data);
+  texture = gl::create_texture(GL_TEXTURE_BUFFER);
+  glTextureBuffer(texture.id(), format, buffer.id());
+}
+
 }  // namespace
+
+void ShadowRenderer::draw_indices(std::size_t first, std::size_t count) {
+  if (count == 0) return;
+  if (set_triangle_base_) glUniform1i(kUniformLocationTriangleBase, GLint(first / 3));
+  draw_elements(first, count);
+}
 
 ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_bytes_(scene_cache_bytes) {
   shadow_.program = gl::build_program("shadow_depth.vert", "shadow_depth.frag", glsl_prelude(""));
@@ -148,16 +174,22 @@ std::uint64_t ShadowRenderer::shadow_map_bytes() const {
 }
 
 std::uint64_t ShadowRenderer::display_bytes() const {
-  // RGBA8, and 32F depth with an 8-bit stencil (llvmpipe stores the pair in 8 bytes)
-  return std::uint64_t(display_.width) * std::uint64_t(display_.height) * (4 + 8);
+  // RGBA8, and 32F depth with an 8-bit stencil (llvmpipe stores the pair in
+  // 8 bytes); a certified frame's R32UI and RGBA8 beside them.
+  const std::uint64_t certified = display_.certificate ? 4 + 4 : 0;
+  return std::uint64_t(display_.width) * std::uint64_t(display_.height) * (4 + 8 + certified);
 }
 
 std::uint64_t ShadowRenderer::depth_preview_bytes() const {
   return std::uint64_t(preview_.size) * std::uint64_t(preview_.size) * std::uint64_t(preview_.bits / 8);
 }
 
+std::uint64_t ShadowRenderer::certify_bytes() const {
+  return std::uint64_t(certify_.size) * std::uint64_t(certify_.size) * std::uint64_t(certify_.layers) * 4 * 4;
+}
+
 std::uint64_t ShadowRenderer::cached_bytes() const {
-  return scenes_.bytes() + shadow_map_bytes() + display_bytes() + depth_preview_bytes();
+  return scenes_.bytes() + shadow_map_bytes() + display_bytes() + depth_preview_bytes() + certify_bytes();
 }
 
 std::uint64_t ShadowRenderer::bytes_reused_by(const RenderRequest& request) const {
@@ -188,12 +220,21 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
     shadow_.depth_map.reset();
     shadow_.size = shadow_.layers = 0;
     shadow_.kept = {};
+    released_gl_bytes_ += certify_bytes();
+    certify_.framebuffer.reset();
+    certify_.centre_triangle.reset();
+    certify_.nearest_depth.reset();
+    certify_.nearest_owner.reset();
+    certify_.others_depth.reset();
+    certify_.size = certify_.layers = 0;
   }
   if (cached_bytes() > max_bytes) {
     released_gl_bytes_ += display_bytes();
     display_.framebuffer.reset();
     display_.color.reset();
     display_.depth.reset();
+    display_.certificate.reset();
+    display_.unlit.reset();
     display_.width = display_.height = 0;
   }
   evict_scenes_to(max_bytes, 0);
@@ -248,6 +289,9 @@ void ShadowRenderer::resize_shadow_map(int size, int layers) {
 void ShadowRenderer::resize_display(int width, int height) {
   if (display_.width == width && display_.height == height) return;
   released_gl_bytes_ += display_bytes();
+  // A certified frame attaches its own targets of the new size.
+  display_.certificate.reset();
+  display_.unlit.reset();
   display_.color = gl::create_renderbuffer();
   display_.depth = gl::create_renderbuffer();
   glNamedRenderbufferStorage(display_.color.id(), GL_RGBA8, width, height);
@@ -261,6 +305,107 @@ void ShadowRenderer::resize_display(int width, int height) {
     throw std::runtime_error("display framebuffer incomplete");
   display_.width = width;
   display_.height = height;
+}
+
+void ShadowRenderer::resize_certify_maps(int size, int layers) {
+  if (certify_.size == size && certify_.layers >= layers) return;
+  released_gl_bytes_ += certify_bytes();
+  certify_.centre_triangle = texel_array(GL_R32UI, size, layers);
+  certify_.nearest_depth = texel_array(GL_DEPTH_COMPONENT32F, size, layers);
+  certify_.nearest_owner = texel_array(GL_R32UI, size, layers);
+  certify_.others_depth = texel_array(GL_DEPTH_COMPONENT32F, size, layers);
+  certify_.framebuffer = gl::create_framebuffer();
+  certify_.size = size;
+  certify_.layers = layers;
+}
+
+void ShadowRenderer::add_certificate_targets() {
+  if (display_.certificate) return;
+  display_.certificate = gl::create_renderbuffer();
+  display_.unlit = gl::create_renderbuffer();
+  glNamedRenderbufferStorage(display_.certificate.id(), GL_R32UI, display_.width, display_.height);
+  glNamedRenderbufferStorage(display_.unlit.id(), GL_RGBA8, display_.width, display_.height);
+  glNamedFramebufferRenderbuffer(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputCertificate,
+                                 GL_RENDERBUFFER, display_.certificate.id());
+  glNamedFramebufferRenderbuffer(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputUnlit, GL_RENDERBUFFER,
+                                 display_.unlit.id());
+  if (glCheckNamedFramebufferStatus(display_.framebuffer.id(), GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    throw std::runtime_error("display framebuffer with certificates incomplete");
+}
+
+void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
+  SceneGeometry& g = scene();
+  if (g.triangle_objects) return;
+  const Mesh& mesh = g.mesh;
+  std::vector<std::uint32_t> objects;
+  for (const ObjectRange& r : mesh.object_ranges) {
+    const std::size_t first = r.first_index / 3, count = r.index_count / 3;
+    if (objects.size() < first + count) objects.resize(first + count, 0);
+    std::fill(objects.begin() + std::ptrdiff_t(first), objects.begin() + std::ptrdiff_t(first + count),
+              std::uint32_t(r.object));
+  }
+  make_buffer_texture(g.triangle_objects_buffer, g.triangle_objects, GL_R32UI, objects.data(),
+                      objects.size() * sizeof(std::uint32_t));
+  const std::vector<glm::vec4> facts = object_facts(scene_objects, mesh.origin);
+  make_buffer_texture(g.object_facts_buffer, g.object_facts, GL_RGBA32F, facts.data(), facts.size() * sizeof(glm::vec4));
+}
+
+void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan) {
+  const ShadowPlan& light = plan.light;
+  const int size = light.layer_size;
+  resize_shadow_map(size, int(light.views.size()));
+  resize_certify_maps(size, int(light.views.size()));
+  shadow_.kept.holds_plan = false;
+  begin_pass(plan.shadow.object_draw_ms, double(size), double(size), kShadowChunkFragments);
+  const GLuint framebuffer = certify_.framebuffer.id();
+  glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+  glViewport(0, 0, size, size);
+  glClearDepth(1.0);
+  glDisable(GL_CLIP_DISTANCE0);
+  glBindTextureUnit(kTextureUnitTriangleObjects, scene().triangle_objects.id());
+  glBindTextureUnit(kTextureUnitObjectFacts, scene().object_facts.id());
+  const GLuint centre = certify_.centre.get(variant_defines(CertifyPass::Centre, light.perspective)).id();
+  const GLuint nearest = certify_.conservative.get(variant_defines(CertifyPass::Nearest, light.perspective)).id();
+  const GLuint others = certify_.conservative.get(variant_defines(CertifyPass::Others, light.perspective)).id();
+  set_triangle_base_ = true;
+  // One layer at a time, three maps each: what a draw's program writes
+  // goes to the layer's depth and (but for the last) its colour.
+  const auto attach = [&](GLuint depth, GLuint color, GLint layer) {
+    glNamedFramebufferTextureLayer(framebuffer, GL_DEPTH_ATTACHMENT, depth, 0, layer);
+    if (color != 0) {
+      glNamedFramebufferTextureLayer(framebuffer, GL_COLOR_ATTACHMENT0, color, 0, layer);
+      glNamedFramebufferDrawBuffer(framebuffer, GL_COLOR_ATTACHMENT0);
+    } else {
+      glNamedFramebufferTextureLayer(framebuffer, GL_COLOR_ATTACHMENT0, 0, 0, 0);
+      glNamedFramebufferDrawBuffer(framebuffer, GL_NONE);
+    }
+    if (glCheckNamedFramebufferStatus(framebuffer, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      throw std::runtime_error("certified shadow framebuffer incomplete");
+  };
+  for (const ShadowLayerDraw& layer : plan.shadow.layers) {
+    const GLint at = GLint(layer.layer);
+    const GLuint none = 0, no_owner = 0xFFFFFFFFu;
+    attach(shadow_.depth_map.id(), certify_.centre_triangle.id(), at);
+    glClear(GL_DEPTH_BUFFER_BIT);
+    glClearBufferuiv(GL_COLOR, 0, &none);
+    glUseProgram(centre);
+    glProgramUniform1i(centre, kUniformLocationLayer, at);
+    draw_scene(layer.draws);
+    attach(certify_.nearest_depth.id(), certify_.nearest_owner.id(), at);
+    glClear(GL_DEPTH_BUFFER_BIT);
+    glClearBufferuiv(GL_COLOR, 0, &no_owner);
+    glUseProgram(nearest);
+    glProgramUniform1i(nearest, kUniformLocationLayer, at);
+    draw_scene(layer.draws);
+    attach(certify_.others_depth.id(), 0, at);
+    glClear(GL_DEPTH_BUFFER_BIT);
+    glBindTextureUnit(kTextureUnitCertifyNearestOwner, certify_.nearest_owner.id());
+    glUseProgram(others);
+    glProgramUniform1i(others, kUniformLocationLayer, at);
+    draw_scene(layer.draws);
+    glBindTextureUnit(kTextureUnitCertifyNearestOwner, 0);
+  }
+  set_triangle_base_ = false;
 }
 
 void ShadowRenderer::resize_depth_preview(int size, int bits) {
@@ -350,6 +495,7 @@ void ShadowRenderer::check_watch(const char* where) const {
 
 void ShadowRenderer::abandon_frame() {
   glFinish();
+  set_triangle_base_ = false;
   shadow_.kept.holds_plan = false;
   // What run_display_pass and run_depth_preview set, as the constructor
   // and the end of each pass leave it.
@@ -416,6 +562,22 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
   }
   glUseProgram(program(DisplayProgram::Frame));
   if (pass.variant.shadows) glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
+  const GLenum color_only = GL_COLOR_ATTACHMENT0;
+  if (pass.certificates) {
+    add_certificate_targets();
+    const GLenum all[3] = {GL_COLOR_ATTACHMENT0 + kFragOutputColor, GL_COLOR_ATTACHMENT0 + kFragOutputCertificate,
+                           GL_COLOR_ATTACHMENT0 + kFragOutputUnlit};
+    glNamedFramebufferDrawBuffers(display_.framebuffer.id(), 3, all);
+    glBindTextureUnit(kTextureUnitCertifyNearest, certify_.nearest_depth.id());
+    glBindTextureUnit(kTextureUnitCertifyNearestOwner, certify_.nearest_owner.id());
+    glBindTextureUnit(kTextureUnitCertifyOthers, certify_.others_depth.id());
+    glBindTextureUnit(kTextureUnitCertifyCentreTriangle, certify_.centre_triangle.id());
+    glBindTextureUnit(kTextureUnitTriangleObjects, scene().triangle_objects.id());
+    glBindTextureUnit(kTextureUnitObjectFacts, scene().object_facts.id());
+    set_triangle_base_ = true;
+  } else {
+    glNamedFramebufferDrawBuffers(display_.framebuffer.id(), 1, &color_only);
+  }
   glBindFramebuffer(GL_FRAMEBUFFER, display_.framebuffer.id());
   glViewport(0, 0, display_.width, display_.height);
   glClearColor(pass.clear_color.r, pass.clear_color.g, pass.clear_color.b, pass.clear_color.a);
@@ -426,7 +588,18 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
   glClearDepth(0.0);
   glDepthFunc(GL_GREATER);
   glClearStencil(0);
-  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
+  if (pass.certificates) {
+    // An integer buffer is cleared by value: 0 is "no object, lit" (the
+    // background: what the reference finds there decides).
+    const GLuint background = 0;
+    const float clear[4] = {pass.clear_color.r, pass.clear_color.g, pass.clear_color.b, pass.clear_color.a};
+    glClearBufferfv(GL_COLOR, 0, clear);
+    glClearBufferuiv(GL_COLOR, 1, &background);
+    glClearBufferfv(GL_COLOR, 2, clear);
+    glClear(GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
+  } else {
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
+  }
   for (const DisplayStep& step : pass.steps) {
     glUseProgram(program(step.program));
     step.clip_by_light_side ? glEnable(GL_CLIP_DISTANCE0) : glDisable(GL_CLIP_DISTANCE0);
@@ -452,7 +625,7 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
       glBindVertexArray(display_.cells_vertex_array.id());
       for (const DrawRange& draw : step.draws) {
         set_cull(draw.cull);
-        draw_indices(draw.first, draw.count);
+        draw_elements(draw.first, draw.count);
       }
       glDisable(GL_CULL_FACE);
     } else {
@@ -469,6 +642,7 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
   glClearDepth(1.0);
   glDepthFunc(GL_LESS);
+  set_triangle_base_ = false;
 }
 
 void ShadowRenderer::run_depth_preview(const FramePlan& plan) {
@@ -508,6 +682,32 @@ Image ShadowRenderer::read_pixels(const ReadBack& read_back) {
   return image;
 }
 
+PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back) {
+  PixelCertificates c;
+  const int w = read_back.width, h = read_back.height;
+  const GLuint framebuffer = display_.framebuffer.id();
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  c.codes.resize(std::size_t(w) * std::size_t(h));
+  glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0 + kFragOutputCertificate);
+  glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_INT, c.codes.data());
+  // Row 0 at the top, as the image.
+  for (int y = 0; y < h / 2; ++y)
+    std::swap_ranges(c.codes.begin() + std::ptrdiff_t(y) * w, c.codes.begin() + std::ptrdiff_t(y + 1) * w,
+                     c.codes.begin() + std::ptrdiff_t(h - 1 - y) * w);
+  if (read_back.unlit) {
+    c.unlit.width = w;
+    c.unlit.height = h;
+    c.unlit.channels = 3;
+    c.unlit.bit_depth = 8;
+    c.unlit.pixels.resize(c.unlit.row_bytes() * std::size_t(h));
+    glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0 + kFragOutputUnlit);
+    glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE, c.unlit.pixels.data());
+    c.unlit.flip_rows();
+  }
+  return c;
+}
+
 RenderResult ShadowRenderer::render(const RenderRequest& request, const FrameWatch& watch) {
   watch_ = watch;
   try {
@@ -528,10 +728,11 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
   result.shadow_views = plan.shadow_views;
   const FrameBlock block = frame_block(request, plan.light, scene().mesh, plan.casters.by_view);
   glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
+  if (plan.shadow.certify) use_certificate_buffers(request.scene);
   if (plan.shadow.needed && !plan.shadow.reused) {
     // A reused map (typically only the camera moved) leaves shadow_ms 0.
     const auto start = Clock::now();
-    run_shadow_pass(plan);
+    plan.shadow.certify ? run_certified_shadow_pass(plan) : run_shadow_pass(plan);
     glFinish();
     result.timings.shadow_ms = elapsed_ms(start);
     check_watch("the shadow pass");
@@ -549,6 +750,7 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
 
   const auto readback_start = Clock::now();
   result.image = read_pixels(plan.read_back);
+  if (plan.read_back.certificates) result.certificates = read_certificates(plan.read_back);
   result.timings.readback_ms = elapsed_ms(readback_start);
   result.shadow_map_allocated = map_allocated_;
   return result;

@@ -92,6 +92,23 @@ class ShadowRenderer {
     // (mesh_deepest_layers; 0 for the analytic ones, which the cost
     // estimate bounds by their bounds).
     std::vector<double> deep_layers;
+    // Filter "exact" (certificate.glsl), made when a certified frame first
+    // draws the scene: each triangle's object (R32UI), each object's facts
+    // (RGBA32F), as buffer textures.
+    gl::Buffer triangle_objects_buffer, object_facts_buffer;
+    gl::Texture triangle_objects, object_facts;
+  };
+  // Filter "exact"'s maps of the light's view (certify.frag), one array
+  // layer per view, beside the shadow map (which holds the centre depths).
+  struct CertifyMaps {
+    gl::ProgramVariants centre{"shadow_depth.vert", "certify.frag", 2};
+    gl::ProgramVariants conservative{"shadow_depth.vert", "certify.geom", "certify.frag", 4};
+    gl::Texture centre_triangle;  // R32UI: triangle + 1 at each texel centre, 0 none
+    gl::Texture nearest_depth;    // DEPTH_COMPONENT32F: conservative nearest depth
+    gl::Texture nearest_owner;    // R32UI: its owner
+    gl::Texture others_depth;     // DEPTH_COMPONENT32F: nearest of every other owner
+    gl::Framebuffer framebuffer;
+    int size = 0, layers = 0;
   };
   // Depth-only framebuffer seen from the light, one array layer per view.
   struct ShadowPass {
@@ -109,6 +126,9 @@ class ShadowRenderer {
     gl::ProgramVariants programs{"scene.vert", "scene.frag", kKeptVariants};  // per DisplayVariant
     gl::Renderbuffer color;  // RGBA8
     gl::Renderbuffer depth;  // DEPTH32F_STENCIL8
+    // Filter "exact": the certificates (R32UI) and the unlit colours
+    // (RGBA8), attached as colour 1 and 2 once a certified frame asks.
+    gl::Renderbuffer certificate, unlit;
     gl::Framebuffer framebuffer;
     int width = 0, height = 0;
     // The planes that cast nothing, drawn as cells (receiver_cells.hpp):
@@ -140,6 +160,18 @@ class ShadowRenderer {
   std::uint64_t shadow_map_bytes() const;
   std::uint64_t display_bytes() const;
   std::uint64_t depth_preview_bytes() const;
+  std::uint64_t certify_bytes() const;
+  void resize_certify_maps(int size, int layers);
+  // The display framebuffer's certificate and unlit attachments.
+  void add_certificate_targets();
+  // The current scene's buffer textures for `scene` (its content).
+  void use_certificate_buffers(const Scene& scene);
+  void run_certified_shadow_pass(const FramePlan& plan);
+  // Draws with u_triangle_base set to each draw's first triangle (the
+  // certified programs name triangles by it).
+  bool set_triangle_base_ = false;
+  void draw_indices(std::size_t first, std::size_t count);
+  PixelCertificates read_certificates(const ReadBack& read_back);
   void resize_shadow_map(int size, int layers);
   void resize_display(int width, int height);
   void resize_depth_preview(int size, int bits);
@@ -215,6 +247,7 @@ class ShadowRenderer {
   ShadowPass shadow_;
   DisplayPass display_;
   DepthPreviewPass preview_;
+  CertifyMaps certify_;
   gl::Buffer frame_block_;  // FrameBlock, binding 0: every pass reads it
   gl::VertexArray empty_vertex_array_;  // for the full-screen triangle
   // A 1x1 depth-only target for unbind_released(): what the last frame drew

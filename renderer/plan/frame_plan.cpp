@@ -237,6 +237,58 @@ ShadowPassPlan plan_shadow_pass(const RenderRequest& request, const ShadowPlan& 
   return pass;
 }
 
+// Filter "exact": every object (but the planes that shadow nothing) into
+// every layer, cleared whole, no face culled. The conservative maps must hold every triangle (a closed mesh's
+// near faces are where it first blocks a ray, and a caster left out of a
+// cascade would be an occluder the proof never saw); the certificate
+// decides nothing from what is drawn where, only from what the maps hold.
+ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
+                                          const std::vector<bool>& planes) {
+  ShadowPassPlan pass;
+  pass.needed = true;
+  pass.certify = true;
+  std::vector<glm::dmat4> views;
+  for (const ShadowView& view : light.views)
+    if (!view.empty) views.push_back(view.projection * view.view);
+  pass.object_draw_ms =
+      object_draw_ms(request.scene, views, double(light.layer_size), double(light.layer_size));
+  const std::vector<DrawRange> everything = scene_draw_ranges(mesh, CullMode::None, drawn_objects(mesh, planes));
+  for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
+    ShadowLayerDraw draw;
+    draw.layer = int(layer);
+    draw.clear_whole = true;
+    draw.draws = everything;
+    pass.layers.push_back(std::move(draw));
+  }
+  pass.kept_after.holds_plan = false;
+  return pass;
+}
+
+DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh) {
+  DisplayPassPlan pass;
+  pass.width = request.width;
+  pass.height = request.height;
+  pass.certificates = true;
+  pass.clear_color = request.output == Output::Shadow ? glm::vec4(1.0f, 1.0f, 1.0f, 1.0f)
+                                                      : glm::vec4(0.11f, 0.12f, 0.14f, 1.0f);
+  pass.variant = display_variant(request, light);
+  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
+  pass.object_draw_ms =
+      object_draw_ms(request.scene, {camera.projection * camera.view}, double(request.width), double(request.height));
+  // Back faces culled only where the camera sees every closed mesh from
+  // outside, as in any frame: then no back face is the nearest surface of
+  // a camera ray, for the raster or for the reference.
+  const CullMode closed_cull =
+      closed_meshes_seen_from_outside(mesh, request.camera, double(request.width) / request.height) ? CullMode::Back
+                                                                                                    : CullMode::None;
+  DisplayStep all;
+  all.kind = DisplayStep::Kind::Objects;
+  all.program = DisplayProgram::Frame;
+  all.draws = scene_draw_ranges(mesh, closed_cull, {});
+  pass.steps.push_back(std::move(all));
+  return pass;
+}
+
 DisplayPassPlan plan_display_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
                                   const std::vector<bool>& planes, const CasterTexels& casters) {
   DisplayPassPlan pass;
@@ -334,6 +386,10 @@ DisplayVariant program_variant(const DisplayVariant& frame, DisplayProgram which
   if (which == DisplayProgram::LightFacing) v.light_side = 1;
   if (which == DisplayProgram::LightAway) v.light_side = -1;
   return v;
+}
+
+bool certified_frame(const RenderRequest& request, const ShadowPlan& light) {
+  return request.output != Output::Depth && display_variant(request, light).filter == ShadowFilter::Exact;
 }
 
 bool needs_shadow_map(const RenderRequest& request, const ShadowPlan& light) {
@@ -450,6 +506,19 @@ FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::
   plan.depth_output = request.output == Output::Depth;
   plan.shadow.needed = needs_shadow_map(request, plan.light);
   plan.casting_planes = casting_planes(request, plan.light, mesh);
+  if (certified_frame(request, plan.light)) {
+    // Nothing is reused. A plane that can shadow nothing (plane_can_shadow:
+    // every other object lies on its light's side) is left out of the maps,
+    // as from any frame's: it lies in front of no point but its own.
+    plan.casters = caster_table(request, plan.light, mesh, plan.casting_planes);
+    plan.shadow = plan_certified_shadow_pass(request, plan.light, mesh, plan.casting_planes);
+    plan.shadow_views = describe_views(plan.light);
+    plan.display = plan_certified_display_pass(request, plan.light, mesh);
+    plan.read_back = {false, request.width, request.height, request.output == Output::Shadow ? 1 : 3, 8};
+    plan.read_back.certificates = true;
+    plan.read_back.unlit = request.output != Output::Shadow;
+    return plan;
+  }
   if (plan.shadow.needed && shadow_map_serves(kept, request, plan.light, plan.casting_planes, scene_key)) {
     // Nothing the map depends on changed (typically only the camera
     // moved): draw with the views it was made for.

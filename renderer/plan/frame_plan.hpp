@@ -89,6 +89,13 @@ struct ShadowPassPlan {
   bool needed = false;
   /// The kept map serves this frame: no shadow pass runs.
   bool reused = false;
+  /// Filter "exact": the layers are drawn as the certificate reads them
+  /// (docs/certified-shadows.md): the map itself (every object, no face
+  /// culled, whole layers cleared) with each texel's triangle beside it, and
+  /// two conservative maps: the nearest depth any triangle reaches
+  /// anywhere in each texel, with its owner, and the nearest of all other
+  /// owners. Such a map is never kept for reuse.
+  bool certify = false;
   /// Layers drawn, ascending (empty views and, unless whole, layers no drawn
   /// object reaches are left out: nothing reads them).
   std::vector<ShadowLayerDraw> layers;
@@ -148,6 +155,10 @@ struct DisplayStep {
 
 struct DisplayPassPlan {
   int width = 0, height = 0;
+  /// Filter "exact": the main pass also writes each pixel's certificate
+  /// and its unlit colour (PixelCertificates); no cells, umbras or light
+  /// side split, whose shortcuts prove nothing.
+  bool certificates = false;
   glm::vec4 clear_color{0.0f};
   /// The frame's main-pass variant (display_variant); each step's program
   /// is it or one derived from it (program_variant). `variant.shadows`:
@@ -180,6 +191,10 @@ struct ReadBack {
   int width = 0, height = 0;
   int channels = 3;   ///< 1 (shadow, depth) or 3 (RGB)
   int bit_depth = 8;  ///< 8, or 16 for a 16-bit depth preview
+  /// Filter "exact": the main pass's certificates too, and for the colour
+  /// output its image with visibility 0 (PixelCertificates).
+  bool certificates = false;
+  bool unlit = false;
 };
 
 /// Everything one frame draws, in order: the shadow pass (unless reused),
@@ -210,6 +225,9 @@ FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::
                      const KeptShadowMap& kept);
 
 // The steps plan_frame is made of, exposed for tests.
+
+/// Whether the frame is certified: filter "exact" with a shadow lookup.
+bool certified_frame(const RenderRequest& request, const ShadowPlan& light);
 
 /// Whether the frame reads or shows a shadow map: a lookup under a direct
 /// light (a sun below the horizon casts no shadow), or the depth output.

@@ -383,6 +383,23 @@ std::vector<ExactPixel> ExactView::pixels(const std::function<bool()>& stop_requ
   return pixels;
 }
 
+std::vector<ExactPixel> ExactView::pixels_where(const std::vector<std::uint8_t>& which,
+                                                const std::function<bool()>& stop_requested) const {
+  const int width = request_.width;
+  const std::size_t size = std::size_t(width) * request_.height;
+  if (which.size() != size)
+    throw std::invalid_argument("ExactView::pixels_where: the mask has " + std::to_string(which.size()) +
+                                " pixels, the view " + std::to_string(size));
+  std::vector<ExactPixel> pixels(size);
+  for_each_row(request_.height, stop_requested, [&](int y) {
+    for (int x = 0; x < width; ++x) {
+      const std::size_t i = std::size_t(y) * width + x;
+      if (which[i]) pixels[i] = at(x + 0.5, y + 0.5);
+    }
+  });
+  return pixels;
+}
+
 std::vector<PixelCoverage> ExactView::coverage(const std::vector<std::uint8_t>& which,
                                                const std::function<bool()>& stop_requested) const {
   const int width = request_.width;

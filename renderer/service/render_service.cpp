@@ -14,6 +14,7 @@
 #include <malloc.h>
 
 #include "gpu/egl_context.hpp"
+#include "reference/certified_frame.hpp"
 #include "reference/ray_cast.hpp"
 #include "service/request_cost.hpp"
 #include "reference/shadow_error.hpp"
@@ -129,6 +130,26 @@ struct RenderService::Impl {
                                " ms a request and was stopped (" + cut.what() + ", after " +
                                std::to_string(ran.count()) + " ms); nothing of it is returned: " + dominant.advice,
                            dominant.field);
+  }
+
+  // Filter "exact": the pixels the maps left uncertain are ray cast here,
+  // on the GL thread (the cast itself uses every core), under the frame's
+  // watch: past max_run_time it is cut short like a frame (FrameCutShort),
+  // and a client that left stops it (ClientGone).
+  void settle(RenderResult& result, const Job& job, std::chrono::steady_clock::time_point started) {
+    const auto until = started + limits.max_run_time;
+    bool gone = false;
+    const auto stop = [&] {
+      gone = job.client_gone && job.client_gone();
+      return gone || std::chrono::steady_clock::now() > until;
+    };
+    try {
+      settle_certified_frame(result, job.request, stop);
+    } catch (const CastStopped&) {
+      if (!gone) throw FrameCutShort("stopped during the ray cast of the pixels the shadow maps left uncertain");
+      abandoned_count.fetch_add(1);
+      throw ClientGone();
+    }
   }
 
   // Throws if the job should not run: its client left, or it waited too long.
@@ -305,6 +326,7 @@ struct RenderService::Impl {
         // misjudged, or a busy machine, must not hold the GL thread (and
         // every request queued behind it, and a drain) without bound.
         result = renderer->render(job.request, FrameWatch{started + limits.max_run_time});
+        if (result->certificates) settle(*result, job, started);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);
         frames.fetch_add(1);

@@ -83,6 +83,8 @@ double gathers_per_pixel(const ShadowSettings& shadow) {
     case ShadowFilter::Hard: return 1.0;
     case ShadowFilter::Pcf: return double(shadow.pcf_radius + 1) * double(shadow.pcf_radius + 1);
     case ShadowFilter::Pcss: return double(kPcssBlockerSamples + kPcssFilterSamples);
+    // The certificate: up to 4 texels of three maps for light, 9 of two for shadow.
+    case ShadowFilter::Exact: return 8.0;
   }
   return 1.0;
 }
@@ -333,6 +335,25 @@ RequestCost estimate_cost(const RenderRequest& request) {
       {"mesh BVH build", double(f.bvh_triangles) * kMsPerBvhTriangle, "scene.objects",
        "the exact reference builds a BVH of each model's triangles: use smaller models"},
   };
+  // Filter "exact" (docs/certified-shadows.md): two more passes of the
+  // map, conservative (a geometry shader's box per triangle, every
+  // fragment's depth written: on llvmpipe about 8 times an ordinary pass's
+  // fill was measured), and the ray cast of the pixels they leave
+  // uncertain: up to a third of the frame in the bench scenes at 320 x 180.
+  const bool certified = request.shadow.filter == ShadowFilter::Exact && request.shadow.enabled &&
+                         request.output != Output::Depth && request.output != Output::Exact;
+  if (certified) {
+    RenderRequest as_exact = request;
+    as_exact.output = Output::Exact;
+    const CostFactors e = cost_factors(as_exact);
+    const double ray_ms = (e.camera_rays + e.shadow_rays) *
+                              (e.objects_per_ray * kMsPerRayObjectTest + e.meshes_per_ray * kMsPerRayMeshTest) +
+                          e.camera_rays * kMsPerCameraRay + e.shadow_rays * kMsPerShadowRay;
+    cost.parts.push_back({"certified maps and uncertain pixels",
+                          8.0 * (f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel) +
+                              ray_ms / 3.0 + double(e.bvh_triangles) * kMsPerBvhTriangle,
+                          "shadow.filter", "use filter \"pcf\", or lower shadow.map_size, width and height"});
+  }
   for (const CostPart& part : cost.parts) cost.total_ms += part.ms;
 
   // Peak memory: what is alive at once in the worst phase.
@@ -355,6 +376,12 @@ RequestCost estimate_cost(const RenderRequest& request) {
   if (request.output == Output::Exact || request.output == Output::Error) {
     bytes += pixels * (sizeof(ExactPixel) + 1 + 3 + 3);  // per-pixel records, exact, error image and PNG
     bytes += f.bvh_triangles * kBvhBytesPerTriangle;     // the models' BVHs, as if none were cached
+  }
+  if (certified) {
+    // The certified maps (two of depth, two of ids), the certificates and
+    // unlit colours read back, the reference's records of the cast pixels.
+    bytes += std::uint64_t(f.shadow_texels) * 4 * sizeof(float) + pixels * (8 + 4 + 3);
+    bytes += pixels * sizeof(ExactPixel) + f.bvh_triangles * kBvhBytesPerTriangle;
   }
   cost.peak_bytes = bytes;
   return cost;

@@ -634,6 +634,42 @@ try {
     assert.ok(await page.$eval("#error-panel", (a) => a.hidden), "the figures go with the error view");
   });
 
+  await step(page, "exact-filter-certifies-and-shows-the-share", async () => {
+    const filter = await page.$eval("#filter", (s) => s.value);
+    const before = await currentSources(page);
+    await page.selectOption("#filter", "exact");
+    await waitForNewImages(page, before);
+    const sent = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.equal(sent.shadow.filter, "exact");
+    assert.ok(!("pcf_radius" in sent.shadow), "no pcf_radius with filter exact");
+    // The share the server ray cast, from Umbra-Certified, and its settle stage.
+    const timing = await page.$eval("#timing", (p) => p.textContent);
+    assert.match(timing, /certified: [\d.]+ % of pixels ray cast \([\d,]+ of [\d,]+\)/);
+    assert.match(timing, /settle [\d.]+/);
+    // Its shadow term is the exact reference's: the error view is black.
+    const toError = await currentSources(page);
+    await page.selectOption("#view", "error");
+    await waitForNewImages(page, toError);
+    await page.waitForSelector("#error-panel:not([hidden]) #figure-mae");
+    assert.equal(Number(await page.$eval("#figure-mae", (d) => d.textContent)), 0, "mae 0 with filter exact");
+    assert.equal(await page.$eval("#figure-wrong", (d) => d.textContent), "0.0000 %");
+    const toColor = await currentSources(page);
+    await page.selectOption("#view", "color");
+    await waitForNewImages(page, toColor);
+    // An area light needs PCSS: a size chooses it, as with hard and PCF.
+    await typeInto(page, "size", "2");
+    await page.waitForFunction(() => document.getElementById("filter").value === "pcss");
+    assert.match(await page.$eval("#size-note", (p) => p.textContent), /PCSS/);
+    await page.waitForFunction(() => window.__umbra.inFlight === 0 && JSON.parse(window.__umbra.lastRenderBody).light.size === 2);
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    assert.doesNotMatch(await page.$eval("#timing", (p) => p.textContent), /certified/);
+    // Back as it was.
+    await typeInto(page, "size", "0");
+    await page.selectOption("#filter", filter);
+    await quietSent(page);
+    assert.equal(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).shadow.filter, filter);
+  });
+
   await step(page, "alt-drag-moves-the-light-target-and-orbit-speed", async () => {
     const start = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
     const box = await viewportBox(page);

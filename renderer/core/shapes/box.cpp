@@ -96,7 +96,7 @@ std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, 
 extern const ShapeKind kBoxShape;  // listed in shapes.cpp
 const ShapeKind kBoxShape = {
     SceneObject::Type::Box, "box", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside,
+    vertices, intersect, points_inside, /*tessellation_error=*/nullptr,
 };
 
 }  // namespace umbra

@@ -18,6 +18,12 @@
 
 namespace umbra {
 
+/// ShapeKind::tessellation_error.
+struct TessellationError {
+  double distance = 0.0;  ///< world units
+  double normal_angle = 0.0;  ///< radians
+};
+
 /// An exact ray intersection (ShapeKind::intersect).
 using ShapeIntersect = double (*)(const SceneObject& object, const glm::dvec3& origin, const glm::dvec3& direction,
                                   double t_min, double t_max, glm::dvec3& normal);
@@ -58,12 +64,21 @@ struct ShapeKind {
   /// side and between world heights `low` and `high`; none where nothing is
   /// left. Null for a kind with no umbras (its shadow is left to the lookup).
   std::vector<glm::dvec3> (*points_inside)(const SceneObject& object, double margin, double low, double high);
+  /// How far its tessellation departs from the exact surface the reference
+  /// casts against: the farthest distance (world units) of a tessellated
+  /// point from the true surface, and the largest angle (radians) between
+  /// an interpolated normal and the true one. Null: none (flat faces, and a
+  /// model, whose triangles are the surface). Filter "exact" allows for it
+  /// (docs/certified-shadows.md).
+  TessellationError (*tessellation_error)(const SceneObject& object);
 };
 
 /// Every kind, in SceneObject::Type order.
 const std::vector<const ShapeKind*>& shape_kinds();
 /// The row of `type`.
 const ShapeKind& shape_kind(SceneObject::Type type);
+/// The row's tessellation_error, or none.
+TessellationError tessellation_error(const SceneObject& object);
 /// The row named `name`, or null.
 const ShapeKind* find_shape_kind(std::string_view name);
 

@@ -20,6 +20,11 @@ const std::vector<const ShapeKind*>& shape_kinds() {
 
 const ShapeKind& shape_kind(SceneObject::Type type) { return *shape_kinds()[std::size_t(type)]; }
 
+TessellationError tessellation_error(const SceneObject& object) {
+  const ShapeKind& kind = shape_kind(object.type);
+  return kind.tessellation_error ? kind.tessellation_error(object) : TessellationError{};
+}
+
 const ShapeKind* find_shape_kind(std::string_view name) {
   for (const ShapeKind* kind : shape_kinds())
     if (name == kind->name) return kind;

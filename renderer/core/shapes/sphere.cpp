@@ -90,12 +90,23 @@ std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, 
   return points;
 }
 
+// Each face is a chord of a cell at most pi / kStacks wide each way (the
+// slices are as fine: 2 pi / kSlices): a face point lies within R (1 -
+// cos(pi / kStacks)) of the sphere. An interpolated normal lies among its
+// face's vertex normals, as does the true normal of a point of the face;
+// those are at most the cell's diagonal apart, sqrt(2) pi / kStacks (0.093),
+// and the exact point along a camera ray leans from the face's point by a
+// further sliver: 0.12 bounds both.
+TessellationError tessellation_error_of(const SceneObject& o) {
+  return {o.radius * (1.0 - std::cos(3.14159265358979323846 / kStacks)), 0.12};
+}
+
 }  // namespace
 
 extern const ShapeKind kSphereShape;  // listed in shapes.cpp
 const ShapeKind kSphereShape = {
     SceneObject::Type::Sphere, "sphere", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside,
+    vertices, intersect, points_inside, tessellation_error_of,
 };
 
 }  // namespace umbra

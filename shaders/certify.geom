@@ -1,0 +1,133 @@
+// Conservative rasterisation of the light's view, for filter "exact"
+// (docs/certified-shadows.md): every texel that a triangle touches
+// anywhere, not only those whose centre it covers, gets a fragment, and
+// certify.frag gives it the nearest depth the triangle reaches inside that
+// texel. A needle thinner than a texel is therefore never missed.
+//
+// Each triangle becomes one quad: the bounding box of its projection,
+// grown by half a texel and a margin for rounding, clamped to the layer.
+// certify.frag drops the texels of the box that a separating edge shows
+// the triangle does not touch. A point light's triangle is first clipped
+// to the half-space in front of the light (w > 0): the part behind the
+// light cannot lie between it and any point it lights.
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 4) out;
+
+layout(location = UNIFORM_LOCATION_LAYER) uniform int u_layer;
+layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
+
+// The polygon (the triangle, or the triangle clipped: up to 4 corners) in
+// texel units of the layer, counter-clockwise; fewer than 3 distinct edges
+// or no area: g_edge_count 0 (the box alone is tested).
+flat out vec2 g_corner[4];
+flat out int g_edge_count;
+// Window depth over the layer where the triangle's plane is: depth =
+// g_plane.z + g_plane.x * (x - g_origin.x) + g_plane.y * (y - g_origin.y),
+// x, y in texels; g_plane_valid 0 where the projection has no area (a
+// triangle seen edge-on).
+flat out vec3 g_plane;
+flat out vec2 g_origin;
+flat out int g_plane_valid;
+// The least window depth of the polygon's corners: no point of it is nearer.
+flat out float g_min_depth;
+// The triangle's index in the scene's index buffer / 3.
+flat out int g_triangle;
+
+// Texel units and window depth of a clip-space point.
+vec3 to_texels(vec4 clip) {
+  vec3 ndc = clip.xyz / clip.w;
+  return vec3((ndc.xy * 0.5 + 0.5) * u.map_size, ndc.z * 0.5 + 0.5);
+}
+
+void main() {
+  // The polygon in clip space: clipped to w >= w_min (a point light) by one
+  // Sutherland-Hodgman step; an orthographic view's w is 1 everywhere.
+  vec4 in_clip[3] = vec4[3](gl_in[0].gl_Position, gl_in[1].gl_Position, gl_in[2].gl_Position);
+  vec4 poly[4];
+  int n = 0;
+#if LIGHT_PERSPECTIVE
+  // Half the view's near plane: a fitted view's near plane lies before
+  // everything inside its frustum (lights/point.cpp), so no part of a
+  // triangle nearer than this falls on the layer; the parser refuses
+  // filter "exact" with a fixed frustum for a point light.
+  float w_min = 0.5 * u.view_depth_texel[u_layer].x;
+  for (int i = 0; i < 3; ++i) {
+    vec4 a = in_clip[i], b = in_clip[(i + 1) % 3];
+    bool a_in = a.w >= w_min, b_in = b.w >= w_min;
+    if (a_in) poly[n++] = a;
+    if (a_in != b_in) {
+      float t = (w_min - a.w) / (b.w - a.w);
+      poly[n++] = mix(a, b, t);
+    }
+  }
+  if (n < 3) return;  // wholly behind the light
+#else
+  for (int i = 0; i < 3; ++i) poly[i] = in_clip[i];
+  n = 3;
+#endif
+  vec3 p[4];
+  vec2 lo = vec2(1e30), hi = vec2(-1e30);
+  float min_depth = 1e30;
+  for (int i = 0; i < n; ++i) {
+    p[i] = to_texels(poly[i]);
+    lo = min(lo, p[i].xy);
+    hi = max(hi, p[i].xy);
+    min_depth = min(min_depth, p[i].z);
+  }
+  // Off the layer: no texel to mark.
+  if (hi.x < -1.0 || hi.y < -1.0 || lo.x > u.map_size + 1.0 || lo.y > u.map_size + 1.0) return;
+  // Orientation, for outward edge normals.
+  float area = 0.0;
+  for (int i = 0; i < n; ++i) {
+    vec2 a = p[i].xy, b = p[(i + 1) % n].xy;
+    area += a.x * b.y - b.x * a.y;
+  }
+  float extent = max(max(abs(lo.x), abs(lo.y)), max(abs(hi.x), abs(hi.y)));
+  // Below this the polygon is a sliver whose edge normals rounding can
+  // turn around: only its box is trusted.
+  bool has_area = abs(area) > 1e-4 * max(1.0, extent);
+  g_edge_count = has_area ? n : 0;
+  for (int i = 0; i < 4; ++i) {
+    int k = area >= 0.0 ? i : n - 1 - i;  // counter-clockwise
+    g_corner[i] = i < n ? p[k].xy : vec2(0.0);
+  }
+  // The plane through three of the polygon's corners (all in front of the
+  // light; clipping keeps the triangle's plane): the best-conditioned triple.
+  vec3 a = p[0], b = p[1], c = p[2];
+  vec2 ab = b.xy - a.xy, ac = c.xy - a.xy;
+  float det = ab.x * ac.y - ab.y * ac.x;
+  if (n == 4) {
+    vec2 ad = p[3].xy - a.xy;
+    float det2 = ac.x * ad.y - ac.y * ad.x;
+    if (abs(det2) > abs(det)) {
+      b = p[2];
+      c = p[3];
+      ab = b.xy - a.xy;
+      ac = c.xy - a.xy;
+      det = det2;
+    }
+  }
+  g_plane_valid = abs(det) > 1e-6 * max(1.0, dot(ab, ab) + dot(ac, ac)) ? 1 : 0;
+  if (g_plane_valid == 1) {
+    float dzb = b.z - a.z, dzc = c.z - a.z;
+    g_plane = vec3((dzb * ac.y - dzc * ab.y) / det, (dzc * ab.x - dzb * ac.x) / det, a.z);
+  } else {
+    g_plane = vec3(0.0, 0.0, a.z);
+  }
+  g_origin = a.xy;
+  g_min_depth = min_depth;
+  g_triangle = u_triangle_base + gl_PrimitiveIDIn;
+  // The box, half a texel and a rounding margin wider, clamped to the layer
+  // and a texel beyond it.
+  float margin = 0.5 + 1e-3 + 1e-6 * extent;
+  lo = clamp(lo - margin, vec2(-1.0), vec2(u.map_size + 1.0));
+  hi = clamp(hi + margin, vec2(-1.0), vec2(u.map_size + 1.0));
+  vec2 corners[4] = vec2[4](lo, vec2(hi.x, lo.y), vec2(lo.x, hi.y), hi);
+  for (int i = 0; i < 4; ++i) {
+    // Depth is written by the fragment shader; z 0 keeps the quad from
+    // being clipped by the view's near and far planes.
+    gl_Position = vec4(corners[i] / u.map_size * 2.0 - 1.0, 0.0, 1.0);
+    EmitVertex();
+  }
+  EndPrimitive();
+}

@@ -1,0 +1,192 @@
+// Filter "exact" against the exact reference, through the render service
+// as a client gets it: its "shadow" output must equal the "exact" output
+// pixel for pixel, on every hard-light bench scene and on random scenes
+// built to be hard (needles thinner than a texel, grazing suns,
+// near-coincident surfaces, curved shapes, point lights). Why the
+// certificates are sound: docs/certified-shadows.md.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <random>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "reference/certified_frame.hpp"
+#include "reference/ray_cast.hpp"
+#include "render_support.hpp"
+#include "scene_files.hpp"
+
+namespace umbra {
+namespace {
+
+using json = nlohmann::json;
+
+struct Comparison {
+  std::size_t differing = 0, pixels = 0;
+  CertifiedShare share;
+};
+
+// The certified frame's shadow output against the "exact" output of the
+// same request.
+Comparison compare_with_reference(RenderRequest r) {
+  r.output = Output::Shadow;
+  r.shadow.filter = ShadowFilter::Exact;
+  RenderResult certified = service().submit(r).get();
+  const Image exact = exact_image(cast_exact_pixels(r), r.width, r.height);
+  Comparison c;
+  EXPECT_TRUE(certified.certified.has_value()) << "the frame was not certified";
+  if (certified.certified) c.share = *certified.certified;
+  c.pixels = exact.pixels.size();
+  EXPECT_EQ(certified.image.pixels.size(), exact.pixels.size());
+  for (std::size_t i = 0; i < std::min(exact.pixels.size(), certified.image.pixels.size()); ++i)
+    c.differing += certified.image.pixels[i] != exact.pixels[i];
+  return c;
+}
+
+class CertifiedBenchScene : public testing::TestWithParam<std::string> {};
+
+TEST_P(CertifiedBenchScene, EqualsTheExactReference) {
+  const RenderRequest r = load_scene_request(UMBRA_SCENES_DIR, GetParam(), {{"width", 320}, {"height", 180}});
+  const Comparison c = compare_with_reference(r);
+  EXPECT_EQ(c.differing, 0u) << GetParam();
+  // The maps settle most of the frame: a certificate that proved nothing
+  // would pass the comparison by casting every pixel.
+  EXPECT_LT(c.share.ray_cast, c.pixels * 3 / 4) << GetParam();
+}
+
+// The bench scenes with a light of no size (filter "exact" is refused for
+// an area light: RequestParser.FilterExactIsForALightOfNoSize...).
+std::vector<std::string> hard_light_scenes() {
+  std::vector<std::string> names;
+  for (const std::string& name : scene_file_names(UMBRA_SCENES_DIR))
+    if (load_scene_request(UMBRA_SCENES_DIR, name, json::object()).light.size == 0.0) names.push_back(name);
+  return names;
+}
+
+TEST(CertifiedBenchScenes, AllButTheAreaLightsAreCompared) {
+  EXPECT_EQ(hard_light_scenes().size() + 2, scene_file_names(UMBRA_SCENES_DIR).size());
+}
+
+INSTANTIATE_TEST_SUITE_P(BenchScenes, CertifiedBenchScene, testing::ValuesIn(hard_light_scenes()),
+                         [](const testing::TestParamInfo<std::string>& info) {
+                           std::string name = info.param;
+                           for (char& c : name)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
+
+// A random scene of the kinds the maps find hardest.
+json random_scene(std::mt19937& random) {
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const auto in = [&](double lo, double hi) { return lo + (hi - lo) * unit(random); };
+  json objects = json::array();
+  objects.push_back({{"type", "plane"}, {"center", {0, 0, 0}}, {"size", {12, 12}}});
+  const int count = 2 + int(random() % 5);
+  for (int i = 0; i < count; ++i) {
+    const double x = in(-2.5, 2.5), z = in(-2.5, 2.5);
+    switch (random() % 6) {
+      case 0:  // a needle: thinner than a texel, tall
+        objects.push_back({{"type", "box"}, {"center", {x, 0.8, z}}, {"size", {in(0.002, 0.02), 1.6, in(0.002, 0.02)}},
+                           {"rotation_y_deg", in(0, 90)}});
+        break;
+      case 1:  // a plate hovering a hair above the floor
+        objects.push_back({{"type", "box"}, {"center", {x, in(1e-4, 1e-3) + 0.01, z}}, {"size", {in(0.3, 1.2), 0.02, in(0.3, 1.2)}}});
+        break;
+      case 2:  // a box standing on the floor, and one sharing its top face
+        objects.push_back({{"type", "box"}, {"center", {x, 0.4, z}}, {"size", {0.8, 0.8, 0.8}}});
+        objects.push_back({{"type", "box"}, {"center", {x + 0.2, 1.0, z}}, {"size", {0.4, 0.4, 0.4}}});
+        break;
+      case 3:
+        objects.push_back({{"type", "sphere"}, {"center", {x, in(0.2, 1.5), z}}, {"radius", in(0.1, 0.7)}});
+        break;
+      case 4:
+        objects.push_back({{"type", "cylinder"}, {"center", {x, 0.6, z}}, {"radius", in(0.03, 0.4)}, {"height", 1.2}});
+        break;
+      default:  // a thin wall seen edge-on by some lights
+        objects.push_back({{"type", "box"}, {"center", {x, 0.5, z}}, {"size", {in(0.005, 0.05), 1.0, 1.5}}});
+        break;
+    }
+  }
+  json body = {{"width", 240}, {"height", 135}, {"scene", {{"objects", objects}}},
+               {"camera", {{"position", {in(-6, 6), in(2, 7), in(4, 8)}}, {"target", {0, 0.3, 0}}}},
+               {"shadow", {{"map_size", random() % 2 ? 1024 : 2048}}}};
+  switch (random() % 3) {
+    case 0: {  // a grazing directional light, 1 to 6 degrees above the horizon
+      const double elevation = in(1.0, 6.0) * 3.14159265358979 / 180.0, azimuth = in(0, 6.283);
+      body["light"] = {{"position", {8 * std::cos(elevation) * std::cos(azimuth), 8 * std::sin(elevation),
+                                     8 * std::cos(elevation) * std::sin(azimuth)}},
+                       {"target", {0, 0, 0}}, {"orbit_deg_per_s", 0}};
+      break;
+    }
+    case 1:  // a point light among the objects
+      body["light"] = {{"position", {in(-2, 2), in(1.0, 3.0), in(-2, 2)}}, {"target", {0, 0, 0}},
+                       {"projection", "perspective"}, {"orbit_deg_per_s", 0}};
+      break;
+    default:
+      body["light"] = {{"position", {in(-5, 5), in(2, 8), in(-5, 5)}}, {"target", {0, 0, 0}}, {"orbit_deg_per_s", 0}};
+      break;
+  }
+  return body;
+}
+
+TEST(CertifiedRandomScenes, EveryPixelEqualsTheExactReference) {
+  std::mt19937 random(20261126);
+  std::size_t differing = 0, cast = 0, pixels = 0;
+  for (int i = 0; i < 40; ++i) {
+    const json body = random_scene(random);
+    const Comparison c = compare_with_reference(request(body.dump()));
+    differing += c.differing;
+    cast += c.share.ray_cast;
+    pixels += c.pixels;
+    EXPECT_EQ(c.differing, 0u) << "scene " << i << ": " << body.dump();
+  }
+  std::printf("random scenes: %zu of %zu pixels ray cast, %zu differ\n", cast, pixels, differing);
+}
+
+// The comparison above can fail: a certificate that calls every pixel lit
+// gives frames that differ from the reference wherever it is dark.
+// The colour output: certified pixels as the map frame shades them; the
+// settled ones lit or unlit as the reference finds them, so where the
+// reference is dark the colour is the ambient one, darker than lit.
+TEST(CertifiedFrame, TheColourOutputIsShadedByTheSettledVisibility) {
+  RenderRequest r = request(R"({"width": 160, "height": 90, "shadow": {"filter": "exact"}})");
+  RenderResult colour = service().submit(r).get();
+  ASSERT_TRUE(colour.certified.has_value());
+  ASSERT_EQ(colour.image.channels, 3);
+  r.output = Output::Shadow;
+  const Image shadow = service().submit(r).get().image;
+  // Dark and lit pixels of the floor (grey-ish), by the settled shadow term:
+  // the dark ones must be darker on average.
+  double dark = 0, lit = 0;
+  std::size_t dark_n = 0, lit_n = 0;
+  for (std::size_t i = 0; i < shadow.pixels.size(); ++i) {
+    const double luminance = colour.image.pixels[3 * i] + colour.image.pixels[3 * i + 1] + colour.image.pixels[3 * i + 2];
+    if (shadow.pixels[i] == 0) dark += luminance, ++dark_n;
+    if (shadow.pixels[i] == 255) lit += luminance, ++lit_n;
+  }
+  ASSERT_GT(dark_n, 100u);
+  ASSERT_GT(lit_n, 100u);
+  EXPECT_LT(dark / double(dark_n), 0.8 * lit / double(lit_n));
+}
+
+TEST(CertifiedFrame, AWrongCertificateShowsInTheImage) {
+  RenderRequest r = request(R"({"width": 160, "height": 90, "output": "shadow", "shadow": {"filter": "exact"}})");
+  const Image exact = exact_image(cast_exact_pixels(r), r.width, r.height);
+  RenderResult settled = service().submit(r).get();
+  ASSERT_TRUE(settled.certified.has_value());
+  EXPECT_EQ(settled.image.pixels, exact.pixels);
+  // The same frame with every verdict forged to "lit" and no object changes:
+  // nothing is cast, every shadow is lost.
+  RenderResult forged;
+  forged.image = Image{r.width, r.height, 1, std::vector<std::uint8_t>(exact.pixels.size(), 255)};
+  forged.certificates = PixelCertificates{};
+  forged.certificates->codes.assign(exact.pixels.size(), (1u << 3) | 4u | PixelCertificates::kCertainlyLit);
+  settle_certified_frame(forged, r);
+  ASSERT_TRUE(forged.certified.has_value());
+  EXPECT_EQ(forged.certified->ray_cast, 0u);
+  EXPECT_NE(forged.image.pixels, exact.pixels);
+}
+
+}  // namespace
+}  // namespace umbra

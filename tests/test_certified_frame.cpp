@@ -1,0 +1,79 @@
+// Filter "exact"'s CPU half without GL: which pixels it ray casts.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "reference/certified_frame.hpp"
+#include "scene_support.hpp"
+
+namespace umbra {
+namespace {
+
+constexpr std::uint32_t kLit = PixelCertificates::kCertainlyLit, kDark = PixelCertificates::kCertainlyDark,
+                        kUncertain = PixelCertificates::kUncertain;
+
+std::uint32_t code(std::uint32_t object_plus_one, bool facing, std::uint32_t verdict) {
+  return (object_plus_one << 3) | (facing ? 4u : 0u) | verdict;
+}
+
+std::size_t count(const std::vector<std::uint8_t>& v) { return std::size_t(std::count(v.begin(), v.end(), 1)); }
+
+TEST(PixelsToRayCast, OnlyUncertainPixelsOfOneSurface) {
+  std::vector<std::uint32_t> codes(8 * 6, code(1, true, kLit));
+  codes[2 * 8 + 3] = code(1, true, kUncertain);
+  codes[4 * 8 + 5] = code(1, true, kDark);
+  const std::vector<std::uint8_t> cast = pixels_to_ray_cast(codes, 8, 6, 1);
+  EXPECT_EQ(count(cast), 1u);
+  EXPECT_EQ(cast[2 * 8 + 3], 1);
+}
+
+TEST(PixelsToRayCast, BothSidesOfAChangeOfObjectOrOfFacing) {
+  // Columns 0-3 see object 1, 4-7 object 2: columns 3 and 4 are cast.
+  std::vector<std::uint32_t> codes(8 * 4);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 8; ++x) codes[y * 8 + x] = code(x < 4 ? 1 : 2, true, kLit);
+  std::vector<std::uint8_t> cast = pixels_to_ray_cast(codes, 8, 4, 1);
+  EXPECT_EQ(count(cast), 8u);
+  for (int y = 0; y < 4; ++y) EXPECT_TRUE(cast[y * 8 + 3] && cast[y * 8 + 4]);
+  // A crease: one object, its faces turned to both sides of the light.
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 8; ++x) codes[y * 8 + x] = code(1, x < 4, x < 4 ? kLit : kDark);
+  cast = pixels_to_ray_cast(codes, 8, 4, 1);
+  EXPECT_EQ(count(cast), 8u);
+  // Ring 3: two more columns each side.
+  cast = pixels_to_ray_cast(codes, 8, 4, 3);
+  EXPECT_EQ(count(cast), 4u * 6u);
+  EXPECT_FALSE(cast[0]);
+  EXPECT_TRUE(cast[1]);
+  EXPECT_TRUE(cast[6]);
+  EXPECT_FALSE(cast[7]);
+}
+
+TEST(PixelsToRayCast, RefusesCodesOfAnotherSize) {
+  EXPECT_THROW(pixels_to_ray_cast(std::vector<std::uint32_t>(10), 4, 4, 1), std::invalid_argument);
+}
+
+TEST(SilhouetteRing, FlatShapesNeedOnePixelCurvedOnesCloseUpMore) {
+  RenderRequest r = test::builtin_request("cube-on-plane");
+  r.scene.objects.clear();
+  SceneObject box;
+  box.type = SceneObject::Type::Box;
+  r.scene.objects.push_back(box);
+  EXPECT_EQ(silhouette_ring(r), 1);
+  SceneObject sphere;
+  sphere.type = SceneObject::Type::Sphere;
+  sphere.radius = 0.5;
+  r.scene.objects.push_back(sphere);
+  // A half-unit sphere 6 units away on a 540-pixel image: its tessellation
+  // moves the outline by a tenth of a pixel.
+  EXPECT_EQ(silhouette_ring(r), 2);
+  // A sphere of radius 50 whose surface is 1 unit from the camera: about
+  // 0.1 units, tens of pixels.
+  sphere.radius = 50.0;
+  sphere.center = r.camera.position + glm::dvec3(0.0, 0.0, -51.0);
+  r.scene.objects.push_back(sphere);
+  EXPECT_GT(silhouette_ring(r), 20);
+}
+
+}  // namespace
+}  // namespace umbra
