@@ -524,10 +524,20 @@ TEST(Memory, FiveThousandMixedRequestsHoldResidentMemorySteady) {
         << "--fresh-context-mib 0 made a fresh GL context all the same";
     return last;
   };
+  // Each point is measured three times, the least kept: memory that a
+  // later replay gives back was held by those requests, not kept for good
+  // (one measurement alone varied from -1 % to +17 % between runs of this
+  // same test), while memory that grows with the requests is never given
+  // back and shows in all three.
+  const auto least_resident_kib = [&] {
+    long least = settled_resident_kib();
+    for (int k = 0; k < 2; ++k) least = std::min(least, settled_resident_kib());
+    return least;
+  };
   run(0, 500);
-  const long after_500 = settled_resident_kib();
+  const long after_500 = least_resident_kib();
   run(500, total);
-  const long after_all = settled_resident_kib();
+  const long after_all = least_resident_kib();
   std::printf("resident memory: %ld KiB after 500 requests, %ld KiB after %d (%+.1f %%)\n", after_500, after_all, total,
               100.0 * double(after_all - after_500) / double(after_500));
   EXPECT_EQ(failures.load(), 0);
