@@ -13,7 +13,6 @@ layout(location = FRAG_OUTPUT_COLOR) out uint o_triangle;
 void main() { o_triangle = uint(u_triangle_base + gl_PrimitiveID) + 1u; }
 
 #else
-#include "certificate.glsl"
 layout(location = UNIFORM_LOCATION_LAYER) uniform int u_layer;
 
 flat in vec2 g_corner[4];
@@ -22,7 +21,7 @@ flat in vec3 g_plane;
 flat in vec2 g_origin;
 flat in int g_plane_valid;
 flat in float g_min_depth;
-flat in int g_triangle;
+flat in uint g_owner;
 
 #if CERTIFY_PASS == CERTIFY_NEAREST
 layout(location = FRAG_OUTPUT_COLOR) out uint o_owner;
@@ -54,9 +53,9 @@ void main() {
   }
   gl_FragDepth = clamp(depth - rounding, 0.0, 1.0);
 #if CERTIFY_PASS == CERTIFY_NEAREST
-  o_owner = owner_of(g_triangle);
+  o_owner = g_owner;
 #else
-  if (owner_of(g_triangle) == texelFetch(u_nearest_owner, ivec3(ivec2(c), u_layer), 0).r) discard;
+  if (g_owner == texelFetch(u_nearest_owner, ivec3(ivec2(c), u_layer), 0).r) discard;
 #endif
 }
 #endif

@@ -10,6 +10,7 @@
 // the triangle does not touch. A point light's triangle is first clipped
 // to the half-space in front of the light (w > 0): the part behind the
 // light cannot lie between it and any point it lights.
+#include "certificate.glsl"
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 4) out;
 
@@ -30,13 +31,14 @@ flat out vec2 g_origin;
 flat out int g_plane_valid;
 // The least window depth of the polygon's corners: no point of it is nearer.
 flat out float g_min_depth;
-// The triangle's index in the scene's index buffer / 3.
-flat out int g_triangle;
+// The triangle's owner (certificate.glsl), found once per triangle here
+// rather than per texel.
+flat out uint g_owner;
 
 // Texel units and window depth of a clip-space point.
 vec3 to_texels(vec4 clip) {
   vec3 ndc = clip.xyz / clip.w;
-  return vec3((ndc.xy * 0.5 + 0.5) * u.map_size, ndc.z * 0.5 + 0.5);
+  return vec3((ndc.xy * 0.5 + 0.5) * u.certified_map_size, ndc.z * 0.5 + 0.5);
 }
 
 void main() {
@@ -75,7 +77,7 @@ void main() {
     min_depth = min(min_depth, p[i].z);
   }
   // Off the layer: no texel to mark.
-  if (hi.x < -1.0 || hi.y < -1.0 || lo.x > u.map_size + 1.0 || lo.y > u.map_size + 1.0) return;
+  if (hi.x < -1.0 || hi.y < -1.0 || lo.x > u.certified_map_size + 1.0 || lo.y > u.certified_map_size + 1.0) return;
   // Orientation, for outward edge normals.
   float area = 0.0;
   for (int i = 0; i < n; ++i) {
@@ -116,17 +118,17 @@ void main() {
   }
   g_origin = a.xy;
   g_min_depth = min_depth;
-  g_triangle = u_triangle_base + gl_PrimitiveIDIn;
+  g_owner = owner_of(u_triangle_base + gl_PrimitiveIDIn);
   // The box, half a texel and a rounding margin wider, clamped to the layer
   // and a texel beyond it.
   float margin = 0.5 + 1e-3 + 1e-6 * extent;
-  lo = clamp(lo - margin, vec2(-1.0), vec2(u.map_size + 1.0));
-  hi = clamp(hi + margin, vec2(-1.0), vec2(u.map_size + 1.0));
+  lo = clamp(lo - margin, vec2(-1.0), vec2(u.certified_map_size + 1.0));
+  hi = clamp(hi + margin, vec2(-1.0), vec2(u.certified_map_size + 1.0));
   vec2 corners[4] = vec2[4](lo, vec2(hi.x, lo.y), vec2(lo.x, hi.y), hi);
   for (int i = 0; i < 4; ++i) {
     // Depth is written by the fragment shader; z 0 keeps the quad from
     // being clipped by the view's near and far planes.
-    gl_Position = vec4(corners[i] / u.map_size * 2.0 - 1.0, 0.0, 1.0);
+    gl_Position = vec4(corners[i] / u.certified_map_size * 2.0 - 1.0, 0.0, 1.0);
     EmitVertex();
   }
   EndPrimitive();

@@ -17,6 +17,15 @@ in vec3 v_color;
 
 layout(location = FRAG_OUTPUT_COLOR) out vec4 o_color;
 
+#if CERTIFICATES
+// Filter "exact": each pixel's verdict, and its colour with visibility 0,
+// for the CPU to settle (PixelCertificates).
+#include "certificate.glsl"
+layout(location = FRAG_OUTPUT_CERTIFICATE) out uint o_certificate;
+layout(location = FRAG_OUTPUT_UNLIT) out vec4 o_unlit;
+layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
+#endif
+
 #if SHADOWS
 // Window depth in [0, 1] per layer; nearest, no compare; outside the map
 // the border reads 1 (far).
@@ -378,15 +387,11 @@ float pcss(View v, Receiver r) {
 #endif
 
 #if FILTER == FILTER_EXACT
-#include "certificate.glsl"
 // ---------------------------------------------------------------------------
 // Filter "exact": a verdict per pixel instead of a filtered guess. The maps
 // (certify.frag) prove a point lit or shadowed, or the pixel is left to the
 // CPU's ray cast (reference/certified_frame.hpp). Why each rule is sound:
 // docs/certified-shadows.md.
-layout(location = FRAG_OUTPUT_CERTIFICATE) out uint o_certificate;
-layout(location = FRAG_OUTPUT_UNLIT) out vec4 o_unlit;
-layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
 layout(binding = TEXTURE_UNIT_CERTIFY_NEAREST) uniform sampler2DArray u_nearest;
 layout(binding = TEXTURE_UNIT_CERTIFY_NEAREST_OWNER) uniform usampler2DArray u_nearest_owner;
 layout(binding = TEXTURE_UNIT_CERTIFY_OTHERS) uniform sampler2DArray u_others;
@@ -426,41 +431,48 @@ uint verdict_by_maps(Seen s) {
   float dz = s.reach * window_per_world + 2e-6;
   if (any(lessThan(lo, vec2(1.0))) || any(greaterThan(hi, vec2(u.map_size - 1.0))) || z - dz <= 0.0 || z + dz >= 1.0)
     return CERTIFICATE_UNCERTAIN;
+  // Far from every caster's rectangle (the image of the bounds of what the
+  // maps hold; a texel a triangle touches lies within a texel of it):
+  // nothing lies in front of the point, and the maps are not even read.
+  // Such lanes read texel 0 instead of their own (llvmpipe makes the masked
+  // reads too, and scattered ones miss its cache: see shadow_visibility).
+  bool near = all(greaterThan(hi + 2.0, v.casters.xy)) && all(lessThan(lo - 2.0, v.casters.zw));
+  vec2 at = near ? t : vec2(1.5);
+  lo = at - spread;
+  hi = at + spread;
+  if (!near) return CERTIFICATE_LIT;
   uint own = owner_of(s.triangle);
-  // Lit: in every texel the ray can cross, everything but the point's own
-  // owner lies behind it (conservative depths: nothing is nearer anywhere
-  // in the texel).
-  bool lit = true;
-  ivec2 first = ivec2(floor(lo)), last = ivec2(floor(hi));
-  for (int y = 0; y < 2; ++y) {
-    for (int x = 0; x < 2; ++x) {
-      ivec3 texel = ivec3(first + ivec2(x, y), v.layer);
-      if (texel.x > last.x || texel.y > last.y) continue;
-      float nearest = texelFetch(u_nearest, texel, 0).r;
-      float others = texelFetch(u_nearest_owner, texel, 0).r == own ? texelFetch(u_others, texel, 0).r : nearest;
-      lit = lit && others > z + dz;
-    }
-  }
-  if (lit) return CERTIFICATE_LIT;
-  // Shadowed: one triangle holds every texel centre around the square (so,
-  // being convex, the square too) and lies in front of the point by more
-  // than dz even at its farthest centre (a plane is affine between them).
-  // A convex object's own triangles are no proof: they are its
+  // Lit: in every texel of the conservative maps (half as fine as the
+  // layer: certified_map_size) that the ray can cross (at most 2 x 2, read
+  // at once), everything but the point's own owner lies behind it
+  // (conservative depths: nothing is nearer anywhere in the texel).
+  // textureGather's order: (x0, y1), (x1, y1), (x1, y0), (x0, y0).
+  float coarse = u.certified_map_size / u.map_size;
+  vec2 first = floor(lo * coarse), last = floor(hi * coarse);
+  vec3 block = vec3((first + 1.0) / u.certified_map_size, float(v.layer));
+  vec4 nearest = textureGather(u_nearest, block);
+  uvec4 owner = textureGather(u_nearest_owner, block);
+  vec4 others = textureGather(u_others, block);
+  vec4 behind = mix(nearest, others, vec4(equal(owner, uvec4(own))));
+  // Texels of the block outside the square count as behind.
+  float one_column = last.x == first.x ? 1.0 : 0.0, one_row = last.y == first.y ? 1.0 : 0.0;
+  vec4 outside = vec4(one_row, max(one_row, one_column), one_column, 0.0);
+  if (all(greaterThan(vec4(greaterThan(behind, vec4(z + dz))) + outside, vec4(0.5)))) return CERTIFICATE_LIT;
+  // Shadowed: one triangle holds the four texel centres around the square
+  // (so, being convex, the square too) and lies in front of the point by
+  // more than dz even at its farthest centre (a plane is affine between
+  // them). A convex object's own triangles are no proof: they are its
   // tessellation, not the surface the reference sees.
-  ivec2 c0 = ivec2(floor(lo - 0.5)), c1 = ivec2(floor(hi - 0.5)) + 1;
-  uint triangle = texelFetch(u_centre_triangle, ivec3(c0, v.layer), 0).r;
-  if (triangle == 0u) return CERTIFICATE_UNCERTAIN;
+  vec2 c0 = floor(lo - 0.5);
+  if (hi.x > c0.x + 1.5 || hi.y > c0.y + 1.5) return CERTIFICATE_UNCERTAIN;
+  vec3 centres = vec3((c0 + 1.0) / u.map_size, float(v.layer));
+  uvec4 triangles = textureGather(u_centre_triangle, centres);
+  vec4 depths = textureGather(u_shadow_map, centres);
+  uint triangle = triangles.x;
+  if (triangle == 0u || any(notEqual(triangles, uvec4(triangle)))) return CERTIFICATE_UNCERTAIN;
   bool model = has_flag(s.facts, OBJECT_FLAG_MODEL);
   if (!model && object_of(int(triangle - 1u)) == s.object) return CERTIFICATE_UNCERTAIN;
-  float farthest = 0.0;
-  for (int y = 0; y < 3; ++y) {
-    for (int x = 0; x < 3; ++x) {
-      ivec2 c = c0 + ivec2(x, y);
-      if (c.x > c1.x || c.y > c1.y) continue;
-      if (texelFetch(u_centre_triangle, ivec3(c, v.layer), 0).r != triangle) return CERTIFICATE_UNCERTAIN;
-      farthest = max(farthest, texelFetch(u_shadow_map, ivec3(c, v.layer), 0).r);
-    }
-  }
+  float farthest = max(max(depths.x, depths.y), max(depths.z, depths.w));
   return farthest < z - dz ? CERTIFICATE_DARK : CERTIFICATE_UNCERTAIN;
 }
 
@@ -565,6 +577,12 @@ void main() {
   // A sun below the horizon: no direct light reaches any surface.
   float visibility = 0.0;
 #endif
+#if CERTIFICATES && !SHADOWS
+  // Certified without a lookup: a sun below the horizon lights nothing, so
+  // every surface is dark; the CPU casts only around changes of object.
+  o_certificate = ((object_of(u_triangle_base + gl_PrimitiveID) + 1u) << 3) | (n_dot_l > 0.0 ? 4u : 0u) |
+                  CERTIFICATE_DARK;
+#endif
 
 #if OUTPUT_SHADOW
   o_color = vec4(vec3(visibility), 1.0);
@@ -578,11 +596,11 @@ void main() {
   vec3 specular = n_dot_l > 0.0 ? direct * 0.25 * pow(max(dot(normal, halfway), 0.0), 64.0) * light_color : vec3(0.0);
   vec3 lighting = (ambient * light_color + visibility * (diffuse + specular)) * albedo;
   o_color = vec4(clamp(lighting, 0.0, 1.0), 1.0);
-#if SHADOWS && FILTER == FILTER_EXACT
+#if CERTIFICATES
   o_unlit = vec4(clamp(ambient * light_color * albedo, 0.0, 1.0), 1.0);
 #endif
 #endif
-#if OUTPUT_SHADOW && SHADOWS && FILTER == FILTER_EXACT
+#if OUTPUT_SHADOW && CERTIFICATES
   o_unlit = vec4(0.0, 0.0, 0.0, 1.0);
 #endif
 }

@@ -144,6 +144,24 @@ TEST(CertifiedRandomScenes, EveryPixelEqualsTheExactReference) {
   std::printf("random scenes: %zu of %zu pixels ray cast, %zu differ\n", cast, pixels, differing);
 }
 
+// A sun below the horizon lights nothing: no map is drawn, every surface
+// is certainly dark, and the outlines are ray cast (the raster's and the
+// reference's may differ by a pixel there).
+TEST(CertifiedFrame, UnderASunBelowTheHorizonEveryPixelEqualsTheReference) {
+  const RenderRequest r = request(R"({"width": 320, "height": 180,
+      "light": {"sun": {"latitude": 44.862, "longitude": 0, "north_deg": -16.834, "utc": "2026-03-16T06:12:00Z"}},
+      "camera": {"position": [-3.854, 2.142, 7.928], "target": [-0.247, 0.385, -0.363]},
+      "scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [15.888, 14.1]},
+                            {"type": "sphere", "center": [-2.665, 0.549, 0.222], "radius": 0.549},
+                            {"type": "sphere", "center": [-2.204, 0.945, 0.204], "radius": 0.868},
+                            {"type": "box", "center": [2.013, 0.278, 0.896], "size": [0.631, 0.555, 1.434], "rotation_y_deg": 16.48},
+                            {"type": "box", "center": [0.619, 0.961, 0.001], "size": [0.856, 1.922, 0.565], "rotation_y_deg": -65.65}]}})");
+  const Comparison c = compare_with_reference(r);
+  EXPECT_EQ(c.differing, 0u);
+  EXPECT_GT(c.share.ray_cast, 0u);
+  EXPECT_LT(c.share.ray_cast, c.pixels / 4);
+}
+
 // The comparison above can fail: a certificate that calls every pixel lit
 // gives frames that differ from the reference wherever it is dark.
 // The colour output: certified pixels as the map frame shades them; the

@@ -445,9 +445,12 @@ TEST(FramePlan, EachStepsProgramDerivesFromTheFramesVariant) {
   EXPECT_EQ(program_variant(frame, DisplayProgram::Frame).filter, frame.filter);
 }
 
-// Filter "exact": the certified maps of every view, whole, every object
-// but the planes that shadow nothing; one main-pass step with the
-// certificates read back; nothing reused or kept.
+// Filter "exact": the certified maps of every view that holds a caster,
+// cleared where the certificate may read them (kCertifiedReadTexels around
+// the casters), every object reaching into it but the planes that shadow
+// nothing, no face culled; one main-pass step with the certificates read
+// back; nothing reused or kept. A fixed frustum: every object into every
+// layer, cleared whole.
 TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {
   RenderRequest r = test::builtin_request("three-cubes");
   r.shadow.filter = ShadowFilter::Exact;
@@ -456,11 +459,23 @@ TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {
   EXPECT_TRUE(plan.shadow.certify);
   EXPECT_FALSE(plan.shadow.reused);
   EXPECT_FALSE(plan.shadow.kept_after.holds_plan);
-  ASSERT_EQ(plan.shadow.layers.size(), plan.light.views.size());
+  ASSERT_FALSE(plan.shadow.layers.empty());
   for (const ShadowLayerDraw& layer : plan.shadow.layers) {
-    EXPECT_TRUE(layer.clear_whole);
+    const TexelRect& c = plan.casters.by_view[std::size_t(layer.layer)];
+    ASSERT_FALSE(c.empty());
+    if (!layer.clear_whole) {
+      EXPECT_LE(layer.x0, std::max(0, int(c.min.x) - kCertifiedReadTexels));
+      EXPECT_LE(layer.y0, std::max(0, int(c.min.y) - kCertifiedReadTexels));
+      EXPECT_GE(layer.x1, std::min(plan.light.layer_size, int(c.max.x) + kCertifiedReadTexels));
+      EXPECT_GE(layer.y1, std::min(plan.light.layer_size, int(c.max.y) + kCertifiedReadTexels));
+    }
     for (const DrawRange& draw : layer.draws) EXPECT_EQ(draw.cull, CullMode::None);
   }
+  RenderRequest fixed = r;
+  fixed.shadow.fit = FrustumFit::Fixed;
+  const FramePlan fixed_plan = plan_frame(fixed, mesh, "scene", KeptShadowMap{});
+  EXPECT_EQ(fixed_plan.shadow.layers.size(), fixed_plan.light.views.size());
+  for (const ShadowLayerDraw& layer : fixed_plan.shadow.layers) EXPECT_TRUE(layer.clear_whole);
   EXPECT_TRUE(plan.display.certificates);
   ASSERT_EQ(plan.display.steps.size(), 1u);
   EXPECT_EQ(plan.display.steps[0].kind, DisplayStep::Kind::Objects);

@@ -9,6 +9,7 @@
 
 #include "core/render_result.hpp"
 #include "core/shapes/shape.hpp"
+#include "plan/frame_plan.hpp"
 
 namespace umbra {
 
@@ -70,7 +71,8 @@ std::string variant_defines(const DisplayVariant& v) {
     << "#define BIAS_AUTO " << int(v.bias_auto) << "\n"
     << "#define FILTER_REACH " << v.filter_reach << "\n"
     << "#define FILTER_READ " << v.filter_read << "\n"
-    << "#define LIGHT_SIDE " << v.light_side << "\n";
+    << "#define LIGHT_SIDE " << v.light_side << "\n"
+    << "#define CERTIFICATES " << int(v.certificates) << "\n";
   return d.str();
 }
 
@@ -111,6 +113,7 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   // directional light's angular diameter.
   b.light_size = float(plan.perspective ? request.light.size : sun_disc_tan_radius(request.light));
   b.map_size = float(plan.layer_size);
+  b.certified_map_size = float(certified_map_size(plan.layer_size));
   b.smooth_normal_span = plan.perspective ? float(mesh.smooth_normal_span) : 0.0f;
   b.preview_grid = preview_tiles_per_row(int(plan.views.size()));
   b.preview_size = float(request.shadow.map_size);

@@ -149,6 +149,8 @@ std::vector<glm::vec4> object_facts(const Scene& scene, const glm::dvec3& origin
   MEMBER(float, light_size)                                                                        \
   /* Shadow map texels per side. */                                                               \
   MEMBER(float, map_size)                                                                          \
+  /* Filter "exact": the conservative maps' texels per side (certified_map_size). */             \
+  MEMBER(float, certified_map_size)                                                                \
   /* A point light: Mesh::smooth_normal_span, which LIGHT_SIDE's facing */                        \
   /* test allows for (scene.vert); 0 for a directional light. */                                  \
   MEMBER(float, smooth_normal_span)                                                                \

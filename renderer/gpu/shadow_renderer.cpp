@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstddef>
 #include <stdexcept>
 
@@ -185,7 +186,10 @@ std::uint64_t ShadowRenderer::depth_preview_bytes() const {
 }
 
 std::uint64_t ShadowRenderer::certify_bytes() const {
-  return std::uint64_t(certify_.size) * std::uint64_t(certify_.size) * std::uint64_t(certify_.layers) * 4 * 4;
+  if (certify_.size == 0) return 0;
+  const std::uint64_t fine = std::uint64_t(certify_.size) * std::uint64_t(certify_.size);
+  const std::uint64_t coarse = std::uint64_t(certified_map_size(certify_.size)) * std::uint64_t(certified_map_size(certify_.size));
+  return (fine + 3 * coarse) * std::uint64_t(certify_.layers) * 4;
 }
 
 std::uint64_t ShadowRenderer::cached_bytes() const {
@@ -310,10 +314,11 @@ void ShadowRenderer::resize_display(int width, int height) {
 void ShadowRenderer::resize_certify_maps(int size, int layers) {
   if (certify_.size == size && certify_.layers >= layers) return;
   released_gl_bytes_ += certify_bytes();
+  const int coarse = certified_map_size(size);
   certify_.centre_triangle = texel_array(GL_R32UI, size, layers);
-  certify_.nearest_depth = texel_array(GL_DEPTH_COMPONENT32F, size, layers);
-  certify_.nearest_owner = texel_array(GL_R32UI, size, layers);
-  certify_.others_depth = texel_array(GL_DEPTH_COMPONENT32F, size, layers);
+  certify_.nearest_depth = texel_array(GL_DEPTH_COMPONENT32F, coarse, layers);
+  certify_.nearest_owner = texel_array(GL_R32UI, coarse, layers);
+  certify_.others_depth = texel_array(GL_DEPTH_COMPONENT32F, coarse, layers);
   certify_.framebuffer = gl::create_framebuffer();
   certify_.size = size;
   certify_.layers = layers;
@@ -385,20 +390,36 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan) {
   for (const ShadowLayerDraw& layer : plan.shadow.layers) {
     const GLint at = GLint(layer.layer);
     const GLuint none = 0, no_owner = 0xFFFFFFFFu;
+    const float far = 1.0f;
+    // The whole layer, or only the rectangle the certificate reads, in a
+    // map of `side` texels (the layer's or the coarse maps').
+    const auto clear = [&](GLuint texture, int side, GLenum format, GLenum type, const void* value) {
+      if (layer.clear_whole) {
+        glClearTexSubImage(texture, 0, 0, 0, at, side, side, 1, format, type, value);
+        return;
+      }
+      const double scale = double(side) / double(size);
+      const int x0 = std::max(0, int(std::floor(layer.x0 * scale)) - 1), y0 = std::max(0, int(std::floor(layer.y0 * scale)) - 1);
+      const int x1 = std::min(side, int(std::ceil(layer.x1 * scale)) + 1), y1 = std::min(side, int(std::ceil(layer.y1 * scale)) + 1);
+      glClearTexSubImage(texture, 0, x0, y0, at, x1 - x0, y1 - y0, 1, format, type, value);
+    };
+    const int coarse = certified_map_size(size);
     attach(shadow_.depth_map.id(), certify_.centre_triangle.id(), at);
-    glClear(GL_DEPTH_BUFFER_BIT);
-    glClearBufferuiv(GL_COLOR, 0, &none);
+    glViewport(0, 0, size, size);
+    clear(shadow_.depth_map.id(), size, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
+    clear(certify_.centre_triangle.id(), size, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
     glUseProgram(centre);
     glProgramUniform1i(centre, kUniformLocationLayer, at);
     draw_scene(layer.draws);
     attach(certify_.nearest_depth.id(), certify_.nearest_owner.id(), at);
-    glClear(GL_DEPTH_BUFFER_BIT);
-    glClearBufferuiv(GL_COLOR, 0, &no_owner);
+    glViewport(0, 0, coarse, coarse);
+    clear(certify_.nearest_depth.id(), coarse, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
+    clear(certify_.nearest_owner.id(), coarse, GL_RED_INTEGER, GL_UNSIGNED_INT, &no_owner);
     glUseProgram(nearest);
     glProgramUniform1i(nearest, kUniformLocationLayer, at);
     draw_scene(layer.draws);
     attach(certify_.others_depth.id(), 0, at);
-    glClear(GL_DEPTH_BUFFER_BIT);
+    clear(certify_.others_depth.id(), coarse, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
     glBindTextureUnit(kTextureUnitCertifyNearestOwner, certify_.nearest_owner.id());
     glUseProgram(others);
     glProgramUniform1i(others, kUniformLocationLayer, at);
@@ -728,7 +749,7 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
   result.shadow_views = plan.shadow_views;
   const FrameBlock block = frame_block(request, plan.light, scene().mesh, plan.casters.by_view);
   glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
-  if (plan.shadow.certify) use_certificate_buffers(request.scene);
+  if (plan.display.certificates) use_certificate_buffers(request.scene);
   if (plan.shadow.needed && !plan.shadow.reused) {
     // A reused map (typically only the camera moved) leaves shadow_ms 0.
     const auto start = Clock::now();

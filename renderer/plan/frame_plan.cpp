@@ -237,13 +237,34 @@ ShadowPassPlan plan_shadow_pass(const RenderRequest& request, const ShadowPlan& 
   return pass;
 }
 
+// Filter "exact": where the certified maps hold anything, by view, for the
+// certificate's shortcut (a point whose texels lie beyond it is lit). The
+// maps hold every drawn object in every view, so none is dropped from a
+// cascade (as caster_table may drop a heavy mesh); and a fixed frustum's
+// conservative maps hold casters beyond its near and far planes too (only
+// a fitted view holds all it draws), so there the rectangle is the layer's
+// and beyond.
+CasterTexels certified_caster_table(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
+                                    const std::vector<bool>& planes) {
+  RenderRequest every_object = request;
+  every_object.output = Output::Depth;  // the depth output draws every object into every layer
+  CasterTexels casters = caster_table(every_object, light, mesh, planes);
+  if (request.shadow.fit == FrustumFit::Fixed) {
+    for (TexelRect& rect : casters.by_view) {
+      rect.min = glm::dvec2(-1e9);
+      rect.max = glm::dvec2(1e9);
+    }
+  }
+  return casters;
+}
+
 // Filter "exact": every object (but the planes that shadow nothing) into
 // every layer, cleared whole, no face culled. The conservative maps must hold every triangle (a closed mesh's
 // near faces are where it first blocks a ray, and a caster left out of a
 // cascade would be an occluder the proof never saw); the certificate
 // decides nothing from what is drawn where, only from what the maps hold.
 ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
-                                          const std::vector<bool>& planes) {
+                                          const std::vector<bool>& planes, const CasterTexels& casters) {
   ShadowPassPlan pass;
   pass.needed = true;
   pass.certify = true;
@@ -252,12 +273,32 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
     if (!view.empty) views.push_back(view.projection * view.view);
   pass.object_draw_ms =
       object_draw_ms(request.scene, views, double(light.layer_size), double(light.layer_size));
-  const std::vector<DrawRange> everything = scene_draw_ranges(mesh, CullMode::None, drawn_objects(mesh, planes));
+  // A fixed frustum's maps hold what lies beyond its near and far planes
+  // too: every object goes into every layer, cleared whole. A fitted
+  // view's objects all lie inside it, and the certificate reads a layer
+  // only within kCertifiedReadTexels of its casters' rectangle: only that
+  // much is cleared (unless it is most of the layer), only the objects
+  // reaching into it are drawn, and a layer nothing reaches is left alone.
+  const bool fixed = request.shadow.fit == FrustumFit::Fixed;
+  const std::vector<bool> drawn = drawn_objects(mesh, planes);
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     ShadowLayerDraw draw;
     draw.layer = int(layer);
-    draw.clear_whole = true;
-    draw.draws = everything;
+    if (fixed) {
+      draw.clear_whole = true;
+      draw.draws = scene_draw_ranges(mesh, CullMode::None, drawn);
+    } else {
+      const TexelRect& c = casters.by_view[layer];
+      if (light.views[layer].empty || c.empty()) continue;
+      const int margin = kCertifiedReadTexels;
+      draw.clear_whole = clears_whole_layer(c, light.layer_size);
+      draw.x0 = std::max(0, int(c.min.x) - margin), draw.y0 = std::max(0, int(c.min.y) - margin);
+      draw.x1 = std::min(light.layer_size, int(c.max.x) + margin);
+      draw.y1 = std::min(light.layer_size, int(c.max.y) + margin);
+      std::vector<bool> in_view;
+      for (const TexelRect& object : casters.by_object[layer]) in_view.push_back(!object.empty());
+      draw.draws = scene_draw_ranges(mesh, CullMode::None, in_view);
+    }
     pass.layers.push_back(std::move(draw));
   }
   pass.kept_after.holds_plan = false;
@@ -388,8 +429,10 @@ DisplayVariant program_variant(const DisplayVariant& frame, DisplayProgram which
   return v;
 }
 
+int certified_map_size(int layer_size) { return std::max(64, layer_size / 2); }
+
 bool certified_frame(const RenderRequest& request, const ShadowPlan& light) {
-  return request.output != Output::Depth && display_variant(request, light).filter == ShadowFilter::Exact;
+  return request.output != Output::Depth && display_variant(request, light).certificates;
 }
 
 bool needs_shadow_map(const RenderRequest& request, const ShadowPlan& light) {
@@ -510,9 +553,13 @@ FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::
     // Nothing is reused. A plane that can shadow nothing (plane_can_shadow:
     // every other object lies on its light's side) is left out of the maps,
     // as from any frame's: it lies in front of no point but its own.
-    plan.casters = caster_table(request, plan.light, mesh, plan.casting_planes);
-    plan.shadow = plan_certified_shadow_pass(request, plan.light, mesh, plan.casting_planes);
-    plan.shadow_views = describe_views(plan.light);
+    // A sun below the horizon: no map, every surface dark (CERTIFICATES
+    // without a lookup).
+    plan.casters = certified_caster_table(request, plan.light, mesh, plan.casting_planes);
+    if (plan.shadow.needed) {
+      plan.shadow = plan_certified_shadow_pass(request, plan.light, mesh, plan.casting_planes, plan.casters);
+      plan.shadow_views = describe_views(plan.light);
+    }
     plan.display = plan_certified_display_pass(request, plan.light, mesh);
     plan.read_back = {false, request.width, request.height, request.output == Output::Shadow ? 1 : 3, 8};
     plan.read_back.certificates = true;

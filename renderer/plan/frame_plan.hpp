@@ -32,6 +32,16 @@ namespace umbra {
 // Runs of closed meshes, and of open models, that a pass draws with a call
 // each; past that many, all of their kind in one call.
 inline constexpr std::size_t kMaxRuns = 16;
+// Filter "exact": how far (texels) from a layer's casters' rectangle the
+// certificate may read its maps (scene.frag verdict_by_maps: within 2 it
+// reads, and a 2 x 2 block from there).
+inline constexpr int kCertifiedReadTexels = 4;
+/// Filter "exact": texels per side of the conservative maps of a layer of
+/// `layer_size`: half of it (at least 64). On llvmpipe their passes cost
+/// about four times less than at the layer's own size; a texel twice as
+/// wide only widens the band around shadow edges left to the ray cast (the
+/// centre map, which proves shadow, keeps the layer's size).
+int certified_map_size(int layer_size);
 // Triangles from which an object is worth leaving out of a cascade it
 // shadows nothing in: on llvmpipe about 0.4 ms of a shadow pass.
 inline constexpr std::size_t kHeavyTriangles = 4096;

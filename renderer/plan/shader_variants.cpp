@@ -8,6 +8,7 @@ DisplayVariant without_shadows(const DisplayVariant& v) {
   lit.direct_light = v.direct_light;
   lit.shadow_output = v.shadow_output;
   lit.perspective = v.perspective;
+  lit.certificates = v.certificates;
   return lit;
 }
 
@@ -16,6 +17,8 @@ DisplayVariant display_variant(const RenderRequest& request, const ShadowPlan& p
   v.direct_light = plan.direct_light;
   v.shadow_output = request.output == Output::Shadow;
   v.perspective = plan.perspective;
+  v.certificates = request.shadow.filter == ShadowFilter::Exact && request.shadow.enabled &&
+                   request.output != Output::Depth;
   if (!(request.shadow.enabled && plan.direct_light)) return without_shadows(v);
   const ShadowSettings& s = request.shadow;
   v.cube = plan.layout == ShadowLayout::Cube;

@@ -36,7 +36,11 @@ struct DisplayVariant {
   /// face it, -1 the part that cannot (lit by ambient only, visibility 0),
   /// 0 whole (everything else).
   int light_side = 0;
-
+  /// CERTIFICATES: filter "exact" (shadows on, not the depth output): the
+  /// main pass also writes each pixel's verdict and unlit colour
+  /// (PixelCertificates), with the lookup (FILTER_EXACT) or, under a sun
+  /// below the horizon, without one (everything dark).
+  bool certificates = false;
 };
 
 /// The main pass's variant for `request` drawn with the light's views in

@@ -94,22 +94,25 @@ void settle_certified_frame(RenderResult& result, const RenderRequest& request,
   const PixelCertificates& c = *result.certificates;
   const int w = request.width, h = request.height;
   const std::vector<std::uint8_t> cast = pixels_to_ray_cast(c.codes, w, h, silhouette_ring(request));
+  std::vector<std::size_t> indices;
+  for (std::size_t i = 0; i < cast.size(); ++i)
+    if (cast[i]) indices.push_back(i);
   CertifiedShare share;
   share.pixels = cast.size();
-  share.ray_cast = std::size_t(std::count(cast.begin(), cast.end(), std::uint8_t(1)));
-  if (share.ray_cast > 0) {
+  share.ray_cast = indices.size();
+  if (!indices.empty()) {
     const ExactView view(request, stop_requested);
-    const std::vector<ExactPixel> exact = view.pixels_where(cast, stop_requested);
+    const std::vector<ExactPixel> exact = view.pixels_at(indices, stop_requested);
     Image& image = result.image;
-    for (std::size_t i = 0; i < cast.size(); ++i) {
-      if (!cast[i]) continue;
+    for (std::size_t k = 0; k < indices.size(); ++k) {
+      const std::size_t i = indices[k];
       // The "exact" output's value (exact_image): no geometry is lit.
-      const double v = exact[i].geometry ? exact[i].visibility : 1.0;
+      const double v = exact[k].geometry ? exact[k].visibility : 1.0;
       if (image.channels == 1) {
         image.pixels[i] = std::uint8_t(std::lround(255.0 * v));
       } else if (v < 0.5) {
         // A light of no size: v is 0 or 1, and the main pass drew 1.
-        for (int k = 0; k < 3; ++k) image.pixels[3 * i + k] = c.unlit.pixels[3 * i + k];
+        for (int c3 = 0; c3 < 3; ++c3) image.pixels[3 * i + c3] = c.unlit.pixels[3 * i + c3];
       }
     }
   }

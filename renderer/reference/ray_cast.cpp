@@ -383,19 +383,21 @@ std::vector<ExactPixel> ExactView::pixels(const std::function<bool()>& stop_requ
   return pixels;
 }
 
-std::vector<ExactPixel> ExactView::pixels_where(const std::vector<std::uint8_t>& which,
-                                                const std::function<bool()>& stop_requested) const {
-  const int width = request_.width;
-  const std::size_t size = std::size_t(width) * request_.height;
-  if (which.size() != size)
-    throw std::invalid_argument("ExactView::pixels_where: the mask has " + std::to_string(which.size()) +
-                                " pixels, the view " + std::to_string(size));
-  std::vector<ExactPixel> pixels(size);
-  for_each_row(request_.height, stop_requested, [&](int y) {
-    for (int x = 0; x < width; ++x) {
-      const std::size_t i = std::size_t(y) * width + x;
-      if (which[i]) pixels[i] = at(x + 0.5, y + 0.5);
-    }
+std::vector<ExactPixel> ExactView::pixels_at(const std::vector<std::size_t>& indices,
+                                             const std::function<bool()>& stop_requested) const {
+  const std::size_t width = std::size_t(request_.width), size = width * std::size_t(request_.height);
+  for (const std::size_t i : indices)
+    if (i >= size)
+      throw std::invalid_argument("ExactView::pixels_at: pixel " + std::to_string(i) + " of " + std::to_string(size));
+  std::vector<ExactPixel> pixels(indices.size());
+  // Chunks of consecutive indices, so that threads share no cache line and
+  // the stop is asked about as often as between rows.
+  constexpr std::size_t kChunk = 256;
+  const int chunks = int((indices.size() + kChunk - 1) / kChunk);
+  for_each_row(chunks, stop_requested, [&](int chunk) {
+    const std::size_t end = std::min(indices.size(), std::size_t(chunk + 1) * kChunk);
+    for (std::size_t k = std::size_t(chunk) * kChunk; k < end; ++k)
+      pixels[k] = at(double(indices[k] % width) + 0.5, double(indices[k] / width) + 0.5);
   });
   return pixels;
 }

@@ -163,11 +163,12 @@ class ExactView {
   /// cores busy for minutes.
   std::vector<ExactPixel> pixels(const std::function<bool()>& stop_requested = nullptr) const;
 
-  /// pixels() for the pixels marked non-zero in `which` (width x height)
-  /// only, each exactly as pixels() casts it; the others stay default
-  /// (no geometry). Throws std::invalid_argument if `which` is not width x height.
-  std::vector<ExactPixel> pixels_where(const std::vector<std::uint8_t>& which,
-                                       const std::function<bool()>& stop_requested = nullptr) const;
+  /// pixels() for the pixels `indices` (y * width + x, each < width x
+  /// height) only, in that order, each exactly as pixels() casts it; on all
+  /// threads, asking `stop_requested` as pixels() does. Throws
+  /// std::invalid_argument for an index outside the image.
+  std::vector<ExactPixel> pixels_at(const std::vector<std::size_t>& indices,
+                                    const std::function<bool()>& stop_requested = nullptr) const;
 
   /// The PixelCoverage of each pixel marked non-zero in `which` (width x
   /// height): kCoverageSamples^2 points (x + (i + 0.5) / k, y + (j + 0.5) /
