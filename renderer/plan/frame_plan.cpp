@@ -180,16 +180,21 @@ void append_cell_steps(const std::vector<PlaneDraw>& planes, std::vector<Display
   }
 }
 
+// Per scene object, its draw's estimated ms in the light's views (the
+// most over them), by which a shadow pass chunks long draws.
+std::vector<double> shadow_object_draw_ms(const RenderRequest& request, const ShadowPlan& light) {
+  std::vector<glm::dmat4> views;
+  for (const ShadowView& view : light.views)
+    if (!view.empty) views.push_back(view.projection * view.view);
+  return object_draw_ms(request.scene, views, double(light.layer_size), double(light.layer_size));
+}
+
 // The shadow pass of a frame that draws one.
 ShadowPassPlan plan_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const std::vector<bool>& planes,
                                 const CasterTexels& casters, const Mesh& mesh, const std::string& scene_key) {
   ShadowPassPlan pass;
   pass.needed = true;
-  std::vector<glm::dmat4> views;
-  for (const ShadowView& view : light.views)
-    if (!view.empty) views.push_back(view.projection * view.view);
-  pass.object_draw_ms =
-      object_draw_ms(request.scene, views, double(light.layer_size), double(light.layer_size));
+  pass.object_draw_ms = shadow_object_draw_ms(request, light);
   // The depth output shows whole layers. A frame's main pass reads a layer
   // only for points whose filter (FILTER_READ texels around them) meets the
   // casters' rectangle, so only within twice that of it: only that much is
@@ -258,21 +263,16 @@ CasterTexels certified_caster_table(const RenderRequest& request, const ShadowPl
   return casters;
 }
 
-// Filter "exact": every object (but the planes that shadow nothing) into
-// every layer, cleared whole, no face culled. The conservative maps must hold every triangle (a closed mesh's
-// near faces are where it first blocks a ray, and a caster left out of a
-// cascade would be an occluder the proof never saw); the certificate
-// decides nothing from what is drawn where, only from what the maps hold.
+// Filter "exact": the certified maps (ShadowPassPlan::certify), no face
+// culled: the conservative maps must hold every triangle that may lie in
+// front of a point the certificate reads them for (a closed mesh's near
+// faces are where it first blocks a ray).
 ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
                                           const std::vector<bool>& planes, const CasterTexels& casters) {
   ShadowPassPlan pass;
   pass.needed = true;
   pass.certify = true;
-  std::vector<glm::dmat4> views;
-  for (const ShadowView& view : light.views)
-    if (!view.empty) views.push_back(view.projection * view.view);
-  pass.object_draw_ms =
-      object_draw_ms(request.scene, views, double(light.layer_size), double(light.layer_size));
+  pass.object_draw_ms = shadow_object_draw_ms(request, light);
   // A fixed frustum's maps hold what lies beyond its near and far planes
   // too: every object goes into every layer, cleared whole. A fitted
   // view's objects all lie inside it, and the certificate reads a layer
