@@ -21,6 +21,8 @@ flat in vec3 g_plane;
 flat in vec2 g_origin;
 flat in int g_plane_valid;
 flat in float g_min_depth;
+flat in float g_swell;
+flat in float g_depth_swell;
 flat in uint g_owner;
 
 #if CERTIFY_PASS == CERTIFY_NEAREST
@@ -32,13 +34,14 @@ layout(binding = TEXTURE_UNIT_CERTIFY_NEAREST_OWNER) uniform usampler2DArray u_n
 void main() {
   // This texel: the square of side 1 about its centre.
   vec2 c = gl_FragCoord.xy;
-  // A polygon edge whose outside holds the whole square separates them: the
-  // triangle touches no point of this texel.
+  // A polygon edge whose outside holds the whole square, beyond the swell,
+  // separates them: the triangle, and the true surface it stands for, touch
+  // no point of this texel.
   for (int i = 0; i < g_edge_count; ++i) {
     vec2 a = g_corner[i], b = g_corner[(i + 1) % g_edge_count];
     vec2 n = vec2(b.y - a.y, a.x - b.x);  // outward: the polygon turns counter-clockwise
     vec2 d = c - a;
-    float rounding = (abs(n.x) + abs(n.y)) * (1e-3 + 1e-6 * (abs(d.x) + abs(d.y)));
+    float rounding = (abs(n.x) + abs(n.y)) * (1e-3 + 1e-6 * (abs(d.x) + abs(d.y))) + g_swell * length(n);
     if (dot(n, d) - 0.5 * (abs(n.x) + abs(n.y)) > rounding) discard;
   }
   // The least depth of the triangle's plane over the square, never less
@@ -51,7 +54,7 @@ void main() {
     depth = max(depth, g_plane.z + g_plane.x * d.x + g_plane.y * d.y - slope);
     rounding += 4e-7 * (abs(g_plane.x * d.x) + abs(g_plane.y * d.y) + slope + abs(g_plane.z));
   }
-  gl_FragDepth = clamp(depth - rounding, 0.0, 1.0);
+  gl_FragDepth = clamp(depth - rounding - g_depth_swell, 0.0, 1.0);
 #if CERTIFY_PASS == CERTIFY_NEAREST
   o_owner = g_owner;
 #else

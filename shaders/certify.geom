@@ -31,6 +31,11 @@ flat out vec2 g_origin;
 flat out int g_plane_valid;
 // The least window depth of the polygon's corners: no point of it is nearer.
 flat out float g_min_depth;
+// How far the shape's true surface may reach beyond this face (its
+// tessellation distance), in texels sideways and in window depth towards
+// the light: certify.frag swells the triangle by it.
+flat out float g_swell;
+flat out float g_depth_swell;
 // The triangle's owner (certificate.glsl), found once per triangle here
 // rather than per texel.
 flat out uint g_owner;
@@ -118,10 +123,30 @@ void main() {
   }
   g_origin = a.xy;
   g_min_depth = min_depth;
-  g_owner = owner_of(u_triangle_base + gl_PrimitiveIDIn);
-  // The box, half a texel and a rounding margin wider, clamped to the layer
-  // and a texel beyond it.
-  float margin = 0.5 + 1e-3 + 1e-6 * extent;
+  int triangle = u_triangle_base + gl_PrimitiveIDIn;
+  g_owner = owner_of(triangle);
+  // A curved shape's faces are chords: its true surface, which the
+  // reference casts against, reaches up to its tessellation distance
+  // beyond them (ShapeKind::tessellation_error). Measured where that is
+  // most: a texel of this map at the polygon's nearest depth, window depth
+  // where it changes fastest, and a point light's off-axis projection.
+  float swell_world = object_facts(object_of(triangle)).x;
+  vec4 view = u.view_depth_texel[u_layer];
+  float coarse_texels = u.map_size / u.certified_map_size;
+#if LIGHT_PERSPECTIVE
+  float nearest_w = 1e30;
+  for (int i = 0; i < n; ++i) nearest_w = min(nearest_w, poly[i].w);
+  float texel_world = view.z * nearest_w * coarse_texels / (1.0 + 2.0 * view.w);
+  float window_per_world = view.x * view.y / ((view.y - view.x) * nearest_w * nearest_w);
+#else
+  float texel_world = min(view.z, view.w) * coarse_texels;
+  float window_per_world = 1.0 / (view.y - view.x);
+#endif
+  g_swell = swell_world / texel_world;
+  g_depth_swell = swell_world * window_per_world;
+  // The box, half a texel, the swell and a rounding margin wider, clamped
+  // to the layer and a texel beyond it.
+  float margin = 0.5 + g_swell + 1e-3 + 1e-6 * extent;
   lo = clamp(lo - margin, vec2(-1.0), vec2(u.certified_map_size + 1.0));
   hi = clamp(hi + margin, vec2(-1.0), vec2(u.certified_map_size + 1.0));
   vec2 corners[4] = vec2[4](lo, vec2(hi.x, lo.y), vec2(lo.x, hi.y), hi);

@@ -424,6 +424,10 @@ uint verdict_by_maps(Seen s) {
   // Where the exact point's light ray can pass: a square of texels, and
   // a window depth, each widened by `reach`.
   float spread = s.reach / texel_world + 1e-3;
+#if LIGHT_PERSPECTIVE
+  // A shift along the view's axis moves an off-axis point's image too.
+  spread *= 1.0 + (abs(v.ndc.x) + abs(v.ndc.y)) * v.tan_half;
+#endif
   if (spread > 0.5) return CERTIFICATE_UNCERTAIN;
   vec2 t = (v.ndc.xy * 0.5 + 0.5) * u.map_size;
   vec2 lo = t - spread, hi = t + spread;
