@@ -146,7 +146,9 @@ void main() {
   g_depth_swell = swell_world * window_per_world;
   // The box, half a texel, the swell and a rounding margin wider, clamped
   // to the layer and a texel beyond it.
-  float margin = 0.5 + g_swell + 1e-3 + 1e-6 * extent;
+  // (The rasteriser snaps the box's corners to a fraction of a texel,
+  // llvmpipe 1/256: the margin is well above it.)
+  float margin = 0.5 + g_swell + 1.0 / 32.0 + 1e-6 * extent;
   lo = clamp(lo - margin, vec2(-1.0), vec2(u.certified_map_size + 1.0));
   hi = clamp(hi + margin, vec2(-1.0), vec2(u.certified_map_size + 1.0));
   vec2 corners[4] = vec2[4](lo, vec2(hi.x, lo.y), vec2(lo.x, hi.y), hi);

@@ -467,8 +467,14 @@ uint verdict_by_maps(Seen s) {
   // more than dz even at its farthest centre (a plane is affine between
   // them). A convex object's own triangles are no proof: they are its
   // tessellation, not the surface the reference sees.
+  // The rasteriser snaps a triangle's corners to a fraction of a texel
+  // (llvmpipe: 1/256) before it decides which centres it covers, so a
+  // triangle that covers a centre truly holds only the points a little
+  // inside: the square must keep kSnapTexels inside the centres' square.
+  const float kSnapTexels = 1.0 / 32.0;
   vec2 c0 = floor(lo - 0.5);
-  if (hi.x > c0.x + 1.5 || hi.y > c0.y + 1.5) return CERTIFICATE_UNCERTAIN;
+  if (any(lessThan(lo, c0 + 0.5 + kSnapTexels)) || any(greaterThan(hi, c0 + 1.5 - kSnapTexels)))
+    return CERTIFICATE_UNCERTAIN;
   vec3 centres = vec3((c0 + 1.0) / u.map_size, float(v.layer));
   uvec4 triangles = textureGather(u_centre_triangle, centres);
   vec4 depths = textureGather(u_shadow_map, centres);
@@ -476,8 +482,12 @@ uint verdict_by_maps(Seen s) {
   if (triangle == 0u || any(notEqual(triangles, uvec4(triangle)))) return CERTIFICATE_UNCERTAIN;
   bool model = has_flag(s.facts, OBJECT_FLAG_MODEL);
   if (!model && object_of(int(triangle - 1u)) == s.object) return CERTIFICATE_UNCERTAIN;
+  // The snap moves the stored depths too: by the plane's slope over the
+  // snap, which the four depths bound.
   float farthest = max(max(depths.x, depths.y), max(depths.z, depths.w));
-  return farthest < z - dz ? CERTIFICATE_DARK : CERTIFICATE_UNCERTAIN;
+  float nearest_centre = min(min(depths.x, depths.y), min(depths.z, depths.w));
+  float snap_depth = 4.0 * kSnapTexels * (farthest - nearest_centre);
+  return farthest + snap_depth < z - dz ? CERTIFICATE_DARK : CERTIFICATE_UNCERTAIN;
 }
 
 // The pixel's verdict. n_dot_l is the GL's (interpolated normal), which
@@ -561,9 +571,21 @@ void main() {
   // offset_off_surface).
   float cos_view = abs(dot(normalize(to_eye), seen.geometric_normal));
   float rounding = has_flag(seen.facts, OBJECT_FLAG_MODEL) ? 3e-5 : 1e-6;
+  // The reference moves a shadow ray's start off an analytic surface by
+  // 1e-9 (1 + |point|) in world units: far from the world's origin that is
+  // more than the rounding near the mesh origin.
+  float world_offset = 2e-9 * (1.0 + length(v_position + u.mesh_origin_far.xyz));
   seen.reach = seen.facts.x / max(cos_view, 0.2) + 0.02 * (length(dFdx(v_position)) + length(dFdy(v_position))) +
-               rounding * seen.facts.w + 1e-6 * (length(v_position) + length(to_eye));
-  uint verdict = seen.facts.x > 0.0 && cos_view < 0.2 ? CERTIFICATE_UNCERTAIN : certify(seen, n_dot_l, to_light);
+               rounding * seen.facts.w + 1e-6 * (length(v_position) + length(to_eye)) + world_offset;
+  // The camera's near and far planes cut the true surface where they cut
+  // its faces only within the reach: there the reference's camera ray may
+  // start past the surface the raster shows (ray_cast.cpp starts it at the
+  // near plane), so such points are left to the ray cast.
+  float along_axis = dot(-to_eye, u.camera_axis_near.xyz);
+  bool clipped = along_axis - u.camera_axis_near.w < 2.0 * seen.reach ||
+                 u.mesh_origin_far.w - along_axis < 2.0 * seen.reach;
+  uint verdict = (seen.facts.x > 0.0 && cos_view < 0.2) || clipped ? CERTIFICATE_UNCERTAIN
+                                                                    : certify(seen, n_dot_l, to_light);
   // Which side of the light the surface turns to: the reference's camera
   // ray may meet the face beside a crease instead (the CPU casts where
   // this or the object changes between pixels).

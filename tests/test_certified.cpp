@@ -190,6 +190,28 @@ TEST(CertifiedFrame, ACurvedOccludersTrueSurfaceReachesPastItsFaces) {
   }
 }
 
+// Requests a second red-team pass built, each of which differed from the
+// reference before its fix (docs/certified-shadows.md):
+// - the rasteriser snaps a roof's corners by up to 1/512 texel, so the
+//   centre map called a texel centre covered that the roof's true edge
+//   missed: floor points just outside it were proved dark (180 pixels;
+//   6,480 with a fixed frustum);
+// - the camera's near plane cut a sphere between its true surface and its
+//   faces: the reference's ray, starting at the near plane, saw the inside
+//   of the far wall (92 pixels);
+// - 1e5 from the world's origin the reference lifts a shadow ray off a
+//   surface by 1e-4, more than a millimetre box's reach allowed (267
+//   pixels).
+TEST(CertifiedFrame, TheRedTeamsRequestsEqualTheReference) {
+  for (const char* body : {
+           R"({"width":160,"height":90,"scene":{"objects":[{"type":"plane","center":[0,0,0],"size":[20,20]},{"type":"box","center":[5.712289496121705,2.05,0],"size":[10,0.1,10]},{"type":"plane","center":[0,-50,0],"size":[100,100]}]},"light":{"position":[0,10,0],"target":[0,0,0]},"camera":{"position":[0.7121894961217047,0.05,0.3],"target":[0.7121894961217047,0,0.3],"up":[0,0,-1],"fov_y_deg":10,"near":0.001,"far":60},"shadow":{"map_size":64,"cascades":1}})",
+           R"({"width":160,"height":90,"scene":{"objects":[{"type":"plane","center":[0,0,0],"size":[80.0,80.0]},{"type":"box","center":[5.5016,0.5,0.2],"size":[10.0,1,10]}]},"light":{"position":[0,10,0],"target":[0,0,0]},"camera":{"position":[0.5013,0.02,0.2],"target":[0.5013,0,0.2],"up":[0,0,-1],"fov_y_deg":2,"near":0.001},"shadow":{"map_size":64,"fit":"fixed","ortho_half_size":32.0,"near":1,"far":20}})",
+           R"({"width":320,"height":180,"scene":{"objects":[{"type":"plane","center":[0,-1,0],"size":[10,10]},{"type":"sphere","center":[0,0,0],"radius":1}]},"light":{"position":[0.5,1,3],"target":[0,0,0]},"camera":{"position":[0,0.2,3],"target":[0,0,0],"fov_y_deg":40,"near":2.1},"shadow":{"map_size":1024}})",
+           R"({"width":320,"height":180,"scene":{"objects":[{"type":"plane","center":[100000.0,0,100000.0],"size":[0.01,0.01]},{"type":"box","center":[100000.0,0.0005,100000.0],"size":[0.001,0.001,0.001]}]},"light":{"position":[99999.99133974596,0.004999999999999999,100000.0],"target":[100000.0,0,100000.0]},"camera":{"position":[100000.001,0.002,100000.003],"target":[100000.0015,0,100000.0],"fov_y_deg":30,"near":1e-05},"shadow":{"map_size":2048}})",
+       })
+    EXPECT_EQ(compare_with_reference(request(body)).differing, 0u) << body;
+}
+
 // The comparison above can fail: a certificate that calls every pixel lit
 // gives frames that differ from the reference wherever it is dark.
 // The colour output: certified pixels as the map frame shades them; the

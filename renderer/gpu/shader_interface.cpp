@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include <glm/ext/matrix_transform.hpp>
+#include <glm/geometric.hpp>
 
 #include "core/render_result.hpp"
 #include "core/shapes/shape.hpp"
@@ -117,6 +118,9 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   b.smooth_normal_span = plan.perspective ? float(mesh.smooth_normal_span) : 0.0f;
   b.preview_grid = preview_tiles_per_row(int(plan.views.size()));
   b.preview_size = float(request.shadow.map_size);
+  const glm::dvec3 axis = glm::normalize(request.camera.target - request.camera.position);
+  b.camera_axis_near = glm::vec4(glm::vec3(axis), float(request.camera.near_plane));
+  b.mesh_origin_far = glm::vec4(glm::vec3(origin), float(request.camera.far_plane));
   return b;
 }
 

@@ -157,7 +157,12 @@ std::vector<glm::vec4> object_facts(const Scene& scene, const glm::dvec3& origin
   /* Depth preview: the preview's side in pixels, and tiles per row */                            \
   /* (preview_tiles_per_row). */                                                                  \
   MEMBER(float, preview_size)                                                                      \
-  MEMBER(int, preview_grid)
+  MEMBER(int, preview_grid)                                                                        \
+  /* Filter "exact": the camera's unit view direction with its near plane */                      \
+  /* in w, its far plane, and the mesh origin in world units (positions */                        \
+  /* are relative to it; the reference's offsets grow with the world's). */                       \
+  MEMBER(vec4, camera_axis_near)                                                                   \
+  MEMBER(vec4, mesh_origin_far)
 
 namespace std140 {
 // The GLSL type names used above, as C++ types of the same std140 size.
