@@ -406,6 +406,7 @@ struct Seen {
   uint object;
   vec4 facts;             // object_facts
   float reach;            // world units: the exact point lies within this of p
+  float n_dot_l_rate;     // |d(N.L)/dx| + |d(N.L)/dy| across the pixel
 };
 
 // The verdict on a point that faces the light with margin: the maps'
@@ -493,7 +494,11 @@ uint verdict_by_maps(Seen s) {
 // The pixel's verdict. n_dot_l is the GL's (interpolated normal), which
 // the reference computes the same way for a model and exactly for a shape.
 uint certify(Seen s, float n_dot_l, vec3 to_light) {
-  float normal_slack = sin(s.facts.y) + 1e-4;
+  // The shape's normal error, float rounding, and how fast N.L changes
+  // across the pixel (s.n_dot_l_rate): the rasteriser's snap moves where
+  // the interpolated normal is read by a fraction of a pixel (on a tiny
+  // triangle of a model whose normals turn fast, that flipped N.L's sign).
+  float normal_slack = sin(s.facts.y) + 1e-4 + 0.05 * s.n_dot_l_rate;
   if (n_dot_l < -normal_slack) return CERTIFICATE_DARK;  // faces away: no direct light, here or exactly
   if (n_dot_l <= normal_slack) return CERTIFICATE_UNCERTAIN;
   // The own-owner rule holds where the point's plane faces the light, and
@@ -560,6 +565,7 @@ void main() {
   seen.triangle = u_triangle_base + gl_PrimitiveID;
   seen.object = object_of(seen.triangle);
   seen.facts = object_facts(seen.object);
+  seen.n_dot_l_rate = fwidth(n_dot_l);
   // The exact surface along this pixel's camera ray: within the shape's
   // tessellation distance of the face (further along a ray that meets the
   // face obliquely; a curved shape seen at a grazing angle is left to the
