@@ -212,6 +212,20 @@ TEST(CertifiedFrame, TheRedTeamsRequestsEqualTheReference) {
     EXPECT_EQ(compare_with_reference(request(body)).differing, 0u) << body;
 }
 
+// A third red-team pass: a box 0.2 pixel tall whose top edge lies within
+// the rasteriser's snap (1/512 pixel) above a row of pixel centres. The
+// reference's rays meet it there, the raster misses it at every centre,
+// and no neighbour sees another object, so only the sliver pass (every
+// edge drawn 1/32 pixel wide) can find those pixels: before it, a row of
+// 134 (sky behind) or 158 (a lit floor behind) pixels differed.
+TEST(CertifiedFrame, AnObjectThinnerThanAPixelAtTheRastersSnapIsFound) {
+  for (const char* body : {
+           R"({"width":160,"height":90,"scene":{"objects":[{"type":"plane","center":[0,0,0],"size":[20,20]},{"type":"box","center":[0,2.4295262187929394,5.0],"size":[4,0.004,0.004]}]},"light":{"position":[0,10,-10],"target":[0,0,0]},"camera":{"position":[0,2,10],"target":[0,2,0],"fov_y_deg":30,"near":0.1,"far":100}})",
+           R"({"width":160,"height":90,"scene":{"objects":[{"type":"plane","center":[0,0,0],"size":[20,20]},{"type":"box","center":[0,3.0217628897582145,3.0],"size":[4,0.004,0.004]}]},"light":{"position":[0,10,-10],"target":[0,0,0]},"camera":{"position":[0,6,6],"target":[0,0,0],"fov_y_deg":30,"near":0.1,"far":100,"up":[0,-1,0]}})",
+       })
+    EXPECT_EQ(compare_with_reference(request(body)).differing, 0u) << body;
+}
+
 // The comparison above can fail: a certificate that calls every pixel lit
 // gives frames that differ from the reference wherever it is dark.
 // The colour output: certified pixels as the map frame shades them; the

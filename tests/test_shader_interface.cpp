@@ -257,8 +257,9 @@ TEST(ShaderFiles, NameNoNumberOfTheirOwnForALocationOrBinding) {
   // a_position twice, a_normal, a_color, o_color twice, u_layer, u_shadow_map twice; filter "exact"'s:
   // certificate.glsl's two buffer textures, certify.geom's u_layer and u_triangle_base, certify.frag's
   // u_triangle_base, o_triangle, u_layer, o_owner and u_nearest_owner, scene.frag's o_certificate,
-  // o_unlit, u_triangle_base and four maps.
-  EXPECT_EQ(declarations, 25);
+  // o_unlit, u_triangle_base and four maps; the sliver pass's a_position, u_triangle_base, u_certificates and
+  // o_sliver.
+  EXPECT_EQ(declarations, 29);
 }
 
 }  // namespace

@@ -62,6 +62,10 @@ struct PixelCertificates {
   /// alone), what an uncertain pixel that the ray cast finds dark shows.
   /// `image` holds it shaded with visibility 1 there.
   Image unlit;
+  /// Per pixel: 1 where an edge of an object other than the one drawn
+  /// there passes within a fraction of a pixel of its centre, in front of
+  /// what was drawn (the sliver pass): the reference may see that object.
+  std::vector<std::uint8_t> slivers;
   static constexpr std::uint32_t kCertainlyLit = 0, kCertainlyDark = 1, kUncertain = 2;
 };
 

@@ -121,6 +121,7 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   const glm::dvec3 axis = glm::normalize(request.camera.target - request.camera.position);
   b.camera_axis_near = glm::vec4(glm::vec3(axis), float(request.camera.near_plane));
   b.mesh_origin_far = glm::vec4(glm::vec3(origin), float(request.camera.far_plane));
+  b.image_size = glm::vec2(float(request.width), float(request.height));
   return b;
 }
 

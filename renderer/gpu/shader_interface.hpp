@@ -79,6 +79,7 @@ inline constexpr int kTextureUnitCertifyOthers = 3;
 inline constexpr int kTextureUnitCertifyCentreTriangle = 4;
 inline constexpr int kTextureUnitTriangleObjects = 5;
 inline constexpr int kTextureUnitObjectFacts = 6;
+inline constexpr int kTextureUnitCertificates = 7;
 /// Every texture unit a shader binds, with its sampler's GLSL name and
 /// the #define that carries it.
 struct TextureUnit {
@@ -97,6 +98,8 @@ inline constexpr TextureUnit kTextureUnits[] = {
     // Buffer textures of the scene: each triangle's object, each object's facts.
     {"u_triangle_objects", "TEXTURE_UNIT_TRIANGLE_OBJECTS", kTextureUnitTriangleObjects},
     {"u_object_facts", "TEXTURE_UNIT_OBJECT_FACTS", kTextureUnitObjectFacts},
+    // The main pass's certificates, read by the sliver pass (sliver.frag).
+    {"u_certificates", "TEXTURE_UNIT_CERTIFICATES", kTextureUnitCertificates},
 };
 /// certificate.glsl's object facts: flags in z (OBJECT_FLAG_MODEL, OBJECT_FLAG_CLOSED).
 inline constexpr int kObjectFlagModel = 1;
@@ -162,7 +165,9 @@ std::vector<glm::vec4> object_facts(const Scene& scene, const glm::dvec3& origin
   /* in w, its far plane, and the mesh origin in world units (positions */                        \
   /* are relative to it; the reference's offsets grow with the world's). */                       \
   MEMBER(vec4, camera_axis_near)                                                                   \
-  MEMBER(vec4, mesh_origin_far)
+  MEMBER(vec4, mesh_origin_far)                                                                    \
+  /* The image's width and height, pixels (the sliver pass). */                                   \
+  MEMBER(vec2, image_size)
 
 namespace std140 {
 // The GLSL type names used above, as C++ types of the same std140 size.

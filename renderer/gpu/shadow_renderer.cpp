@@ -177,7 +177,7 @@ std::uint64_t ShadowRenderer::shadow_map_bytes() const {
 std::uint64_t ShadowRenderer::display_bytes() const {
   // RGBA8, and 32F depth with an 8-bit stencil (llvmpipe stores the pair in
   // 8 bytes); a certified frame's R32UI and RGBA8 beside them.
-  const std::uint64_t certified = display_.certificate ? 4 + 4 : 0;
+  const std::uint64_t certified = display_.certificate ? 4 + 4 + 1 : 0;
   return std::uint64_t(display_.width) * std::uint64_t(display_.height) * (4 + 8 + certified);
 }
 
@@ -239,6 +239,8 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
     display_.depth.reset();
     display_.certificate.reset();
     display_.unlit.reset();
+    display_.slivers.reset();
+    display_.sliver_framebuffer.reset();
     display_.width = display_.height = 0;
   }
   evict_scenes_to(max_bytes, 0);
@@ -296,6 +298,8 @@ void ShadowRenderer::resize_display(int width, int height) {
   // A certified frame attaches its own targets of the new size.
   display_.certificate.reset();
   display_.unlit.reset();
+  display_.slivers.reset();
+  display_.sliver_framebuffer.reset();
   display_.color = gl::create_renderbuffer();
   display_.depth = gl::create_renderbuffer();
   glNamedRenderbufferStorage(display_.color.id(), GL_RGBA8, width, height);
@@ -326,16 +330,44 @@ void ShadowRenderer::resize_certify_maps(int size, int layers) {
 
 void ShadowRenderer::add_certificate_targets() {
   if (display_.certificate) return;
-  display_.certificate = gl::create_renderbuffer();
+  display_.certificate = gl::create_texture(GL_TEXTURE_2D);
+  glTextureStorage2D(display_.certificate.id(), 1, GL_R32UI, display_.width, display_.height);
   display_.unlit = gl::create_renderbuffer();
-  glNamedRenderbufferStorage(display_.certificate.id(), GL_R32UI, display_.width, display_.height);
   glNamedRenderbufferStorage(display_.unlit.id(), GL_RGBA8, display_.width, display_.height);
-  glNamedFramebufferRenderbuffer(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputCertificate,
-                                 GL_RENDERBUFFER, display_.certificate.id());
+  glNamedFramebufferTexture(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputCertificate,
+                            display_.certificate.id(), 0);
   glNamedFramebufferRenderbuffer(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputUnlit, GL_RENDERBUFFER,
                                  display_.unlit.id());
   if (glCheckNamedFramebufferStatus(display_.framebuffer.id(), GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw std::runtime_error("display framebuffer with certificates incomplete");
+  display_.slivers = gl::create_texture(GL_TEXTURE_2D);
+  glTextureStorage2D(display_.slivers.id(), 1, GL_R8UI, display_.width, display_.height);
+  display_.sliver_framebuffer = gl::create_framebuffer();
+  glNamedFramebufferTexture(display_.sliver_framebuffer.id(), GL_COLOR_ATTACHMENT0, display_.slivers.id(), 0);
+  glNamedFramebufferRenderbuffer(display_.sliver_framebuffer.id(), GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER,
+                                 display_.depth.id());
+  if (glCheckNamedFramebufferStatus(display_.sliver_framebuffer.id(), GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    throw std::runtime_error("sliver framebuffer incomplete");
+}
+
+void ShadowRenderer::run_sliver_pass(const DisplayPassPlan& pass) {
+  if (!display_.sliver_program)
+    display_.sliver_program = gl::build_program("sliver.vert", "sliver.geom", "sliver.frag", glsl_prelude(""));
+  glBindFramebuffer(GL_FRAMEBUFFER, display_.sliver_framebuffer.id());
+  const GLuint none = 0;
+  glClearBufferuiv(GL_COLOR, 0, &none);
+  // Against the main pass's depth (reversed: nearer is greater), not
+  // written: only what reaches in front of (or to) the drawn surface marks.
+  glDepthFunc(GL_GEQUAL);
+  glDepthMask(GL_FALSE);
+  glDisable(GL_STENCIL_TEST);
+  glDisable(GL_CLIP_DISTANCE0);
+  glBindTextureUnit(kTextureUnitCertificates, display_.certificate.id());
+  glUseProgram(display_.sliver_program->id());
+  draw_scene(pass.sliver_draws);
+  glBindTextureUnit(kTextureUnitCertificates, 0);
+  glDepthMask(GL_TRUE);
+  glDepthFunc(GL_GREATER);
 }
 
 void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
@@ -660,6 +692,7 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
   }
   glDisable(GL_STENCIL_TEST);
   glDisable(GL_CLIP_DISTANCE0);
+  if (pass.certificates) run_sliver_pass(pass);
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
   glClearDepth(1.0);
   glDepthFunc(GL_LESS);
@@ -716,6 +749,14 @@ PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back) {
   for (int y = 0; y < h / 2; ++y)
     std::swap_ranges(c.codes.begin() + std::ptrdiff_t(y) * w, c.codes.begin() + std::ptrdiff_t(y + 1) * w,
                      c.codes.begin() + std::ptrdiff_t(h - 1 - y) * w);
+  c.slivers.resize(std::size_t(w) * std::size_t(h));
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, display_.sliver_framebuffer.id());
+  glNamedFramebufferReadBuffer(display_.sliver_framebuffer.id(), GL_COLOR_ATTACHMENT0);
+  glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_BYTE, c.slivers.data());
+  for (int y = 0; y < h / 2; ++y)
+    std::swap_ranges(c.slivers.begin() + std::ptrdiff_t(y) * w, c.slivers.begin() + std::ptrdiff_t(y + 1) * w,
+                     c.slivers.begin() + std::ptrdiff_t(h - 1 - y) * w);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
   if (read_back.unlit) {
     c.unlit.width = w;
     c.unlit.height = h;

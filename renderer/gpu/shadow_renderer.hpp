@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -126,9 +127,15 @@ class ShadowRenderer {
     gl::ProgramVariants programs{"scene.vert", "scene.frag", kKeptVariants};  // per DisplayVariant
     gl::Renderbuffer color;  // RGBA8
     gl::Renderbuffer depth;  // DEPTH32F_STENCIL8
-    // Filter "exact": the certificates (R32UI) and the unlit colours
-    // (RGBA8), attached as colour 1 and 2 once a certified frame asks.
-    gl::Renderbuffer certificate, unlit;
+    // Filter "exact": the certificates (an R32UI texture, which the sliver
+    // pass reads) and the unlit colours (RGBA8), attached as colour 1 and 2
+    // once a certified frame asks; the sliver pass's marks (R8UI) in a
+    // framebuffer of their own, with the main pass's depth.
+    gl::Texture certificate;
+    gl::Renderbuffer unlit;
+    gl::Texture slivers;
+    gl::Framebuffer sliver_framebuffer;
+    std::optional<gl::Program> sliver_program;
     gl::Framebuffer framebuffer;
     int width = 0, height = 0;
     // The planes that cast nothing, drawn as cells (receiver_cells.hpp):
@@ -167,6 +174,7 @@ class ShadowRenderer {
   // The current scene's buffer textures for `scene` (its content).
   void use_certificate_buffers(const Scene& scene);
   void run_certified_shadow_pass(const FramePlan& plan);
+  void run_sliver_pass(const DisplayPassPlan& pass);
   // Draws with u_triangle_base set to each draw's first triangle (the
   // certified programs name triangles by it).
   bool set_triangle_base_ = false;

@@ -327,6 +327,7 @@ DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const 
   all.program = DisplayProgram::Frame;
   all.draws = scene_draw_ranges(mesh, closed_cull, {});
   pass.steps.push_back(std::move(all));
+  pass.sliver_draws = scene_draw_ranges(mesh, CullMode::None, {});
   return pass;
 }
 

@@ -169,6 +169,9 @@ struct DisplayPassPlan {
   /// and its unlit colour (PixelCertificates); no cells, umbras or light
   /// side split, whose shortcuts prove nothing.
   bool certificates = false;
+  /// ... and then draws every triangle's edges (the sliver pass: sliver.geom),
+  /// no face culled.
+  std::vector<DrawRange> sliver_draws;
   glm::vec4 clear_color{0.0f};
   /// The frame's main-pass variant (display_variant); each step's program
   /// is it or one derived from it (program_variant). `variant.shadows`:

@@ -93,7 +93,10 @@ void settle_certified_frame(RenderResult& result, const RenderRequest& request,
   const auto start = std::chrono::steady_clock::now();
   const PixelCertificates& c = *result.certificates;
   const int w = request.width, h = request.height;
-  const std::vector<std::uint8_t> cast = pixels_to_ray_cast(c.codes, w, h, silhouette_ring(request));
+  std::vector<std::uint8_t> cast = pixels_to_ray_cast(c.codes, w, h, silhouette_ring(request));
+  // The sliver pass's marks: an object the raster missed at the centre may
+  // be there for the reference.
+  for (std::size_t i = 0; i < std::min(cast.size(), c.slivers.size()); ++i) cast[i] |= c.slivers[i];
   std::vector<std::size_t> indices;
   for (std::size_t i = 0; i < cast.size(); ++i)
     if (cast[i]) indices.push_back(i);

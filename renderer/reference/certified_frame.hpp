@@ -28,7 +28,8 @@ int silhouette_ring(const RenderRequest& request);
 /// turned to different sides of the light.
 std::vector<std::uint8_t> pixels_to_ray_cast(const std::vector<std::uint32_t>& codes, int width, int height, int ring);
 
-/// Settles a certified frame of `request`: ray casts pixels_to_ray_cast,
+/// Settles a certified frame of `request`: ray casts pixels_to_ray_cast and
+/// the pixels the sliver pass marked (PixelCertificates::slivers),
 /// writes the reference's value into `result.image` there (the shadow
 /// output: round(255 v), as the "exact" output; the colour output: the lit
 /// or the unlit colour), drops `result.certificates`, and sets

@@ -1,0 +1,50 @@
+// Filter "exact"'s sliver pass: the camera's view of every triangle's
+// edges, each drawn as a quad kSliverPixels wide on each side.
+//
+// The rasteriser snaps a triangle's corners to 1/256 pixel before it
+// decides which pixel centres the triangle covers. An object thinner than
+// a pixel whose edge passes that close to a row of centres can be met by
+// the reference's camera rays there and missed by the raster at every
+// centre: no neighbour sees another object, so the certificates' ring does
+// not catch it. A centre the true triangle covers but the snapped one does
+// not lies within the snap of an edge: these quads reach every such centre,
+// and sliver.frag marks it where an object other than the one the main
+// pass drew there reaches in front (docs/certified-shadows.md).
+#include "certificate.glsl"
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 12) out;
+
+layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
+
+flat out uint g_object;
+
+// Far above the snap (1/512 pixel), far below a pixel.
+const float kSliverPixels = 1.0 / 32.0;
+
+void main() {
+  g_object = object_of(u_triangle_base + gl_PrimitiveIDIn);
+  // An edge's part nearer the camera than half its near plane is clipped
+  // away: the main pass and the reference both start at the near plane.
+  float w_min = 0.5 * u.camera_axis_near.w;
+  for (int i = 0; i < 3; ++i) {
+    vec4 a = gl_in[i].gl_Position, b = gl_in[(i + 1) % 3].gl_Position;
+    if (a.w < w_min && b.w < w_min) continue;
+    if (a.w < w_min) a = mix(a, b, (w_min - a.w) / (b.w - a.w));
+    if (b.w < w_min) b = mix(b, a, (w_min - b.w) / (a.w - b.w));
+    // Pixels, and normalized depth (affine along a line on the screen).
+    vec3 na = a.xyz / a.w, nb = b.xyz / b.w;
+    vec2 pa = (na.xy * 0.5 + 0.5) * u.image_size, pb = (nb.xy * 0.5 + 0.5) * u.image_size;
+    vec2 along = pb - pa;
+    float length_pixels = length(along);
+    vec2 d = length_pixels > 1e-6 ? along / length_pixels : vec2(1.0, 0.0);
+    vec2 n = vec2(-d.y, d.x);
+    vec2 e = d * kSliverPixels, f = n * kSliverPixels;
+    vec2 corners[4] = vec2[4](pa - e - f, pa - e + f, pb + e - f, pb + e + f);
+    float depths[4] = float[4](na.z, na.z, nb.z, nb.z);
+    for (int k = 0; k < 4; ++k) {
+      gl_Position = vec4(corners[k] / u.image_size * 2.0 - 1.0, depths[k], 1.0);
+      EmitVertex();
+    }
+    EndPrimitive();
+  }
+}
