@@ -18,11 +18,18 @@ std::uint32_t code(std::uint32_t object_plus_one, bool facing, std::uint32_t ver
 
 std::size_t count(const std::vector<std::uint8_t>& v) { return std::size_t(std::count(v.begin(), v.end(), 1)); }
 
+// pixels_to_ray_cast of these codes, without sliver marks.
+std::vector<std::uint8_t> to_cast(const std::vector<std::uint32_t>& codes, int width, int height, int ring) {
+  PixelCertificates c;
+  c.codes = codes;
+  return pixels_to_ray_cast(c, width, height, ring);
+}
+
 TEST(PixelsToRayCast, OnlyUncertainPixelsOfOneSurface) {
   std::vector<std::uint32_t> codes(8 * 6, code(1, true, kLit));
   codes[2 * 8 + 3] = code(1, true, kUncertain);
   codes[4 * 8 + 5] = code(1, true, kDark);
-  const std::vector<std::uint8_t> cast = pixels_to_ray_cast(codes, 8, 6, 1);
+  const std::vector<std::uint8_t> cast = to_cast(codes, 8, 6, 1);
   EXPECT_EQ(count(cast), 1u);
   EXPECT_EQ(cast[2 * 8 + 3], 1);
 }
@@ -32,16 +39,16 @@ TEST(PixelsToRayCast, BothSidesOfAChangeOfObjectOrOfFacing) {
   std::vector<std::uint32_t> codes(8 * 4);
   for (int y = 0; y < 4; ++y)
     for (int x = 0; x < 8; ++x) codes[y * 8 + x] = code(x < 4 ? 1 : 2, true, kLit);
-  std::vector<std::uint8_t> cast = pixels_to_ray_cast(codes, 8, 4, 1);
+  std::vector<std::uint8_t> cast = to_cast(codes, 8, 4, 1);
   EXPECT_EQ(count(cast), 8u);
   for (int y = 0; y < 4; ++y) EXPECT_TRUE(cast[y * 8 + 3] && cast[y * 8 + 4]);
   // A crease: one object, its faces turned to both sides of the light.
   for (int y = 0; y < 4; ++y)
     for (int x = 0; x < 8; ++x) codes[y * 8 + x] = code(1, x < 4, x < 4 ? kLit : kDark);
-  cast = pixels_to_ray_cast(codes, 8, 4, 1);
+  cast = to_cast(codes, 8, 4, 1);
   EXPECT_EQ(count(cast), 8u);
   // Ring 3: two more columns each side.
-  cast = pixels_to_ray_cast(codes, 8, 4, 3);
+  cast = to_cast(codes, 8, 4, 3);
   EXPECT_EQ(count(cast), 4u * 6u);
   EXPECT_FALSE(cast[0]);
   EXPECT_TRUE(cast[1]);
@@ -50,7 +57,21 @@ TEST(PixelsToRayCast, BothSidesOfAChangeOfObjectOrOfFacing) {
 }
 
 TEST(PixelsToRayCast, RefusesCodesOfAnotherSize) {
-  EXPECT_THROW(pixels_to_ray_cast(std::vector<std::uint32_t>(10), 4, 4, 1), std::invalid_argument);
+  EXPECT_THROW(to_cast(std::vector<std::uint32_t>(10), 4, 4, 1), std::invalid_argument);
+  PixelCertificates c;
+  c.codes.assign(16, 0);
+  c.slivers.assign(15, 0);
+  EXPECT_THROW(pixels_to_ray_cast(c, 4, 4, 1), std::invalid_argument);
+}
+
+TEST(PixelsToRayCast, PixelsTheSliverPassMarked) {
+  PixelCertificates c;
+  c.codes.assign(8 * 6, code(1, true, kLit));
+  c.slivers.assign(c.codes.size(), 0);
+  c.slivers[3 * 8 + 2] = 1;
+  const std::vector<std::uint8_t> cast = pixels_to_ray_cast(c, 8, 6, 1);
+  EXPECT_EQ(count(cast), 1u);
+  EXPECT_EQ(cast[3 * 8 + 2], 1);
 }
 
 TEST(SilhouetteRing, FlatShapesNeedOnePixelCurvedOnesCloseUpMore) {

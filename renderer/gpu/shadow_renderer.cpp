@@ -73,6 +73,15 @@ void draw_elements(std::size_t first, std::size_t count) {
                    reinterpret_cast<const void*>(first * sizeof(std::uint32_t)));
 }
 
+// GL's rows (bottom first) turned to the images' (row 0 at the top), as
+// Image::flip_rows does for pixels of any width.
+template <class T>
+void flip_rows(std::vector<T>& values, int width, int height) {
+  for (int y = 0; y < height / 2; ++y)
+    std::swap_ranges(values.begin() + std::ptrdiff_t(y) * width, values.begin() + std::ptrdiff_t(y + 1) * width,
+                     values.begin() + std::ptrdiff_t(height - 1 - y) * width);
+}
+
 // A texture array of `layers` layers of size^2 texels, read texel by texel.
 gl::Texture texel_array(GLenum format, int size, int layers) {
   gl::Texture texture = gl::create_texture(GL_TEXTURE_2D_ARRAY);
@@ -237,10 +246,7 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
     display_.framebuffer.reset();
     display_.color.reset();
     display_.depth.reset();
-    display_.certificate.reset();
-    display_.unlit.reset();
-    display_.slivers.reset();
-    display_.sliver_framebuffer.reset();
+    drop_certificate_targets();
     display_.width = display_.height = 0;
   }
   evict_scenes_to(max_bytes, 0);
@@ -296,10 +302,7 @@ void ShadowRenderer::resize_display(int width, int height) {
   if (display_.width == width && display_.height == height) return;
   released_gl_bytes_ += display_bytes();
   // A certified frame attaches its own targets of the new size.
-  display_.certificate.reset();
-  display_.unlit.reset();
-  display_.slivers.reset();
-  display_.sliver_framebuffer.reset();
+  drop_certificate_targets();
   display_.color = gl::create_renderbuffer();
   display_.depth = gl::create_renderbuffer();
   glNamedRenderbufferStorage(display_.color.id(), GL_RGBA8, width, height);
@@ -326,6 +329,13 @@ void ShadowRenderer::resize_certify_maps(int size, int layers) {
   certify_.framebuffer = gl::create_framebuffer();
   certify_.size = size;
   certify_.layers = layers;
+}
+
+void ShadowRenderer::drop_certificate_targets() {
+  display_.certificate.reset();
+  display_.unlit.reset();
+  display_.slivers.reset();
+  display_.sliver_framebuffer.reset();
 }
 
 void ShadowRenderer::add_certificate_targets() {
@@ -404,6 +414,7 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan) {
   const GLuint centre = certify_.centre.get(variant_defines(CertifyPass::Centre, light.perspective)).id();
   const GLuint nearest = certify_.conservative.get(variant_defines(CertifyPass::Nearest, light.perspective)).id();
   const GLuint others = certify_.conservative.get(variant_defines(CertifyPass::Others, light.perspective)).id();
+  const int coarse = certified_map_size(size);
   set_triangle_base_ = true;
   // One layer at a time, three maps each: what a draw's program writes
   // goes to the layer's depth and (but for the last) its colour.
@@ -435,7 +446,6 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan) {
       const int x1 = std::min(side, int(std::ceil(layer.x1 * scale)) + 1), y1 = std::min(side, int(std::ceil(layer.y1 * scale)) + 1);
       glClearTexSubImage(texture, 0, x0, y0, at, x1 - x0, y1 - y0, 1, format, type, value);
     };
-    const int coarse = certified_map_size(size);
     attach(shadow_.depth_map.id(), certify_.centre_triangle.id(), at);
     glViewport(0, 0, size, size);
     clear(shadow_.depth_map.id(), size, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
@@ -745,17 +755,12 @@ PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back) {
   c.codes.resize(std::size_t(w) * std::size_t(h));
   glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0 + kFragOutputCertificate);
   glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_INT, c.codes.data());
-  // Row 0 at the top, as the image.
-  for (int y = 0; y < h / 2; ++y)
-    std::swap_ranges(c.codes.begin() + std::ptrdiff_t(y) * w, c.codes.begin() + std::ptrdiff_t(y + 1) * w,
-                     c.codes.begin() + std::ptrdiff_t(h - 1 - y) * w);
+  flip_rows(c.codes, w, h);
   c.slivers.resize(std::size_t(w) * std::size_t(h));
   glBindFramebuffer(GL_READ_FRAMEBUFFER, display_.sliver_framebuffer.id());
   glNamedFramebufferReadBuffer(display_.sliver_framebuffer.id(), GL_COLOR_ATTACHMENT0);
   glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_BYTE, c.slivers.data());
-  for (int y = 0; y < h / 2; ++y)
-    std::swap_ranges(c.slivers.begin() + std::ptrdiff_t(y) * w, c.slivers.begin() + std::ptrdiff_t(y + 1) * w,
-                     c.slivers.begin() + std::ptrdiff_t(h - 1 - y) * w);
+  flip_rows(c.slivers, w, h);
   glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
   if (read_back.unlit) {
     c.unlit.width = w;

@@ -171,6 +171,7 @@ class ShadowRenderer {
   void resize_certify_maps(int size, int layers);
   // The display framebuffer's certificate and unlit attachments.
   void add_certificate_targets();
+  void drop_certificate_targets();
   // The current scene's buffer textures for `scene` (its content).
   void use_certificate_buffers(const Scene& scene);
   void run_certified_shadow_pass(const FramePlan& plan);

@@ -305,23 +305,36 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
   return pass;
 }
 
-DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh) {
+// What every main pass has: its size, clear colour, variant and the
+// objects' draw costs in the camera's view.
+DisplayPassPlan display_pass_of(const RenderRequest& request, const ShadowPlan& light) {
   DisplayPassPlan pass;
   pass.width = request.width;
   pass.height = request.height;
-  pass.certificates = true;
+  // Shadow output: no geometry, nothing blocks the light.
   pass.clear_color = request.output == Output::Shadow ? glm::vec4(1.0f, 1.0f, 1.0f, 1.0f)
                                                       : glm::vec4(0.11f, 0.12f, 0.14f, 1.0f);
   pass.variant = display_variant(request, light);
   const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
   pass.object_draw_ms =
       object_draw_ms(request.scene, {camera.projection * camera.view}, double(request.width), double(request.height));
+  return pass;
+}
+
+// Closed meshes' faces culled in the main pass: back faces where the
+// camera sees every closed mesh from outside, else none.
+CullMode closed_cull_of(const RenderRequest& request, const Mesh& mesh) {
+  return closed_meshes_seen_from_outside(mesh, request.camera, double(request.width) / request.height) ? CullMode::Back
+                                                                                                       : CullMode::None;
+}
+
+DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh) {
+  DisplayPassPlan pass = display_pass_of(request, light);
+  pass.certificates = true;
   // Back faces culled only where the camera sees every closed mesh from
   // outside, as in any frame: then no back face is the nearest surface of
   // a camera ray, for the raster or for the reference.
-  const CullMode closed_cull =
-      closed_meshes_seen_from_outside(mesh, request.camera, double(request.width) / request.height) ? CullMode::Back
-                                                                                                    : CullMode::None;
+  const CullMode closed_cull = closed_cull_of(request, mesh);
   DisplayStep all;
   all.kind = DisplayStep::Kind::Objects;
   all.program = DisplayProgram::Frame;
@@ -333,16 +346,7 @@ DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const 
 
 DisplayPassPlan plan_display_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
                                   const std::vector<bool>& planes, const CasterTexels& casters) {
-  DisplayPassPlan pass;
-  pass.width = request.width;
-  pass.height = request.height;
-  // Shadow output: no geometry, nothing blocks the light.
-  pass.clear_color = request.output == Output::Shadow ? glm::vec4(1.0f, 1.0f, 1.0f, 1.0f)
-                                                      : glm::vec4(0.11f, 0.12f, 0.14f, 1.0f);
-  pass.variant = display_variant(request, light);
-  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
-  pass.object_draw_ms =
-      object_draw_ms(request.scene, {camera.projection * camera.view}, double(request.width), double(request.height));
+  DisplayPassPlan pass = display_pass_of(request, light);
   CellDraws cells;
   if (pass.variant.shadows) cells = plane_cells_of(request, light, mesh, planes, casters);
   pass.umbras = cells.umbras;
@@ -351,9 +355,7 @@ DisplayPassPlan plan_display_pass(const RenderRequest& request, const ShadowPlan
   // A box's far faces, drawn before its near ones, would be shaded in full
   // and then drawn over: with the camera outside every closed mesh they
   // are culled (about a sixth of a box scene's main pass on llvmpipe).
-  const CullMode closed_cull =
-      closed_meshes_seen_from_outside(mesh, request.camera, double(request.width) / request.height) ? CullMode::Back
-                                                                                                    : CullMode::None;
+  const CullMode closed_cull = closed_cull_of(request, mesh);
   std::vector<bool> objects = drawn_objects(mesh, cells.whole_planes);
   // The faces of a closed mesh that turn from the light get no direct
   // light, yet llvmpipe would run the whole shadow lookup for each of

@@ -40,11 +40,14 @@ int silhouette_ring(const RenderRequest& request) {
   return 1 + int(std::ceil(std::min(most, 1e6)));
 }
 
-std::vector<std::uint8_t> pixels_to_ray_cast(const std::vector<std::uint32_t>& codes, int width, int height,
+std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificates, int width, int height,
                                              int ring) {
-  if (codes.size() != std::size_t(width) * std::size_t(height))
-    throw std::invalid_argument("pixels_to_ray_cast: " + std::to_string(codes.size()) + " codes for " +
-                                std::to_string(width) + " x " + std::to_string(height) + " pixels");
+  const std::vector<std::uint32_t>& codes = certificates.codes;
+  const std::vector<std::uint8_t>& slivers = certificates.slivers;
+  if (codes.size() != std::size_t(width) * std::size_t(height) || (!slivers.empty() && slivers.size() != codes.size()))
+    throw std::invalid_argument("pixels_to_ray_cast: " + std::to_string(codes.size()) + " codes and " +
+                                std::to_string(slivers.size()) + " sliver marks for " + std::to_string(width) +
+                                " x " + std::to_string(height) + " pixels");
   const auto at = [width](int x, int y) { return std::size_t(y) * width + x; };
   // Pixels beside a change of object, or of the side of the light the
   // surface turns to (a crease: the reference's camera ray may meet the
@@ -83,7 +86,7 @@ std::vector<std::uint8_t> pixels_to_ray_cast(const std::vector<std::uint32_t>& c
     }
   }
   for (std::size_t i = 0; i < codes.size(); ++i)
-    if (verdict(codes[i]) == PixelCertificates::kUncertain) edge[i] = 1;
+    if (verdict(codes[i]) == PixelCertificates::kUncertain || (!slivers.empty() && slivers[i])) edge[i] = 1;
   return edge;
 }
 
@@ -93,10 +96,7 @@ void settle_certified_frame(RenderResult& result, const RenderRequest& request,
   const auto start = std::chrono::steady_clock::now();
   const PixelCertificates& c = *result.certificates;
   const int w = request.width, h = request.height;
-  std::vector<std::uint8_t> cast = pixels_to_ray_cast(c.codes, w, h, silhouette_ring(request));
-  // The sliver pass's marks: an object the raster missed at the centre may
-  // be there for the reference.
-  for (std::size_t i = 0; i < std::min(cast.size(), c.slivers.size()); ++i) cast[i] |= c.slivers[i];
+  const std::vector<std::uint8_t> cast = pixels_to_ray_cast(c, w, h, silhouette_ring(request));
   std::vector<std::size_t> indices;
   for (std::size_t i = 0; i < cast.size(); ++i)
     if (cast[i]) indices.push_back(i);

@@ -23,13 +23,13 @@ namespace umbra {
 int silhouette_ring(const RenderRequest& request);
 
 /// Which pixels (width x height, row 0 at the top) to ray cast: those the
-/// certificates leave uncertain, and every pixel within `ring` of two
-/// 4-neighbours that see different objects (or one sees none), or surfaces
-/// turned to different sides of the light.
-std::vector<std::uint8_t> pixels_to_ray_cast(const std::vector<std::uint32_t>& codes, int width, int height, int ring);
+/// certificates leave uncertain, those the sliver pass marked (if it ran:
+/// `certificates.slivers` may be empty), and every pixel within `ring` of
+/// two 4-neighbours that see different objects (or one sees none), or
+/// surfaces turned to different sides of the light.
+std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificates, int width, int height, int ring);
 
-/// Settles a certified frame of `request`: ray casts pixels_to_ray_cast and
-/// the pixels the sliver pass marked (PixelCertificates::slivers),
+/// Settles a certified frame of `request`: ray casts pixels_to_ray_cast,
 /// writes the reference's value into `result.image` there (the shadow
 /// output: round(255 v), as the "exact" output; the colour output: the lit
 /// or the unlit colour), drops `result.certificates`, and sets

@@ -77,6 +77,13 @@ std::uint64_t scene_vertices(const Scene& scene) {
   return n;
 }
 
+// The exact reference's rays: camera and shadow rays, each testing the
+// objects and meshes it meets.
+double ray_cast_ms(const CostFactors& f) {
+  return (f.camera_rays + f.shadow_rays) * (f.objects_per_ray * kMsPerRayObjectTest + f.meshes_per_ray * kMsPerRayMeshTest) +
+         f.camera_rays * kMsPerCameraRay + f.shadow_rays * kMsPerShadowRay;
+}
+
 double gathers_per_pixel(const ShadowSettings& shadow) {
   if (!shadow.enabled) return 0.0;
   switch (shadow.filter) {
@@ -326,9 +333,7 @@ RequestCost estimate_cost(const RenderRequest& request) {
        request.shadow.filter == ShadowFilter::Pcf ? "shadow.pcf_radius" : "width",
        request.shadow.filter == ShadowFilter::Pcf ? "lower shadow.pcf_radius, or width and height"
                                                    : "lower width and height, or use filter \"pcf\""},
-      {"ray cast", (f.camera_rays + f.shadow_rays) *
-                       (f.objects_per_ray * kMsPerRayObjectTest + f.meshes_per_ray * kMsPerRayMeshTest) +
-                       f.camera_rays * kMsPerCameraRay + f.shadow_rays * kMsPerShadowRay,
+      {"ray cast", ray_cast_ms(f),
        area_light ? "light.size" : "width",
        area_light ? "an area light casts 64 shadow rays a pixel: lower width and height, or use light.size 0"
                   : "lower width and height, or use fewer objects"},
@@ -346,12 +351,9 @@ RequestCost estimate_cost(const RenderRequest& request) {
     RenderRequest as_exact = request;
     as_exact.output = Output::Exact;
     const CostFactors e = cost_factors(as_exact);
-    const double ray_ms = (e.camera_rays + e.shadow_rays) *
-                              (e.objects_per_ray * kMsPerRayObjectTest + e.meshes_per_ray * kMsPerRayMeshTest) +
-                          e.camera_rays * kMsPerCameraRay + e.shadow_rays * kMsPerShadowRay;
     cost.parts.push_back({"certified maps and uncertain pixels",
                           8.0 * (f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel) +
-                              ray_ms / 3.0 + double(e.bvh_triangles) * kMsPerBvhTriangle,
+                              ray_cast_ms(e) / 3.0 + double(e.bvh_triangles) * kMsPerBvhTriangle,
                           "shadow.filter", "use filter \"pcf\", or lower shadow.map_size, width and height"});
   }
   for (const CostPart& part : cost.parts) cost.total_ms += part.ms;
