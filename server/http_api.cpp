@@ -16,6 +16,8 @@
 #include "png.hpp"
 #include "request_fields.hpp"
 #include "request_parser.hpp"
+#include "sun_hours_answer.hpp"
+#include "sun_hours_parser.hpp"
 #include "core/scene.hpp"
 #include "core/sun_position.hpp"
 #include "web_assets.hpp"
@@ -156,6 +158,7 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "/api/openapi.json", &HttpApi::openapi_document, false, kScopeRender},
     {"POST", "/api/render", &HttpApi::render_color, true, kScopeRender},
     {"POST", "/api/depth", &HttpApi::render_depth, true, kScopeRender},
+    {"POST", "/api/sun-hours", &HttpApi::sun_hours, true, kScopeRender},
     {"GET", "/api/models", &HttpApi::list_models, false, kScopeRender},
     {"POST", "/api/models", &HttpApi::upload_model, true, kScopeUpload},
     // On a worker: a model not held may be read from --model-store.
@@ -570,6 +573,72 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
     res.set_header("Umbra-Shadow-Error", buffer);
   }
   res.set_content(std::move(png), "image/png");
+}
+
+// Hours of direct sun over a grid of points (core/sun_hours.hpp): the
+// body's scene as /api/render reads it, models and all; the answer in the
+// format Accept asks for (sun_hours_answer.hpp).
+void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
+  const std::string type = req.header("Content-Type");
+  if (starts_with_ci(type, "multipart/"))
+    return send_error(res, 415, "unsupported Content-Type " + type.substr(0, type.find(';')) +
+                                    "; send the JSON body as it is (application/json, or any type but multipart/*)",
+                      "");
+  const std::optional<SunHoursFormat> format = sun_hours_format(req.header("Accept"));
+  if (!format)
+    return send_error(res, 406, "Accept names no format this route answers in: application/json or text/csv", "");
+  ModelPlan plan;
+  const std::string owner = uploader_of(req);
+  const ModelsNamed named = [&](const std::vector<std::string>& keys) { plan_models(plan, keys, owner); };
+  const ModelLookup lookup = [&](const std::string& id_or_name) -> std::optional<FoundModel> {
+    const auto held = find_model(plan, id_or_name);
+    if (!held) return std::nullopt;
+    return FoundModel{held->id, drawn_model(held)};
+  };
+  ParsedSunHours parsed;
+  try {
+    parsed = parse_sun_hours_request(req.body, lookup, named);
+  } catch (const ModelLoadsBusy&) {
+    return send_models_busy(res);
+  } catch (const ModelsRefused& refused) {
+    return send_models_refused(res, refused);
+  }
+  plan = ModelPlan{};
+  if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
+  const SunHoursRequest request = *parsed.request;
+  const auto queued = Clock::now();
+  const int socket = req.socket;
+  SunHoursResult result;
+  try {
+    result = renderer_.submit_sun_hours(std::move(*parsed.request), [socket] { return peer_closed(socket); }).get();
+  } catch (const ClientGone& e) {
+    return send_error(res, 499, e.what(), "");
+  } catch (const QueueFull& e) {
+    res.set_header("Retry-After", "1");
+    return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().queue_capacity) +
+                                    " requests); retry later", "");
+  } catch (const DeadlineExceeded& e) {
+    res.set_header("Retry-After", "1");
+    return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().deadline.count()) +
+                                    " ms); retry later", "");
+  } catch (const RequestTooCostly& e) {
+    return send_error(res, 422, e.what(), e.field);
+  } catch (const RunTimeExceeded& e) {
+    return send_error(res, 503, e.what(), e.field);
+  }
+  const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - queued).count();
+  const auto encode_start = Clock::now();
+  std::string body = *format == SunHoursFormat::Csv ? sun_hours_csv(request, result) : sun_hours_json(request, result);
+  const double encode_ms = std::chrono::duration<double, std::milli>(Clock::now() - encode_start).count();
+  char timing[160];
+  std::snprintf(timing, sizeof timing, "queue;dur=%.3f, sun_hours;dur=%.3f, encode;dur=%.3f",
+                std::max(0.0, total_ms - result.elapsed_ms), result.elapsed_ms, encode_ms);
+  res.set_header("Server-Timing", timing);
+  res.set_header("Cache-Control", "no-store");
+  res.set_header("Umbra-Sun-Hours", std::string("path=") + result.path + ", pairs=" + std::to_string(result.pairs) +
+                                        ", by_maps=" + std::to_string(result.pairs_by_maps) +
+                                        ", ray_cast=" + std::to_string(result.pairs_ray_cast));
+  res.set_content(std::move(body), *format == SunHoursFormat::Csv ? "text/csv; charset=utf-8" : "application/json");
 }
 
 void HttpApi::list_models(const HttpRequest&, HttpResponse& res) {

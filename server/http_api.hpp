@@ -126,6 +126,7 @@ class HttpApi {
   void openapi_document(const HttpRequest& req, HttpResponse& res);
   void render_color(const HttpRequest& req, HttpResponse& res);
   void render_depth(const HttpRequest& req, HttpResponse& res);
+  void sun_hours(const HttpRequest& req, HttpResponse& res);
   void static_file(const HttpRequest& req, HttpResponse& res);
   void preflight(const HttpRequest& req, HttpResponse& res);
   void list_models(const HttpRequest& req, HttpResponse& res);

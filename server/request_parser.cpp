@@ -713,23 +713,37 @@ std::vector<std::string> named_models(const json& root) {
 
 }  // namespace
 
-ParsedRequest parse_render_request(std::string_view body, Route route, const ModelLookup& find_model,
-                                   const ModelsNamed& models_named) {
-  ParsedRequest result;
-  json root;
-  LocatingBuilder builder(root);
+ParsedJson read_json_body(std::string_view body) {
+  ParsedJson result;
+  LocatingBuilder builder(result.value);
   // An empty body means "all defaults", like {}.
   const bool all_space = std::all_of(body.begin(), body.end(), [](char c) { return std::isspace((unsigned char)c); });
-  if (!all_space) {
-    const bool parsed = json::sax_parse(body.begin(), body.end(), &builder, json::input_format_t::json, true);
-    if (!parsed || builder.rejection()) {
-      const Rejection r = builder.rejection().value_or(Rejection{"", "malformed JSON"});
-      result.error = {shortened(r.message), shortened(r.field)};
-      return result;
-    }
-  } else {
-    root = json::object();
+  if (all_space) {
+    result.value = json::object();
+    return result;
   }
+  const bool parsed = json::sax_parse(body.begin(), body.end(), &builder, json::input_format_t::json, true);
+  if (!parsed || builder.rejection()) {
+    const Rejection r = builder.rejection().value_or(Rejection{"", "malformed JSON"});
+    result.error = RequestError{shortened(r.message), shortened(r.field)};
+  }
+  return result;
+}
+
+ParsedRequest parse_render_request(std::string_view body, Route route, const ModelLookup& find_model,
+                                   const ModelsNamed& models_named) {
+  ParsedJson read = read_json_body(body);
+  if (read.error) {
+    ParsedRequest result;
+    result.error = *read.error;
+    return result;
+  }
+  return parse_render_json(read.value, route, find_model, models_named);
+}
+
+ParsedRequest parse_render_json(const nlohmann::json& root, Route route, const ModelLookup& find_model,
+                                const ModelsNamed& models_named) {
+  ParsedRequest result;
   if (models_named) {
     const std::vector<std::string> keys = named_models(root);
     if (!keys.empty()) models_named(keys);

@@ -12,6 +12,8 @@
 #include <string_view>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "core/request.hpp"
 
 namespace umbra {
@@ -89,5 +91,20 @@ using ModelsNamed = std::function<void(const std::vector<std::string>& keys)>;
 /// refused as an unknown model if it is not one of them either.
 ParsedRequest parse_render_request(std::string_view body, Route route = Route::Render,
                                    const ModelLookup& find_model = {}, const ModelsNamed& models_named = {});
+
+/// A body read as JSON the way parse_render_request reads it: duplicate
+/// keys, absurd nesting and bad numbers refused, naming the field they are
+/// in. An empty body (or only spaces) is {}.
+struct ParsedJson {
+  nlohmann::json value;
+  std::optional<RequestError> error;  ///< set: not JSON, or refused
+};
+ParsedJson read_json_body(std::string_view body);
+
+/// parse_render_request's second half: a JSON value already read (by
+/// read_json_body) to a RenderRequest. POST /api/sun-hours reads its
+/// `scene` through this, so that a scene means the same on every route.
+ParsedRequest parse_render_json(const nlohmann::json& root, Route route = Route::Render,
+                                const ModelLookup& find_model = {}, const ModelsNamed& models_named = {});
 
 }  // namespace umbra

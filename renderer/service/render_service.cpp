@@ -16,6 +16,7 @@
 #include "gpu/egl_context.hpp"
 #include "reference/certified_frame.hpp"
 #include "reference/ray_cast.hpp"
+#include "reference/sun_hours_ray_cast.hpp"
 #include "service/request_cost.hpp"
 #include "reference/shadow_error.hpp"
 #include "gpu/shadow_renderer.hpp"
@@ -111,13 +112,15 @@ struct RenderService::Impl {
       // The shadow map's layers, or the images: whichever is the larger share.
       const double map_bytes = cost.factors.shadow_texels * sizeof(float);
       const bool map = map_bytes > 0.5 * double(cost.peak_bytes);
+      const bool own = !cost.memory_field.empty();
       too_costly_count.fetch_add(1);
       throw RequestTooCostly("the request would need about " + mib(double(cost.peak_bytes)) +
                                  " MiB of memory at once, over the " +
                                  (budget_binds ? "renderer's memory budget of " : "budget of ") +
                                  mib(double(allowed)) + (budget_binds ? " MiB; " : " MiB a request; ") +
-                                 (map ? "lower shadow.map_size or shadow.cascades" : "lower width and height"),
-                             map ? "shadow.map_size" : "width");
+                                 (own ? cost.memory_advice
+                                      : map ? "lower shadow.map_size or shadow.cascades" : "lower width and height"),
+                             own ? cost.memory_field : map ? "shadow.map_size" : "width");
     }
   }
 
@@ -481,6 +484,63 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
       result.image = exact;  // no GL pass ran: shadow, main and read-back stay 0
     }
     result.timings.ray_cast_ms = std::chrono::duration<double, std::milli>(cast_time).count();
+    return result;
+  });
+}
+
+// A sun-hours analysis needs no GL: like the exact output, it runs on its
+// own thread (the cast itself on every core) and holds a place in the queue.
+std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone) {
+  const std::size_t samples = sample_count(request.period).value_or(0);
+  const RequestCost cost =
+      estimate_sun_hours_cost(request, samples, sun_up_share(request.site, request.period, samples));
+  impl_->check_budget(cost);
+  impl_->reserve();
+  impl_->reserved_bytes.fetch_add(cost.peak_bytes);
+  Impl* impl = impl_.get();
+  const auto queued = std::chrono::steady_clock::now();
+  return std::async(std::launch::async, [impl, queued, samples, request = std::move(request),
+                                         client_gone = std::move(client_gone), dominant = cost.dominant(),
+                                         peak_bytes = cost.peak_bytes]() {
+    struct Release {
+      Impl* impl;
+      std::uint64_t peak_bytes;
+      ~Release() {
+        impl->ray_cast_ended(peak_bytes);
+        impl->in_flight.fetch_sub(1);
+      }
+    } release{impl, peak_bytes};
+    impl->check_still_wanted(queued, client_gone);
+    const auto start = std::chrono::steady_clock::now();
+    const auto run_until = start + impl->limits.max_run_time;
+    bool overran = false;
+    const auto stop = [&client_gone, &overran, &run_until] {
+      if (client_gone && client_gone()) return true;
+      overran = std::chrono::steady_clock::now() > run_until;
+      return overran;
+    };
+    SunHoursResult result;
+    result.step_minutes = request.period.step_minutes;
+    try {
+      result.samples.reserve(samples);
+      for (std::size_t k = 0; k < samples; ++k) {
+        if (k % 4096 == 0 && stop()) throw CastStopped();
+        result.samples.push_back(sun_sample(request.site, request.period, k));
+      }
+      const RayScene rays(request.view.scene, stop);
+      ray_cast_sun_hours(rays, request.grid, result.samples, result, stop);
+    } catch (const CastStopped&) {
+      if (overran) {
+        impl->overran_count.fetch_add(1);
+        throw RunTimeExceeded("the sun-hours analysis ran past the limit of " +
+                                  std::to_string(impl->limits.max_run_time.count()) +
+                                  " ms a request and was stopped: " + dominant.advice,
+                              dominant.field);
+      }
+      impl->abandoned_count.fetch_add(1);
+      throw ClientGone();
+    }
+    result.elapsed_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return result;
   });
 }

@@ -14,6 +14,7 @@
 
 #include "core/render_result.hpp"
 #include "core/request.hpp"
+#include "core/sun_hours.hpp"
 #include "service/request_cost.hpp"
 
 namespace umbra {
@@ -133,6 +134,15 @@ class RenderService {
   /// job's turn; if it answers true the job is dropped with ClientGone.
   using ClientGoneCheck = std::function<bool()>;
   std::future<RenderResult> submit(RenderRequest request, ClientGoneCheck client_gone = {});
+
+  /// Queues a sun-hours analysis (core/sun_hours.hpp): refused at once as
+  /// submit() refuses (RequestTooCostly by estimate_sun_hours_cost,
+  /// QueueFull); it holds a place in the queue while it runs. Run off the
+  /// GL thread on every core: the sun's samples, then every (point,
+  /// sample) pair with the sun up by the exact ray cast. The future holds
+  /// the result, or DeadlineExceeded, ClientGone, RunTimeExceeded (past
+  /// max_run_time) as submit()'s do.
+  std::future<SunHoursResult> submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone = {});
 
   const RendererInfo& info() const;
   std::uint64_t frames_rendered() const;

@@ -14,6 +14,7 @@
 #include <glm/mat4x4.hpp>
 
 #include "core/request.hpp"
+#include "core/sun_hours.hpp"
 
 namespace umbra {
 
@@ -99,6 +100,10 @@ struct RequestCost {
 
   /// The part with the most milliseconds.
   const CostPart& dominant() const;
+  /// Over the memory budget: the field to lower, and how; empty: the
+  /// renderer's rule (the shadow map's layers or the image, whichever is
+  /// the larger share).
+  std::string memory_field, memory_advice;
 };
 
 /// Counts the work `request` implies (it must be valid, as the request
@@ -107,6 +112,12 @@ CostFactors cost_factors(const RenderRequest& request);
 
 /// The estimate: cost_factors priced by the calibration in request_cost.cpp.
 RequestCost estimate_cost(const RenderRequest& request);
+
+/// A sun-hours analysis (POST /api/sun-hours): the sun's positions, one
+/// shadow ray per (point, sample) pair with the sun up (`sun_up_share` of
+/// the samples, core/sun_hours.hpp), and the models' BVHs; peak memory: the
+/// tallies, the samples, the BVHs and the answer's text.
+RequestCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t samples, double sun_up_share);
 
 /// Triangles tessellate() makes for `scene` (without building the mesh).
 std::uint64_t scene_triangles(const Scene& scene);

@@ -1,0 +1,56 @@
+#include "reference/sun_hours_ray_cast.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <limits>
+#include <mutex>
+#include <thread>
+
+#include "reference/ray_cast.hpp"
+
+namespace umbra {
+
+bool sees_sun(const RayScene& rays, const glm::dvec3& point, const glm::dvec3& direction) {
+  return !rays.occluded(point, direction, std::numeric_limits<double>::infinity());
+}
+
+void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::vector<SunSample>& samples,
+                        SunHoursResult& result, const std::function<bool()>& stop_requested) {
+  const std::size_t points = grid.points();
+  result.tally.assign(points, PointTally{});
+  const std::size_t up = std::size_t(std::count_if(samples.begin(), samples.end(), [](const SunSample& s) { return s.up(); }));
+  result.samples_up = up;
+  result.pairs = std::uint64_t(points) * up;
+  // About 2^16 rays a chunk: a few milliseconds, so a stop is seen soon.
+  const std::size_t chunk = std::max<std::size_t>(1, (std::size_t(1) << 16) / std::max<std::size_t>(1, up));
+  const std::size_t chunks = (points + chunk - 1) / chunk;
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> stopped{false};
+  std::mutex asking;  // stop_requested need not be thread-safe
+  const auto work = [&] {
+    for (;;) {
+      if (stop_requested) {
+        std::lock_guard<std::mutex> lock(asking);
+        if (stopped || stop_requested()) stopped = true;
+      }
+      if (stopped) return;
+      const std::size_t c = next.fetch_add(1);
+      if (c >= chunks) return;
+      const std::size_t first = c * chunk, last = std::min(points, first + chunk);
+      for (const SunSample& sample : samples) {
+        const bool sun_up = sample.up();
+        for (std::size_t i = first; i < last; ++i)
+          result.tally[i].record(sun_up && sees_sun(rays, grid.point(i), sample.direction));
+      }
+    }
+  };
+  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(chunks)));
+  std::vector<std::thread> pool;
+  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  if (stopped) throw CastStopped();
+  result.pairs_ray_cast = result.pairs;
+}
+
+}  // namespace umbra

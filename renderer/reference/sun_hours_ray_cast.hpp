@@ -1,0 +1,30 @@
+// Sun hours by the exact ray cast: every (point, sample) pair with the sun
+// up is settled by one shadow ray against the scene as it is (RayScene:
+// analytic shapes in double, meshes through Embree). This is the answer
+// the maps' path must equal pair for pair, and the path the cost model
+// picks where it is the faster one.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "core/sun_hours.hpp"
+
+namespace umbra {
+
+class RayScene;  // reference/ray_cast.hpp
+
+/// Whether the segment from `point` towards the sun (unit `direction`)
+/// meets no surface: nothing on point + t direction for t in (0, inf).
+bool sees_sun(const RayScene& rays, const glm::dvec3& point, const glm::dvec3& direction);
+
+/// Tallies every point of `grid` over `samples` (in time order) into
+/// result.tally, and counts the pairs cast (result.pairs,
+/// result.pairs_ray_cast). On all hardware threads, in chunks of points
+/// that each walk the samples in order (neighbouring rays share a
+/// direction). `stop_requested`, if given, is asked between chunks (one
+/// thread at a time); once it answers true the cast throws CastStopped.
+void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::vector<SunSample>& samples,
+                        SunHoursResult& result, const std::function<bool()>& stop_requested = nullptr);
+
+}  // namespace umbra

@@ -1,0 +1,162 @@
+#include "sun_hours_answer.hpp"
+
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include <nlohmann/json.hpp>
+
+namespace umbra {
+
+namespace {
+
+std::string lower(std::string_view text) {
+  std::string out(text);
+  for (char& c : out) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+std::string trim(std::string_view text) {
+  std::size_t a = 0, b = text.size();
+  while (a < b && std::isspace(static_cast<unsigned char>(text[a]))) ++a;
+  while (b > a && std::isspace(static_cast<unsigned char>(text[b - 1]))) --b;
+  return std::string(text.substr(a, b - a));
+}
+
+// How well `range` ("text/*", "*/*", "text/csv") matches `type`: 3 exact,
+// 2 subtype wildcard, 1 any, 0 none.
+int specificity(const std::string& range, const std::string& type) {
+  if (range == type) return 3;
+  if (range == "*/*") return 1;
+  const auto slash = type.find('/');
+  if (range.size() == slash + 2 && range.compare(0, slash + 1, type, 0, slash + 1) == 0 && range.back() == '*') return 2;
+  return 0;
+}
+
+// The q the header gives `type`: that of its most specific matching range
+// (RFC 9110 12.5.1), -1 when none matches.
+double quality(std::string_view accept, const std::string& type) {
+  double q = -1.0;
+  int best = 0;
+  std::size_t at = 0;
+  while (at <= accept.size()) {
+    const std::size_t comma = std::min(accept.find(',', at), accept.size());
+    const std::string_view item = accept.substr(at, comma - at);
+    at = comma + 1;
+    const std::size_t semi = std::min(item.find(';'), item.size());
+    const std::string range = lower(trim(item.substr(0, semi)));
+    if (range.empty()) continue;
+    double item_q = 1.0;
+    for (std::size_t p = semi; p < item.size();) {
+      const std::size_t next = std::min(item.find(';', p + 1), item.size());
+      const std::string param = lower(trim(item.substr(p + 1, next - p - 1)));
+      if (param.rfind("q=", 0) == 0) item_q = std::strtod(param.c_str() + 2, nullptr);
+      p = next;
+    }
+    const int s = specificity(range, type);
+    if (s > best) best = s, q = item_q;
+  }
+  return q;
+}
+
+// Numbers to 12 significant digits (the shortest form that holds them):
+// hours print the same on every machine.
+void append_number(std::string& text, double v) {
+  char buffer[40];
+  const auto end = std::to_chars(buffer, buffer + sizeof buffer, v, std::chars_format::general, 12).ptr;
+  text.append(buffer, end);
+}
+
+
+}  // namespace
+
+std::optional<SunHoursFormat> sun_hours_format(std::string_view accept) {
+  if (trim(accept).empty()) return SunHoursFormat::Json;
+  const double json_q = quality(accept, "application/json"), csv_q = quality(accept, "text/csv");
+  if (json_q <= 0.0 && csv_q <= 0.0) return std::nullopt;
+  return csv_q > json_q ? SunHoursFormat::Csv : SunHoursFormat::Json;
+}
+
+std::string sun_hours_utc(double unix_seconds) {
+  const double whole = std::floor(unix_seconds);
+  std::string text = format_utc(whole);
+  const double fraction = unix_seconds - whole;
+  if (fraction > 5e-7 && !text.empty()) {
+    char buffer[16];
+    std::snprintf(buffer, sizeof buffer, "%.6f", fraction);  // "0.500000"
+    std::string digits(buffer + 1);
+    while (!digits.empty() && digits.back() == '0') digits.pop_back();
+    text.insert(text.size() - 1, digits);
+  }
+  return text;
+}
+
+std::string sun_hours_json(const SunHoursRequest& request, const SunHoursResult& result) {
+  using json = nlohmann::json;
+  const SunGrid& grid = request.grid;
+  const glm::dvec3 origin = grid.origin();
+  json head = {
+      {"grid", {{"origin", {origin.x, origin.y, origin.z}}, {"spacing", grid.spacing}, {"columns", grid.columns},
+                {"rows", grid.rows}}},
+      {"site", {{"latitude", request.site.latitude_deg}, {"longitude", request.site.longitude_deg},
+                {"north_deg", request.site.north_deg}}},
+      {"period", {{"start", sun_hours_utc(request.period.start_unix_s)}, {"end", sun_hours_utc(request.period.end_unix_s)},
+                  {"step_minutes", request.period.step_minutes}}},
+      {"samples_count", result.samples.size()},
+      {"samples_up", result.samples_up},
+      {"pairs", result.pairs},
+      {"pairs_by_maps", result.pairs_by_maps},
+      {"pairs_ray_cast", result.pairs_ray_cast},
+      {"path", result.path},
+      {"exact", result.pairs_by_maps == 0 || request.exact},
+  };
+  if (request.require_hours) {
+    head["require_hours"] = *request.require_hours;
+    head["pass_share"] = result.pass_share(*request.require_hours);
+  }
+  if (request.include_samples) {
+    json samples = json::array();
+    for (const SunSample& s : result.samples)
+      samples.push_back({{"utc", sun_hours_utc(s.utc_unix_s)}, {"azimuth_deg", s.sun.azimuth_deg},
+                         {"elevation_deg", s.sun.elevation_deg}});
+    head["samples"] = std::move(samples);
+  }
+  // The per-point arrays are written by hand: a million points are two
+  // million numbers, which a json value would hold as 16-byte nodes.
+  std::string text = head.dump();
+  text.pop_back();  // the closing brace
+  const auto array = [&](const char* name, auto value_of) {
+    text += ",\"";
+    text += name;
+    text += "\":[";
+    for (std::size_t i = 0; i < result.tally.size(); ++i) {
+      if (i) text += ',';
+      append_number(text, value_of(i));
+    }
+    text += ']';
+  };
+  text.reserve(text.size() + result.tally.size() * 24);
+  array("hours", [&](std::size_t i) { return result.hours(i); });
+  array("longest_run_hours", [&](std::size_t i) { return result.longest_run_hours(i); });
+  text += "}";
+  return text;
+}
+
+std::string sun_hours_csv(const SunHoursRequest& request, const SunHoursResult& result) {
+  std::string text = "x,y,z,hours,longest_run_hours\n";
+  text.reserve(text.size() + result.tally.size() * 64);
+  for (std::size_t i = 0; i < result.tally.size(); ++i) {
+    const glm::dvec3 p = request.grid.point(i);
+    for (double v : {p.x, p.y, p.z, result.hours(i)}) {
+      append_number(text, v);
+      text += ',';
+    }
+    append_number(text, result.longest_run_hours(i));
+    text += '\n';
+  }
+  return text;
+}
+
+}  // namespace umbra
