@@ -61,11 +61,11 @@ double quality(std::string_view accept, const std::string& type) {
   return q;
 }
 
-// Numbers to 12 significant digits (the shortest form that holds them):
-// hours print the same on every machine.
+// Numbers in the shortest form that reads back as the same double
+// (std::to_chars): a client gets the hours exactly as computed.
 void append_number(std::string& text, double v) {
   char buffer[40];
-  const auto end = std::to_chars(buffer, buffer + sizeof buffer, v, std::chars_format::general, 12).ptr;
+  const auto end = std::to_chars(buffer, buffer + sizeof buffer, v).ptr;
   text.append(buffer, end);
 }
 

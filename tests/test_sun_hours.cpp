@@ -1,0 +1,304 @@
+// Sun hours (POST /api/sun-hours) without GL: the samples, the grid, the
+// tally, the body's parser and the answers, and the ray cast against
+// analytic cases (a wall's shadow at the equator on the equinox, a pole's
+// shadow length against the sun's elevation) and PyEphem's sun-up time.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+
+#include <glm/trigonometric.hpp>
+#include <nlohmann/json.hpp>
+
+#include "core/light_math.hpp"
+#include "core/sun_hours.hpp"
+#include "reference/ray_cast.hpp"
+#include "reference/sun_hours_ray_cast.hpp"
+#include "sun_hours_answer.hpp"
+#include "sun_hours_parser.hpp"
+
+namespace umbra {
+namespace {
+
+using json = nlohmann::json;
+
+constexpr double kDay = 86400.0;
+const double kEquinox2026 = *parse_utc("2026-03-20T00:00:00Z", nullptr);
+
+SunHoursRequest parsed(const json& body) {
+  const ParsedSunHours p = parse_sun_hours_request(body.dump());
+  EXPECT_TRUE(p.ok()) << p.error.field << ": " << p.error.message;
+  return p.ok() ? *p.request : SunHoursRequest{};
+}
+
+json body_with(const std::string& path, const json& value) {
+  json body = {{"site", {{"latitude", 51.5}, {"longitude", -0.12}}},
+               {"period", {{"start", "2026-03-21T00:00:00Z"}, {"end", "2026-03-22T00:00:00Z"}}},
+               {"grid", {{"size", {4, 2}}, {"spacing", 0.5}}}};
+  if (!path.empty()) body[json::json_pointer(path)] = value;
+  return body;
+}
+
+RequestError refusal(const json& body) {
+  const ParsedSunHours p = parse_sun_hours_request(body.dump());
+  EXPECT_FALSE(p.ok()) << body.dump();
+  return p.error;
+}
+
+// Runs the ray cast over the request's grid and period, as the service does.
+SunHoursResult cast(const SunHoursRequest& q) {
+  SunHoursResult result;
+  result.step_minutes = q.period.step_minutes;
+  result.samples = sun_samples(q.site, q.period, *sample_count(q.period));
+  const RayScene rays(q.view.scene);
+  ray_cast_sun_hours(rays, q.grid, result.samples, result);
+  return result;
+}
+
+TEST(SunHours, SamplesStandForTheMiddleOfTheirSteps) {
+  SunPeriod day{kEquinox2026, kEquinox2026 + kDay, 10.0};
+  ASSERT_EQ(sample_count(day), std::size_t(144));
+  EXPECT_DOUBLE_EQ(sample_time(day, 0), kEquinox2026 + 300.0);
+  EXPECT_DOUBLE_EQ(sample_time(day, 143), kEquinox2026 + kDay - 300.0);
+  day.step_minutes = 7.0;  // 1440 / 7 is not whole
+  EXPECT_FALSE(sample_count(day));
+  day.step_minutes = 0.5;
+  EXPECT_EQ(sample_count(day), std::size_t(2880));
+}
+
+TEST(SunHours, TheGridIsTheCentresOfItsCells) {
+  const SunHoursRequest q = parsed(body_with("/grid", {{"center", {1, 2, 3}}, {"size", {4, 2}}, {"spacing", 0.5}}));
+  EXPECT_EQ(q.grid.columns, 8);
+  EXPECT_EQ(q.grid.rows, 4);
+  EXPECT_EQ(q.grid.points(), std::size_t(32));
+  EXPECT_EQ(q.grid.origin(), glm::dvec3(-0.75, 2.0, 2.25));
+  EXPECT_EQ(q.grid.point(9), glm::dvec3(-0.25, 2.0, 2.75));  // column 1, row 1
+  EXPECT_EQ(q.grid.point(31), glm::dvec3(2.75, 2.0, 3.75));  // the last: the far corner's cell
+}
+
+TEST(SunHours, ATallyCountsLitSamplesAndTheLongestRun) {
+  PointTally t;
+  for (bool lit : {true, true, false, true, true, true, false, true}) t.record(lit);
+  EXPECT_EQ(t.lit, 6u);
+  EXPECT_EQ(t.longest, 3u);
+  SunHoursResult r;
+  r.step_minutes = 10.0;
+  r.tally = {PointTally{12, 0, 12}, PointTally{11, 0, 11}, PointTally{13, 0, 5}, PointTally{0, 0, 0}};
+  EXPECT_DOUBLE_EQ(r.hours(0), 2.0);
+  EXPECT_DOUBLE_EQ(r.longest_run_hours(2), 5.0 / 6.0);
+  EXPECT_DOUBLE_EQ(r.pass_share(2.0), 0.5);  // 12 x 10 minutes is exactly 2 hours: it passes
+  EXPECT_DOUBLE_EQ(r.pass_share(0.0), 1.0);
+}
+
+TEST(SunHoursParser, DefaultsAndEveryField) {
+  SunHoursRequest q = parsed(body_with("", nullptr));
+  EXPECT_EQ(q.site.north_deg, 0.0);
+  EXPECT_EQ(q.period.step_minutes, 10.0);
+  EXPECT_EQ(q.grid.center, glm::dvec3(0.0));
+  EXPECT_TRUE(q.exact);
+  EXPECT_FALSE(q.include_samples);
+  EXPECT_FALSE(q.require_hours);
+  EXPECT_EQ(q.view.scene.objects.size(), 2u);  // cube-on-plane, as /api/render's default
+  json body = body_with("/site/north_deg", -30);
+  body["require_hours"] = 2;
+  body["exact"] = false;
+  body["include_samples"] = true;
+  body["period"]["step_minutes"] = 15;
+  body["scene"] = "three-cubes";
+  q = parsed(body);
+  EXPECT_EQ(q.site.north_deg, -30.0);
+  EXPECT_EQ(q.require_hours, 2.0);
+  EXPECT_FALSE(q.exact);
+  EXPECT_TRUE(q.include_samples);
+  EXPECT_EQ(sample_count(q.period), std::size_t(96));
+  EXPECT_EQ(q.view.scene.objects.size(), 4u);
+}
+
+TEST(SunHoursParser, BadInputIs400NamingTheField) {
+  struct Case {
+    std::string path;
+    json value;
+    std::string field, says;
+  };
+  const std::vector<Case> cases = {
+      {"/period/end", "2026-03-20T00:00:00Z", "period.end", "not after period.start"},
+      {"/period/end", "2026-03-21T00:00:00Z", "period.end", "not after period.start"},
+      {"/period/step_minutes", 0, "period.step_minutes", "out of range"},
+      {"/period/step_minutes", 7, "period.step_minutes", "whole number of steps"},
+      // 10^9 samples: a thousand years at half-minute steps.
+      {"/period/end", "3026-03-21T00:00:00Z", "period.step_minutes", "over the limit"},
+      {"/period/start", "2026-03-21 00:00:00Z", "period.start", "RFC 3339"},
+      {"/period/start", 0, "period.start", "string"},
+      // 10^12 points.
+      {"/grid/size", {1e6, 1e6}, "grid.spacing", "over the limit"},
+      {"/grid/size", {4, 2.2}, "grid.spacing", "whole number of cells"},
+      {"/grid/size", {4, 0}, "grid.size[1]", "out of range"},
+      {"/grid/spacing", -1, "grid.spacing", "out of range"},
+      {"/grid/center", {0, 1}, "grid.center", "[x, y, z]"},
+      {"/site/latitude", 91, "site.latitude", "out of range"},
+      {"/site/longitude", "east", "site.longitude", "number"},
+      {"/site/height", 1, "site.height", "unknown field"},
+      {"/require_hours", -1, "require_hours", "out of range"},
+      {"/exact", "yes", "exact", "true or false"},
+      {"/width", 640, "width", "unknown field"},
+      {"/scene", "no-such-scene", "scene", "no-such-scene"},
+      {"/scene", json::parse(R"({"objects": [{"type": "box", "size": -1}]})"), "scene.objects[0].size", ""},
+  };
+  for (const Case& c : cases) {
+    const RequestError e = refusal(body_with(c.path, c.value));
+    EXPECT_EQ(e.field, c.field) << c.path << " = " << c.value.dump() << ": " << e.message;
+    EXPECT_NE(e.message.find(c.says), std::string::npos) << e.message;
+  }
+  json body = body_with("", nullptr);
+  body.erase("site");
+  EXPECT_EQ(refusal(body).field, "site");
+  body = body_with("", nullptr);
+  body["grid"].erase("spacing");
+  EXPECT_EQ(refusal(body).field, "grid.spacing");
+  EXPECT_EQ(parse_sun_hours_request("{\"site\": ").error.message.find("malformed JSON"), 0u);
+  EXPECT_EQ(parse_sun_hours_request("[1]").error.message, "must be an object, not an array");
+}
+
+TEST(SunHoursAnswer, AcceptChoosesJsonOrCsv) {
+  EXPECT_EQ(sun_hours_format(""), SunHoursFormat::Json);
+  EXPECT_EQ(sun_hours_format("*/*"), SunHoursFormat::Json);
+  EXPECT_EQ(sun_hours_format("application/json"), SunHoursFormat::Json);
+  EXPECT_EQ(sun_hours_format("text/csv"), SunHoursFormat::Csv);
+  EXPECT_EQ(sun_hours_format("Text/CSV; charset=utf-8"), SunHoursFormat::Csv);
+  EXPECT_EQ(sun_hours_format("text/*"), SunHoursFormat::Csv);
+  EXPECT_EQ(sun_hours_format("application/json;q=0.5, text/csv"), SunHoursFormat::Csv);
+  EXPECT_EQ(sun_hours_format("text/csv;q=0.2, */*;q=0.5"), SunHoursFormat::Json);
+  EXPECT_EQ(sun_hours_format("text/csv;q=0, */*"), SunHoursFormat::Json);
+  EXPECT_FALSE(sun_hours_format("image/png"));
+  EXPECT_FALSE(sun_hours_format("text/csv;q=0"));
+}
+
+TEST(SunHoursAnswer, InstantsKeepTheirFraction) {
+  EXPECT_EQ(sun_hours_utc(0.0), "1970-01-01T00:00:00Z");
+  EXPECT_EQ(sun_hours_utc(22.5), "1970-01-01T00:00:22.5Z");
+  EXPECT_EQ(sun_hours_utc(kEquinox2026 + 300.0), "2026-03-20T00:05:00Z");
+}
+
+TEST(SunHoursAnswer, JsonAndCsvHoldEveryPoint) {
+  json body = body_with("/grid/center", {0, -0.49, 0});
+  body["require_hours"] = 2;
+  body["include_samples"] = true;
+  const SunHoursRequest q = parsed(body);
+  const SunHoursResult r = cast(q);
+  const json answer = json::parse(sun_hours_json(q, r));
+  EXPECT_EQ(answer["grid"]["columns"], 8);
+  EXPECT_EQ(answer["grid"]["rows"], 4);
+  EXPECT_EQ(answer["grid"]["origin"], json({-1.75, -0.49, -0.75}));
+  ASSERT_EQ(answer["hours"].size(), 32u);
+  ASSERT_EQ(answer["longest_run_hours"].size(), 32u);
+  EXPECT_EQ(answer["samples_count"], 144);
+  EXPECT_EQ(answer["samples"].size(), 144u);
+  EXPECT_EQ(answer["samples"][0]["utc"], "2026-03-21T00:05:00Z");
+  EXPECT_EQ(answer["path"], "ray_cast");
+  EXPECT_EQ(answer["exact"], true);
+  EXPECT_EQ(answer["pairs"], answer["pairs_ray_cast"]);
+  EXPECT_EQ(answer["pairs"], 32 * answer["samples_up"].get<int>());
+  EXPECT_DOUBLE_EQ(answer["pass_share"].get<double>(), r.pass_share(2.0));
+  // Points inside the cube (-0.5..0.5) never see the sun; others do.
+  EXPECT_EQ(answer["hours"][q.grid.columns + 3], 0.0);
+  // The south row (+Z) is never in the cube's shadow at noon in March.
+  EXPECT_DOUBLE_EQ(answer["hours"][31].get<double>(), r.samples_up * 10.0 / 60.0);
+  const std::string csv = sun_hours_csv(q, r);
+  std::istringstream lines(csv);
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line, "x,y,z,hours,longest_run_hours");
+  std::size_t count = 0;
+  while (std::getline(lines, line)) ++count;
+  EXPECT_EQ(count, 32u);
+  EXPECT_NE(csv.find("\n-1.75,-0.49,-0.75,"), std::string::npos) << csv.substr(0, 200);
+  body.erase("require_hours");
+  body.erase("include_samples");
+  const json plain = json::parse(sun_hours_json(parsed(body), r));
+  EXPECT_FALSE(plain.contains("pass_share"));
+  EXPECT_FALSE(plain.contains("samples"));
+}
+
+// A north-south wall at the equator on the equinox: the sun rises due east,
+// climbs through the zenith and sets due west, so a point west of the wall
+// at distance d is in its shadow each morning until the sun stands
+// atan(h / d) high: about atan(h / d) / 15 degrees an hour of it.
+TEST(SunHoursRayCast, AWallsShadowAtTheEquatorOnTheEquinox) {
+  const double h = 4.0, half_thickness = 0.1, y0 = 0.01;
+  json wall = {{"type", "box"}, {"center", {0, h / 2, 0}}, {"size", {2 * half_thickness, h, 4000}}};
+  json body = {{"scene", {{"objects", json::array({wall})}}},
+               {"site", {{"latitude", 0}, {"longitude", 0}}},
+               {"period", {{"start", "2026-03-20T00:00:00Z"}, {"end", "2026-03-21T00:00:00Z"}, {"step_minutes", 2}}},
+               // Points west of the wall at d = 1..8 from its middle.
+               {"grid", {{"center", {-4.5, y0, 0}}, {"size", {8, 1}}, {"spacing", 1}}}};
+  const SunHoursRequest q = parsed(body);
+  const SunHoursResult r = cast(q);
+  std::size_t up = 0;
+  for (const SunSample& s : r.samples) up += s.up() ? 1 : 0;
+  for (std::size_t i = 0; i < q.grid.points(); ++i) {
+    const glm::dvec3 p = q.grid.point(i);
+    // Independent of the ray caster: the ray p + t D enters the wall's slab
+    // at x = -half_thickness, below its top, while the sun is east (D.x > 0).
+    std::uint32_t lit = 0;
+    for (const SunSample& s : r.samples) {
+      if (!s.up()) continue;
+      const glm::dvec3& D = s.direction;
+      const bool blocked = D.x > 0.0 && p.y + (-half_thickness - p.x) / D.x * D.y < h;
+      lit += blocked ? 0 : 1;
+    }
+    EXPECT_EQ(r.tally[i].lit, lit) << "point " << i;
+    // The closed form, within two steps (the sun's declination and
+    // refraction move it by minutes).
+    const double d = -p.x - half_thickness;
+    const double shaded_hours = glm::degrees(std::atan((h - y0) / d)) / 15.0;
+    EXPECT_NEAR(r.hours(i), double(up) * 2.0 / 60.0 - shaded_hours, 2 * 2.0 / 60.0) << "d = " << d;
+    // The shadow is one morning stretch: the sun is seen in one unbroken run.
+    EXPECT_EQ(r.tally[i].longest, r.tally[i].lit) << "point " << i;
+  }
+  EXPECT_GT(r.hours(0), r.hours(7));  // nearer the wall (point 7), less sun
+}
+
+// A pole in the sun: the points along its shadow are dark out to
+// r + (h - y0) / tan(elevation), lit beyond, at every elevation.
+TEST(SunHoursRayCast, APolesShadowLengthFollowsTheSunsElevation) {
+  const double h = 2.0, radius = 0.05, y0 = 0.001, spacing = 0.01;
+  for (const char* instant : {"2026-06-21T05:00:00Z", "2026-06-21T06:30:00Z", "2026-06-21T08:00:00Z",
+                              "2026-06-21T12:00:00Z"}) {
+    const double t = *parse_utc(instant, nullptr);
+    // One sample, at the instant: a period of one step around it.
+    const SunAngles sun = solar_position(51.5, -0.12, t);
+    ASSERT_GT(sun.elevation_deg, 3.0) << instant;
+    // North turned so that the sun stands due -X: the shadow falls along +X.
+    const double north = std::fmod(270.0 - sun.azimuth_deg, 360.0);
+    const double length = radius + (h - y0) / std::tan(glm::radians(sun.elevation_deg));
+    const double reach = std::ceil((length + 1.0) / spacing) * spacing;
+    json pole = {{"type", "cylinder"}, {"center", {0, h / 2, 0}}, {"radius", radius}, {"height", h}};
+    json body = {{"scene", {{"objects", json::array({pole})}}},
+                 {"site", {{"latitude", 51.5}, {"longitude", -0.12}, {"north_deg", north}}},
+                 {"period", {{"start", format_utc(t - 30)}, {"end", format_utc(t + 30)}, {"step_minutes", 1}}},
+                 {"grid", {{"center", {reach / 2, y0, 0}}, {"size", {reach, spacing}}, {"spacing", spacing}}}};
+    const SunHoursRequest q = parsed(body);
+    const SunHoursResult r = cast(q);
+    ASSERT_EQ(r.samples.size(), 1u);
+    EXPECT_NEAR(r.samples[0].direction.z, 0.0, 1e-9);
+    EXPECT_LT(r.samples[0].direction.x, 0.0);
+    // Every point short of the length is dark, every one past it lit.
+    std::size_t dark = 0;
+    for (std::size_t i = 0; i < q.grid.points(); ++i) {
+      const double x = q.grid.point(i).x;
+      if (r.tally[i].lit == 0) ++dark;
+      if (x < length - spacing) {
+        EXPECT_EQ(r.tally[i].lit, 0u) << instant << " x = " << x;
+      } else if (x > length + spacing) {
+        EXPECT_EQ(r.tally[i].lit, 1u) << instant << " x = " << x;
+      }
+    }
+    EXPECT_NEAR(double(dark) * spacing, length, 2 * spacing) << instant << ", elevation " << sun.elevation_deg;
+  }
+}
+
+}  // namespace
+}  // namespace umbra
