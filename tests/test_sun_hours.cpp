@@ -16,6 +16,7 @@
 #include "core/light_math.hpp"
 #include "core/sun_hours.hpp"
 #include "reference/ray_cast.hpp"
+#include "reference/sun_hours_footprints.hpp"
 #include "reference/sun_hours_ray_cast.hpp"
 #include "sun_hours_answer.hpp"
 #include "sun_hours_parser.hpp"
@@ -298,6 +299,153 @@ TEST(SunHoursRayCast, APolesShadowLengthFollowsTheSunsElevation) {
     }
     EXPECT_NEAR(double(dark) * spacing, length, 2 * spacing) << instant << ", elevation " << sun.elevation_deg;
   }
+}
+
+}  // namespace
+}  // namespace umbra
+
+namespace umbra {
+namespace {
+
+SunHoursResult cast_by_footprints(const SunHoursRequest& q) {
+  SunHoursResult result;
+  result.step_minutes = q.period.step_minutes;
+  result.samples = sun_samples(q.site, q.period, *sample_count(q.period));
+  const RayScene rays(q.view.scene);
+  footprint_sun_hours(rays, q.view.scene, q.grid, result.samples, result);
+  return result;
+}
+
+void expect_same_tallies(const SunHoursResult& a, const SunHoursResult& b, const std::string& what) {
+  ASSERT_EQ(a.tally.size(), b.tally.size());
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < a.tally.size(); ++i)
+    differ += a.tally[i].lit != b.tally[i].lit || a.tally[i].longest != b.tally[i].longest ? 1 : 0;
+  EXPECT_EQ(differ, 0u) << what;
+  EXPECT_EQ(a.pairs, b.pairs) << what;
+}
+
+// The footprints settle most pairs without a ray and give the pure ray
+// cast's tally at every point: over random scenes of boxes (turned),
+// spheres, cylinders, thin poles, plates just above the grid and a model,
+// at sites from the equator to the polar circle, over days and a week.
+TEST(SunHoursFootprints, EveryPointEqualsThePureRayCast) {
+  std::uint64_t seed = 12345;
+  const auto uniform = [&](double lo, double hi) {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return lo + (hi - lo) * double(seed >> 11) / double(1ull << 53);
+  };
+  std::uint64_t by_maps = 0, pairs = 0;
+  for (int scene = 0; scene < 24; ++scene) {
+    const double y0 = uniform(-0.2, 0.3);
+    json objects = json::array();
+    objects.push_back({{"type", "plane"}, {"center", {0, uniform(-0.5, y0), 0}}, {"size", {40, 40}}});
+    const int n = 1 + scene % 7;
+    for (int k = 0; k < n; ++k) {
+      const json at = {uniform(-6, 6), uniform(0, 2), uniform(-6, 6)};
+      switch (k % 5) {
+        case 0:
+          objects.push_back({{"type", "box"}, {"center", at}, {"size", {uniform(0.1, 2), uniform(0.1, 3), uniform(0.1, 2)}},
+                             {"rotation_y_deg", uniform(0, 90)}});
+          break;
+        case 1: objects.push_back({{"type", "sphere"}, {"center", at}, {"radius", uniform(0.1, 1.5)}}); break;
+        case 2:
+          objects.push_back({{"type", "cylinder"}, {"center", at}, {"radius", uniform(0.01, 0.05)}, {"height", uniform(1, 5)}});
+          break;
+        case 3:  // a plate just above the grid's plane
+          objects.push_back({{"type", "box"}, {"center", {at[0], y0 + uniform(1e-4, 0.05), at[2]}},
+                             {"size", {uniform(0.5, 3), 0.01, uniform(0.5, 3)}}});
+          break;
+        default:
+          objects.push_back({{"type", "mesh"}, {"model", "teapot"}, {"position", at}, {"scale", uniform(0.3, 1)}});
+      }
+    }
+    const double latitude = std::vector<double>{0, 23.4, 51.5, 66.5, -33.9, 70}[std::size_t(scene % 6)];
+    const int days = scene % 4 == 3 ? 7 : 1;
+    const std::string start = scene % 2 ? "2026-06-21T00:00:00Z" : "2026-12-03T00:00:00Z";
+    json body = {{"scene", {{"objects", objects}}},
+                 {"site", {{"latitude", latitude}, {"longitude", uniform(-180, 180)}, {"north_deg", uniform(-180, 180)}}},
+                 {"period", {{"start", start}, {"end", format_utc(*parse_utc(start, nullptr) + days * kDay)},
+                             {"step_minutes", days == 1 ? 5 : 30}}},
+                 {"grid", {{"center", {0, y0, 0}}, {"size", {16, 16}}, {"spacing", 0.25}}}};
+    const SunHoursRequest q = parsed(body);
+    const SunHoursResult exact = cast(q), footprints = cast_by_footprints(q);
+    expect_same_tallies(footprints, exact, "scene " + std::to_string(scene) + ": " + body.dump().substr(0, 400));
+    EXPECT_EQ(footprints.pairs_by_maps + footprints.pairs_ray_cast, footprints.pairs);
+    by_maps += footprints.pairs_by_maps;
+    pairs += footprints.pairs;
+  }
+  // Most pairs are settled without a ray (the grid is mostly in the sun).
+  EXPECT_GT(double(by_maps), 0.5 * double(pairs));
+}
+
+// A grid wholly under a roof, a grid on the floor's own plane, and a sun
+// grazing the horizon at the polar circle: the footprints still agree.
+TEST(SunHoursFootprints, RoofsFloorsAndGrazingSuns) {
+  const std::vector<json> scenes = {
+      json::parse(R"({"objects": [{"type": "box", "center": [0, 3, 0], "size": [30, 0.2, 30]}]})"),
+      json::parse(R"({"objects": [{"type": "plane", "center": [0, 0, 0], "size": [30, 30]},
+                                  {"type": "box", "center": [0, 1, 0], "size": [1, 2, 1]}]})"),
+  };
+  for (const json& scene : scenes) {
+    for (double latitude : {0.0, 66.0, 80.0}) {
+      json body = {{"scene", scene},
+                   {"site", {{"latitude", latitude}, {"longitude", 10}}},
+                   {"period", {{"start", "2026-03-18T00:00:00Z"}, {"end", "2026-03-21T00:00:00Z"}, {"step_minutes", 2}}},
+                   {"grid", {{"center", {0, 0, 0}}, {"size", {20, 20}}, {"spacing", 0.5}}}};
+      const SunHoursRequest q = parsed(body);
+      expect_same_tallies(cast_by_footprints(q), cast(q), body.dump());
+    }
+  }
+}
+
+}  // namespace
+}  // namespace umbra
+
+namespace umbra {
+namespace {
+
+// A point above everything sees the sun whenever it is up: over a year at
+// one-minute steps its hours are the sun-up time that PyEphem gives
+// (tests/data/sun_up_hours.csv, scripts/make-sun-up-table.py). SPA's
+// refraction at the horizon is 14.9" more than PyEphem's, so SPA's sun
+// rises 1 to 64 s earlier and sets as much later (most at the polar
+// circles' grazing days): over a year 0.25 to 0.85 h more, plus up to a
+// minute a day of sampling that does not average out (each day's rise
+// falls near the same point of its minute). A day: within one step.
+TEST(SunHoursRayCast, AYearsHoursAreTheSunUpTimeOfPyEphem) {
+  std::ifstream table(UMBRA_SUN_UP_TABLE_CSV);
+  ASSERT_TRUE(table) << UMBRA_SUN_UP_TABLE_CSV;
+  std::string line;
+  int rows = 0, years = 0;
+  while (std::getline(table, line)) {
+    if (line.empty() || line[0] == '#' || line.rfind("name,", 0) == 0) continue;
+    std::vector<std::string> cell;
+    std::stringstream fields(line);
+    for (std::string c; std::getline(fields, c, ',');) cell.push_back(c);
+    ASSERT_EQ(cell.size(), 6u) << line;
+    const json body = {{"scene", "cube-on-plane"},
+                       {"site", {{"latitude", std::stod(cell[1])}, {"longitude", std::stod(cell[2])}}},
+                       {"period", {{"start", cell[3]}, {"end", cell[4]}, {"step_minutes", 1}}},
+                       {"grid", {{"center", {0.3, 10, -0.2}}, {"size", {1, 1}}, {"spacing", 1}}}};
+    const SunHoursRequest q = parsed(body);
+    const SunHoursResult r = cast_by_footprints(q);
+    const double ephem = std::stod(cell[5]), hours = r.hours(0);
+    EXPECT_EQ(r.tally[0].lit, r.samples_up) << line;
+    const bool year = q.period.end_unix_s - q.period.start_unix_s > 300 * kDay;
+    if (year) {
+      EXPECT_GE(hours - ephem, 0.0) << line << ": " << hours;
+      EXPECT_LE(hours - ephem, 1.0) << line << ": " << hours;
+      ++years;
+    } else {
+      EXPECT_NEAR(hours, ephem, 1.0 / 60.0 + 5.0 / 3600.0) << line;
+      // Polar day and night are whole.
+      if (ephem == 0.0 || ephem == 24.0) EXPECT_EQ(hours, ephem) << line;
+    }
+    ++rows;
+  }
+  EXPECT_EQ(rows, 24);
+  EXPECT_EQ(years, 6);
 }
 
 }  // namespace

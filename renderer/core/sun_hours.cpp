@@ -52,16 +52,24 @@ std::vector<SunSample> sun_samples(const SunSite& site, const SunPeriod& period,
   return samples;
 }
 
-double sun_up_share(const SunSite& site, const SunPeriod& period, std::size_t count, std::size_t probes) {
-  if (count == 0) return 0.0;
+std::vector<SunSample> probe_samples(const SunSite& site, const SunPeriod& period, std::size_t count,
+                                     std::size_t probes) {
+  std::vector<SunSample> out;
+  if (count == 0) return out;
   const std::size_t n = std::min(count, std::max<std::size_t>(1, probes));
-  std::size_t up = 0;
   for (std::size_t i = 0; i < n; ++i) {
     // Probe i stands for the samples of the i-th of n equal stretches.
     const std::size_t k = std::min(count - 1, std::size_t((double(i) + 0.5) * double(count) / double(n)));
-    up += sample_at(site, sample_time(period, k)).up() ? 1 : 0;
+    out.push_back(sample_at(site, sample_time(period, k)));
   }
-  return double(up) / double(n);
+  return out;
+}
+
+double sun_up_share(const std::vector<SunSample>& samples) {
+  if (samples.empty()) return 0.0;
+  std::size_t up = 0;
+  for (const SunSample& s : samples) up += s.up() ? 1 : 0;
+  return double(up) / double(samples.size());
 }
 
 double SunHoursResult::pass_share(double require_hours) const {

@@ -97,9 +97,14 @@ SunSample sun_sample(const SunSite& site, const SunPeriod& period, std::size_t k
 /// Every sample of the period at the site (solar_position, as a sun light
 /// places its sun). `count` is sample_count(period).
 std::vector<SunSample> sun_samples(const SunSite& site, const SunPeriod& period, std::size_t count);
-/// The share of samples with the sun up, from at most `probes` of them
-/// spread evenly over the period: what the cost model prices the rays by.
-double sun_up_share(const SunSite& site, const SunPeriod& period, std::size_t count, std::size_t probes = 512);
+/// At most `probes` of the period's samples, spread evenly over it (each
+/// stands for an equal stretch of the period): what the cost model
+/// estimates the sun's share of the period, and the footprints' share of
+/// the grid, from.
+std::vector<SunSample> probe_samples(const SunSite& site, const SunPeriod& period, std::size_t count,
+                                     std::size_t probes = 512);
+/// The share of `samples` with the sun up.
+double sun_up_share(const std::vector<SunSample>& samples);
 
 /// Per point, the lit samples and the longest run of consecutive lit
 /// samples, fed sample by sample in time order.

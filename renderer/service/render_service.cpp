@@ -16,6 +16,7 @@
 #include "gpu/egl_context.hpp"
 #include "reference/certified_frame.hpp"
 #include "reference/ray_cast.hpp"
+#include "reference/sun_hours_footprints.hpp"
 #include "reference/sun_hours_ray_cast.hpp"
 #include "service/request_cost.hpp"
 #include "reference/shadow_error.hpp"
@@ -492,14 +493,26 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
 // own thread (the cast itself on every core) and holds a place in the queue.
 std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone) {
   const std::size_t samples = sample_count(request.period).value_or(0);
-  const RequestCost cost =
-      estimate_sun_hours_cost(request, samples, sun_up_share(request.site, request.period, samples));
+  // The path and its cost from a few hundred of the samples: the sun's
+  // share of the period, and the footprints' share of the grid at 32 of
+  // the probes with the sun up.
+  const std::vector<SunSample> probes = probe_samples(request.site, request.period, samples);
+  std::vector<glm::dvec3> up;
+  for (const SunSample& s : probes)
+    if (s.up()) up.push_back(s.direction);
+  std::vector<glm::dvec3> directions;
+  const std::size_t picked = std::min<std::size_t>(32, up.size());
+  for (std::size_t i = 0; i < picked; ++i) directions.push_back(up[i * up.size() / picked]);
+  const SunHoursCost planned = estimate_sun_hours_cost(request, samples, sun_up_share(probes),
+                                                       footprint_share(request.view.scene, request.grid, directions));
+  const RequestCost& cost = planned.cost;
+  const bool footprints = planned.footprints;
   impl_->check_budget(cost);
   impl_->reserve();
   impl_->reserved_bytes.fetch_add(cost.peak_bytes);
   Impl* impl = impl_.get();
   const auto queued = std::chrono::steady_clock::now();
-  return std::async(std::launch::async, [impl, queued, samples, request = std::move(request),
+  return std::async(std::launch::async, [impl, queued, samples, footprints, request = std::move(request),
                                          client_gone = std::move(client_gone), dominant = cost.dominant(),
                                          peak_bytes = cost.peak_bytes]() {
     struct Release {
@@ -528,7 +541,10 @@ std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest requ
         result.samples.push_back(sun_sample(request.site, request.period, k));
       }
       const RayScene rays(request.view.scene, stop);
-      ray_cast_sun_hours(rays, request.grid, result.samples, result, stop);
+      if (footprints)
+        footprint_sun_hours(rays, request.view.scene, request.grid, result.samples, result, stop);
+      else
+        ray_cast_sun_hours(rays, request.grid, result.samples, result, stop);
     } catch (const CastStopped&) {
       if (overran) {
         impl->overran_count.fetch_add(1);

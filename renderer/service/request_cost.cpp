@@ -392,16 +392,21 @@ RequestCost estimate_cost(const RenderRequest& request) {
 // Sun hours. The rays start at grid points, not at a camera's surfaces,
 // and walk the scene's bounding-volume tree: each is priced as an exact
 // output's shadow ray (kMsPerShadowRay plus its object tests).
-constexpr double kMsPerSunPosition = 2.0e-3;  // NREL SPA, one sample: 1e5 in 150..210 ms on this machine
+constexpr double kMsPerSunPosition = 3.5e-3;  // NREL SPA, one sample: 3.15e6 in 10.6 s on this machine
+// The footprints: an object's hull and spans per sample, and one pass over
+// the grid per stretch of daylight.
+constexpr double kMsPerFootprint = 1.0e-3;
+constexpr double kMsPerStretchPoint = 2.0e-6;
 // Answer text per point: JSON (hours and longest run) or CSV (x, y, z too).
 constexpr std::uint64_t kAnswerBytesPerPoint = 96;
 
-RequestCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t samples, double sun_up_share) {
-  RequestCost cost;
-  CostFactors& f = cost.factors;
+SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t samples, double sun_up_share,
+                                     double footprint_share) {
+  CostFactors f;
   const Scene& scene = request.view.scene;
   const double points = double(request.grid.points());
-  f.shadow_rays = points * double(samples) * sun_up_share;
+  const double samples_up = double(samples) * sun_up_share;
+  f.shadow_rays = points * samples_up;
   f.objects_per_ray = std::log2(double(scene.objects.size()) + 1.0) + 1.0;
   std::vector<const TriangleModel*> models;
   for (const SceneObject& o : scene.objects) {
@@ -413,22 +418,42 @@ RequestCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t 
   }
   f.meshes_per_ray = std::min(f.meshes_per_ray, f.objects_per_ray);
   const bool points_dominate = points >= double(samples);
+  const std::string rays_field = points_dominate ? "grid.spacing" : "period.step_minutes";
+  const std::string rays_advice = "take a larger grid.spacing or a smaller grid.size, a longer period.step_minutes "
+                                  "or a shorter period";
+  CostFactors in_footprints = f;
+  in_footprints.shadow_rays = f.shadow_rays * footprint_share;
+  // Stretches of daylight: about one a day, at least one.
+  const double days = std::max(1.0, (request.period.end_unix_s - request.period.start_unix_s) / 86400.0);
+  const double footprints_ms =
+      samples_up * double(scene.objects.size()) * kMsPerFootprint + std::min(days, samples_up) * points * kMsPerStretchPoint;
+  const double pure_ms = ray_cast_ms(f);
+  const double via_footprints_ms = footprints_ms + ray_cast_ms(in_footprints);
+
+  SunHoursCost out;
+  out.footprints = via_footprints_ms < pure_ms;
+  out.ray_cast_ms = pure_ms;
+  RequestCost& cost = out.cost;
+  cost.factors = out.footprints ? in_footprints : f;
   cost.parts = {
       {"sun positions", double(samples) * kMsPerSunPosition, "period.step_minutes",
        "take a longer period.step_minutes or a shorter period"},
-      {"sun-hours rays", ray_cast_ms(f), points_dominate ? "grid.spacing" : "period.step_minutes",
-       "one ray per point and sample with the sun up (" + std::to_string(std::llround(f.shadow_rays)) +
-           "): take a larger grid.spacing or a smaller grid.size, a longer period.step_minutes or a shorter period"},
+      {"sun-hours footprints", out.footprints ? footprints_ms : 0.0, rays_field,
+       "each object's footprint on the grid is drawn for every sample with the sun up: " + rays_advice},
+      {"sun-hours rays", ray_cast_ms(cost.factors), rays_field,
+       "one ray per point and sample with the sun up" +
+           std::string(out.footprints ? " inside an object's footprint (" : " (") +
+           std::to_string(std::llround(cost.factors.shadow_rays)) + "): " + rays_advice},
       {"mesh BVH build", double(f.bvh_triangles) * kMsPerBvhTriangle, "scene.objects",
        "the ray cast builds a BVH of each model's triangles: use smaller models"},
   };
   for (const CostPart& part : cost.parts) cost.total_ms += part.ms;
-  cost.peak_bytes = std::uint64_t(points) * (sizeof(PointTally) + kAnswerBytesPerPoint) +
-                    std::uint64_t(samples) * sizeof(SunSample) + f.bvh_triangles * kBvhBytesPerTriangle;
+  const std::uint64_t per_point = sizeof(PointTally) + kAnswerBytesPerPoint + (out.footprints ? 3 * 8 : 0);
+  cost.peak_bytes = std::uint64_t(points) * per_point + std::uint64_t(samples) * sizeof(SunSample) +
+                    f.bvh_triangles * kBvhBytesPerTriangle;
   cost.memory_field = "grid.spacing";
   cost.memory_advice = "take a larger grid.spacing or a smaller grid.size";
-  return cost;
+  return out;
 }
 
 }  // namespace umbra
-

@@ -113,11 +113,21 @@ CostFactors cost_factors(const RenderRequest& request);
 /// The estimate: cost_factors priced by the calibration in request_cost.cpp.
 RequestCost estimate_cost(const RenderRequest& request);
 
-/// A sun-hours analysis (POST /api/sun-hours): the sun's positions, one
-/// shadow ray per (point, sample) pair with the sun up (`sun_up_share` of
-/// the samples, core/sun_hours.hpp), and the models' BVHs; peak memory: the
-/// tallies, the samples, the BVHs and the answer's text.
-RequestCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t samples, double sun_up_share);
+/// A sun-hours analysis (POST /api/sun-hours), by the faster of its two
+/// paths: the pure ray cast (one shadow ray per point and sample with the
+/// sun up: `sun_up_share` of the samples, core/sun_hours.hpp) or the
+/// footprints (each object's footprint per sample, and a ray only for the
+/// `footprint_share` of the pairs inside one; reference/sun_hours_footprints.hpp).
+/// Both add the sun's positions and the models' BVHs. Peak memory: the
+/// tallies (and the footprints' per-point records), the samples, the BVHs
+/// and the answer's text.
+struct SunHoursCost {
+  RequestCost cost;        ///< of the path chosen
+  bool footprints = true;  ///< the path chosen
+  double ray_cast_ms = 0;  ///< the pure ray cast's estimate, for comparison
+};
+SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t samples, double sun_up_share,
+                                     double footprint_share);
 
 /// Triangles tessellate() makes for `scene` (without building the mesh).
 std::uint64_t scene_triangles(const Scene& scene);

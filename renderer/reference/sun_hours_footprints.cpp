@@ -1,0 +1,228 @@
+#include "reference/sun_hours_footprints.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <mutex>
+#include <thread>
+
+#include "reference/ray_cast.hpp"
+#include "reference/sun_hours_ray_cast.hpp"
+
+namespace umbra {
+
+namespace {
+
+struct Point2 {
+  double x, z;
+};
+
+double cross(const Point2& o, const Point2& a, const Point2& b) {
+  return (a.x - o.x) * (b.z - o.z) - (a.z - o.z) * (b.x - o.x);
+}
+
+// Andrew's monotone chain: the convex hull of up to 8 points, in order.
+int convex_hull(Point2* p, int n, Point2* hull) {
+  std::sort(p, p + n, [](const Point2& a, const Point2& b) { return a.x < b.x || (a.x == b.x && a.z < b.z); });
+  int k = 0;
+  for (int i = 0; i < n; ++i) {
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p[i]) <= 0.0) --k;
+    hull[k++] = p[i];
+  }
+  for (int i = n - 2, t = k + 1; i >= 0; --i) {
+    while (k >= t && cross(hull[k - 2], hull[k - 1], p[i]) <= 0.0) --k;
+    hull[k++] = p[i];
+  }
+  return std::max(1, k - 1);
+}
+
+double max_abs(const glm::dvec3& v) { return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}); }
+
+// The largest |coordinate| of the grid's points: the rays' origins.
+double grid_reach(const SunGrid& grid) {
+  const glm::dvec3 a = grid.origin(), b = grid.point(grid.points() - 1);
+  return std::max(max_abs(a), max_abs(b));
+}
+
+// Stretches of consecutive samples with the sun up: [first, end).
+struct Stretch {
+  std::size_t first, end;
+};
+
+std::vector<Stretch> daylight_stretches(const std::vector<SunSample>& samples) {
+  std::vector<Stretch> stretches;
+  for (std::size_t k = 0; k < samples.size(); ++k) {
+    if (!samples[k].up()) continue;
+    if (stretches.empty() || stretches.back().end != k) stretches.push_back({k, k});
+    stretches.back().end = k + 1;
+  }
+  return stretches;
+}
+
+}  // namespace
+
+Aabb reachable_bounds(const Aabb& bounds, double plane_y, double reach) {
+  if (bounds.empty()) return bounds;
+  const double margin = 1e-5 * (1.0 + std::max({max_abs(bounds.min), max_abs(bounds.max), reach}));
+  Aabb grown;
+  grown.min = bounds.min - glm::dvec3(margin);
+  grown.max = bounds.max + glm::dvec3(margin);
+  if (grown.max.y < plane_y) return Aabb{};
+  grown.min.y = std::max(grown.min.y, plane_y);
+  return grown;
+}
+
+void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
+                     int last_row, const std::function<void(int, int, int)>& row_span) {
+  if (bounds.empty() || !(direction.y > 0.0)) return;
+  // Each corner slides down the sun's direction to the plane: the points
+  // whose rays pass through it. The bounds are convex, so the footprint is
+  // the hull of the eight.
+  Point2 corners[8], hull[9];
+  int n = 0;
+  for (int i = 0; i < 8; ++i) {
+    const glm::dvec3 c{i & 1 ? bounds.max.x : bounds.min.x, i & 2 ? bounds.max.y : bounds.min.y,
+                       i & 4 ? bounds.max.z : bounds.min.z};
+    const double t = (c.y - grid.center.y) / direction.y;
+    corners[n++] = {c.x - t * direction.x, c.z - t * direction.z};
+  }
+  const int m = convex_hull(corners, n, hull);
+  double z_low = hull[0].z, z_high = hull[0].z;
+  for (int i = 1; i < m; ++i) z_low = std::min(z_low, hull[i].z), z_high = std::max(z_high, hull[i].z);
+  const glm::dvec3 origin = grid.origin();
+  const double s = grid.spacing;
+  const double row_low = std::ceil((z_low - origin.z) / s) - 1.0, row_high = std::floor((z_high - origin.z) / s) + 1.0;
+  const int r0 = int(std::max<double>(first_row, row_low)), r1 = int(std::min<double>(last_row - 1, row_high));
+  for (int r = r0; r <= r1; ++r) {
+    // The row's line z = const meets the hull in one interval; rows just
+    // beside it (the spare ones) take the nearest vertex's x.
+    const double z = std::clamp(origin.z + r * s, z_low, z_high);
+    double x_low = 1e300, x_high = -1e300;
+    for (int i = 0; i < m; ++i) {
+      const Point2& a = hull[i];
+      const Point2& b = hull[(i + 1) % m];
+      if ((z < std::min(a.z, b.z)) || (z > std::max(a.z, b.z))) continue;
+      const double x = a.z == b.z ? a.x : a.x + (z - a.z) / (b.z - a.z) * (b.x - a.x);
+      x_low = std::min({x_low, x, a.z == b.z ? b.x : x});
+      x_high = std::max({x_high, x, a.z == b.z ? b.x : x});
+    }
+    if (m == 1) x_low = x_high = hull[0].x;
+    if (x_low > x_high) continue;
+    const double c0 = std::max(0.0, std::ceil((x_low - origin.x) / s) - 1.0);
+    const double c1 = std::min(double(grid.columns - 1), std::floor((x_high - origin.x) / s) + 1.0);
+    if (c0 <= c1) row_span(r, int(c0), int(c1));
+  }
+}
+
+double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions) {
+  if (directions.empty() || grid.points() == 0) return 0.0;
+  const double reach = grid_reach(grid);
+  std::vector<Aabb> reachable;
+  for (const SceneObject& o : scene.objects) {
+    const Aabb b = reachable_bounds(object_bounds(o), grid.center.y, reach);
+    if (!b.empty()) reachable.push_back(b);
+  }
+  double covered = 0.0;
+  for (const glm::dvec3& d : directions) {
+    // Per row, the columns any footprint covers (overlaps counted once
+    // where spans overlap; disjoint spans in one row add up).
+    std::vector<std::vector<std::pair<int, int>>> rows(std::size_t(grid.rows));
+    for (const Aabb& b : reachable)
+      footprint_spans(b, d, grid, 0, grid.rows, [&](int r, int c0, int c1) { rows[std::size_t(r)].push_back({c0, c1}); });
+    for (auto& row : rows) {
+      std::sort(row.begin(), row.end());
+      int end = -1;
+      for (const auto& [c0, c1] : row) {
+        if (c1 <= end) continue;
+        covered += double(c1 - std::max(c0, end + 1) + 1);
+        end = c1;
+      }
+    }
+  }
+  return covered / (double(directions.size()) * double(grid.points()));
+}
+
+void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid& grid,
+                         const std::vector<SunSample>& samples, SunHoursResult& result,
+                         const std::function<bool()>& stop_requested) {
+  const std::size_t points = grid.points();
+  const std::vector<Stretch> stretches = daylight_stretches(samples);
+  std::size_t up = 0;
+  for (const Stretch& s : stretches) up += s.end - s.first;
+  result.samples_up = up;
+  result.pairs = std::uint64_t(points) * up;
+  result.tally.assign(points, PointTally{});
+
+  const double reach = grid_reach(grid);
+  std::vector<Aabb> reachable;
+  for (const SceneObject& o : scene.objects) {
+    const Aabb b = reachable_bounds(object_bounds(o), grid.center.y, reach);
+    if (!b.empty()) reachable.push_back(b);
+  }
+
+  // Per point: the sample it was last tested at (each is tested once a
+  // sample however many footprints hold it), its last dark sample and the
+  // stretch that was in; result.tally holds its dark count in `run` until
+  // the end, and its longest lit run.
+  std::vector<std::int64_t> tested(points, -1), last_dark(points, -1), dark_stretch(points, -1);
+  std::atomic<std::uint64_t> cast{0};
+  std::atomic<bool> stopped{false};
+  std::mutex asking;
+  const int bands = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(grid.rows))));
+  const auto band = [&](int b) {
+    const int r0 = int(std::int64_t(grid.rows) * b / bands), r1 = int(std::int64_t(grid.rows) * (b + 1) / bands);
+    std::uint64_t casts = 0;
+    for (std::size_t j = 0; j < stretches.size(); ++j) {
+      const Stretch& stretch = stretches[j];
+      for (std::size_t k = stretch.first; k < stretch.end; ++k) {
+        if (stop_requested) {
+          std::lock_guard<std::mutex> lock(asking);
+          if (stopped || stop_requested()) stopped = true;
+        }
+        if (stopped) return;
+        const glm::dvec3& d = samples[k].direction;
+        for (const Aabb& bounds : reachable) {
+          footprint_spans(bounds, d, grid, r0, r1, [&](int r, int c0, int c1) {
+            for (int c = c0; c <= c1; ++c) {
+              const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+              if (tested[i] == std::int64_t(k)) continue;
+              tested[i] = std::int64_t(k);
+              ++casts;
+              if (sees_sun(rays, grid.point(i), d)) continue;
+              // Dark: the run since its last dark sample in this stretch
+              // (or the stretch's start) ends here.
+              const std::size_t start = dark_stretch[i] == std::int64_t(j) ? std::size_t(last_dark[i] + 1) : stretch.first;
+              PointTally& t = result.tally[i];
+              t.longest = std::max<std::uint32_t>(t.longest, std::uint32_t(k - start));
+              last_dark[i] = std::int64_t(k);
+              dark_stretch[i] = std::int64_t(j);
+              ++t.run;  // the dark count, for now
+            }
+          });
+        }
+      }
+      // The stretch ends: each point's last run in it.
+      for (std::size_t i = std::size_t(r0) * std::size_t(grid.columns); i < std::size_t(r1) * std::size_t(grid.columns); ++i) {
+        const std::size_t start = dark_stretch[i] == std::int64_t(j) ? std::size_t(last_dark[i] + 1) : stretch.first;
+        PointTally& t = result.tally[i];
+        t.longest = std::max<std::uint32_t>(t.longest, std::uint32_t(stretch.end - start));
+      }
+    }
+    cast.fetch_add(casts);
+  };
+  std::vector<std::thread> pool;
+  for (int b = 1; b < bands; ++b) pool.emplace_back(band, b);
+  band(0);
+  for (auto& t : pool) t.join();
+  if (stopped) throw CastStopped();
+  for (PointTally& t : result.tally) {
+    t.lit = std::uint32_t(up) - t.run;
+    t.run = 0;
+  }
+  result.pairs_ray_cast = cast.load();
+  result.pairs_by_maps = result.pairs - result.pairs_ray_cast;
+  result.path = "footprints";
+}
+
+}  // namespace umbra

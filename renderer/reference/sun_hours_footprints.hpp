@@ -1,0 +1,55 @@
+// Sun hours by footprints: a shadow map whose texels are the grid's own
+// points. For each sun sample, each object's bounds are projected along
+// the sun onto the grid's plane; a point outside every such footprint
+// cannot see the object in the sun's direction, so it is lit, proved
+// without a ray. The points inside a footprint are settled by the same
+// query as the pure ray cast (sees_sun), so the hours equal the pure ray
+// cast's at every point and sample, by construction (docs/sun-hours.md).
+//
+// Time is tallied by events: only a point's dark samples touch it, plus
+// one pass over the grid per stretch of daylight, so that a grid mostly
+// in the sun costs little more than its footprints.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/scene.hpp"
+#include "core/sun_hours.hpp"
+
+namespace umbra {
+
+class RayScene;  // reference/ray_cast.hpp
+
+/// Where an object's bounds can be met by a ray leaving the grid's plane
+/// upwards: the bounds grown by a margin that covers every test's rounding
+/// (the analytic shapes' in double, Embree's in float), and cut to the
+/// plane's upper side. Empty: the object lies wholly below the plane.
+Aabb reachable_bounds(const Aabb& bounds, double plane_y, double grid_reach);
+
+/// Calls row_span(row, first_column, last_column) for each grid row that
+/// the footprint of `bounds` (reachable_bounds) along the unit sun
+/// direction (direction.y > 0) crosses, with the columns it covers, one
+/// spare column and row each side for the rounding of this computation,
+/// clamped to the grid and to rows [first_row, last_row).
+void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
+                     int last_row, const std::function<void(int row, int first_column, int last_column)>& row_span);
+
+/// The share of the grid's points inside any object's footprint, averaged
+/// over `directions` (each with y > 0): what the cost model prices the
+/// rays by. Counts each point once per direction.
+double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions);
+
+/// ray_cast_sun_hours' answer, by footprints: fills result.tally,
+/// result.samples_up, pairs, pairs_by_maps (outside every footprint) and
+/// pairs_ray_cast (inside one: one sees_sun query each). On all hardware
+/// threads, each a band of grid rows walking the samples in order;
+/// `stop_requested` is asked between samples (one thread at a time), and
+/// once it answers true the cast throws CastStopped.
+void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid& grid,
+                         const std::vector<SunSample>& samples, SunHoursResult& result,
+                         const std::function<bool()>& stop_requested = nullptr);
+
+}  // namespace umbra
