@@ -709,6 +709,81 @@ TEST(Http, UnknownPathIs404AndWrongMethodIs405) {
   expect_json_error(client().Post("/no-such-file.html", "{}", "application/json"), 404, "");
 }
 
+// POST /api/sun-hours: hours per grid point, as JSON or CSV by Accept.
+json sun_hours_body() {
+  return {{"scene", "cube-on-plane"},
+          {"site", {{"latitude", 51.5}, {"longitude", -0.12}}},
+          {"period", {{"start", "2026-03-21T00:00:00Z"}, {"end", "2026-03-22T00:00:00Z"}, {"step_minutes", 10}}},
+          {"grid", {{"center", {0, -0.49, 0}}, {"size", {4, 4}}, {"spacing", 0.5}}},
+          {"require_hours", 2}};
+}
+
+TEST(Http, SunHoursAnswersJsonOrCsvByAccept) {
+  auto res = client().Post("/api/sun-hours", sun_hours_body().dump(), "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  EXPECT_EQ(res->get_header_value("Content-Type"), "application/json");
+  EXPECT_NE(res->get_header_value("Server-Timing").find("sun_hours;dur="), std::string::npos);
+  const std::string share = res->get_header_value("Umbra-Sun-Hours");
+  EXPECT_EQ(share.rfind("path=", 0), 0u) << share;
+  const json answer = json::parse(res->body);
+  ASSERT_EQ(answer["hours"].size(), 64u);
+  EXPECT_EQ(answer["grid"]["columns"], 8);
+  EXPECT_EQ(answer["samples_count"], 144);
+  EXPECT_EQ(answer["pairs"], 64 * answer["samples_up"].get<int>());
+  EXPECT_EQ(answer["pairs_by_maps"].get<std::uint64_t>() + answer["pairs_ray_cast"].get<std::uint64_t>(),
+            answer["pairs"].get<std::uint64_t>());
+  EXPECT_EQ(answer["exact"], true);
+  // The four points inside the cube never see the sun; the row south of it always does.
+  EXPECT_EQ(answer["hours"][3 * 8 + 3], 0.0);
+  EXPECT_DOUBLE_EQ(answer["hours"][63].get<double>(), answer["samples_up"].get<int>() * 10.0 / 60.0);
+  EXPECT_GT(answer["pass_share"].get<double>(), 0.5);
+  EXPECT_LT(answer["pass_share"].get<double>(), 1.0);
+
+  httplib::Headers csv_accept = {{"Accept", "text/csv"}};
+  auto csv = client().Post("/api/sun-hours", csv_accept, sun_hours_body().dump(), "application/json");
+  ASSERT_TRUE(csv);
+  ASSERT_EQ(csv->status, 200) << csv->body;
+  EXPECT_EQ(csv->get_header_value("Content-Type"), "text/csv; charset=utf-8");
+  EXPECT_EQ(csv->body.rfind("x,y,z,hours,longest_run_hours\n", 0), 0u);
+  EXPECT_EQ(std::count(csv->body.begin(), csv->body.end(), '\n'), 65);
+
+  httplib::Headers png_accept = {{"Accept", "image/png"}};
+  expect_json_error(client().Post("/api/sun-hours", png_accept, sun_hours_body().dump(), "application/json"), 406, "");
+  auto get = client().Get("/api/sun-hours");
+  expect_json_error(get, 405, "");
+  EXPECT_EQ(get->get_header_value("Allow"), "POST");
+}
+
+TEST(Http, SunHoursRefusesBadInputNamingTheFieldOrTheCost) {
+  json body = sun_hours_body();
+  body["period"]["end"] = "2026-03-20T00:00:00Z";
+  expect_json_error(client().Post("/api/sun-hours", body.dump(), "application/json"), 400, "period.end");
+  body = sun_hours_body();
+  body["period"]["step_minutes"] = 0;
+  expect_json_error(client().Post("/api/sun-hours", body.dump(), "application/json"), 400, "period.step_minutes");
+  body = sun_hours_body();  // 10^9 samples
+  body["period"] = {{"start", "2026-01-01T00:00:00Z"}, {"end", "3926-01-01T00:00:00Z"}, {"step_minutes", 1}};
+  expect_json_error(client().Post("/api/sun-hours", body.dump(), "application/json"), 400, "period.step_minutes");
+  body = sun_hours_body();  // 10^12 points
+  body["grid"] = {{"size", {1e6, 1e6}}, {"spacing", 1}};
+  expect_json_error(client().Post("/api/sun-hours", body.dump(), "application/json"), 400, "grid.spacing");
+  body = sun_hours_body();
+  body["scene"] = {{"objects", {{{"type", "pyramid"}}}}};
+  expect_json_error(client().Post("/api/sun-hours", body.dump(), "application/json"), 400, "scene.objects[0].type");
+  // Valid, but a year of half-minute steps over four million points under
+  // a roof that shades them all: refused at once, naming what to lower.
+  body = sun_hours_body();
+  body["scene"] = json::parse(R"({"objects": [{"type": "box", "center": [0, 5, 0], "size": [3000, 1, 3000]}]})");
+  body["period"] = {{"start", "2026-01-01T00:00:00Z"}, {"end", "2027-01-01T00:00:00Z"}, {"step_minutes", 0.5}};
+  body["grid"] = {{"center", {0, 0, 0}}, {"size", {2048, 2048}}, {"spacing", 1}};
+  const auto start = std::chrono::steady_clock::now();
+  auto res = client().Post("/api/sun-hours", body.dump(), "application/json");
+  expect_json_error(res, 422, "grid.spacing");
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2.0);
+  EXPECT_NE(json::parse(res->body)["error"].get<std::string>().find("sun-hours rays"), std::string::npos) << res->body;
+}
+
 TEST(Http, BodyOverOneMebibyteIs413) {
   const std::string body = R"({"scene": ")" + std::string((1 << 20) + 10, 'x') + R"("})";
   expect_json_error(client().Post("/api/render", body, "application/json"), 413, "");

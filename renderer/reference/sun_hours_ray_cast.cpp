@@ -10,6 +10,35 @@
 
 namespace umbra {
 
+std::vector<SunSample> sun_samples_on_all_cores(const SunSite& site, const SunPeriod& period, std::size_t count,
+                                                const std::function<bool()>& stop_requested) {
+  std::vector<SunSample> samples(count);
+  constexpr std::size_t kBlock = 4096;
+  const std::size_t blocks = (count + kBlock - 1) / kBlock;
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> stopped{false};
+  std::mutex asking;
+  const auto work = [&] {
+    for (;;) {
+      if (stop_requested) {
+        std::lock_guard<std::mutex> lock(asking);
+        if (stopped || stop_requested()) stopped = true;
+      }
+      if (stopped) return;
+      const std::size_t b = next.fetch_add(1);
+      if (b >= blocks) return;
+      for (std::size_t k = b * kBlock; k < std::min(count, (b + 1) * kBlock); ++k) samples[k] = sun_sample(site, period, k);
+    }
+  };
+  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(std::max<std::size_t>(1, blocks))));
+  std::vector<std::thread> pool;
+  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  if (stopped) throw CastStopped();
+  return samples;
+}
+
 bool sees_sun(const RayScene& rays, const glm::dvec3& point, const glm::dvec3& direction) {
   return !rays.occluded(point, direction, std::numeric_limits<double>::infinity());
 }

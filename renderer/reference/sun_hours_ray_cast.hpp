@@ -14,6 +14,13 @@ namespace umbra {
 
 class RayScene;  // reference/ray_cast.hpp
 
+/// Every sample of the period (sun_sample) on all hardware threads: a
+/// year at one-minute steps is half a million positions by NREL SPA.
+/// `stop_requested`, if given, is asked every 4096 samples (one thread at a
+/// time); once it answers true this throws CastStopped.
+std::vector<SunSample> sun_samples_on_all_cores(const SunSite& site, const SunPeriod& period, std::size_t count,
+                                                const std::function<bool()>& stop_requested = nullptr);
+
 /// Whether the segment from `point` towards the sun (unit `direction`)
 /// meets no surface: nothing on point + t direction for t in (0, inf).
 bool sees_sun(const RayScene& rays, const glm::dvec3& point, const glm::dvec3& direction);

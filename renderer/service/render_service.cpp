@@ -535,11 +535,7 @@ std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest requ
     SunHoursResult result;
     result.step_minutes = request.period.step_minutes;
     try {
-      result.samples.reserve(samples);
-      for (std::size_t k = 0; k < samples; ++k) {
-        if (k % 4096 == 0 && stop()) throw CastStopped();
-        result.samples.push_back(sun_sample(request.site, request.period, k));
-      }
+      result.samples = sun_samples_on_all_cores(request.site, request.period, samples, stop);
       const RayScene rays(request.view.scene, stop);
       if (footprints)
         footprint_sun_hours(rays, request.view.scene, request.grid, result.samples, result, stop);
