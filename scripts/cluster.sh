@@ -56,6 +56,11 @@ cp deploy/haproxy.cfg "$config"
 for i in $(seq 1 "$count"); do
   echo "    server render$i 127.0.0.1:$((port + i))" >>"$config"
 done
+# A sun-hours job's id begins with its server's --name: its GET and DELETE
+# go back to that server (docs/operations.md#sun-hours-jobs).
+for i in $(seq 1 "$count"); do
+  echo "    use-server render$i if { path_beg /api/sun-hours/jobs/render$i. }" >>"$config"
+done
 
 # supervise NAME COMMAND...: runs COMMAND in the background, writes its PID
 # to $dir/NAME.pid, and starts it again whenever it exits, until this
@@ -110,7 +115,7 @@ stop() {
 }
 trap stop INT TERM EXIT
 for i in $(seq 1 "$count"); do
-  supervise "render$i" "$server" --port $((port + i)) --model-store "$dir/models" --quiet "$@" &
+  supervise "render$i" "$server" --port $((port + i)) --name "render$i" --model-store "$dir/models" --quiet "$@" &
   supervisors+=($!)
 done
 UMBRA_BIND="$host:$port" UMBRA_DIR="$PWD/deploy" supervise haproxy "$haproxy" -f "$config" -db &

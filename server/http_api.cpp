@@ -159,6 +159,8 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"POST", "/api/render", &HttpApi::render_color, true, kScopeRender},
     {"POST", "/api/depth", &HttpApi::render_depth, true, kScopeRender},
     {"POST", "/api/sun-hours", &HttpApi::sun_hours, true, kScopeRender},
+    {"GET", "/api/sun-hours/jobs/", &HttpApi::sun_hours_job, false, kScopeRender, true},
+    {"DELETE", "/api/sun-hours/jobs/", &HttpApi::cancel_sun_hours_job, true, kScopeRender, true},
     {"GET", "/api/models", &HttpApi::list_models, false, kScopeRender},
     {"POST", "/api/models", &HttpApi::upload_model, true, kScopeUpload},
     // On a worker: a model not held may be read from --model-store.
@@ -209,6 +211,7 @@ HttpApi::HttpApi(RenderService& renderer, std::shared_ptr<ModelStore> models, Se
       options_(std::move(options)),
       allowed_hosts_(options_.host, options_.allowed_hosts),
       models_(std::move(models)),
+      jobs_(std::make_unique<SunHoursJobs>(options_.jobs, options_.name)),
       started_(Clock::now()) {
   if (!options_.model_store_dir.empty())
     archive_ = std::make_unique<ModelArchive>(options_.model_store_dir, model_archive_limits(options_));
@@ -577,7 +580,9 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
 
 // Hours of direct sun over a grid of points (core/sun_hours.hpp): the
 // body's scene as /api/render reads it, models and all; the answer in the
-// format Accept asks for (sun_hours_answer.hpp).
+// format Accept asks for (sun_hours_answer.hpp). Within the cost budget it
+// is answered at once; over it, up to --max-job-ms, it runs as a job
+// (202; sun_hours_jobs.hpp).
 void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   const std::string type = req.header("Content-Type");
   if (starts_with_ci(type, "multipart/"))
@@ -605,40 +610,142 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   }
   plan = ModelPlan{};
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
+  const SunHoursPlan estimate = renderer_.plan_sun_hours(*parsed.request);
+  if (estimate.estimate.cost.total_ms > double(renderer_.limits().max_request_cost.count()))
+    return start_sun_hours_job(res, std::move(*parsed.request), estimate);
   const SunHoursRequest request = *parsed.request;
   const auto queued = Clock::now();
   const int socket = req.socket;
   SunHoursResult result;
   try {
     result = renderer_.submit_sun_hours(std::move(*parsed.request), [socket] { return peer_closed(socket); }).get();
-  } catch (const ClientGone& e) {
-    return send_error(res, 499, e.what(), "");
-  } catch (const QueueFull& e) {
-    res.set_header("Retry-After", "1");
-    return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().queue_capacity) +
-                                    " requests); retry later", "");
-  } catch (const DeadlineExceeded& e) {
-    res.set_header("Retry-After", "1");
-    return send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().deadline.count()) +
-                                    " ms); retry later", "");
-  } catch (const RequestTooCostly& e) {
-    return send_error(res, 422, e.what(), e.field);
-  } catch (const RunTimeExceeded& e) {
-    return send_error(res, 503, e.what(), e.field);
+  } catch (...) {
+    return send_service_error(res, std::current_exception());
   }
   const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - queued).count();
+  send_sun_hours(res, *format, request, result, std::max(0.0, total_ms - result.elapsed_ms));
+}
+
+void HttpApi::send_sun_hours(HttpResponse& res, SunHoursFormat format, const SunHoursRequest& request,
+                             const SunHoursResult& result, double queue_ms) {
   const auto encode_start = Clock::now();
-  std::string body = *format == SunHoursFormat::Csv ? sun_hours_csv(request, result) : sun_hours_json(request, result);
+  std::string body = format == SunHoursFormat::Csv ? sun_hours_csv(request, result) : sun_hours_json(request, result);
   const double encode_ms = std::chrono::duration<double, std::milli>(Clock::now() - encode_start).count();
   char timing[160];
-  std::snprintf(timing, sizeof timing, "queue;dur=%.3f, sun_hours;dur=%.3f, encode;dur=%.3f",
-                std::max(0.0, total_ms - result.elapsed_ms), result.elapsed_ms, encode_ms);
+  std::snprintf(timing, sizeof timing, "queue;dur=%.3f, sun_hours;dur=%.3f, encode;dur=%.3f", queue_ms,
+                result.elapsed_ms, encode_ms);
   res.set_header("Server-Timing", timing);
   res.set_header("Cache-Control", "no-store");
   res.set_header("Umbra-Sun-Hours", std::string("path=") + result.path + ", pairs=" + std::to_string(result.pairs) +
                                         ", by_maps=" + std::to_string(result.pairs_by_maps) +
                                         ", ray_cast=" + std::to_string(result.pairs_ray_cast));
-  res.set_content(std::move(body), *format == SunHoursFormat::Csv ? "text/csv; charset=utf-8" : "application/json");
+  res.set_content(std::move(body), format == SunHoursFormat::Csv ? "text/csv; charset=utf-8" : "application/json");
+}
+
+// What a sun-hours analysis that did not finish answers.
+void HttpApi::send_service_error(HttpResponse& res, std::exception_ptr error) const {
+  try {
+    std::rethrow_exception(error);
+  } catch (const ClientGone& e) {
+    send_error(res, 499, e.what(), "");
+  } catch (const QueueFull& e) {
+    res.set_header("Retry-After", "1");
+    send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().queue_capacity) +
+                             " requests); retry later", "");
+  } catch (const DeadlineExceeded& e) {
+    res.set_header("Retry-After", "1");
+    send_error(res, 503, std::string(e.what()) + " (" + std::to_string(renderer_.limits().deadline.count()) +
+                             " ms); retry later", "");
+  } catch (const RequestTooCostly& e) {
+    send_error(res, 422, e.what(), e.field);
+  } catch (const RunTimeExceeded& e) {
+    send_error(res, 503, e.what(), e.field);
+  }
+}
+
+void HttpApi::start_sun_hours_job(HttpResponse& res, SunHoursRequest request, const SunHoursPlan& plan) {
+  auto job = std::make_shared<SunHoursJob>();
+  job->id = jobs_->new_id();
+  job->request = request;
+  job->progress = std::make_shared<SunHoursProgress>();
+  job->created = Clock::now();
+  job->estimate_ms = plan.estimate.cost.total_ms;
+  job->result_bytes = std::uint64_t(request.grid.points()) * sizeof(PointTally) + plan.samples * sizeof(SunSample);
+  try {
+    job->result = renderer_.submit_sun_hours(std::move(request), {}, true, job->progress).share();
+  } catch (...) {
+    return send_service_error(res, std::current_exception());
+  }
+  if (!jobs_->add(job)) {
+    job->progress->cancel = true;
+    res.set_header("Retry-After", "10");
+    return send_error(res, 503,
+                      "this server holds " + std::to_string(jobs_->limits().max_jobs) +
+                          " sun-hours jobs not yet fetched or expired; retry later, or DELETE one you no longer need",
+                      "");
+  }
+  const std::string location = "/api/sun-hours/jobs/" + job->id;
+  res.status = 202;
+  res.set_header("Location", location);
+  res.set_header("Cache-Control", "no-store");
+  res.set_content(json{{"job", job->id},
+                       {"state", "queued"},
+                       {"location", location},
+                       {"estimated_ms", std::llround(job->estimate_ms)},
+                       {"keep_s", jobs_->limits().keep.count()}}
+                      .dump(),
+                  "application/json");
+}
+
+// GET /api/sun-hours/jobs/{id}: 202 with progress while it runs, then the
+// result (200, by Accept) or what stopped it.
+void HttpApi::sun_hours_job(const HttpRequest& req, HttpResponse& res) {
+  const std::string id = req.path.substr(std::char_traits<char>::length("/api/sun-hours/jobs/"));
+  const std::shared_ptr<SunHoursJob> job = jobs_->find(id);
+  if (!job)
+    return send_error(res, 404,
+                      "no sun-hours job '" + id.substr(0, 64) + "' is held here (it ended more than " +
+                          std::to_string(jobs_->limits().keep.count()) +
+                          " s ago, was cancelled, or its server restarted)",
+                      "");
+  if (!job->ready()) {
+    const SunHoursProgress& p = *job->progress;
+    const double elapsed_s = std::chrono::duration<double>(Clock::now() - job->created).count();
+    const std::uint64_t total = p.pairs_total, done = p.pairs_done;
+    const double fraction = total > 0 ? double(done) / double(total) : 0.0;
+    json progress = {{"job", job->id},
+                     {"state", p.started ? "running" : "queued"},
+                     {"fraction_done", fraction},
+                     {"pairs_done", done},
+                     {"pairs_total", total},
+                     {"elapsed_s", elapsed_s},
+                     {"estimated_ms", std::llround(job->estimate_ms)}};
+    if (p.started && done > 0 && elapsed_s > 0.0) {
+      progress["pairs_per_second"] = double(done) / elapsed_s;
+      progress["seconds_left"] = double(total - done) / (double(done) / elapsed_s);
+    }
+    res.status = 202;
+    res.set_header("Retry-After", "1");
+    res.set_header("Cache-Control", "no-store");
+    return res.set_content(progress.dump(), "application/json");
+  }
+  const std::optional<SunHoursFormat> format = sun_hours_format(req.header("Accept"));
+  if (!format)
+    return send_error(res, 406, "Accept names no format this route answers in: application/json or text/csv", "");
+  try {
+    const SunHoursResult& result = job->result.get();
+    send_sun_hours(res, *format, job->request, result, 0.0);
+  } catch (...) {
+    send_service_error(res, std::current_exception());
+  }
+}
+
+void HttpApi::cancel_sun_hours_job(const HttpRequest& req, HttpResponse& res) {
+  const std::string id = req.path.substr(std::char_traits<char>::length("/api/sun-hours/jobs/"));
+  const std::shared_ptr<SunHoursJob> job = jobs_->remove(id);
+  if (!job) return send_error(res, 404, "no sun-hours job '" + id.substr(0, 64) + "' is held here", "");
+  const bool finished = job->ready();
+  res.set_content(json{{"job", id}, {"state", finished ? "removed" : "cancelled"}}.dump(), "application/json");
 }
 
 void HttpApi::list_models(const HttpRequest&, HttpResponse& res) {

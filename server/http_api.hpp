@@ -17,6 +17,8 @@
 #include "access.hpp"
 #include "http_server.hpp"
 #include "metrics.hpp"
+#include "sun_hours_answer.hpp"
+#include "sun_hours_jobs.hpp"
 
 namespace umbra {
 
@@ -56,6 +58,11 @@ struct ServerOptions {
   /// GET /api/health, OPTIONS and the panel's files needs a bearer token
   /// with the route's scope (HttpApi::kRoutes).
   std::shared_ptr<const TokenTable> tokens;
+  /// --name: this server's name in a cluster; sun-hours job ids begin with
+  /// it, so that HAProxy sends a job's requests back to its server.
+  std::string name;
+  /// Sun-hours jobs held (--job-keep-s keeps finished ones).
+  SunHoursJobs::Limits jobs;
 };
 
 /// The model store's limits for `options`: its budget, and each owner's share.
@@ -127,6 +134,12 @@ class HttpApi {
   void render_color(const HttpRequest& req, HttpResponse& res);
   void render_depth(const HttpRequest& req, HttpResponse& res);
   void sun_hours(const HttpRequest& req, HttpResponse& res);
+  void sun_hours_job(const HttpRequest& req, HttpResponse& res);
+  void cancel_sun_hours_job(const HttpRequest& req, HttpResponse& res);
+  void start_sun_hours_job(HttpResponse& res, SunHoursRequest request, const SunHoursPlan& plan);
+  void send_sun_hours(HttpResponse& res, SunHoursFormat format, const SunHoursRequest& request,
+                      const SunHoursResult& result, double queue_ms);
+  void send_service_error(HttpResponse& res, std::exception_ptr error) const;
   void static_file(const HttpRequest& req, HttpResponse& res);
   void preflight(const HttpRequest& req, HttpResponse& res);
   void list_models(const HttpRequest& req, HttpResponse& res);
@@ -190,6 +203,8 @@ class HttpApi {
   std::atomic<std::uint64_t> models_loaded_{0};  // glTF bodies built into models
   std::unique_ptr<ModelArchive> archive_;  // --model-store, or null
   Metrics metrics_;
+  // Before http_: gone after the connections, cancelling what still runs.
+  std::unique_ptr<SunHoursJobs> jobs_;
   std::unique_ptr<HttpServer> http_;
   std::chrono::steady_clock::time_point started_;
 };

@@ -1,6 +1,7 @@
 #include "server_flags.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdint>
 #include <cstdlib>
@@ -81,6 +82,17 @@ const std::vector<Flag>& flags() {
                     "is stopped with 503 and nothing of it returned, {range} (default {default})",
                     1, 3600000, [](const ServerSettings& s) { return long(s.limits.max_run_time.count()); },
                     [](ServerSettings& s, long v) { s.limits.max_run_time = Ms(v); }),
+        number_flag("--max-job-ms",
+                    "a sun-hours analysis estimated over --max-request-ms runs as a job (202; GET\n"
+                    "/api/sun-hours/jobs/ID) if estimated within this (ms); more gets 422. Jobs run one at\n"
+                    "a time, each stopped at twice this, {range} (default {default})",
+                    1, 86400000, [](const ServerSettings& s) { return long(s.limits.max_job_cost.count()); },
+                    [](ServerSettings& s, long v) { s.limits.max_job_cost = Ms(v); }),
+        number_flag("--job-keep-s",
+                    "how long a finished sun-hours job's result is kept for its GET (s); at most 16 jobs\n"
+                    "are held, {range} (default {default})",
+                    1, 604800, [](const ServerSettings& s) { return long(s.options.jobs.keep.count()); },
+                    [](ServerSettings& s, long v) { s.options.jobs.keep = std::chrono::seconds(v); }),
         number_flag("--memory-mib",
                     "memory budget of the renderer (MiB): caches are released to fit each request and\n"
                     "after 1.5 s idle; a request needing more alone gets 422, {range} (default {default})",
@@ -121,6 +133,22 @@ const std::vector<Flag>& flags() {
                   "skipped with its reason on stderr. Never dropped from memory (pinned)",
                   [](ServerSettings& s, const std::string& t, std::string&) {
                     s.models_dir = t;
+                    return true;
+                  }),
+        text_flag("--name", "NAME",
+                  "this server's name behind a load balancer (letters, digits, '-' and '_'): sun-hours job\n"
+                  "ids begin with NAME., so that the balancer can send a job's requests back here\n"
+                  "(scripts/cluster.sh gives render1, render2, ...)",
+                  [](ServerSettings& s, const std::string& t, std::string& why) {
+                    const bool ok = !t.empty() && t.size() <= 32 &&
+                                    std::all_of(t.begin(), t.end(), [](unsigned char c) {
+                                      return std::isalnum(c) || c == '-' || c == '_';
+                                    });
+                    if (!ok) {
+                      why = "--name takes 1 to 32 letters, digits, '-' or '_'";
+                      return false;
+                    }
+                    s.options.name = t;
                     return true;
                   }),
         text_flag("--model-store", "DIR",

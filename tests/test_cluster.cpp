@@ -20,6 +20,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -120,7 +121,7 @@ struct ClusterScript {
   pid_t pid = -1;
   fs::path dir, log;
   int exit_code = -1;
-  ClusterScript(int servers, int port, const fs::path& state, const std::string& server_flag = "--quiet")
+  ClusterScript(int servers, int port, const fs::path& state, const std::vector<std::string>& server_flags = {"--quiet"})
       : dir(state), log(state / "cluster.log") {
     pid = fork();
     if (pid == 0) {
@@ -131,8 +132,12 @@ struct ClusterScript {
       setenv("UMBRA_CLUSTER_DIR", dir.c_str(), 1);
       setenv("UMBRA_SERVER", UMBRA_SERVER_BINARY, 1);
       const std::string script = std::string(UMBRA_SOURCE_DIR) + "/scripts/cluster.sh";
-      execl("/bin/bash", "bash", script.c_str(), std::to_string(servers).c_str(), std::to_string(port).c_str(),
-            server_flag.c_str(), static_cast<char*>(nullptr));
+      std::vector<std::string> args = {"bash", script, std::to_string(servers), std::to_string(port)};
+      args.insert(args.end(), server_flags.begin(), server_flags.end());
+      std::vector<char*> argv;
+      for (std::string& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      execv("/bin/bash", argv.data());
       _exit(127);
     }
   }
@@ -339,11 +344,88 @@ TEST(Cluster, TheScriptStopsWhenAServerCannotStart) {
   fs::create_directories(root);
   const int port = free_port_with(2);
   ASSERT_NE(port, 0);
-  ClusterScript cluster(2, port, root, "--no-such-flag");
+  ClusterScript cluster(2, port, root, {"--no-such-flag"});
   EXPECT_EQ(cluster.wait_for_exit(std::chrono::seconds(120)), 1) << cluster.output();
   const std::string log = cluster.output();
   EXPECT_NE(log.find("after its first start: stopping"), std::string::npos) << log;
   for (int i = 0; i <= 2; ++i) EXPECT_FALSE(listening(port + i)) << "port " << port + i << " still open";
+  fs::remove_all(root);
+}
+
+// Behind HAProxy, a sun-hours job's GET and DELETE reach the server that
+// runs it (its id begins with that server's --name, and the script's
+// haproxy.cfg sends such paths there), whichever server took the POST.
+TEST(Cluster, ASunHoursJobIsFetchedFromTheServerThatRunsIt) {
+  ASSERT_STRNE(UMBRA_HAPROXY, "") << "haproxy not found: bash scripts/install-deps.sh --cluster";
+  const fs::path root = fs::temp_directory_path() / ("umbra-cluster-jobs-" + std::to_string(getpid()));
+  fs::remove_all(root);
+  fs::create_directories(root);
+  const int port = free_port_with(3);
+  ASSERT_NE(port, 0);
+  // Every analysis over 1 ms of estimate is a job.
+  ClusterScript cluster(3, port, root, {"--quiet", "--max-request-ms", "1"});
+  httplib::Client client("127.0.0.1", port);
+  client.set_read_timeout(60, 0);
+  for (int tries = 0;; ++tries) {
+    auto res = client.Get("/api/health");
+    if (res && res->status == 200 && listening(port + 1) && listening(port + 2) && listening(port + 3)) break;
+    ASSERT_LT(tries, 600) << "the cluster does not answer:\n" << cluster.output();
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::this_thread::sleep_for(std::chrono::seconds(1));  // HAProxy's checks see every server up
+  const json body = {{"scene", "three-cubes"},
+                     {"site", {{"latitude", 51.5}, {"longitude", -0.12}}},
+                     {"period", {{"start", "2026-03-21T00:00:00Z"}, {"end", "2026-03-22T00:00:00Z"}, {"step_minutes", 10}}},
+                     {"grid", {{"center", {0, 0.01, 0}}, {"size", {10, 10}}, {"spacing", 0.1}}}};
+  // Concurrent POSTs: leastconn spreads them over the servers.
+  std::vector<std::string> ids(6);
+  std::vector<std::thread> posts;
+  for (std::size_t i = 0; i < ids.size(); ++i)
+    posts.emplace_back([&, i] {
+      httplib::Client c("127.0.0.1", port);
+      c.set_read_timeout(60, 0);
+      auto res = c.Post("/api/sun-hours", body.dump(), "application/json");
+      if (res && res->status == 202) ids[i] = json::parse(res->body)["job"];
+    });
+  for (auto& t : posts) t.join();
+  std::set<std::string> servers;
+  for (const std::string& id : ids) {
+    ASSERT_FALSE(id.empty()) << cluster.output();
+    ASSERT_EQ(id.rfind("render", 0), 0u) << id;
+    servers.insert(id.substr(0, id.find('.')));
+  }
+  std::string first_answer;
+  for (const std::string& id : ids) {
+    // Every GET goes back to the job's server: never a 404 on the way.
+    for (int tries = 0;; ++tries) {
+      auto res = client.Get("/api/sun-hours/jobs/" + id);
+      ASSERT_TRUE(res);
+      if (res->status == 200) {
+        const json answer = json::parse(res->body);
+        EXPECT_EQ(answer["hours"].size(), 10000u);
+        if (first_answer.empty()) first_answer = answer["hours"].dump();
+        EXPECT_EQ(answer["hours"].dump(), first_answer) << id;  // the same analysis on every server
+        break;
+      }
+      ASSERT_EQ(res->status, 202) << id << ": " << res->body;
+      ASSERT_LT(tries, 600) << id;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+  // Another server does not hold it: asked directly, it says so.
+  const std::string id = ids[0];
+  const int owner = std::stoi(id.substr(6, id.find('.') - 6));
+  httplib::Client other("127.0.0.1", port + (owner % 3) + 1);
+  auto elsewhere = other.Get("/api/sun-hours/jobs/" + id);
+  ASSERT_TRUE(elsewhere);
+  EXPECT_EQ(elsewhere->status, 404);
+  // DELETE through the balancer reaches it too.
+  auto removed = client.Delete("/api/sun-hours/jobs/" + id);
+  ASSERT_TRUE(removed);
+  EXPECT_EQ(removed->status, 200) << removed->body;
+  EXPECT_EQ(client.Get("/api/sun-hours/jobs/" + id)->status, 404);
+  EXPECT_GE(servers.size(), 2u) << "six concurrent POSTs all went to one server";
+  EXPECT_EQ(cluster.stop(std::chrono::seconds(60)), 0) << cluster.output();
   fs::remove_all(root);
 }
 

@@ -784,6 +784,102 @@ TEST(Http, SunHoursRefusesBadInputNamingTheFieldOrTheCost) {
   EXPECT_NE(json::parse(res->body)["error"].get<std::string>().find("sun-hours rays"), std::string::npos) << res->body;
 }
 
+// Over --max-request-ms, a sun-hours analysis runs as a job: 202, progress,
+// then the very answer the synchronous route gives; DELETE cancels.
+TEST(Http, ASunHoursJobGivesProgressThenTheSameAnswer) {
+  ServiceLimits limits;
+  limits.max_request_cost = std::chrono::milliseconds(1);  // every analysis is a job
+  RenderService renderer(limits);
+  ServerOptions options;
+  options.port = 0;
+  options.log_requests = false;
+  options.name = "r7";
+  HttpApi api(renderer, options);
+  ASSERT_TRUE(api.bind());
+  std::thread server([&api] { api.serve(); });
+  while (!api.serving()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  httplib::Client c("127.0.0.1", api.port());
+  c.set_read_timeout(120, 0);
+
+  json body = sun_hours_body();
+  body["grid"] = {{"center", {0, -0.49, 0}}, {"size", {8, 8}}, {"spacing", 0.05}};
+  auto posted = c.Post("/api/sun-hours", body.dump(), "application/json");
+  ASSERT_TRUE(posted);
+  ASSERT_EQ(posted->status, 202) << posted->body;
+  const json accepted = json::parse(posted->body);
+  const std::string id = accepted["job"];
+  EXPECT_EQ(id.rfind("r7.", 0), 0u) << id;
+  EXPECT_EQ(posted->get_header_value("Location"), "/api/sun-hours/jobs/" + id);
+  EXPECT_EQ(accepted["location"], "/api/sun-hours/jobs/" + id);
+  int status = 0;
+  std::string done_body;
+  for (int tries = 0;; ++tries) {
+    auto done = c.Get("/api/sun-hours/jobs/" + id);
+    ASSERT_TRUE(done);
+    status = done->status;
+    done_body = done->body;
+    if (done->status != 202) break;
+    const json progress = json::parse(done->body);
+    EXPECT_TRUE(progress["state"] == "queued" || progress["state"] == "running") << done->body;
+    EXPECT_GE(progress["fraction_done"].get<double>(), 0.0);
+    EXPECT_LE(progress["fraction_done"].get<double>(), 1.0);
+    EXPECT_EQ(done->get_header_value("Retry-After"), "1");
+    ASSERT_LT(tries, 1200);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_EQ(status, 200) << done_body;
+  // The same body, answered at once by the shared server (default budget).
+  auto direct = client().Post("/api/sun-hours", body.dump(), "application/json");
+  ASSERT_TRUE(direct);
+  ASSERT_EQ(direct->status, 200) << direct->body;
+  EXPECT_EQ(json::parse(done_body)["hours"], json::parse(direct->body)["hours"]);
+  EXPECT_EQ(json::parse(done_body)["longest_run_hours"], json::parse(direct->body)["longest_run_hours"]);
+  // Fetched again, as CSV; then removed.
+  httplib::Headers csv_accept = {{"Accept", "text/csv"}};
+  auto csv = c.Get("/api/sun-hours/jobs/" + id, csv_accept);
+  ASSERT_TRUE(csv);
+  EXPECT_EQ(csv->status, 200);
+  EXPECT_EQ(std::count(csv->body.begin(), csv->body.end(), '\n'), 160 * 160 + 1);
+  auto removed = c.Delete("/api/sun-hours/jobs/" + id);
+  ASSERT_TRUE(removed);
+  EXPECT_EQ(json::parse(removed->body)["state"], "removed");
+  expect_json_error(c.Get("/api/sun-hours/jobs/" + id), 404, "");
+  expect_json_error(c.Get("/api/sun-hours/jobs/nonesuch"), 404, "");
+  expect_json_error(c.Delete("/api/sun-hours/jobs/nonesuch"), 404, "");
+
+  // A long job and one waiting behind it: both cancelled at once.
+  body = sun_hours_body();
+  body["scene"] = "three-cubes";
+  body["period"]["step_minutes"] = 1;
+  body["grid"] = {{"center", {0, 0.01, 0}}, {"size", {20, 20}}, {"spacing", 0.02}};
+  const std::string first = json::parse(c.Post("/api/sun-hours", body.dump(), "application/json")->body)["job"];
+  const std::string second = json::parse(c.Post("/api/sun-hours", body.dump(), "application/json")->body)["job"];
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  auto waiting = c.Get("/api/sun-hours/jobs/" + second);
+  ASSERT_TRUE(waiting);
+  if (waiting->status == 202) {  // else the machine finished both already: nothing to cancel
+    EXPECT_EQ(json::parse(waiting->body)["state"], "queued") << waiting->body;
+    const auto start = std::chrono::steady_clock::now();
+    EXPECT_EQ(json::parse(c.Delete("/api/sun-hours/jobs/" + second)->body)["state"], "cancelled");
+    EXPECT_EQ(c.Delete("/api/sun-hours/jobs/" + first)->status, 200);
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2.0);
+    // The cores are free again: a new job runs at once.
+    for (int tries = 0; renderer.queue_depth() > 0; ++tries) {
+      ASSERT_LT(tries, 200) << "the cancelled jobs still hold the queue";
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  // Over --max-job-ms: 422, as a request over the budget is.
+  body["period"] = {{"start", "2026-01-01T00:00:00Z"}, {"end", "2027-01-01T00:00:00Z"}, {"step_minutes", 0.5}};
+  body["scene"] = json::parse(R"({"objects": [{"type": "box", "center": [0, 5, 0], "size": [3000, 1, 3000]}]})");
+  body["grid"] = {{"center", {0, 0, 0}}, {"size", {2048, 2048}}, {"spacing", 1}};
+  auto refused = c.Post("/api/sun-hours", body.dump(), "application/json");
+  expect_json_error(refused, 422, "grid.spacing");
+  EXPECT_NE(refused->body.find("--max-job-ms"), std::string::npos) << refused->body;
+  api.stop();
+  server.join();
+}
+
 TEST(Http, BodyOverOneMebibyteIs413) {
   const std::string body = R"({"scene": ")" + std::string((1 << 20) + 10, 'x') + R"("})";
   expect_json_error(client().Post("/api/render", body, "application/json"), 413, "");

@@ -145,7 +145,7 @@ double footprint_share(const Scene& scene, const SunGrid& grid, const std::vecto
 
 void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid& grid,
                          const std::vector<SunSample>& samples, SunHoursResult& result,
-                         const std::function<bool()>& stop_requested) {
+                         const std::function<bool()>& stop_requested, std::atomic<std::uint64_t>* pairs_done) {
   const std::size_t points = grid.points();
   const std::vector<Stretch> stretches = daylight_stretches(samples);
   std::size_t up = 0;
@@ -201,6 +201,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
             }
           });
         }
+        if (pairs_done) pairs_done->fetch_add(std::uint64_t(r1 - r0) * std::uint64_t(grid.columns));
       }
       // The stretch ends: each point's last run in it.
       for (std::size_t i = std::size_t(r0) * std::size_t(grid.columns); i < std::size_t(r1) * std::size_t(grid.columns); ++i) {

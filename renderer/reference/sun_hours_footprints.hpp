@@ -11,6 +11,8 @@
 // in the sun costs little more than its footprints.
 #pragma once
 
+#include <atomic>
+#include <cstdint>
 #include <functional>
 #include <vector>
 
@@ -50,6 +52,7 @@ double footprint_share(const Scene& scene, const SunGrid& grid, const std::vecto
 /// once it answers true the cast throws CastStopped.
 void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid& grid,
                          const std::vector<SunSample>& samples, SunHoursResult& result,
-                         const std::function<bool()>& stop_requested = nullptr);
+                         const std::function<bool()>& stop_requested = nullptr,
+                        std::atomic<std::uint64_t>* pairs_done = nullptr);
 
 }  // namespace umbra

@@ -44,7 +44,8 @@ bool sees_sun(const RayScene& rays, const glm::dvec3& point, const glm::dvec3& d
 }
 
 void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::vector<SunSample>& samples,
-                        SunHoursResult& result, const std::function<bool()>& stop_requested) {
+                        SunHoursResult& result, const std::function<bool()>& stop_requested,
+                        std::atomic<std::uint64_t>* pairs_done) {
   const std::size_t points = grid.points();
   result.tally.assign(points, PointTally{});
   const std::size_t up = std::size_t(std::count_if(samples.begin(), samples.end(), [](const SunSample& s) { return s.up(); }));
@@ -71,6 +72,7 @@ void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::ve
         for (std::size_t i = first; i < last; ++i)
           result.tally[i].record(sun_up && sees_sun(rays, grid.point(i), sample.direction));
       }
+      if (pairs_done) pairs_done->fetch_add(std::uint64_t(last - first) * up);
     }
   };
   const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(chunks)));

@@ -5,6 +5,8 @@
 // picks where it is the faster one.
 #pragma once
 
+#include <atomic>
+#include <cstdint>
 #include <functional>
 #include <vector>
 
@@ -32,6 +34,7 @@ bool sees_sun(const RayScene& rays, const glm::dvec3& point, const glm::dvec3& d
 /// direction). `stop_requested`, if given, is asked between chunks (one
 /// thread at a time); once it answers true the cast throws CastStopped.
 void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::vector<SunSample>& samples,
-                        SunHoursResult& result, const std::function<bool()>& stop_requested = nullptr);
+                        SunHoursResult& result, const std::function<bool()>& stop_requested = nullptr,
+                        std::atomic<std::uint64_t>* pairs_done = nullptr);
 
 }  // namespace umbra

@@ -93,15 +93,17 @@ struct RenderService::Impl {
   std::atomic<std::uint64_t> overran_count{0};
 
   // Throws RequestTooCostly if `cost` is over the budget; else returns.
-  void check_budget(const RequestCost& cost) {
+  void check_budget(const RequestCost& cost, std::chrono::milliseconds budget = std::chrono::milliseconds(0),
+                    const char* budget_of = " ms a request") {
     const auto mib = [](double bytes) { return std::to_string(std::llround(bytes / double(1 << 20))); };
-    const double budget_ms = double(limits.max_request_cost.count());
+    if (budget.count() == 0) budget = limits.max_request_cost;
+    const double budget_ms = double(budget.count());
     if (cost.total_ms > budget_ms) {
       const CostPart& part = cost.dominant();
       too_costly_count.fetch_add(1);
       throw RequestTooCostly("the request would take about " + std::to_string(std::llround(cost.total_ms)) +
-                                 " ms to render, over the budget of " + std::to_string(limits.max_request_cost.count()) +
-                                 " ms a request; most of it is " + part.name + " (about " +
+                                 " ms to render, over the budget of " + std::to_string(budget.count()) +
+                                 budget_of + "; most of it is " + part.name + " (about " +
                                  std::to_string(std::llround(part.ms)) + " ms): " + part.advice,
                              part.field);
     }
@@ -174,6 +176,7 @@ struct RenderService::Impl {
   std::deque<Job> jobs;
   bool stopping = false;
   std::atomic<std::size_t> in_flight{0};
+  std::timed_mutex sun_hours_jobs;  // held by the sun-hours job running
   std::atomic<std::uint64_t> frames{0};
   std::atomic<std::uint64_t> shadow_reuses{0};
   std::atomic<std::uint64_t> scene_uploads{0};
@@ -491,28 +494,40 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
 
 // A sun-hours analysis needs no GL: like the exact output, it runs on its
 // own thread (the cast itself on every core) and holds a place in the queue.
-std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone) {
-  const std::size_t samples = sample_count(request.period).value_or(0);
+SunHoursPlan RenderService::plan_sun_hours(const SunHoursRequest& request) const {
+  SunHoursPlan plan;
+  plan.samples = sample_count(request.period).value_or(0);
   // The path and its cost from a few hundred of the samples: the sun's
   // share of the period, and the footprints' share of the grid at 32 of
   // the probes with the sun up.
-  const std::vector<SunSample> probes = probe_samples(request.site, request.period, samples);
+  const std::vector<SunSample> probes = probe_samples(request.site, request.period, plan.samples);
   std::vector<glm::dvec3> up;
   for (const SunSample& s : probes)
     if (s.up()) up.push_back(s.direction);
   std::vector<glm::dvec3> directions;
   const std::size_t picked = std::min<std::size_t>(32, up.size());
   for (std::size_t i = 0; i < picked; ++i) directions.push_back(up[i * up.size() / picked]);
-  const SunHoursCost planned = estimate_sun_hours_cost(request, samples, sun_up_share(probes),
-                                                       footprint_share(request.view.scene, request.grid, directions));
-  const RequestCost& cost = planned.cost;
-  const bool footprints = planned.footprints;
-  impl_->check_budget(cost);
+  plan.estimate = estimate_sun_hours_cost(request, plan.samples, sun_up_share(probes),
+                                          footprint_share(request.view.scene, request.grid, directions));
+  return plan;
+}
+
+// A sun-hours analysis needs no GL: like the exact output, it runs on its
+// own thread (the cast itself on every core) and holds a place in the queue.
+std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone,
+                                                            bool job, std::shared_ptr<SunHoursProgress> progress) {
+  const SunHoursPlan plan = plan_sun_hours(request);
+  const RequestCost& cost = plan.estimate.cost;
+  if (job)
+    impl_->check_budget(cost, impl_->limits.max_job_cost, " ms a job (--max-job-ms)");
+  else
+    impl_->check_budget(cost);
   impl_->reserve();
   impl_->reserved_bytes.fetch_add(cost.peak_bytes);
+  if (!progress) progress = std::make_shared<SunHoursProgress>();
   Impl* impl = impl_.get();
   const auto queued = std::chrono::steady_clock::now();
-  return std::async(std::launch::async, [impl, queued, samples, footprints, request = std::move(request),
+  return std::async(std::launch::async, [impl, queued, plan, job, progress, request = std::move(request),
                                          client_gone = std::move(client_gone), dominant = cost.dominant(),
                                          peak_bytes = cost.peak_bytes]() {
     struct Release {
@@ -523,30 +538,47 @@ std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest requ
         impl->in_flight.fetch_sub(1);
       }
     } release{impl, peak_bytes};
-    impl->check_still_wanted(queued, client_gone);
+    // Jobs one after another: each uses every core. A job waits for its
+    // turn however long it takes (its client comes back for it later).
+    std::unique_lock<std::timed_mutex> turn(impl->sun_hours_jobs, std::defer_lock);
+    if (job) {
+      while (!turn.try_lock_for(std::chrono::milliseconds(50)))
+        if (progress->cancel) break;
+      if (progress->cancel) {
+        impl->abandoned_count.fetch_add(1);
+        throw ClientGone();
+      }
+    } else {
+      impl->check_still_wanted(queued, client_gone);
+    }
+    progress->started = true;
     const auto start = std::chrono::steady_clock::now();
-    const auto run_until = start + impl->limits.max_run_time;
+    const auto run_time = job ? 2 * impl->limits.max_job_cost : impl->limits.max_run_time;
+    const auto run_until = start + run_time;
     bool overran = false;
-    const auto stop = [&client_gone, &overran, &run_until] {
-      if (client_gone && client_gone()) return true;
+    const auto stop = [&client_gone, &overran, &run_until, &progress] {
+      if (progress->cancel || (client_gone && client_gone())) return true;
       overran = std::chrono::steady_clock::now() > run_until;
       return overran;
     };
     SunHoursResult result;
     result.step_minutes = request.period.step_minutes;
     try {
-      result.samples = sun_samples_on_all_cores(request.site, request.period, samples, stop);
+      result.samples = sun_samples_on_all_cores(request.site, request.period, plan.samples, stop);
+      std::uint64_t up = 0;
+      for (const SunSample& s : result.samples) up += s.up() ? 1 : 0;
+      progress->pairs_total = up * std::uint64_t(request.grid.points());
       const RayScene rays(request.view.scene, stop);
-      if (footprints)
-        footprint_sun_hours(rays, request.view.scene, request.grid, result.samples, result, stop);
+      if (plan.estimate.footprints)
+        footprint_sun_hours(rays, request.view.scene, request.grid, result.samples, result, stop,
+                            &progress->pairs_done);
       else
-        ray_cast_sun_hours(rays, request.grid, result.samples, result, stop);
+        ray_cast_sun_hours(rays, request.grid, result.samples, result, stop, &progress->pairs_done);
     } catch (const CastStopped&) {
       if (overran) {
         impl->overran_count.fetch_add(1);
-        throw RunTimeExceeded("the sun-hours analysis ran past the limit of " +
-                                  std::to_string(impl->limits.max_run_time.count()) +
-                                  " ms a request and was stopped: " + dominant.advice,
+        throw RunTimeExceeded("the sun-hours analysis ran past the limit of " + std::to_string(run_time.count()) +
+                                  " ms " + (job ? "a job" : "a request") + " and was stopped: " + dominant.advice,
                               dominant.field);
       }
       impl->abandoned_count.fetch_add(1);

@@ -3,6 +3,7 @@
 // and wait on a future for pixels. This header includes no GL.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -76,6 +77,29 @@ struct ServiceLimits {
   /// costs the next request its shader compiles and scene upload. Default
   /// 64 MiB.
   std::uint64_t fresh_context_bytes = std::uint64_t(64) << 20;
+  /// A sun-hours analysis over max_request_cost runs as a job (202, then
+  /// GET for progress and the result) when its estimate is at most this,
+  /// milliseconds, > 0; more is refused (RequestTooCostly). Jobs run one
+  /// at a time, each for at most twice this. Default 10 minutes.
+  std::chrono::milliseconds max_job_cost{600000};
+};
+
+/// How far a sun-hours analysis has come, shared by the service (which
+/// counts) and whoever watches (a job's GET). Pairs are (point, sample)
+/// pairs with the sun up; they are known once the samples are.
+struct SunHoursProgress {
+  std::atomic<std::uint64_t> pairs_total{0};
+  std::atomic<std::uint64_t> pairs_done{0};
+  /// Set by the watcher: the analysis stops (ClientGone) at its next check.
+  std::atomic<bool> cancel{false};
+  /// Set by the service when the analysis leaves the queue and starts.
+  std::atomic<bool> started{false};
+};
+
+/// A sun-hours request's plan: the path the service will run and its cost.
+struct SunHoursPlan {
+  SunHoursCost estimate;
+  std::size_t samples = 0;
 };
 
 /// submit() refused the job: the queue holds queue_capacity jobs already.
@@ -142,7 +166,15 @@ class RenderService {
   /// sample) pair with the sun up by the exact ray cast. The future holds
   /// the result, or DeadlineExceeded, ClientGone, RunTimeExceeded (past
   /// max_run_time) as submit()'s do.
-  std::future<SunHoursResult> submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone = {});
+  ///
+  /// With `job`, the budget is max_job_cost and the run time twice that,
+  /// and jobs run one after another. `progress`, if given, is counted as the
+  /// pairs are settled, and its `cancel` stops the analysis (ClientGone).
+  std::future<SunHoursResult> submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone = {},
+                                               bool job = false, std::shared_ptr<SunHoursProgress> progress = {});
+  /// The path and cost estimate submit_sun_hours would use (cheap: a few
+  /// hundred sun positions and the footprints of 32 of them).
+  SunHoursPlan plan_sun_hours(const SunHoursRequest& request) const;
 
   const RendererInfo& info() const;
   std::uint64_t frames_rendered() const;
