@@ -311,7 +311,7 @@ void HttpApi::add_cors_headers(HttpResponse& res) const {
   res.set_header("Vary", "Origin");
   res.set_header("Access-Control-Expose-Headers",
                  "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error, Umbra-Sun, "
-                 "Umbra-Certified, WWW-Authenticate");
+                 "Umbra-Certified, WWW-Authenticate, Umbra-Sun-Hours, Location");
   res.set_header("Timing-Allow-Origin", options_.cors_origin);
 }
 
@@ -365,7 +365,7 @@ void HttpApi::handle(const HttpRequest& req, HttpResponse& res) {
 // The preflight a browser sends before a cross-origin JSON POST.
 void HttpApi::preflight(const HttpRequest&, HttpResponse& res) {
   res.status = 204;
-  res.set_header("Access-Control-Allow-Methods", "GET, POST");
+  res.set_header("Access-Control-Allow-Methods", "GET, POST, DELETE");
   res.set_header("Access-Control-Allow-Headers", "Content-Type, Authorization");
   res.set_header("Access-Control-Max-Age", "600");
 }
@@ -591,7 +591,8 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
                       "");
   const std::optional<SunHoursFormat> format = sun_hours_format(req.header("Accept"));
   if (!format)
-    return send_error(res, 406, "Accept names no format this route answers in: application/json or text/csv", "");
+    return send_error(res, 406,
+                      "Accept names no format this route answers in: application/json, text/csv or image/png", "");
   ModelPlan plan;
   const std::string owner = uploader_of(req);
   const ModelsNamed named = [&](const std::vector<std::string>& keys) { plan_models(plan, keys, owner); };
@@ -610,6 +611,21 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   }
   plan = ModelPlan{};
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
+  // The picture's fields serve image/png; a grid serves JSON and CSV.
+  parsed.request->picture = *format == SunHoursFormat::Png;
+  if (!parsed.request->picture && !parsed.grid_given)
+    return send_error(res, 400, "is required for a JSON or CSV answer (an image/png answer needs none)", "grid");
+  // Fields that cannot change this answer are named, never dropped in
+  // silence: the picture's for JSON and CSV, and "exact": false (every
+  // path is exact: there is no step to skip).
+  std::vector<std::string> unused;
+  if (!parsed.request->picture) unused = parsed.picture_fields;
+  if (!parsed.request->exact) unused.push_back("exact");
+  if (!unused.empty()) {
+    std::string list;
+    for (const auto& f : unused) list += (list.empty() ? "" : ", ") + f;
+    res.set_header("Umbra-Unused-Fields", list);
+  }
   const SunHoursPlan estimate = renderer_.plan_sun_hours(*parsed.request);
   if (estimate.estimate.cost.total_ms > double(renderer_.limits().max_request_cost.count()))
     return start_sun_hours_job(res, std::move(*parsed.request), estimate);
@@ -629,7 +645,9 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
 void HttpApi::send_sun_hours(HttpResponse& res, SunHoursFormat format, const SunHoursRequest& request,
                              const SunHoursResult& result, double queue_ms) {
   const auto encode_start = Clock::now();
-  std::string body = format == SunHoursFormat::Csv ? sun_hours_csv(request, result) : sun_hours_json(request, result);
+  std::string body = format == SunHoursFormat::Csv   ? sun_hours_csv(request, result)
+                     : format == SunHoursFormat::Png ? encode_png(sun_hours_image(request, result))
+                                                     : sun_hours_json(request, result);
   const double encode_ms = std::chrono::duration<double, std::milli>(Clock::now() - encode_start).count();
   char timing[160];
   std::snprintf(timing, sizeof timing, "queue;dur=%.3f, sun_hours;dur=%.3f, encode;dur=%.3f", queue_ms,
@@ -639,7 +657,9 @@ void HttpApi::send_sun_hours(HttpResponse& res, SunHoursFormat format, const Sun
   res.set_header("Umbra-Sun-Hours", std::string("path=") + result.path + ", pairs=" + std::to_string(result.pairs) +
                                         ", by_maps=" + std::to_string(result.pairs_by_maps) +
                                         ", ray_cast=" + std::to_string(result.pairs_ray_cast));
-  res.set_content(std::move(body), format == SunHoursFormat::Csv ? "text/csv; charset=utf-8" : "application/json");
+  res.set_content(std::move(body), format == SunHoursFormat::Csv   ? "text/csv; charset=utf-8"
+                                  : format == SunHoursFormat::Png ? "image/png"
+                                                                  : "application/json");
 }
 
 // What a sun-hours analysis that did not finish answers.
@@ -670,7 +690,8 @@ void HttpApi::start_sun_hours_job(HttpResponse& res, SunHoursRequest request, co
   job->progress = std::make_shared<SunHoursProgress>();
   job->created = Clock::now();
   job->estimate_ms = plan.estimate.cost.total_ms;
-  job->result_bytes = std::uint64_t(request.grid.points()) * sizeof(PointTally) + plan.samples * sizeof(SunSample);
+  job->result_bytes = std::uint64_t(request.grid.points()) * sizeof(PointTally) + plan.samples * sizeof(SunSample) +
+                      (request.picture ? std::uint64_t(request.view.width) * std::uint64_t(request.view.height) * 4 : 0);
   try {
     job->result = renderer_.submit_sun_hours(std::move(request), {}, true, job->progress).share();
   } catch (...) {
@@ -729,9 +750,16 @@ void HttpApi::sun_hours_job(const HttpRequest& req, HttpResponse& res) {
     res.set_header("Cache-Control", "no-store");
     return res.set_content(progress.dump(), "application/json");
   }
-  const std::optional<SunHoursFormat> format = sun_hours_format(req.header("Accept"));
+  std::optional<SunHoursFormat> format = sun_hours_format(req.header("Accept"));
+  // A job posted for a picture answers with it; one posted for a grid, as
+  // JSON or CSV by this GET's Accept.
+  if (job->request.picture) format = SunHoursFormat::Png;
+  if (format == SunHoursFormat::Png && !job->request.picture) format.reset();
   if (!format)
-    return send_error(res, 406, "Accept names no format this route answers in: application/json or text/csv", "");
+    return send_error(res, 406,
+                      "Accept names no format this job answers in: application/json or text/csv (a job posted "
+                      "with Accept: image/png answers with its picture)",
+                      "");
   try {
     const SunHoursResult& result = job->result.get();
     send_sun_hours(res, *format, job->request, result, 0.0);

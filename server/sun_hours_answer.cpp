@@ -1,5 +1,8 @@
 #include "sun_hours_answer.hpp"
 
+#include "sun_hours_picture.hpp"
+
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -74,9 +77,11 @@ void append_number(std::string& text, double v) {
 
 std::optional<SunHoursFormat> sun_hours_format(std::string_view accept) {
   if (trim(accept).empty()) return SunHoursFormat::Json;
-  const double json_q = quality(accept, "application/json"), csv_q = quality(accept, "text/csv");
-  if (json_q <= 0.0 && csv_q <= 0.0) return std::nullopt;
-  return csv_q > json_q ? SunHoursFormat::Csv : SunHoursFormat::Json;
+  const double json_q = quality(accept, "application/json"), csv_q = quality(accept, "text/csv"),
+               png_q = quality(accept, "image/png");
+  const double best = std::max({json_q, csv_q, png_q});
+  if (best <= 0.0) return std::nullopt;
+  return json_q == best ? SunHoursFormat::Json : csv_q == best ? SunHoursFormat::Csv : SunHoursFormat::Png;
 }
 
 std::string sun_hours_utc(double unix_seconds) {
@@ -110,7 +115,8 @@ std::string sun_hours_json(const SunHoursRequest& request, const SunHoursResult&
       {"pairs_by_maps", result.pairs_by_maps},
       {"pairs_ray_cast", result.pairs_ray_cast},
       {"path", result.path},
-      {"exact", result.pairs_by_maps == 0 || request.exact},
+      // Every path is exact (docs/sun-hours.md): "exact": false skips nothing.
+      {"exact", true},
   };
   if (request.require_hours) {
     head["require_hours"] = *request.require_hours;
@@ -142,6 +148,49 @@ std::string sun_hours_json(const SunHoursRequest& request, const SunHoursResult&
   array("longest_run_hours", [&](std::size_t i) { return result.longest_run_hours(i); });
   text += "}";
   return text;
+}
+
+namespace {
+
+std::string degrees(double v, char positive, char negative) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.2f %c", std::abs(v), v >= 0.0 ? positive : negative);
+  return buffer;
+}
+
+std::string minutes_text(double minutes) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", minutes);
+  return buffer;
+}
+
+}  // namespace
+
+Image sun_hours_image(const SunHoursRequest& request, const SunHoursResult& result) {
+  SunHoursLegend legend;
+  // The scale reaches the most any point can get: every sample with the
+  // sun up (an hour when the sun never rises, so that the ticks read).
+  legend.max_hours = result.samples_up > 0 ? double(result.samples_up) * request.period.step_minutes / 60.0 : 1.0;
+  if (request.require_hours) legend.require_hours = *request.require_hours;
+  // Dates alone at midnight: the period fits one line.
+  const auto when = [](double t) {
+    const std::string text = sun_hours_utc(t);
+    return text.compare(10, 9, "T00:00:00") == 0 ? text.substr(0, 10) : text.substr(0, 16);
+  };
+  const std::string start = when(request.period.start_unix_s), end = when(request.period.end_unix_s);
+  legend.lines.push_back(degrees(request.site.latitude_deg, 'N', 'S') + ", " +
+                         degrees(request.site.longitude_deg, 'E', 'W'));
+  legend.lines.push_back(start + " TO " + end + " UTC");
+  legend.lines.push_back("EVERY " + minutes_text(request.period.step_minutes) + " MIN, " +
+                         std::to_string(result.samples_up) + " WITH SUN UP");
+  if (request.grid.points() > 0 && request.require_hours) {
+    char buffer[96];
+    std::snprintf(buffer, sizeof buffer, "%.0f%% OF GRID >= %g H", 100.0 * result.pass_share(*request.require_hours),
+                  *request.require_hours);
+    legend.lines.push_back(buffer);
+  }
+  legend.lines.push_back("EXACT RAY CAST");
+  return sun_hours_picture(result.pixel_hours, request.view.width, request.view.height, legend);
 }
 
 std::string sun_hours_csv(const SunHoursRequest& request, const SunHoursResult& result) {

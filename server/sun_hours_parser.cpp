@@ -40,7 +40,7 @@ const json& object_at(const json& j, const std::string& path, const std::set<std
     if (!known.count(item.key())) {
       std::string list;
       for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-      refuse(join(path, item.key()), "unknown field (" + path + (path.empty() ? "" : " ") + "takes " + list + ")");
+      refuse(join(path, item.key()), "unknown field (expected one of: " + list + ")");
     }
   return j;
 }
@@ -165,17 +165,27 @@ ParsedSunHours parse_sun_hours_request(std::string_view body, const ModelLookup&
   }
   const json& root = read.value;
   try {
-    object_at(root, "", {"scene", "site", "period", "grid", "require_hours", "exact", "include_samples"});
+    object_at(root, "", {"scene", "camera", "width", "height", "site", "period", "grid", "require_hours", "exact",
+                         "include_samples"});
     SunHoursRequest q;
     q.site = read_site(required(root, "", "site"));
     q.period = read_period(required(root, "", "period"), result.samples);
-    q.grid = read_grid(required(root, "", "grid"));
+    if (const json* grid = member(root, "grid")) {
+      q.grid = read_grid(*grid);
+      result.grid_given = true;
+    } else {
+      q.grid.columns = q.grid.rows = 0;
+    }
     if (const json* h = member(root, "require_hours")) q.require_hours = number_at(*h, "require_hours", 0.0, 1e6);
     if (const json* e = member(root, "exact")) q.exact = boolean_at(*e, "exact");
     if (const json* s = member(root, "include_samples")) q.include_samples = boolean_at(*s, "include_samples");
     // The scene as /api/render reads it (its errors name "scene..." alike).
     json view = json::object();
-    if (const json* scene = member(root, "scene")) view["scene"] = *scene;
+    for (const char* key : {"scene", "camera", "width", "height"})
+      if (const json* value = member(root, key)) {
+        view[key] = *value;
+        if (std::string(key) != "scene") result.picture_fields.push_back(key);
+      }
     ParsedRequest parsed = parse_render_json(view, Route::Render, find_model, models_named);
     if (!parsed.ok()) {
       result.error = parsed.error;

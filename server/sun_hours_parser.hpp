@@ -17,6 +17,10 @@ struct ParsedSunHours {
   std::optional<SunHoursRequest> request;  ///< set on success
   RequestError error;                       ///< set on failure
   std::size_t samples = 0;                  ///< the period's sample count, on success
+  /// The picture's fields sent (camera, width, height): used by the
+  /// image/png answer only.
+  std::vector<std::string> picture_fields;
+  bool grid_given = false;
   bool ok() const { return request.has_value(); }
 };
 

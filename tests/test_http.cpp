@@ -748,8 +748,30 @@ TEST(Http, SunHoursAnswersJsonOrCsvByAccept) {
   EXPECT_EQ(csv->body.rfind("x,y,z,hours,longest_run_hours\n", 0), 0u);
   EXPECT_EQ(std::count(csv->body.begin(), csv->body.end(), '\n'), 65);
 
+  httplib::Headers xml_accept = {{"Accept", "application/xml"}};
+  expect_json_error(client().Post("/api/sun-hours", xml_accept, sun_hours_body().dump(), "application/json"), 406, "");
+  // The picture: the camera's view coloured by hours; no grid needed.
+  json picture_body = sun_hours_body();
+  picture_body.erase("grid");
+  picture_body["width"] = 320;
+  picture_body["height"] = 180;
   httplib::Headers png_accept = {{"Accept", "image/png"}};
-  expect_json_error(client().Post("/api/sun-hours", png_accept, sun_hours_body().dump(), "application/json"), 406, "");
+  auto png = client().Post("/api/sun-hours", png_accept, picture_body.dump(), "application/json");
+  ASSERT_TRUE(png);
+  ASSERT_EQ(png->status, 200) << png->body;
+  EXPECT_EQ(png->get_header_value("Content-Type"), "image/png");
+  const Decoded decoded = decode_png(png->body);
+  EXPECT_EQ(decoded.width, 320);
+  EXPECT_EQ(decoded.height, 180);
+  EXPECT_EQ(decoded.channels, 3);
+  // Without a grid there is nothing to answer as JSON; the picture's fields
+  // are reported unused there.
+  expect_json_error(client().Post("/api/sun-hours", picture_body.dump(), "application/json"), 400, "grid");
+  picture_body["grid"] = sun_hours_body()["grid"];
+  auto unused = client().Post("/api/sun-hours", picture_body.dump(), "application/json");
+  ASSERT_TRUE(unused);
+  EXPECT_EQ(unused->status, 200);
+  EXPECT_EQ(unused->get_header_value("Umbra-Unused-Fields"), "width, height");
   auto get = client().Get("/api/sun-hours");
   expect_json_error(get, 405, "");
   EXPECT_EQ(get->get_header_value("Allow"), "POST");

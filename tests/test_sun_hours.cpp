@@ -144,7 +144,8 @@ TEST(SunHoursParser, BadInputIs400NamingTheField) {
       {"/site/height", 1, "site.height", "unknown field"},
       {"/require_hours", -1, "require_hours", "out of range"},
       {"/exact", "yes", "exact", "true or false"},
-      {"/width", 640, "width", "unknown field"},
+      {"/shadow", json::object(), "shadow", "unknown field"},
+      {"/width", 0, "width", ""},
       {"/scene", "no-such-scene", "scene", "no-such-scene"},
       {"/scene", json::parse(R"({"objects": [{"type": "box", "size": -1}]})"), "scene.objects[0].size", ""},
   };
@@ -173,7 +174,10 @@ TEST(SunHoursAnswer, AcceptChoosesJsonOrCsv) {
   EXPECT_EQ(sun_hours_format("application/json;q=0.5, text/csv"), SunHoursFormat::Csv);
   EXPECT_EQ(sun_hours_format("text/csv;q=0.2, */*;q=0.5"), SunHoursFormat::Json);
   EXPECT_EQ(sun_hours_format("text/csv;q=0, */*"), SunHoursFormat::Json);
-  EXPECT_FALSE(sun_hours_format("image/png"));
+  EXPECT_EQ(sun_hours_format("image/png"), SunHoursFormat::Png);
+  EXPECT_EQ(sun_hours_format("image/*"), SunHoursFormat::Png);
+  EXPECT_EQ(sun_hours_format("image/png, application/json;q=0.9"), SunHoursFormat::Png);
+  EXPECT_FALSE(sun_hours_format("application/xml"));
   EXPECT_FALSE(sun_hours_format("text/csv;q=0"));
 }
 

@@ -12,6 +12,7 @@ glm::dvec3 SunGrid::origin() const {
 }
 
 glm::dvec3 SunGrid::point(std::size_t i) const {
+  if (columns <= 0) return center;
   const glm::dvec3 o = origin();
   const double column = double(i % std::size_t(columns)), row = double(i / std::size_t(columns));
   return {o.x + column * spacing, o.y, o.z + row * spacing};

@@ -42,6 +42,7 @@ struct SunPeriod {
 /// rectangle at height center.y: columns along +X, rows along +Z, row 0 at
 /// the rectangle's -Z edge. size is a whole number of cells each way.
 struct SunGrid {
+  /// A request without a grid (a picture alone) has 0 columns and rows.
   glm::dvec3 center{0.0};
   double size_x = 1.0, size_z = 1.0;  ///< world units, > 0
   double spacing = 1.0;               ///< world units, > 0
@@ -66,6 +67,9 @@ struct SunHoursRequest {
   /// uncertain pairs ray cast); false: the maps may settle pairs alone.
   bool exact = true;
   bool include_samples = false;
+  /// Also the hours at every pixel that view.camera sees (view.width x
+  /// view.height): the image/png answer.
+  bool picture = false;
 };
 
 /// Bounds that keep every accepted request's memory and work finite before
@@ -134,6 +138,10 @@ struct SunHoursResult {
   std::uint64_t pairs_ray_cast = 0;     ///< settled by the exact ray cast
   const char* path = "ray_cast";        ///< "ray_cast" (pure) or "maps"
   double elapsed_ms = 0.0;              ///< the analysis itself, queue excluded
+  /// With request.picture: hours per pixel (row 0 at the top), NaN where
+  /// the camera sees nothing; and the pairs cast for it.
+  std::vector<float> pixel_hours;
+  std::uint64_t pixel_pairs = 0;
   double hours(std::size_t point) const { return tally[point].lit * step_minutes / 60.0; }
   double longest_run_hours(std::size_t point) const { return tally[point].longest * step_minutes / 60.0; }
   /// Points whose hours reach `require_hours`, over all points.

@@ -352,8 +352,7 @@ ExactView::ExactView(const RenderRequest& request, const std::function<bool()>& 
       light_(light_at(request.light, request.time)),
       rays_(request.scene, stop_requested) {}
 
-ExactPixel ExactView::at(double px, double py) const {
-  ExactPixel pixel;
+std::optional<RayHit> ExactView::surface_at(double px, double py) const {
   const double nx = px / request_.width * 2.0 - 1.0;
   const double ny = 1.0 - py / request_.height * 2.0;
   const glm::dvec4 near_h = inverse_ * glm::dvec4(nx, ny, -1.0, 1.0);
@@ -363,7 +362,12 @@ ExactPixel ExactView::at(double px, double py) const {
   const glm::dvec3 dir = glm::normalize(far_p - near_p);
   // The camera sees between its near and far planes, as GL clips.
   const double t_far = glm::length(far_p - near_p);
-  const auto hit = rays_.cast(near_p, dir, 0.0, t_far);
+  return rays_.cast(near_p, dir, 0.0, t_far);
+}
+
+ExactPixel ExactView::at(double px, double py) const {
+  ExactPixel pixel;
+  const auto hit = surface_at(px, py);
   if (!hit) return pixel;
   pixel.geometry = true;
   pixel.object = hit->object;

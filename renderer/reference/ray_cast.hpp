@@ -154,6 +154,11 @@ class ExactView {
   /// The reference at image point (px, py), in pixels from the top-left
   /// corner: a pixel's centre is (x + 0.5, y + 0.5). Thread-safe.
   ExactPixel at(double px, double py) const;
+  /// What the camera ray through image point (px, py) meets first, between
+  /// the camera's near and far planes; nullopt where it meets nothing.
+  std::optional<RayHit> surface_at(double px, double py) const;
+  /// The scene's rays, as this view casts them.
+  const RayScene& rays() const { return rays_; }
 
   /// One camera ray per pixel centre, as the rasterizer samples them: every
   /// pixel of the view (width x height, row 0 at the top), using all

@@ -84,4 +84,44 @@ void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::ve
   result.pairs_ray_cast = result.pairs;
 }
 
+std::vector<float> sun_hours_per_pixel(const ExactView& view, int width, int height,
+                                       const std::vector<SunSample>& samples, double step_minutes,
+                                       const std::function<bool()>& stop_requested,
+                                       std::atomic<std::uint64_t>* pairs_done) {
+  std::vector<float> hours(std::size_t(width) * std::size_t(height), std::numeric_limits<float>::quiet_NaN());
+  std::vector<glm::dvec3> up;
+  for (const SunSample& s : samples)
+    if (s.up()) up.push_back(s.direction);
+  const RayScene& rays = view.rays();
+  std::atomic<int> next{0};
+  std::atomic<bool> stopped{false};
+  std::mutex asking;
+  const auto work = [&] {
+    for (;;) {
+      if (stop_requested) {
+        std::lock_guard<std::mutex> lock(asking);
+        if (stopped || stop_requested()) stopped = true;
+      }
+      if (stopped) return;
+      const int y = next.fetch_add(1);
+      if (y >= height) return;
+      for (int x = 0; x < width; ++x) {
+        const std::optional<RayHit> hit = view.surface_at(x + 0.5, y + 0.5);
+        if (!hit) continue;
+        std::uint32_t lit = 0;
+        for (const glm::dvec3& d : up) lit += sees_sun(rays, hit->leave_front, d) ? 1 : 0;
+        hours[std::size_t(y) * std::size_t(width) + std::size_t(x)] = float(double(lit) * step_minutes / 60.0);
+      }
+      if (pairs_done) pairs_done->fetch_add(std::uint64_t(width) * up.size());
+    }
+  };
+  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(std::max(1, height))));
+  std::vector<std::thread> pool;
+  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  if (stopped) throw CastStopped();
+  return hours;
+}
+
 }  // namespace umbra

@@ -14,7 +14,8 @@
 
 namespace umbra {
 
-class RayScene;  // reference/ray_cast.hpp
+class RayScene;   // reference/ray_cast.hpp
+class ExactView;  // reference/ray_cast.hpp
 
 /// Every sample of the period (sun_sample) on all hardware threads: a
 /// year at one-minute steps is half a million positions by NREL SPA.
@@ -36,5 +37,17 @@ bool sees_sun(const RayScene& rays, const glm::dvec3& point, const glm::dvec3& d
 void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::vector<SunSample>& samples,
                         SunHoursResult& result, const std::function<bool()>& stop_requested = nullptr,
                         std::atomic<std::uint64_t>* pairs_done = nullptr);
+
+/// Hours at every pixel the view's camera sees (width x height, row 0 at
+/// the top): from just off the surface its camera ray meets first (the
+/// side the camera sees: RayHit::leave_front), one sees_sun query per
+/// sample with the sun up; NaN where the ray meets nothing. A surface
+/// turned away from the sun is dark: its own ray goes through it. On all
+/// hardware threads by rows; `stop_requested` as ray_cast_sun_hours asks
+/// it, and each row's pairs are counted into `pairs_done`.
+std::vector<float> sun_hours_per_pixel(const ExactView& view, int width, int height,
+                                       const std::vector<SunSample>& samples, double step_minutes,
+                                       const std::function<bool()>& stop_requested = nullptr,
+                                       std::atomic<std::uint64_t>* pairs_done = nullptr);
 
 }  // namespace umbra

@@ -94,7 +94,7 @@ struct RenderService::Impl {
 
   // Throws RequestTooCostly if `cost` is over the budget; else returns.
   void check_budget(const RequestCost& cost, std::chrono::milliseconds budget = std::chrono::milliseconds(0),
-                    const char* budget_of = " ms a request") {
+                    const char* budget_of = " ms a request", const char* to = " to render") {
     const auto mib = [](double bytes) { return std::to_string(std::llround(bytes / double(1 << 20))); };
     if (budget.count() == 0) budget = limits.max_request_cost;
     const double budget_ms = double(budget.count());
@@ -102,7 +102,7 @@ struct RenderService::Impl {
       const CostPart& part = cost.dominant();
       too_costly_count.fetch_add(1);
       throw RequestTooCostly("the request would take about " + std::to_string(std::llround(cost.total_ms)) +
-                                 " ms to render, over the budget of " + std::to_string(budget.count()) +
+                                 " ms" + to + ", over the budget of " + std::to_string(budget.count()) +
                                  budget_of + "; most of it is " + part.name + " (about " +
                                  std::to_string(std::llround(part.ms)) + " ms): " + part.advice,
                              part.field);
@@ -519,9 +519,9 @@ std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest requ
   const SunHoursPlan plan = plan_sun_hours(request);
   const RequestCost& cost = plan.estimate.cost;
   if (job)
-    impl_->check_budget(cost, impl_->limits.max_job_cost, " ms a job (--max-job-ms)");
+    impl_->check_budget(cost, impl_->limits.max_job_cost, " ms a job (--max-job-ms)", " to run");
   else
-    impl_->check_budget(cost);
+    impl_->check_budget(cost, impl_->limits.max_request_cost, " ms a request", " to run");
   impl_->reserve();
   impl_->reserved_bytes.fetch_add(cost.peak_bytes);
   if (!progress) progress = std::make_shared<SunHoursProgress>();
@@ -567,9 +567,20 @@ std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest requ
       result.samples = sun_samples_on_all_cores(request.site, request.period, plan.samples, stop);
       std::uint64_t up = 0;
       for (const SunSample& s : result.samples) up += s.up() ? 1 : 0;
-      progress->pairs_total = up * std::uint64_t(request.grid.points());
+      const std::uint64_t pixels =
+          request.picture ? std::uint64_t(request.view.width) * std::uint64_t(request.view.height) : 0;
+      progress->pairs_total = up * (std::uint64_t(request.grid.points()) + pixels);
+      if (request.picture) {
+        // The camera's view: its own rays (ExactView builds the scene's).
+        const ExactView view(request.view, stop);
+        result.pixel_hours = sun_hours_per_pixel(view, request.view.width, request.view.height, result.samples,
+                                                 request.period.step_minutes, stop, &progress->pairs_done);
+        result.pixel_pairs = pixels * up;
+      }
       const RayScene rays(request.view.scene, stop);
-      if (plan.estimate.footprints)
+      if (request.grid.points() == 0)
+        result.samples_up = std::size_t(up);
+      else if (plan.estimate.footprints)
         footprint_sun_hours(rays, request.view.scene, request.grid, result.samples, result, stop,
                             &progress->pairs_done);
       else

@@ -392,7 +392,9 @@ RequestCost estimate_cost(const RenderRequest& request) {
 // Sun hours. The rays start at grid points, not at a camera's surfaces,
 // and walk the scene's bounding-volume tree: each is priced as an exact
 // output's shadow ray (kMsPerShadowRay plus its object tests).
-constexpr double kMsPerSunPosition = 1.8e-3;  // NREL SPA on both cores: 3.15e6 in 10.6 s on one of them
+// NREL SPA: 3.15e6 in 10.6 s on one core; priced at one core's speed, since
+// the renders on the same cores and a busy machine slow the two-core run.
+constexpr double kMsPerSunPosition = 3.5e-3;
 // The footprints: an object's hull and spans per sample, and one pass over
 // the grid per stretch of daylight.
 constexpr double kMsPerFootprint = 1.0e-3;
@@ -447,10 +449,21 @@ SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t
       {"mesh BVH build", double(f.bvh_triangles) * kMsPerBvhTriangle, "scene.objects",
        "the ray cast builds a BVH of each model's triangles: use smaller models"},
   };
+  // The picture: a camera ray per pixel, and from its surface a ray per
+  // sample with the sun up (the pure ray cast: its points are not a plane).
+  const double pixels = request.picture ? double(request.view.width) * double(request.view.height) : 0.0;
+  if (request.picture) {
+    CostFactors picture = f;
+    picture.camera_rays = pixels;
+    picture.shadow_rays = pixels * samples_up;
+    cost.parts.push_back({"sun-hours picture", ray_cast_ms(picture), "width",
+                          "one ray per pixel and sample with the sun up: lower width and height, or take a longer "
+                          "period.step_minutes or a shorter period"});
+  }
   for (const CostPart& part : cost.parts) cost.total_ms += part.ms;
   const std::uint64_t per_point = sizeof(PointTally) + kAnswerBytesPerPoint + (out.footprints ? 3 * 8 : 0);
   cost.peak_bytes = std::uint64_t(points) * per_point + std::uint64_t(samples) * sizeof(SunSample) +
-                    f.bvh_triangles * kBvhBytesPerTriangle;
+                    f.bvh_triangles * kBvhBytesPerTriangle + std::uint64_t(pixels) * (4 + 3 + 3);
   cost.memory_field = "grid.spacing";
   cost.memory_advice = "take a larger grid.spacing or a smaller grid.size";
   return out;
