@@ -208,6 +208,15 @@ function replaceImage(img, blob, key) {
 // Requests one frame (then the depth map). Called on every change and, while
 // playing, again whenever the previous frame has arrived.
 async function requestFrame() {
+  // In the Sun hours mode no frame is shown: the change is rendered once
+  // the panel is back to frames.
+  if (sunHoursMode()) {
+    state.frameOwed = true;
+    if (state.playing) togglePlay();
+    saveToUrl();
+    return;
+  }
+  state.frameOwed = false;
   if (fieldsHeld()) {
     state.lastTick = 0;  // playing resumes from here once the field is fixed
     return;
@@ -911,6 +920,7 @@ function markField(input, problem, name = fieldName(input)) {
 function fieldsHeld() {
   const bad = [];
   for (const input of $("controls").querySelectorAll("input[type=number], input[type=date], input[type=time]")) {
+    if (isSunHoursField(input)) continue;  // the analysis's own: judged when it is run
     if (!isCameraField(input)) markField(input, fieldProblem(input));
     if (input.getAttribute("aria-invalid") === "true") bad.push(fieldName(input));
   }
@@ -1081,6 +1091,10 @@ const DEFAULTS_FROM_API = {
   ambient: ["Light", "ambient"],
   size: ["Light", "size"],
   sun_north: ["Sun", "north_deg"],
+  // The Sun hours mode's; the page's own values stand where the document
+  // does not describe /api/sun-hours.
+  sh_north: ["SunHoursSite", "north_deg"],
+  sh_step: ["SunHoursPeriod", "step_minutes"],
   enabled: ["Shadow", "enabled"],
   filter: ["Shadow", "filter"],
   pcf_radius: ["Shadow", "pcf_radius"],
@@ -1318,6 +1332,7 @@ async function uploadModel(file) {
     $("scene").value = addModel(model, file.name);
     state.camera = null;
     showCamera();
+    sunHoursSceneChanged();
     status.textContent = `${file.name}: ${model.triangles.toLocaleString("en")} triangles, ` +
       (model.closed ? "closed" : "open (drawn two-sided in the shadow pass)") + (answer.status === 200 ? ", already held." : ".");
     requestFrame();
@@ -1444,7 +1459,10 @@ function renderSceneJson() {
   state.custom = fragment;
   state.camera = null;
   showCamera();
-  $("scene-json-status").textContent = "Rendering the editor's scene; choosing another scene goes back to the form's.";
+  $("scene-json-status").textContent = sunHoursMode()
+    ? "The editor's scene is the one analysed (Run); choosing another scene goes back to the form's."
+    : "Rendering the editor's scene; choosing another scene goes back to the form's.";
+  sunHoursSceneChanged();
   requestFrame();
 }
 
@@ -1481,6 +1499,823 @@ function sceneJsonFromUrl(params, skipped) {
   $("scene-json-status").textContent = "Rendering the editor's scene (from the address).";
 }
 
+// --- Sun hours ---------------------------------------------------------------------
+// The Sun hours mode asks POST /api/sun-hours how many hours of direct sun
+// each point of a horizontal grid gets over a period, for the scene the
+// panel renders (a built-in scene's name, a model on its floor, or the
+// editor's objects). The fields are sent by Run only. An analysis within the
+// server's per-request budget is answered at once; a longer one is a job
+// (202): its progress is read once a second from GET Location until the
+// result, and Cancel deletes it. The hours are drawn one cell per point,
+// north (-Z) up, on a colour ramp from dark blue (0 h) to yellow (the
+// most), the points under the threshold hatched and outlined, with the
+// legend beside it.
+
+const SH_CENTRE = ["sh_cx", "sh_cy", "sh_cz"];
+const SH_SITE = ["sh_lat", "sh_lon", "sh_north"];
+const SH_MAP_SIZE = 480;  // the map's longer side, px, for grids up to that many points a side
+const SH_POLL_MS = 1000;
+const SH_READOUT_HINT = "Point at the map (or focus it and use the arrow keys) to read a point's hours.";
+const SH_RAMP = [  // dark blue -> blue -> teal -> green -> yellow
+  [0, [10, 20, 70]], [0.2, [27, 63, 155]], [0.4, [31, 127, 194]], [0.6, [43, 181, 154]], [0.8, [165, 214, 63]],
+  [1, [253, 231, 37]],
+];
+// The fields a refusal names, as the panel's fields.
+const SH_SERVER_FIELDS = {
+  "site.latitude": "sh_lat", "site.longitude": "sh_lon", "site.north_deg": "sh_north",
+  "period.start": "sh_date", "period.end": "sh_days", "period.step_minutes": "sh_step",
+  "grid.center[0]": "sh_cx", "grid.center[1]": "sh_cy", "grid.center[2]": "sh_cz", "grid.center": "sh_cx",
+  "grid.size": "sh_sx", "grid.size[0]": "sh_sx", "grid.size[1]": "sh_sz", "grid.spacing": "sh_spacing",
+  "require_hours": "sh_require",
+};
+const sunHours = {
+  active: null,  // the run in progress: { cancelled, controller, location }
+  shown: null,   // the result shown: { answer (the JSON), body (as sent), location (a job's, or null), seconds }
+};
+
+class SunHoursCancelled extends Error {}
+
+function sunHoursMode() {
+  return $("mode").value === "sun-hours";
+}
+
+function isSunHoursField(e) {
+  return !!e.closest && !!e.closest("#sun-hours-settings");
+}
+
+// The page's defaults that are not the document's: the first day is this
+// year's 21 March (BR 209's day), the place the sun's; the place list is
+// the sun's.
+function setUpSunHours() {
+  for (const option of $("sun_city").options) if (option.value) $("sh_city").append(option.cloneNode(true));
+  setDefault($("sh_date"), `${String(new Date().getFullYear()).padStart(4, "0")}-03-21`);
+  SH_SITE.forEach((id, i) => {
+    const value = $(["sun_lat", "sun_lon", "sun_north"][i]).defaultValue;
+    if (value !== "") setDefault($(id), value);
+  });
+  followSceneCentre("reset");
+}
+
+// After the address is read: the grid centre follows the scene the address
+// chose, but for a centre the address gives.
+function sunHoursAfterUrl() {
+  const params = new URLSearchParams(location.search);
+  followSceneCentre(SH_CENTRE.filter((id) => params.has(id)));
+  syncSunHoursCity();
+  syncMode();
+  showGridPoints();
+}
+
+// The mode chosen: its controls and outputs shown, the other's hidden.
+function syncMode() {
+  document.body.classList.toggle("sun-hours-mode", sunHoursMode());
+}
+
+function modeChanged() {
+  syncMode();
+  // "Copy as curl" copies the mode's request: a command shown for the other is gone.
+  $("curl").hidden = true;
+  $("copy-status").textContent = "";
+  // So does the other mode's error (a frame's is found again by rendering once back).
+  if (sunHoursMode() && state.errorSource === "render") state.frameOwed = true;
+  clearError(sunHoursMode() ? "render" : "sun-hours");
+  if (sunHoursMode()) {
+    if (state.playing) togglePlay();
+    // A place the sun's fields hold is taken up, unless the fields here were changed.
+    if (SH_SITE.every((id) => $(id).value === $(id).defaultValue)) {
+      SH_SITE.forEach((id, i) => {
+        const source = $(["sun_lat", "sun_lon", "sun_north"][i]);
+        if (!fieldProblem(source) && source.value !== "") $(id).value = source.value;
+      });
+      syncSunHoursCity();
+    }
+    saveToUrl();
+  } else if (state.frameOwed || !$("frame").src) {
+    requestFrame();
+  } else {
+    saveToUrl();
+  }
+}
+
+function sunHoursFieldChanged(input) {
+  // A mark (the browser's or the server's) goes once the field holds a number again.
+  if (input.getAttribute("aria-invalid") === "true") markField(input, fieldProblem(input));
+  if (input.id === "sh_lat" || input.id === "sh_lon") syncSunHoursCity();
+  if (input.id === "sh_city") return;
+  showGridPoints();
+  sunHoursSettingsChanged();
+  saveToUrl();
+}
+
+function syncSunHoursCity() {
+  const here = `${number("sh_lat")},${number("sh_lon")}`;
+  const match = Array.from($("sh_city").options).find((o) => o.value === here);
+  $("sh_city").value = match ? match.value : "";
+}
+
+function chooseSunHoursCity() {
+  if (!$("sh_city").value) return;
+  const [latitude, longitude] = $("sh_city").value.split(",");
+  $("sh_lat").value = latitude;
+  $("sh_lon").value = longitude;
+  for (const id of ["sh_lat", "sh_lon"]) markField($(id), "");
+  sunHoursSettingsChanged();
+  saveToUrl();
+}
+
+// The scene the analysis is asked about: the editor's while it is rendered,
+// else the form's (a built-in scene's name, or a model on its floor).
+function sunHoursScene() {
+  if (state.custom && "scene" in state.custom) return state.custom.scene;
+  const model = chosenModel();
+  return model ? modelView(model).scene : $("scene").value;
+}
+
+// The floor: the lowest plane's height (0 without one).
+function floorHeight(scene) {
+  const objects = typeof scene === "string" ? sceneObjects.get(scene) : isPlainObject(scene) && scene.objects;
+  const heights = (Array.isArray(objects) ? objects : [])
+    .filter((o) => isPlainObject(o) && o.type === "plane")
+    .map((o) => (Array.isArray(o.center) && Number.isFinite(o.center[1]) ? o.center[1] : 0));
+  return heights.length ? Math.min(...heights) : 0;
+}
+
+// The scene's target (its own camera's) at the floor's height + 0.01: the
+// points lie just above the floor, not in it.
+function sceneGridCentre() {
+  const camera = defaultCamera();
+  const target = camera ? camera.target : [0, 0, 0];
+  return [target[0], floorHeight(sunHoursScene()) + 0.01, target[2]].map(round);
+}
+
+function setDefaultKeepingValue(e, value) {
+  const kept = e.value;
+  e.defaultValue = value;
+  e.value = kept;
+}
+
+// The grid centre's default is the scene's. "reset" puts the fields there;
+// a list keeps the values of the fields it names and resets the others;
+// nothing: the fields follow the scene unless they were changed.
+function followSceneCentre(keep) {
+  const centre = sceneGridCentre();
+  const untouched = SH_CENTRE.every((id) => $(id).value === $(id).defaultValue);
+  SH_CENTRE.forEach((id, i) => {
+    const value = String(centre[i]);
+    const kept = Array.isArray(keep) ? keep.includes(id) : keep !== "reset" && !untouched;
+    if (kept) setDefaultKeepingValue($(id), value);
+    else {
+      setDefault($(id), value);
+      markField($(id), "");
+    }
+  });
+}
+
+// "Centre on the scene's target".
+function centreGridOnScene() {
+  followSceneCentre("reset");
+  sunHoursSettingsChanged();
+  saveToUrl();
+}
+
+function sunHoursSceneChanged() {
+  followSceneCentre();
+  sunHoursSettingsChanged();
+}
+
+// "80 × 80 = 6,400 points" under the grid's fields.
+function showGridPoints() {
+  const spacing = number("sh_spacing");
+  const [columns, rows] = [number("sh_sx") / spacing, number("sh_sz") / spacing];
+  const whole = (n) => Number.isFinite(n) && n >= 1 && Math.abs(n - Math.round(n)) <= 1e-9 * Math.max(1, n);
+  $("sh-points").textContent = !(spacing > 0) ? "" : whole(columns) && whole(rows)
+    ? `${Math.round(columns).toLocaleString("en")} × ${Math.round(rows).toLocaleString("en")} = ` +
+      `${(Math.round(columns) * Math.round(rows)).toLocaleString("en")} points, one every ${spacing} (cell centres).`
+    : "The size must be a whole number of cells of the spacing (the server refuses it otherwise).";
+}
+
+// A result shown for other settings says so.
+function sunHoursSettingsChanged() {
+  if (!sunHours.shown || sunHours.active) return;
+  const body = sunHoursBody(false);
+  const same = body && JSON.stringify(body) === JSON.stringify(sunHours.shown.body);
+  $("sh-status").textContent = same ? doneText(sunHours.shown) : "The settings have changed since this map was computed: Run to update it.";
+}
+
+// RFC 3339 without milliseconds.
+function utcText(ms) {
+  return new Date(ms).toISOString().replace(/\.\d{3}Z$/, "Z");
+}
+
+// Days from the place's mean solar midnight, to the whole minute.
+function sunHoursPeriod() {
+  const [year, month, day] = $("sh_date").value.split("-").map(Number);
+  const midnight = new Date(0);
+  midnight.setUTCFullYear(year, month - 1, day);
+  const start = midnight.getTime() + Math.round((-number("sh_lon") / 15) * 60) * 60000;
+  const end = start + Math.round(number("sh_days")) * 86400000;
+  return { start: utcText(start), end: utcText(end), step_minutes: number("sh_step") };
+}
+
+// The request body, or null where a field cannot be sent (marked, when
+// `mark`; what is wrong said in the status line).
+function sunHoursBody(mark = true) {
+  const bad = [];
+  for (const input of $("sun-hours-settings").querySelectorAll("input")) {
+    const problem = fieldProblem(input);
+    if (mark) markField(input, problem);
+    if (problem) bad.push(fieldName(input));
+  }
+  if (bad.length) {
+    if (mark) $("sh-status").textContent = `Not run: ${bad.join(", ")} cannot be sent as it is (marked on the left).`;
+    return null;
+  }
+  const site = { latitude: number("sh_lat"), longitude: number("sh_lon") };
+  if (number("sh_north") !== 0) site.north_deg = number("sh_north");
+  return {
+    scene: sunHoursScene(),
+    site,
+    period: sunHoursPeriod(),
+    grid: { center: SH_CENTRE.map(number), size: [number("sh_sx"), number("sh_sz")], spacing: number("sh_spacing") },
+    require_hours: number("sh_require"),
+  };
+}
+
+// Resolves after `ms`, or at once when `signal` aborts.
+function sleep(ms, signal) {
+  return new Promise((resolve) => {
+    const done = () => {
+      clearTimeout(timer);
+      signal.removeEventListener("abort", done);
+      resolve();
+    };
+    const timer = setTimeout(done, ms);
+    signal.addEventListener("abort", done);
+  });
+}
+
+// A refusal as an Error naming its field ({"error", "field"} JSON).
+async function sunHoursRefusal(response) {
+  let detail = `${response.status} ${response.statusText}`, field = "", message = detail;
+  try {
+    const json = await response.json();
+    field = json.field || "";
+    message = json.error || message;
+    detail = field ? `${field}: ${message}` : message;
+  } catch (_) { /* not JSON */ }
+  return Object.assign(new Error(`Sun hours not computed (${response.status}): ${detail}`), { field, reason: message });
+}
+
+// Asks for the analysis in `accept`'s format; a job (202) is followed once a
+// second, its progress shown, until its answer. Resolves to the 200
+// response; throws the refusal, or SunHoursCancelled.
+async function askSunHours(run, body, accept) {
+  const { signal } = run.controller;
+  const send = async (path, init) => {
+    try {
+      return await apiFetch(path, { ...init, signal });
+    } catch (e) {
+      if (run.cancelled) throw new SunHoursCancelled();
+      throw new Error(`The server is unreachable (${e.message}). Is umbra-server running?`);
+    }
+  };
+  // An answer at once leaves no time for a bar; a longer wait shows one.
+  const waiting = setTimeout(() => showProgress({ waiting: true }), 300);
+  let response;
+  try {
+    response = await send("/api/sun-hours", {
+      method: "POST", headers: { "Content-Type": "application/json", Accept: accept }, body: JSON.stringify(body),
+    });
+  } finally {
+    clearTimeout(waiting);
+  }
+  while (response.status === 202) {
+    const progress = await response.json().catch(() => ({}));
+    if (!run.location) run.location = progress.location || response.headers.get("Location");
+    if (!run.location) throw new Error("Sun hours not computed: the server answered 202 without the job's location.");
+    $("sh-progress").dataset.location = run.location;
+    if (progress.estimated_ms !== undefined && progress.state === "queued" && !progress.elapsed_s)
+      $("sh-status").textContent = "Over the server's per-request budget, so it runs as a job: its progress is read once a second.";
+    showProgress(progress);
+    await sleep(SH_POLL_MS, signal);
+    if (run.cancelled) throw new SunHoursCancelled();
+    response = await send(run.location, { headers: { Accept: accept } });
+  }
+  if (run.cancelled) throw new SunHoursCancelled();
+  if (!response.ok) throw await sunHoursRefusal(response);
+  return response;
+}
+
+// "40 ms", "4.2 s", "37 s", "2 min 5 s", "1 h 12 min".
+function duration(seconds) {
+  if (!Number.isFinite(seconds)) return "?";
+  if (seconds < 0.9995) return `${Math.round(seconds * 1000)} ms`;
+  if (seconds < 9.95) return `${seconds.toFixed(1)} s`;
+  const whole = Math.round(seconds);
+  if (whole < 60) return `${whole} s`;
+  const minutes = Math.floor(whole / 60);
+  return minutes < 60 ? `${minutes} min ${whole % 60} s` : `${Math.floor(minutes / 60)} h ${minutes % 60} min`;
+}
+
+function bigNumber(n) {
+  if (!Number.isFinite(n)) return "?";
+  if (n >= 1e9) return `${(n / 1e9).toPrecision(3)} G`;
+  if (n >= 1e6) return `${(n / 1e6).toPrecision(3)} M`;
+  if (n >= 1e3) return `${(n / 1e3).toPrecision(3)} k`;
+  return String(Math.round(n));
+}
+
+// The bar and its line: a job's state, share done and time left; or, while
+// an answer is awaited, an indeterminate bar.
+function showProgress(p) {
+  const bar = $("sh-progress-bar");
+  $("sh-progress").hidden = false;
+  let text;
+  if (p.waiting) {
+    bar.removeAttribute("value");
+    text = "Computing…";
+  } else if (p.state === "running" && Number.isFinite(p.fraction_done)) {
+    bar.value = p.fraction_done;
+    text = `Job running: ${Math.floor(100 * p.fraction_done)} % done` +
+      (Number.isFinite(p.seconds_left) ? ` · about ${duration(p.seconds_left)} left` : "") +
+      (Number.isFinite(p.pairs_per_second) ? ` · ${bigNumber(p.pairs_per_second)} point-samples/s` : "");
+  } else {
+    bar.value = Number.isFinite(p.fraction_done) ? p.fraction_done : 0;
+    text = `Job ${p.job || ""} queued` + (Number.isFinite(p.estimated_ms) ? ` (estimated ${duration(p.estimated_ms / 1000)})` : "") +
+      (Number.isFinite(p.elapsed_s) && p.elapsed_s > 0 ? `: waiting for the server's jobs before it` : "");
+  }
+  $("sh-progress").dataset.state = p.waiting ? "waiting" : p.state || "queued";
+  $("sh-progress-text").textContent = text;
+}
+
+function sunHoursBusy(run) {
+  sunHours.active = run;
+  $("sh-run").disabled = !!run;
+  $("sh-csv").disabled = !!run;
+  if (!run) {
+    $("sh-progress").hidden = true;
+    delete $("sh-progress").dataset.location;
+  }
+}
+
+function markSunHoursRefusal(error) {
+  const id = SH_SERVER_FIELDS[error.field];
+  if (id) {
+    markField($(id), "x");  // the mark and its message, which says what the server said
+    $(`${id}-problem`).textContent = `${fieldName($(id))}: ${error.reason} (the server's answer).`;
+  } else if ((error.field || "").startsWith("scene") && state.custom) {
+    $("scene-json-status").textContent = `The editor's scene was not analysed: ${error.message}`;
+  }
+}
+
+async function runSunHours() {
+  if (sunHours.active) return;
+  const body = sunHoursBody();
+  if (!body) return;
+  const firstDay = $("sh_date").value;
+  const run = { cancelled: false, controller: new AbortController(), location: null };
+  sunHoursBusy(run);
+  clearError("sun-hours");
+  $("sh-status").textContent = "Asking the server…";
+  const started = performance.now();
+  try {
+    const response = await askSunHours(run, body, "application/json");
+    const answer = await response.json();
+    sunHours.shown = { answer, body, location: run.location, seconds: (performance.now() - started) / 1000, firstDay };
+    showSunHours(sunHours.shown);
+    $("sh-status").textContent = doneText(sunHours.shown);
+  } catch (e) {
+    if (e instanceof SunHoursCancelled) {
+      $("sh-status").textContent = "Cancelled" + (run.location ? ": the job was deleted on the server." : ".");
+    } else {
+      showError(e.message, "sun-hours");
+      markSunHoursRefusal(e);
+      $("sh-status").textContent = "Not computed: see the message below.";
+    }
+  } finally {
+    sunHoursBusy(null);
+  }
+}
+
+async function cancelSunHours() {
+  const run = sunHours.active;
+  if (!run || run.cancelled) return;
+  run.cancelled = true;
+  run.controller.abort();  // an answer awaited at once: the server stops once the connection closes
+  if (run.location) {
+    try {
+      await apiFetch(run.location, { method: "DELETE" });
+    } catch (_) { /* gone with the server: nothing runs */ }
+  }
+}
+
+function doneText(shown) {
+  const { columns, rows } = shown.answer.grid;
+  return `Done in ${duration(shown.seconds)}: ${(columns * rows).toLocaleString("en")} points × ` +
+    `${shown.answer.samples_count.toLocaleString("en")} samples` +
+    (shown.location ? ", as a job (over the server's per-request budget)." : ".");
+}
+
+// --- The map and its legend
+
+function rampColour(t) {
+  const x = clamp(Number.isFinite(t) ? t : 0, 0, 1);
+  let i = 1;
+  while (i < SH_RAMP.length - 1 && SH_RAMP[i][0] < x) i += 1;
+  const [t0, c0] = SH_RAMP[i - 1], [t1, c1] = SH_RAMP[i];
+  const f = (x - t0) / (t1 - t0);
+  return c0.map((c, k) => Math.round(c + (c1[k] - c) * f));
+}
+
+// "12.17" (hours to the hundredth, no trailing zeros).
+function hoursText(h) {
+  return String(Number(h.toFixed(2)));
+}
+
+function hoursAndMinutes(h) {
+  const minutes = Math.round(h * 60);
+  return `${Math.floor(minutes / 60)} h ${String(minutes % 60).padStart(2, "0")} min`;
+}
+
+function percent(share) {
+  const p = 100 * share;
+  if (p > 0 && p < 0.05) return "< 0.1 %";
+  if (p < 100 && p >= 99.95) return "> 99.9 %";
+  return `${Number(p.toFixed(1))} %`;
+}
+
+// As the server's pass_share: compared in minutes.
+function reaches(hours, require) {
+  const need = require * 60;
+  return hours * 60 >= need - 1e-9 * Math.max(1, need);
+}
+
+function maxOf(values) {
+  let max = 0;
+  for (const v of values) if (v > max) max = v;
+  return max;
+}
+
+function showSunHours(shown) {
+  const { answer } = shown;
+  shown.max = maxOf(answer.hours);
+  $("sh-result").hidden = false;
+  drawSunHoursMap(shown);
+  drawSunHoursScale(shown);
+  writeSunHoursLegend(shown);
+  $("sh-readout").textContent = SH_READOUT_HINT;
+  sunHours.point = null;
+  $("sh-download-status").textContent = "";
+}
+
+function drawSunHoursMap(shown) {
+  const { answer, max } = shown;
+  const { columns, rows } = answer.grid;
+  const require = answer.require_hours;
+  // Whole pixels a cell where the grid fits, else less than one (no larger than the map).
+  const side = Math.max(columns, rows);
+  const cell = side <= SH_MAP_SIZE ? Math.floor(SH_MAP_SIZE / side) : SH_MAP_SIZE / side;
+  const [width, height] = [Math.max(1, Math.round(columns * cell)), Math.max(1, Math.round(rows * cell))];
+  // One pixel per point, then scaled up without smoothing: row 0 (-Z) on top.
+  const points = Object.assign(document.createElement("canvas"), { width: columns, height: rows });
+  const pixels = points.getContext("2d").createImageData(columns, rows);
+  const short = Object.assign(document.createElement("canvas"), { width: columns, height: rows });
+  const shortPixels = short.getContext("2d").createImageData(columns, rows);
+  let anyShort = false;
+  answer.hours.forEach((h, i) => {
+    const [r, g, b] = rampColour(max > 0 ? h / max : 0);
+    pixels.data.set([r, g, b, 255], 4 * i);
+    if (require !== undefined && !reaches(h, require)) {
+      shortPixels.data[4 * i + 3] = 255;
+      anyShort = true;
+    }
+  });
+  points.getContext("2d").putImageData(pixels, 0, 0);
+  const canvas = $("sh-map");
+  canvas.width = width;
+  canvas.height = height;
+  canvas.closest("figure").style.width = `${width}px`;  // the caption wraps under the map
+  const context = canvas.getContext("2d");
+  context.imageSmoothingEnabled = false;
+  context.drawImage(points, 0, 0, width, height);
+  if (anyShort) {
+    short.getContext("2d").putImageData(shortPixels, 0, 0);
+    const hatch = Object.assign(document.createElement("canvas"), { width, height });
+    const h = hatch.getContext("2d");
+    h.imageSmoothingEnabled = false;
+    h.drawImage(short, 0, 0, width, height);
+    h.globalCompositeOperation = "source-in";
+    h.fillStyle = hatchPattern(h);
+    h.fillRect(0, 0, width, height);
+    context.drawImage(hatch, 0, 0);
+    outlineShort(context, answer, cell);
+  }
+  const north = (answer.site && answer.site.north_deg) || 0;
+  $("sh-orientation").textContent = north ? `−Z up, +X right; north is ${north}° clockwise from up (the arrow)`
+                                          : "north (−Z) up, east (+X) right";
+  $("sh-cursor").hidden = true;
+  canvas.setAttribute("aria-label", `Hours of direct sun at ${columns} × ${rows} grid points, −Z up: ` +
+    `0 h dark blue to ${hoursText(max)} h yellow` + (require !== undefined ? `; under ${hoursText(require)} h hatched` : ""));
+}
+
+// Diagonal lines, dark-edged so that they show on any colour of the ramp.
+function hatchPattern(context) {
+  const tile = Object.assign(document.createElement("canvas"), { width: 8, height: 8 });
+  const t = tile.getContext("2d");
+  for (const [style, width] of [["rgba(0, 0, 0, 0.55)", 3], ["rgba(255, 255, 255, 0.9)", 1]]) {
+    t.strokeStyle = style;
+    t.lineWidth = width;
+    t.beginPath();
+    for (const offset of [-8, 0, 8]) {
+      t.moveTo(offset, 8);
+      t.lineTo(offset + 8, 0);
+    }
+    t.stroke();
+  }
+  return context.createPattern(tile, "repeat");
+}
+
+// The edges between points under the threshold and the others (or the
+// grid's edge).
+function outlineShort(context, answer, cell) {
+  const { columns, rows } = answer.grid;
+  const require = answer.require_hours;
+  const isShort = (c, r) => c >= 0 && r >= 0 && c < columns && r < rows && !reaches(answer.hours[r * columns + c], require);
+  const path = new Path2D();
+  for (let r = 0; r < rows; r += 1) {
+    for (let c = 0; c < columns; c += 1) {
+      if (!isShort(c, r)) continue;
+      const [x, y] = [c * cell, r * cell];
+      if (!isShort(c, r - 1)) { path.moveTo(x, y); path.lineTo(x + cell, y); }
+      if (!isShort(c, r + 1)) { path.moveTo(x, y + cell); path.lineTo(x + cell, y + cell); }
+      if (!isShort(c - 1, r)) { path.moveTo(x, y); path.lineTo(x, y + cell); }
+      if (!isShort(c + 1, r)) { path.moveTo(x + cell, y); path.lineTo(x + cell, y + cell); }
+    }
+  }
+  for (const [style, width] of [["#000000", 3], ["#ffffff", 1.25]]) {
+    context.strokeStyle = style;
+    context.lineWidth = width;
+    context.stroke(path);
+  }
+}
+
+// Tick values: 0 and a round step, at most six.
+function hourTicks(max) {
+  if (!(max > 0)) return [0];
+  const steps = [0.25, 0.5, 1, 2, 3, 4, 6, 8, 12, 24, 48, 100, 200, 250, 500, 1000, 2000, 2500, 5000];
+  const step = steps.find((s) => max / s <= 6) || Math.ceil(max / 6);
+  const ticks = [];
+  for (let t = 0; t <= max + 1e-9; t += step) ticks.push(t);
+  return ticks;
+}
+
+// The colour scale (hours, yellow on top), the hatch's key and a north arrow.
+function drawSunHoursScale(shown, canvas = $("sh-scale")) {
+  const { answer, max } = shown;
+  const context = canvas.getContext("2d");
+  const [top, bottom, left, barWidth] = [30, 250, 10, 22];
+  context.clearRect(0, 0, canvas.width, canvas.height);
+  context.font = "12px system-ui, sans-serif";
+  context.textBaseline = "middle";
+  context.fillStyle = "#e6e6e6";
+  context.fillText("hours of sun (h)", left, 12);
+  const gradient = context.createLinearGradient(0, bottom, 0, top);
+  for (const [t, c] of SH_RAMP) gradient.addColorStop(t, `rgb(${c.join(",")})`);
+  context.fillStyle = gradient;
+  context.fillRect(left, top, barWidth, bottom - top);
+  context.strokeStyle = "#3a404b";
+  context.strokeRect(left + 0.5, top + 0.5, barWidth - 1, bottom - top - 1);
+  const y = (h) => (max > 0 ? bottom - ((bottom - top) * h) / max : bottom);
+  const label = (h, text) => {
+    context.fillStyle = "#c3c7cf";
+    context.fillRect(left + barWidth, Math.round(y(h)), 5, 1);
+    context.fillText(text, left + barWidth + 8, clamp(y(h), top, bottom));
+  };
+  label(max, `${hoursText(max)} h (most)`);
+  for (const t of hourTicks(max)) if (y(t) - y(max) >= 14) label(t, `${hoursText(t)} h`);
+  // The hatch's key.
+  if (answer.require_hours !== undefined) {
+    const key = { x: left, y: 266, w: barWidth, h: 16 };
+    context.fillStyle = `rgb(${rampColour(0.15).join(",")})`;
+    context.fillRect(key.x, key.y, key.w, key.h);
+    context.fillStyle = hatchPattern(context);
+    context.fillRect(key.x, key.y, key.w, key.h);
+    context.strokeStyle = "#ffffff";
+    context.strokeRect(key.x + 0.5, key.y + 0.5, key.w - 1, key.h - 1);
+    context.fillStyle = "#c3c7cf";
+    context.fillText(`< ${hoursText(answer.require_hours)} h`, left + barWidth + 8, key.y + key.h / 2);
+  }
+  // North: -Z (up) turned by north_deg clockwise.
+  const north = ((answer.site && answer.site.north_deg) || 0) * Math.PI / 180;
+  const [cx, cy, r] = [canvas.width - 24, 292, 14];
+  context.save();
+  context.translate(cx, cy);
+  context.strokeStyle = "#a0a4ad";
+  context.beginPath();
+  context.arc(0, 0, r + 4, 0, 2 * Math.PI);
+  context.stroke();
+  context.rotate(north);
+  context.fillStyle = "#e6e6e6";
+  context.beginPath();
+  context.moveTo(0, -r);
+  context.lineTo(5, 4);
+  context.lineTo(0, 1);
+  context.lineTo(-5, 4);
+  context.closePath();
+  context.fill();
+  context.fillText("N", -4, -r - 12);
+  context.restore();
+}
+
+function degrees(value, positive, negative) {
+  return `${Math.abs(value)}° ${value < 0 ? negative : positive}`;
+}
+
+function utcMinutes(text) {
+  return text.replace("T", " ").replace(/:\d\d(\.\d+)?Z$/, " UTC");
+}
+
+// The legend's lines: [term, text, class]. Also the PNG's.
+function sunHoursLegendLines(shown) {
+  const { answer, body, max } = shown;
+  const lines = [];
+  lines.push(["Scale", `hours of direct sun at each point, 0 h (dark blue) to ${hoursText(max)} h (yellow)`]);
+  const site = answer.site || body.site;
+  lines.push(["Place", `${degrees(site.latitude, "N", "S")}, ${degrees(site.longitude, "E", "W")}` +
+    (site.north_deg ? `; north ${site.north_deg}° clockwise from −Z` : "; north is −Z (up)")]);
+  const period = answer.period || body.period;
+  const days = Math.round((Date.parse(period.end) - Date.parse(period.start)) / 86400000);
+  const first = shown.firstDay;
+  const step = period.step_minutes;
+  lines.push(["Period", `${first || utcMinutes(period.start)}, ${days} day${days === 1 ? "" : "s"} of mean solar time ` +
+    `(${utcMinutes(period.start)} to ${utcMinutes(period.end)}), every ${step} min: ` +
+    `${answer.samples_count.toLocaleString("en")} samples, ${answer.samples_up.toLocaleString("en")} with the sun up ` +
+    `(${hoursText((answer.samples_up * step) / 60)} h)`]);
+  if (answer.pass_share !== undefined) {
+    const require = hoursText(answer.require_hours);
+    const half = answer.pass_share >= 0.5;
+    const br209 = answer.require_hours === 2 && days === 1 && /-03-21$/.test(shown.firstDay || "");
+    const verdict = br209 ? (half ? "passes BR 209" : "fails BR 209 (it asks for at least half the area)")
+                          : (half ? "at least half the area" : "under half the area");
+    lines.push(["Threshold", `${percent(answer.pass_share)} of points get ≥ ${require} h: ${verdict}`, half ? "pass" : "fail"]);
+  }
+  const share = answer.pairs > 0 ? answer.pairs_ray_cast / answer.pairs : 0;
+  lines.push(["Path", `${answer.path}: ${percent(share)} of the ${answer.pairs.toLocaleString("en")} point-samples ` +
+    `with the sun up ray cast (${answer.pairs_ray_cast.toLocaleString("en")}), ` +
+    `${answer.pairs_by_maps.toLocaleString("en")} proved lit by footprints` + (answer.exact ? "; exact" : "")]);
+  const g = answer.grid;
+  lines.push(["Grid", `${g.columns} × ${g.rows} points every ${g.spacing}, at y = ${round(g.origin[1])}, ` +
+    `(x, z) from (${round(g.origin[0])}, ${round(g.origin[2])}) at the top left to ` +
+    `(${round(g.origin[0] + (g.columns - 1) * g.spacing)}, ${round(g.origin[2] + (g.rows - 1) * g.spacing)}) at the bottom right`]);
+  return lines;
+}
+
+function writeSunHoursLegend(shown) {
+  const list = $("sh-legend");
+  list.replaceChildren();
+  for (const [term, text, kind] of sunHoursLegendLines(shown)) {
+    const dd = Object.assign(document.createElement("dd"), { textContent: text });
+    if (kind) dd.className = kind;
+    dd.dataset.term = term.toLowerCase();
+    list.append(Object.assign(document.createElement("dt"), { textContent: term }), dd);
+  }
+}
+
+// The point under the pointer (or chosen with the arrow keys, the map
+// focused): where it is, its hours and longest run, and a box around it.
+function readSunHoursPoint(e) {
+  const shown = sunHours.shown;
+  if (!shown) return;
+  const { columns, rows } = shown.answer.grid;
+  const box = $("sh-map").getBoundingClientRect();
+  const column = Math.floor(((e.clientX - box.left) / box.width) * columns);
+  const row = Math.floor(((e.clientY - box.top) / box.height) * rows);
+  if (column >= 0 && row >= 0 && column < columns && row < rows) showSunHoursPoint(column, row);
+}
+
+function sunHoursKey(e) {
+  const shown = sunHours.shown;
+  const moves = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, -1], ArrowDown: [0, 1] };
+  if (!shown || !moves[e.key]) return;
+  e.preventDefault();
+  const { columns, rows } = shown.answer.grid;
+  const at = sunHours.point || { column: Math.floor(columns / 2), row: Math.floor(rows / 2) };
+  const step = e.shiftKey ? 10 : 1;
+  showSunHoursPoint(clamp(at.column + moves[e.key][0] * step, 0, columns - 1), clamp(at.row + moves[e.key][1] * step, 0, rows - 1));
+}
+
+function showSunHoursPoint(column, row) {
+  const { answer } = sunHours.shown;
+  const { columns, rows, origin, spacing } = answer.grid;
+  sunHours.point = { column, row };
+  const i = row * columns + column;
+  const hours = answer.hours[i], run = answer.longest_run_hours[i];
+  const x = round(origin[0] + column * spacing), z = round(origin[2] + row * spacing);
+  const verdict = answer.require_hours === undefined ? ""
+    : reaches(hours, answer.require_hours) ? ` — reaches ${hoursText(answer.require_hours)} h`
+    : ` — under ${hoursText(answer.require_hours)} h`;
+  const readout = $("sh-readout");
+  readout.textContent = `x ${x}, z ${z} (column ${column}, row ${row}): ${hoursText(hours)} h of sun ` +
+    `(${hoursAndMinutes(hours)}), longest run ${hoursText(run)} h${verdict}`;
+  readout.dataset.index = String(i);
+  // The box: the cell as shown (the canvas may be scaled down), at least 5 px.
+  const canvas = $("sh-map");
+  const [w, h] = [canvas.clientWidth / columns, canvas.clientHeight / rows];
+  const size = [Math.max(w, 5), Math.max(h, 5)];
+  Object.assign($("sh-cursor").style, {
+    left: `${canvas.offsetLeft + (column + 0.5) * w - size[0] / 2}px`, top: `${canvas.offsetTop + (row + 0.5) * h - size[1] / 2}px`,
+    width: `${size[0]}px`, height: `${size[1]}px`,
+  });
+  $("sh-cursor").hidden = false;
+}
+
+function leaveSunHoursMap() {
+  if (document.activeElement === $("sh-map") && sunHours.point) return;  // the keys' point stays
+  $("sh-readout").textContent = SH_READOUT_HINT;
+  $("sh-cursor").hidden = true;
+  sunHours.point = null;
+}
+
+// --- Downloads
+
+function sunHoursFileName(shown, extension) {
+  const site = shown.body.site;
+  return `sun-hours-${shown.firstDay || "period"}-${site.latitude}_${site.longitude}.${extension}`;
+}
+
+function saveBlob(blob, name) {
+  const url = URL.createObjectURL(blob);
+  const link = Object.assign(document.createElement("a"), { href: url, download: name });
+  document.body.append(link);
+  link.click();
+  link.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 10000);
+}
+
+// The same analysis as text/csv: from the job's location while the server
+// holds its result, else the same body posted again with Accept: text/csv.
+async function downloadSunHoursCsv() {
+  const shown = sunHours.shown;
+  if (!shown || sunHours.active) return;
+  const status = $("sh-download-status");
+  status.textContent = "Asking for the CSV…";
+  let text = null;
+  if (shown.location) {
+    try {
+      const response = await apiFetch(shown.location, { headers: { Accept: "text/csv" } });
+      if (response.status === 200) text = await response.text();
+    } catch (_) { /* asked again below */ }
+  }
+  if (text === null) {
+    const run = { cancelled: false, controller: new AbortController(), location: null };
+    sunHoursBusy(run);
+    try {
+      text = await (await askSunHours(run, shown.body, "text/csv")).text();
+    } catch (e) {
+      status.textContent = e instanceof SunHoursCancelled ? "CSV cancelled." : "No CSV: see the message below.";
+      if (!(e instanceof SunHoursCancelled)) showError(e.message, "sun-hours");
+      return;
+    } finally {
+      sunHoursBusy(null);
+    }
+  }
+  saveBlob(new Blob([text], { type: "text/csv" }), sunHoursFileName(shown, "csv"));
+  status.textContent = `Saved ${sunHoursFileName(shown, "csv")} (x, y, z, hours, longest_run_hours a point).`;
+}
+
+// The map, its scale and the legend's lines in one PNG, for a report.
+function downloadSunHoursPng() {
+  const shown = sunHours.shown;
+  if (!shown) return;
+  const map = $("sh-map"), scale = $("sh-scale");
+  const lines = sunHoursLegendLines(shown).map(([term, text]) => `${term}: ${text}`);
+  const out = document.createElement("canvas");
+  const context = out.getContext("2d");
+  context.font = "13px system-ui, sans-serif";
+  const textWidth = Math.max(...lines.map((l) => context.measureText(l).width));
+  out.width = Math.ceil(Math.max(map.width + scale.width + 48, textWidth + 32));
+  out.height = Math.max(map.height, scale.height) + 32 + 20 * lines.length;
+  context.fillStyle = "#15171b";
+  context.fillRect(0, 0, out.width, out.height);
+  context.drawImage(map, 16, 16);
+  context.drawImage(scale, map.width + 32, 16);
+  context.font = "13px system-ui, sans-serif";
+  context.fillStyle = "#e6e6e6";
+  context.textBaseline = "top";
+  lines.forEach((line, i) => context.fillText(line, 16, Math.max(map.height, scale.height) + 24 + 20 * i));
+  out.toBlob((blob) => {
+    saveBlob(blob, sunHoursFileName(shown, "png"));
+    $("sh-download-status").textContent = `Saved ${sunHoursFileName(shown, "png")}.`;
+  });
+}
+
+function sunHoursCurl(body) {
+  const json = JSON.stringify(body).replace(/'/g, "'\\''");
+  const token = savedToken() ? ` -H "Authorization: Bearer $UMBRA_TOKEN"` : "";
+  return `curl -X POST '${location.origin}/api/sun-hours' -H 'Content-Type: application/json'${token} -d '${json}' -o sun-hours.json` +
+    "  # a 202 answer names the job's location: GET it until 200";
+}
+
 // --- Copy as curl --------------------------------------------------------------
 
 function curlCommand(body) {
@@ -1492,7 +2327,14 @@ function curlCommand(body) {
 }
 
 async function copyCurl() {
-  const command = curlCommand(buildRequest());
+  let command;
+  if (sunHoursMode()) {
+    const body = sunHoursBody();
+    if (!body) return;
+    command = sunHoursCurl(body);
+  } else {
+    command = curlCommand(buildRequest());
+  }
   $("curl").textContent = command;
   $("curl").hidden = false;
   try {
@@ -1507,7 +2349,9 @@ async function copyCurl() {
 // choice among them: fill the lists before reading the address.
 async function start() {
   await loadChoices();
+  setUpSunHours();
   loadFromUrl();
+  sunHoursAfterUrl();
   showCamera();
   syncFixedSettings();
   syncSizeNote();
@@ -1521,6 +2365,8 @@ function isCameraField(e) {
 $("controls").addEventListener("input", (e) => {
   if (e.target.id === "model-file") return;  // its "change" uploads; the frame follows the answer
   if (e.target.id === "scene-json") return sceneJsonTyped();  // sent by "Render this" only
+  if (e.target.id === "mode") return modeChanged();
+  if (isSunHoursField(e.target)) return sunHoursFieldChanged(e.target);  // sent by Run only
   clearError("upload");
   if (isCameraField(e.target)) {
     const camera = cameraFromFields();
@@ -1532,6 +2378,7 @@ $("controls").addEventListener("input", (e) => {
     if (state.custom) leaveCustomScene();
     state.camera = null;
     showCamera();
+    sunHoursSceneChanged();
   }
   if ([...LIGHT_FIELDS, ...LIGHT_TARGET_FIELDS, "orbit"].includes(e.target.id)) lightFieldsEdited();
   if (e.target.id === "time") showLightAtTime();
@@ -1566,4 +2413,14 @@ $("model-file").addEventListener("change", () => {
 document.addEventListener("dragover", dragOver);
 document.addEventListener("dragleave", (e) => { if (e.relatedTarget === null) document.body.classList.remove("dropping"); });
 document.addEventListener("drop", drop);
+$("sh_city").addEventListener("change", chooseSunHoursCity);
+$("sh-centre").addEventListener("click", centreGridOnScene);
+$("sh-run").addEventListener("click", runSunHours);
+$("sh-cancel").addEventListener("click", cancelSunHours);
+$("sh-csv").addEventListener("click", downloadSunHoursCsv);
+$("sh-png").addEventListener("click", downloadSunHoursPng);
+$("sh-map").addEventListener("pointermove", readSunHoursPoint);
+$("sh-map").addEventListener("pointerdown", readSunHoursPoint);
+$("sh-map").addEventListener("pointerleave", leaveSunHoursMap);
+$("sh-map").addEventListener("keydown", sunHoursKey);
 start();

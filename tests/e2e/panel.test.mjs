@@ -26,13 +26,14 @@ fs.mkdirSync(artifacts, { recursive: true });
 // Counts the panel's requests and how many are in flight at once, by
 // wrapping fetch before the panel's script runs.
 function countRequests() {
-  const counter = { sent: 0, depthSent: 0, inFlight: 0, maxInFlight: 0, frames: 0, lastRenderBody: null };
+  const counter = { sent: 0, depthSent: 0, inFlight: 0, maxInFlight: 0, frames: 0, lastRenderBody: null, lastSunHoursBody: null };
   window.__umbra = counter;
   const original = window.fetch.bind(window);
   window.fetch = async (...args) => {
     counter.sent += 1;
     if (String(args[0]).endsWith("/api/render")) counter.lastRenderBody = args[1].body;
     if (String(args[0]).endsWith("/api/depth")) counter.depthSent += 1;
+    if (String(args[0]).endsWith("/api/sun-hours")) counter.lastSunHoursBody = args[1].body;
     counter.inFlight += 1;
     counter.maxInFlight = Math.max(counter.maxInFlight, counter.inFlight);
     try {
@@ -277,6 +278,52 @@ async function depthTiles(page) {
   });
 }
 
+// --- Sun hours -------------------------------------------------------------
+
+// As the panel writes hours and shares.
+const hoursText = (h) => String(Number(h.toFixed(2)));
+function percentText(share) {
+  const p = 100 * share;
+  if (p > 0 && p < 0.05) return "< 0.1 %";
+  if (p < 100 && p >= 99.95) return "> 99.9 %";
+  return `${Number(p.toFixed(1))} %`;
+}
+
+// The centre of cell `i` of the sun-hours map, in page coordinates.
+async function sunHoursCell(page, answer, i) {
+  await page.$eval("#sh-map", (c) => c.scrollIntoView({ block: "nearest" }));
+  const box = await page.$eval("#sh-map", (c) => { const r = c.getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; });
+  const { columns, rows } = answer.grid;
+  const column = i % columns, row = Math.floor(i / columns);
+  return [box[0] + ((column + 0.5) * box[2]) / columns, box[1] + ((row + 0.5) * box[3]) / rows];
+}
+
+// The map's pixel at the centre of cell `i` (canvas coordinates).
+async function sunHoursPixel(page, answer, i) {
+  return page.$eval("#sh-map", (canvas, [i, columns, rows]) => {
+    const x = Math.floor((((i % columns) + 0.5) * canvas.width) / columns);
+    const y = Math.floor(((Math.floor(i / columns) + 0.5) * canvas.height) / rows);
+    return Array.from(canvas.getContext("2d").getImageData(x, y, 1, 1).data.slice(0, 3));
+  }, [i, answer.grid.columns, answer.grid.rows]);
+}
+
+// Clicks "Download CSV" and returns the saved file's lines.
+async function downloadedCsv(page) {
+  const [download] = await Promise.all([page.waitForEvent("download", { timeout: 60000 }), page.click("#sh-csv")]);
+  assert.match(download.suggestedFilename(), /^sun-hours-.+\.csv$/);
+  return fs.readFileSync(await download.path(), "utf8").trimEnd().split("\n");
+}
+
+// Records every state the progress line shows (it may show one for under a second).
+function recordProgress() {
+  window.__progress = [];
+  const record = () => {
+    const box = document.getElementById("sh-progress");
+    if (!box.hidden) window.__progress.push(`${box.dataset.state}: ${document.getElementById("sh-progress-text").textContent}`);
+  };
+  new MutationObserver(record).observe(document.getElementById("sh-progress"), { attributes: true, childList: true, subtree: true, characterData: true });
+}
+
 let stepNumber = 0;
 // The light's fields show the last request's light.position turned about
 // light.target by time x orbit_deg_per_s (the server's orbit_light_position).
@@ -313,6 +360,7 @@ async function step(page, name, body) {
 const server = startServer(serverBinary);
 const port = await server.port;
 let guarded = null;  // the server with --tokens, for the last step
+let jobServer = null;  // the server whose every sun-hours analysis is a job
 const browser = await chromium.launch({
   executablePath: chromiumPath,
   args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"],
@@ -777,6 +825,180 @@ try {
     assert.equal(await page.$eval("#sun-now", (p) => p.textContent), "");
   });
 
+  await step(page, "sun-hours-mode-maps-hours-of-direct-sun", async () => {
+    await quietSent(page);
+    const sent = await page.evaluate(() => window.__umbra.sent);
+    const sceneName = await page.$eval("#scene", (s) => s.value);
+    await page.selectOption("#mode", "sun-hours");
+    assert.ok(await page.$eval("#viewport", (v) => v.getClientRects().length === 0), "the frame is hidden");
+    assert.ok(await page.$eval("#sun-hours-settings", (f) => f.getClientRects().length > 0), "the mode's fields are shown");
+    await sentStaysAt(page, sent, 500);
+    // The page's defaults: this year's 21 March, a day at 10-minute steps,
+    // the sun's place, a 20 x 20 grid every 0.25 about the scene's target
+    // just above its floor, a 2 h threshold.
+    const year = new Date().getFullYear();
+    assert.equal(await page.$eval("#sh_date", (i) => i.value), `${year}-03-21`);
+    const listed = (await (await fetch(`http://127.0.0.1:${port}/api/scenes`)).json()).scenes.find((s) => s.name === sceneName);
+    const floor = Math.min(...listed.objects.filter((o) => o.type === "plane").map((o) => o.center[1]));
+    const centre = [listed.camera.target[0], floor + 0.01, listed.camera.target[2]].map((x) => Number(x.toPrecision(6)));
+    const fields = await page.evaluate(() => ["sh_cx", "sh_cy", "sh_cz"].map((id) => Number(document.getElementById(id).value)));
+    assert.deepEqual(fields, centre, "the grid is centred on the scene's target, 0.01 above its floor");
+    assert.match(await page.$eval("#sh-points", (p) => p.textContent), /^80 × 80 = 6,400 points/);
+    await page.click("#sh-run");
+    await page.waitForSelector("#sh-result:not([hidden])", { timeout: 60000 });
+    await page.waitForFunction(() => /^Done/.test(document.getElementById("sh-status").textContent));
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    const body = JSON.parse(await page.evaluate(() => window.__umbra.lastSunHoursBody));
+    assert.deepEqual(body, {
+      scene: sceneName,
+      site: { latitude: 48.8566, longitude: 2.3522 },
+      // Paris's mean solar midnight: 9 minutes before UTC's.
+      period: { start: `${year}-03-20T23:51:00Z`, end: `${year}-03-21T23:51:00Z`, step_minutes: 10 },
+      grid: { center: centre, size: [20, 20], spacing: 0.25 },
+      require_hours: 2,
+    });
+    const answer = await (await fetch(`http://127.0.0.1:${port}/api/sun-hours`, { method: "POST", body: JSON.stringify(body) })).json();
+    assert.deepEqual([answer.grid.columns, answer.grid.rows], [80, 80]);
+    assert.deepEqual(await page.$eval("#sh-map", (c) => [c.width, c.height]), [480, 480], "6 px a point");
+    // The legend: the pass share against the threshold, the place, the period, the path.
+    const legend = await page.$eval("#sh-legend", (d) => d.textContent);
+    const verdict = answer.pass_share >= 0.5 ? "passes BR 209" : "fails BR 209";
+    assert.ok(legend.includes(`${percentText(answer.pass_share)} of points get ≥ 2 h: ${verdict}`), legend);
+    assert.match(legend, /48\.8566° N, 2\.3522° E/);
+    assert.match(legend, new RegExp(`every 10 min: 144 samples, ${answer.samples_up} with the sun up`));
+    assert.ok(legend.includes(`${answer.path}: `) && legend.includes(`(${answer.pairs_ray_cast.toLocaleString("en")}),`), legend);
+    assert.match(legend, /12\.17 h \(yellow\)/, "the scale's top is the most hours");
+    // The map: the most hours yellow, north (row 0, -Z) on top; a point in
+    // the shade reads its own hours under the pointer.
+    const max = Math.max(...answer.hours);
+    const sunny = answer.hours.indexOf(max);
+    assert.deepEqual(await sunHoursPixel(page, answer, sunny), [253, 231, 37], "the most hours are yellow");
+    const shaded = answer.hours.findIndex((h) => h > 2.5 && h < max - 1);
+    assert.ok(shaded >= 0, "some point is in the shade part of the day");
+    const shadedColour = await sunHoursPixel(page, answer, shaded);
+    assert.ok(shadedColour[2] > 37 && shadedColour[0] < 253, `a shaded point is not yellow (${shadedColour})`);
+    await page.mouse.move(...(await sunHoursCell(page, answer, shaded)));
+    const x = answer.grid.origin[0] + (shaded % 80) * 0.25, z = answer.grid.origin[2] + Math.floor(shaded / 80) * 0.25;
+    await page.waitForFunction((i) => document.getElementById("sh-readout").dataset.index === String(i), shaded);
+    const readout = await page.$eval("#sh-readout", (p) => p.textContent);
+    assert.ok(readout.startsWith(`x ${Number(x.toPrecision(6))}, z ${Number(z.toPrecision(6))} (column ${shaded % 80}, row ${Math.floor(shaded / 80)}): ` +
+                                 `${hoursText(answer.hours[shaded])} h of sun`), readout);
+    assert.ok(readout.includes(`longest run ${hoursText(answer.longest_run_hours[shaded])} h — reaches 2 h`), readout);
+    // Under the threshold: hatched, and said so.
+    const short = answer.hours.findIndex((h) => h < 2);
+    if (short >= 0) {
+      await page.mouse.move(...(await sunHoursCell(page, answer, short)));
+      await page.waitForFunction(() => / — under 2 h$/.test(document.getElementById("sh-readout").textContent));
+    }
+    // With the map focused, the arrow keys move from point to point.
+    await page.focus("#sh-map");
+    await page.keyboard.press("ArrowRight");
+    const last = short >= 0 ? short : shaded;
+    assert.equal(Number(await page.$eval("#sh-readout", (p) => p.dataset.index)), last + 1, "the arrow key moved one point east");
+    assert.ok(await page.$eval("#sh-cursor", (c) => !c.hidden), "the point is boxed on the map");
+    await page.screenshot({ path: path.join(artifacts, "sun-hours-map.png"), fullPage: true });
+    // The map with its legend as one PNG.
+    const [png] = await Promise.all([page.waitForEvent("download", { timeout: 60000 }), page.click("#sh-png")]);
+    const pngBytes = fs.readFileSync(await png.path());
+    assert.ok(pngBytes.subarray(0, 8).equals(Buffer.from("\x89PNG\r\n\x1a\n", "latin1")), "a PNG");
+    assert.ok(pngBytes.readUInt32BE(16) > 480 && pngBytes.readUInt32BE(20) > 480, "the map and more");
+    // The CSV is the server's for the same body.
+    const csv = await downloadedCsv(page);
+    assert.equal(csv[0], "x,y,z,hours,longest_run_hours");
+    assert.equal(csv.length, 6401);
+    assert.equal(Number(csv[1 + shaded].split(",")[3]), answer.hours[shaded]);
+    // "Copy as curl" gives the analysis.
+    await page.click("#copy-curl");
+    const command = await page.$eval("#curl", (p) => p.textContent);
+    assert.ok(command.startsWith(`curl -X POST 'http://127.0.0.1:${port}/api/sun-hours' -H 'Content-Type: application/json' -d '${JSON.stringify(body)}'`), command);
+    // A step the day does not divide into: the server's 400 names the field, which is marked.
+    await typeInto(page, "sh_step", "7");
+    await page.click("#sh-run");
+    await page.waitForFunction(() => !document.getElementById("error").hidden, null, { timeout: 60000 });
+    assert.match(await page.$eval("#error", (e) => e.textContent), /^Sun hours not computed \(400\): period\.step_minutes: .*whole number of steps of 7 minutes/);
+    assert.equal(await page.$eval("#sh_step", (i) => i.getAttribute("aria-invalid")), "true");
+    assert.match(await page.$eval("#sh_step-problem", (p) => p.textContent), /^Step \(minutes\): .*7 minutes \(the server's answer\)/);
+    // A value the field cannot take is marked and nothing is sent.
+    await typeInto(page, "sh_spacing", "-1");
+    const before = await page.evaluate(() => window.__umbra.sent);
+    await page.click("#sh-run");
+    assert.match(await page.$eval("#sh_spacing-problem", (p) => p.textContent), /^Grid spacing: at least/);
+    assert.match(await page.$eval("#sh-status", (p) => p.textContent), /^Not run: .*Grid spacing/);
+    await sentStaysAt(page, before, 300);
+    await typeInto(page, "sh_spacing", "0.25");
+    await typeInto(page, "sh_step", "10");
+    assert.equal(await page.$eval("#sh_step", (i) => i.getAttribute("aria-invalid")), null, "fixed: no longer marked");
+    await page.click("#sh-run");
+    await page.waitForFunction(() => /^Done/.test(document.getElementById("sh-status").textContent), null, { timeout: 60000 });
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "the error goes with the next result");
+    assert.equal(new URL(page.url()).searchParams.get("mode"), "sun-hours");
+    // Back to frames: as it was, nothing of the mode left in the address.
+    await page.selectOption("#mode", "render");
+    await page.waitForFunction(() => window.__umbra.inFlight === 0);
+    assert.ok(await page.$eval("#viewport", (v) => v.getClientRects().length > 0), "the frame is shown again");
+    assert.ok(!new URL(page.url()).searchParams.has("mode"));
+    assert.ok(![...new URL(page.url()).searchParams.keys()].some((k) => k.startsWith("sh_")), page.url());
+  });
+
+  await step(page, "sun-hours-jobs-show-progress-cancel-and-complete", async () => {
+    // A server whose budget a request is 1 ms: every analysis is a job.
+    jobServer = startServer(serverBinary, ["--max-request-ms", "1"]);
+    const jobsPort = await jobServer.port;
+    const jobs = await page.context().newPage();
+    const calls = [];
+    jobs.on("request", (r) => { if (new URL(r.url()).pathname.startsWith("/api/sun-hours")) calls.push(`${r.method()} ${new URL(r.url()).pathname}`); });
+    try {
+      // A year over the teapot, a point every 4 cm: long enough (seconds even on
+      // many cores) to watch and cancel.
+      await jobs.goto(`http://127.0.0.1:${jobsPort}/?mode=sun-hours&scene=teapot&sh_days=365&sh_spacing=0.04`);
+      await jobs.waitForFunction(() => document.body.classList.contains("sun-hours-mode") && document.getElementById("sh_cx").value !== "");
+      await jobs.click("#sh-run");
+      await jobs.waitForFunction(() => document.getElementById("sh-progress").dataset.state === "running" &&
+                                       / left/.test(document.getElementById("sh-progress-text").textContent), null, { timeout: 60000 });
+      const progress = await jobs.$eval("#sh-progress-text", (p) => p.textContent);
+      assert.match(progress, /^Job running: \d+ % done · about [\d.]+ (ms|s|min \d+ s|h \d+ min) left · [\d.]+ [kMG]? ?point-samples\/s$/);
+      assert.ok(await jobs.$eval("#sh-progress-bar", (b) => b.value > 0 && b.value < 1), "the bar shows the share done");
+      assert.ok(await jobs.$eval("#sh-run", (b) => b.disabled), "one run at a time");
+      await jobs.screenshot({ path: path.join(artifacts, "sun-hours-job-running.png"), fullPage: true });
+      const location = await jobs.$eval("#sh-progress", (d) => d.dataset.location);
+      assert.match(location, /^\/api\/sun-hours\/jobs\/[\w.-]+$/);
+      await jobs.click("#sh-cancel");
+      await jobs.waitForFunction(() => /^Cancelled: the job was deleted/.test(document.getElementById("sh-status").textContent));
+      assert.ok(await jobs.$eval("#sh-progress", (d) => d.hidden), "the bar goes");
+      assert.ok(calls.includes(`DELETE ${location}`), calls.join(", "));
+      assert.ok(calls.filter((c) => c === `GET ${location}`).length >= 1, "its progress was read from its location");
+      assert.equal((await fetch(`http://127.0.0.1:${jobsPort}${location}`)).status, 404, "the job is gone from the server");
+      // A week over the default scene: a short job, followed to its result.
+      await jobs.goto(`http://127.0.0.1:${jobsPort}/?mode=sun-hours&sh_days=7`);
+      await jobs.waitForFunction(() => document.body.classList.contains("sun-hours-mode") && document.getElementById("sh_cx").value !== "");
+      await jobs.evaluate(recordProgress);
+      calls.length = 0;
+      await jobs.click("#sh-run");
+      await jobs.waitForFunction(() => /^Done/.test(document.getElementById("sh-status").textContent), null, { timeout: 120000 });
+      assert.match(await jobs.$eval("#sh-status", (p) => p.textContent), /as a job/);
+      const states = await jobs.evaluate(() => window.__progress);
+      assert.ok(states.some((s) => /^(queued|running): Job /.test(s)), `the job's progress was shown: ${states.join(" | ")}`);
+      assert.ok(await jobs.$eval("#sh-progress", (d) => d.hidden), "the bar goes once done");
+      assert.match(calls[0], /^POST \/api\/sun-hours$/);
+      assert.ok(calls.slice(1).every((c) => /^GET \/api\/sun-hours\/jobs\//.test(c)) && calls.length >= 2, calls.join(", "));
+      const legend = await jobs.$eval("#sh-legend", (d) => d.textContent);
+      assert.match(legend, /[\d.]+ % of points get ≥ 2 h: (at least|under) half the area/, "7 days: not BR 209's test");
+      assert.match(legend, /7 days of mean solar time/);
+      assert.ok(await jobs.$eval("#error", (e) => e.hidden), "no error shown");
+      // The CSV comes from the job's result, not a new analysis.
+      calls.length = 0;
+      const csv = await downloadedCsv(jobs);
+      assert.equal(csv.length, 6401);
+      assert.equal(calls.length, 1, calls.join(", "));
+      assert.match(calls[0], /^GET \/api\/sun-hours\/jobs\//);
+      await jobs.screenshot({ path: path.join(artifacts, "sun-hours-job-done.png"), fullPage: true });
+    } finally {
+      await jobs.close();
+      jobServer.child.kill("SIGTERM");
+      await jobServer.exited;
+    }
+  });
+
   await step(page, "resolution-and-depth-map-at-a-lower-rate-while-playing", async () => {
     let before = await currentSources(page);
     await page.selectOption("#resolution", "480x270");
@@ -1052,6 +1274,7 @@ try {
   await browser.close();
   if (server.child.exitCode === null) server.child.kill("SIGKILL");
   if (guarded && guarded.child.exitCode === null) guarded.child.kill("SIGKILL");
+  if (jobServer && jobServer.child.exitCode === null) jobServer.child.kill("SIGKILL");
 }
 console.log(`screenshots in ${artifacts}`);
 process.exit(failed ? 1 : 0);
