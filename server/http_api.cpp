@@ -497,11 +497,7 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   ModelPlan plan;
   const std::string owner = uploader_of(req);
   const ModelsNamed named = [&](const std::vector<std::string>& keys) { plan_models(plan, keys, owner); };
-  const ModelLookup lookup = [&](const std::string& id_or_name) -> std::optional<FoundModel> {
-    const auto held = find_model(plan, id_or_name);
-    if (!held) return std::nullopt;
-    return FoundModel{held->id, drawn_model(held)};
-  };
+  const ModelLookup lookup = model_lookup(plan);
   ParsedRequest parsed;
   try {
     parsed = parse_render_request(req.body, depth_route ? umbra::Route::Depth : umbra::Route::Render, lookup, named);
@@ -596,11 +592,7 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   ModelPlan plan;
   const std::string owner = uploader_of(req);
   const ModelsNamed named = [&](const std::vector<std::string>& keys) { plan_models(plan, keys, owner); };
-  const ModelLookup lookup = [&](const std::string& id_or_name) -> std::optional<FoundModel> {
-    const auto held = find_model(plan, id_or_name);
-    if (!held) return std::nullopt;
-    return FoundModel{held->id, drawn_model(held)};
-  };
+  const ModelLookup lookup = model_lookup(plan);
   ParsedSunHours parsed;
   try {
     parsed = parse_sun_hours_request(req.body, lookup, named);
@@ -621,6 +613,14 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   std::vector<std::string> unused;
   if (!parsed.request->picture) unused = parsed.picture_fields;
   if (!parsed.request->exact) unused.push_back("exact");
+  if (parsed.request->include_samples && *format != SunHoursFormat::Json) unused.push_back("include_samples");
+  // A picture shows a grid only as its pass share: without require_hours
+  // the grid changes nothing, and is not computed.
+  if (parsed.request->picture && parsed.grid_given && !parsed.request->require_hours) {
+    unused.push_back("grid");
+    parsed.request->grid.columns = parsed.request->grid.rows = 0;
+  }
+  std::sort(unused.begin(), unused.end());
   if (!unused.empty()) {
     std::string list;
     for (const auto& f : unused) list += (list.empty() ? "" : ", ") + f;
@@ -750,11 +750,10 @@ void HttpApi::sun_hours_job(const HttpRequest& req, HttpResponse& res) {
     res.set_header("Cache-Control", "no-store");
     return res.set_content(progress.dump(), "application/json");
   }
-  std::optional<SunHoursFormat> format = sun_hours_format(req.header("Accept"));
   // A job posted for a picture answers with it; one posted for a grid, as
   // JSON or CSV by this GET's Accept.
+  std::optional<SunHoursFormat> format = sun_hours_format(req.header("Accept"), false);
   if (job->request.picture) format = SunHoursFormat::Png;
-  if (format == SunHoursFormat::Png && !job->request.picture) format.reset();
   if (!format)
     return send_error(res, 406,
                       "Accept names no format this job answers in: application/json or text/csv (a job posted "
@@ -909,6 +908,16 @@ void HttpApi::plan_models(ModelPlan& plan, const std::vector<std::string>& keys,
       throw room_refusal(room.outcome, bytes, "the model " + short_id(key) + " needs", 503);
     load.room = std::move(room.reservation);
   }
+}
+
+// How a parser finds the models a scene names: through `plan`, which must
+// outlive the lookup.
+ModelLookup HttpApi::model_lookup(ModelPlan& plan) {
+  return [this, &plan](const std::string& id_or_name) -> std::optional<FoundModel> {
+    const auto held = find_model(plan, id_or_name);
+    if (!held) return std::nullopt;
+    return FoundModel{held->id, drawn_model(held)};
+  };
 }
 
 std::shared_ptr<const HeldModel> HttpApi::find_model(ModelPlan& plan, const std::string& id_or_name) {

@@ -17,6 +17,7 @@
 #include "access.hpp"
 #include "http_server.hpp"
 #include "metrics.hpp"
+#include "request_parser.hpp"
 #include "sun_hours_answer.hpp"
 #include "sun_hours_jobs.hpp"
 
@@ -161,6 +162,8 @@ class HttpApi {
   /// would have to load one with no place free, ModelsRefused if it holds
   /// more than its record said and no room is left for the rest.
   std::shared_ptr<const HeldModel> find_model(ModelPlan& plan, const std::string& id_or_name);
+  /// find_model as the request parsers take it (a ModelLookup over `plan`).
+  ModelLookup model_lookup(ModelPlan& plan);
   /// load_gltf in one of kMaxConcurrentModelLoads places (a load holds a
   /// few times its body in memory): nullopt, unloaded, if none is free.
   std::optional<LoadResult> load_model(const std::string& body, const LoadOptions& options);

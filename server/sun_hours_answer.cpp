@@ -75,10 +75,10 @@ void append_number(std::string& text, double v) {
 
 }  // namespace
 
-std::optional<SunHoursFormat> sun_hours_format(std::string_view accept) {
+std::optional<SunHoursFormat> sun_hours_format(std::string_view accept, bool png) {
   if (trim(accept).empty()) return SunHoursFormat::Json;
   const double json_q = quality(accept, "application/json"), csv_q = quality(accept, "text/csv"),
-               png_q = quality(accept, "image/png");
+               png_q = png ? quality(accept, "image/png") : -1.0;
   const double best = std::max({json_q, csv_q, png_q});
   if (best <= 0.0) return std::nullopt;
   return json_q == best ? SunHoursFormat::Json : csv_q == best ? SunHoursFormat::Csv : SunHoursFormat::Png;

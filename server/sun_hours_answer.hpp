@@ -17,7 +17,9 @@ enum class SunHoursFormat { Json, Csv, Png };
 /// q that application/json, text/csv or image/png match (in that order of
 /// preference on a tie; JSON when the header is absent or empty); nullopt
 /// when it accepts none of them (406).
-std::optional<SunHoursFormat> sun_hours_format(std::string_view accept);
+/// With `png` false (a job posted for a grid), image/png is not among the
+/// formats and the best of the other two is chosen.
+std::optional<SunHoursFormat> sun_hours_format(std::string_view accept, bool png = true);
 
 /// The JSON answer: the grid, hours and longest run per point (row-major,
 /// row 0 first), the pass share when require_hours was given, the pairs

@@ -2,6 +2,8 @@
 // states is what parse_render_request gives for a field left out, every
 // default the parser applies is in the document, and every enum the document
 // lists is exactly what the parser takes: a change on either side fails here.
+// The sun-hours request's components (SunHours*) are held to
+// parse_sun_hours_request alike: their defaults and numeric ranges.
 //
 // The document's path comes from CMake (UMBRA_OPENAPI_JSON): the repository's
 // own file, the one the server embeds and serves at GET /api/openapi.json.
@@ -19,6 +21,7 @@
 
 #include "request_fields.hpp"
 #include "request_parser.hpp"
+#include "sun_hours_parser.hpp"
 #include "core/scene.hpp"
 
 namespace umbra {
@@ -66,11 +69,20 @@ RenderRequest parse_ok(const std::string& body) {
 
 json vec(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
 
+// The smallest valid POST /api/sun-hours body: a day at the equator over one
+// point.
+json sun_hours_body() {
+  return {{"site", {{"latitude", 0}, {"longitude", 0}}},
+          {"period", {{"start", "2000-01-01T00:00:00Z"}, {"end", "2000-01-02T00:00:00Z"}}},
+          {"grid", {{"size", {1, 1}}, {"spacing", 1}}}};
+}
+
 const char* name_of(ShadowFilter f) {
   switch (f) {
     case ShadowFilter::Hard: return "hard";
     case ShadowFilter::Pcf: return "pcf";
     case ShadowFilter::Pcss: return "pcss";
+    case ShadowFilter::Exact: return "exact";
   }
   return "?";
 }
@@ -122,6 +134,21 @@ std::map<std::string, json> parser_defaults() {
       {"BiasObject.slope", bias.slope},
       {"BiasObject.normal_offset", bias.normal_offset},
   };
+  // The sun-hours request's defaults (POST /api/sun-hours).
+  const ParsedSunHours sun_hours = parse_sun_hours_request(sun_hours_body().dump());
+  EXPECT_TRUE(sun_hours.ok()) << sun_hours.error.field << ": " << sun_hours.error.message;
+  if (sun_hours.ok()) {
+    const SunHoursRequest& h = *sun_hours.request;
+    defaults["SunHoursRequest.scene"] = h.view.scene.name;
+    defaults["SunHoursRequest.exact"] = h.exact;
+    defaults["SunHoursRequest.include_samples"] = h.include_samples;
+    // The picture's size, read by the render request's own parser.
+    defaults["SunHoursRequest.width"] = h.view.width;
+    defaults["SunHoursRequest.height"] = h.view.height;
+    defaults["SunHoursSite.north_deg"] = h.site.north_deg;
+    defaults["SunHoursPeriod.step_minutes"] = h.period.step_minutes;
+    defaults["SunHoursGrid.center"] = vec(h.grid.center);
+  }
   // Each object type: an object with only its type (a mesh needs its model),
   // as the parser fills it, written back by its rows (write_object).
   for (const ShapeFields& shape : shape_fields()) {
@@ -208,6 +235,7 @@ TEST(ApiDocument, EveryEnumIsWhatTheParserTakes) {
 struct RangeCase {
   json body;           // with the property set to `value`
   std::string field;   // the parser's path for it
+  bool sun_hours = false;  // a POST /api/sun-hours body, not a render's
 };
 
 std::optional<RangeCase> range_case(const std::string& component, const std::string& property, const json& value) {
@@ -243,6 +271,26 @@ std::optional<RangeCase> range_case(const std::string& component, const std::str
     return RangeCase{{{"shadow", shadow}}, "shadow." + property};
   }
   if (component == "BiasObject") return RangeCase{{{"shadow", {{"bias", {{property, value}}}}}}, "shadow.bias." + property};
+  // POST /api/sun-hours: a one-day period (which the steps at the range's
+  // bounds divide), and a grid of whole cells whatever the size or spacing.
+  if (component.rfind("SunHours", 0) == 0) {
+    json body = sun_hours_body();
+    if (component == "SunHoursRequest") {
+      body[property] = value;
+      return RangeCase{body, property, true};
+    }
+    const std::string part = component == "SunHoursSite" ? "site" : component == "SunHoursPeriod" ? "period" : "grid";
+    body[part][property] = value;
+    if (component == "SunHoursGrid" && property == "size") {
+      const double v = value.is_array() ? value[0].get<double>() : value.get<double>();
+      body["grid"]["spacing"] = v > 1e6 ? v / 2 : v > 0 ? v : 1.0;  // spacing itself is at most 1e6
+    }
+    if (component == "SunHoursGrid" && property == "spacing") {
+      const double v = value.get<double>();
+      body["grid"]["size"] = {v > 0 ? v : 1.0, v > 0 ? v : 1.0};
+    }
+    return RangeCase{body, part + "." + property, true};
+  }
   for (const ShapeFields& shape : shape_fields()) {
     if (component != shape.schema) continue;
     const std::string& type = shape.type;
@@ -256,7 +304,23 @@ std::optional<RangeCase> range_case(const std::string& component, const std::str
 // The schemas of answers, not of request bodies: their ranges describe what
 // the server sends.
 bool is_response_schema(const std::string& component) {
-  return component == "Health" || component == "SceneList" || component == "Model" || component == "ModelList";
+  return component == "Health" || component == "SceneList" || component == "Model" || component == "ModelList" ||
+         component == "SunHoursAnswer";
+}
+
+// A body through the parser of its route: whether it is taken, and if not
+// the field its refusal names and why.
+struct Verdict {
+  bool ok;
+  std::string field, message;
+};
+Verdict parse_case(const RangeCase& c) {
+  if (c.sun_hours) {
+    const ParsedSunHours p = parse_sun_hours_request(c.body.dump());
+    return {p.ok(), p.error.field, p.error.message};
+  }
+  const ParsedRequest p = parse_render_request(c.body.dump());
+  return {p.ok(), p.error.field, p.error.message};
 }
 
 // A number with a range somewhere in a property's schema: the property
@@ -318,14 +382,14 @@ TEST(ApiDocument, EveryNumericRangeIsWhatTheParserTakes) {
           const json value = r.items == 0 ? json(number) : json(std::vector<double>(std::size_t(r.items), number));
           RangeCase c = *range_case(component, property, value);
           if (r.items > 0) c.field += "[0]";
-          const ParsedRequest parsed = parse_render_request(c.body.dump());
+          const Verdict parsed = parse_case(c);
           if (taken) {
-            EXPECT_TRUE(parsed.ok()) << c.field << " " << why << ": " << c.body.dump() << " -> " << parsed.error.field
-                                     << ": " << parsed.error.message;
+            EXPECT_TRUE(parsed.ok) << c.field << " " << why << ": " << c.body.dump() << " -> " << parsed.field << ": "
+                                   << parsed.message;
           } else {
-            EXPECT_FALSE(parsed.ok()) << c.field << " " << why << ": " << c.body.dump() << " was taken";
-            if (!parsed.ok()) {
-              EXPECT_EQ(parsed.error.field, c.field) << c.body.dump() << ": " << parsed.error.message;
+            EXPECT_FALSE(parsed.ok) << c.field << " " << why << ": " << c.body.dump() << " was taken";
+            if (!parsed.ok) {
+              EXPECT_EQ(parsed.field, c.field) << c.body.dump() << ": " << parsed.message;
             }
           }
           ++checked;

@@ -771,7 +771,7 @@ TEST(Http, SunHoursAnswersJsonOrCsvByAccept) {
   auto unused = client().Post("/api/sun-hours", picture_body.dump(), "application/json");
   ASSERT_TRUE(unused);
   EXPECT_EQ(unused->status, 200);
-  EXPECT_EQ(unused->get_header_value("Umbra-Unused-Fields"), "width, height");
+  EXPECT_EQ(unused->get_header_value("Umbra-Unused-Fields"), "height, width");
   auto get = client().Get("/api/sun-hours");
   expect_json_error(get, 405, "");
   EXPECT_EQ(get->get_header_value("Allow"), "POST");

@@ -10,14 +10,16 @@
 
 namespace umbra {
 
-std::vector<SunSample> sun_samples_on_all_cores(const SunSite& site, const SunPeriod& period, std::size_t count,
-                                                const std::function<bool()>& stop_requested) {
-  std::vector<SunSample> samples(count);
-  constexpr std::size_t kBlock = 4096;
-  const std::size_t blocks = (count + kBlock - 1) / kBlock;
+namespace {
+
+// Calls task(i) for every i in [0, count) on all hardware threads, each
+// thread taking the next i; asks stop_requested (if given, one thread at a
+// time) before each, and throws CastStopped once it answered true.
+void run_tasks(std::size_t count, const std::function<bool()>& stop_requested,
+               const std::function<void(std::size_t)>& task) {
   std::atomic<std::size_t> next{0};
   std::atomic<bool> stopped{false};
-  std::mutex asking;
+  std::mutex asking;  // stop_requested need not be thread-safe
   const auto work = [&] {
     for (;;) {
       if (stop_requested) {
@@ -25,17 +27,29 @@ std::vector<SunSample> sun_samples_on_all_cores(const SunSite& site, const SunPe
         if (stopped || stop_requested()) stopped = true;
       }
       if (stopped) return;
-      const std::size_t b = next.fetch_add(1);
-      if (b >= blocks) return;
-      for (std::size_t k = b * kBlock; k < std::min(count, (b + 1) * kBlock); ++k) samples[k] = sun_sample(site, period, k);
+      const std::size_t i = next.fetch_add(1);
+      if (i >= count) return;
+      task(i);
     }
   };
-  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(std::max<std::size_t>(1, blocks))));
+  const unsigned threads =
+      std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(std::min<std::size_t>(count, 1u << 16))));
   std::vector<std::thread> pool;
   for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
   work();
   for (auto& t : pool) t.join();
   if (stopped) throw CastStopped();
+}
+
+}  // namespace
+
+std::vector<SunSample> sun_samples_on_all_cores(const SunSite& site, const SunPeriod& period, std::size_t count,
+                                                const std::function<bool()>& stop_requested) {
+  std::vector<SunSample> samples(count);
+  constexpr std::size_t kBlock = 4096;
+  run_tasks((count + kBlock - 1) / kBlock, stop_requested, [&](std::size_t b) {
+    for (std::size_t k = b * kBlock; k < std::min(count, (b + 1) * kBlock); ++k) samples[k] = sun_sample(site, period, k);
+  });
   return samples;
 }
 
@@ -54,33 +68,15 @@ void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::ve
   // About 2^16 rays a chunk: a few milliseconds, so a stop is seen soon.
   const std::size_t chunk = std::max<std::size_t>(1, (std::size_t(1) << 16) / std::max<std::size_t>(1, up));
   const std::size_t chunks = (points + chunk - 1) / chunk;
-  std::atomic<std::size_t> next{0};
-  std::atomic<bool> stopped{false};
-  std::mutex asking;  // stop_requested need not be thread-safe
-  const auto work = [&] {
-    for (;;) {
-      if (stop_requested) {
-        std::lock_guard<std::mutex> lock(asking);
-        if (stopped || stop_requested()) stopped = true;
-      }
-      if (stopped) return;
-      const std::size_t c = next.fetch_add(1);
-      if (c >= chunks) return;
-      const std::size_t first = c * chunk, last = std::min(points, first + chunk);
-      for (const SunSample& sample : samples) {
-        const bool sun_up = sample.up();
-        for (std::size_t i = first; i < last; ++i)
-          result.tally[i].record(sun_up && sees_sun(rays, grid.point(i), sample.direction));
-      }
-      if (pairs_done) pairs_done->fetch_add(std::uint64_t(last - first) * up);
+  run_tasks(chunks, stop_requested, [&](std::size_t c) {
+    const std::size_t first = c * chunk, last = std::min(points, first + chunk);
+    for (const SunSample& sample : samples) {
+      const bool sun_up = sample.up();
+      for (std::size_t i = first; i < last; ++i)
+        result.tally[i].record(sun_up && sees_sun(rays, grid.point(i), sample.direction));
     }
-  };
-  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(chunks)));
-  std::vector<std::thread> pool;
-  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-  if (stopped) throw CastStopped();
+    if (pairs_done) pairs_done->fetch_add(std::uint64_t(last - first) * up);
+  });
   result.pairs_ray_cast = result.pairs;
 }
 
@@ -93,34 +89,16 @@ std::vector<float> sun_hours_per_pixel(const ExactView& view, int width, int hei
   for (const SunSample& s : samples)
     if (s.up()) up.push_back(s.direction);
   const RayScene& rays = view.rays();
-  std::atomic<int> next{0};
-  std::atomic<bool> stopped{false};
-  std::mutex asking;
-  const auto work = [&] {
-    for (;;) {
-      if (stop_requested) {
-        std::lock_guard<std::mutex> lock(asking);
-        if (stopped || stop_requested()) stopped = true;
-      }
-      if (stopped) return;
-      const int y = next.fetch_add(1);
-      if (y >= height) return;
-      for (int x = 0; x < width; ++x) {
-        const std::optional<RayHit> hit = view.surface_at(x + 0.5, y + 0.5);
-        if (!hit) continue;
-        std::uint32_t lit = 0;
-        for (const glm::dvec3& d : up) lit += sees_sun(rays, hit->leave_front, d) ? 1 : 0;
-        hours[std::size_t(y) * std::size_t(width) + std::size_t(x)] = float(double(lit) * step_minutes / 60.0);
-      }
-      if (pairs_done) pairs_done->fetch_add(std::uint64_t(width) * up.size());
+  run_tasks(std::size_t(std::max(0, height)), stop_requested, [&](std::size_t y) {
+    for (int x = 0; x < width; ++x) {
+      const std::optional<RayHit> hit = view.surface_at(x + 0.5, double(y) + 0.5);
+      if (!hit) continue;
+      std::uint32_t lit = 0;
+      for (const glm::dvec3& d : up) lit += sees_sun(rays, hit->leave_front, d) ? 1 : 0;
+      hours[y * std::size_t(width) + std::size_t(x)] = float(double(lit) * step_minutes / 60.0);
     }
-  };
-  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(std::max(1, height))));
-  std::vector<std::thread> pool;
-  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-  if (stopped) throw CastStopped();
+    if (pairs_done) pairs_done->fetch_add(std::uint64_t(width) * up.size());
+  });
   return hours;
 }
 

@@ -268,6 +268,17 @@ struct RenderService::Impl {
     renderer.emplace(limits.memory_budget_bytes / kSceneShare);
   }
 
+  // A ray cast's place in the queue and its reserved bytes, given back
+  // however the cast ends.
+  struct CastPlace {
+    Impl* impl;
+    std::uint64_t peak_bytes;
+    ~CastPlace() {
+      impl->ray_cast_ended(peak_bytes);
+      impl->in_flight.fetch_sub(1);
+    }
+  };
+
   // Called when a ray cast ends: its memory is freed in its own thread's
   // arena, which the GL thread's idle release trims too.
   void ray_cast_ended(std::uint64_t peak_bytes) {
@@ -415,15 +426,7 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
   return std::async(std::launch::async, [impl, queued, request = std::move(request), rendered = std::move(rendered),
                                          client_gone = std::move(client_gone),
                                          dominant_field = std::move(dominant_field), peak_bytes]() mutable {
-    // Gives the place and the reserved bytes back however the cast ends.
-    struct Release {
-      Impl* impl;
-      std::uint64_t peak_bytes;
-      ~Release() {
-        impl->ray_cast_ended(peak_bytes);
-        impl->in_flight.fetch_sub(1);
-      }
-    } release{impl, peak_bytes};
+    const Impl::CastPlace place{impl, peak_bytes};
     // "error": its GL job checks the client and the deadline (and counts
     // them). If the client has already left, wait for that job's verdict
     // rather than cast rays for nobody.
@@ -530,14 +533,7 @@ std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest requ
   return std::async(std::launch::async, [impl, queued, plan, job, progress, request = std::move(request),
                                          client_gone = std::move(client_gone), dominant = cost.dominant(),
                                          peak_bytes = cost.peak_bytes]() {
-    struct Release {
-      Impl* impl;
-      std::uint64_t peak_bytes;
-      ~Release() {
-        impl->ray_cast_ended(peak_bytes);
-        impl->in_flight.fetch_sub(1);
-      }
-    } release{impl, peak_bytes};
+    const Impl::CastPlace place{impl, peak_bytes};
     // Jobs one after another: each uses every core. A job waits for its
     // turn however long it takes (its client comes back for it later).
     std::unique_lock<std::timed_mutex> turn(impl->sun_hours_jobs, std::defer_lock);

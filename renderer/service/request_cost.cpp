@@ -231,6 +231,26 @@ double count_tile_tests(const Scene& scene, const glm::dmat4& view_projection, d
 
 }  // namespace
 
+namespace {
+
+// The ray cast's meshes: how many a ray meets at most (no more than its
+// objects_per_ray), and the triangles of the distinct models whose BVHs
+// are built. The kinds with an exact test of their own are tested in
+// closed form; the others (meshes) through a BVH of their model (RayScene).
+void count_ray_meshes(const Scene& scene, CostFactors& f) {
+  std::vector<const TriangleModel*> models;
+  for (const SceneObject& o : scene.objects) {
+    if (shape_kind(o.type).intersect) continue;
+    f.meshes_per_ray += 1.0;
+    if (std::find(models.begin(), models.end(), o.model.get()) != models.end()) continue;
+    models.push_back(o.model.get());
+    f.bvh_triangles += mesh_triangle_count(o);
+  }
+  f.meshes_per_ray = std::min(f.meshes_per_ray, f.objects_per_ray);
+}
+
+}  // namespace
+
 CostFactors cost_factors(const RenderRequest& request) {
   CostFactors f;
   const bool exact = request.output == Output::Exact;
@@ -281,17 +301,7 @@ CostFactors cost_factors(const RenderRequest& request) {
     f.camera_rays = image_pixels;
     f.shadow_rays = image_pixels * (request.light.size > 0.0 ? 64.0 : 1.0);
     f.objects_per_ray = std::log2(double(request.scene.objects.size()) + 1.0) + camera_layers;
-    std::vector<const TriangleModel*> models;
-    for (const SceneObject& o : request.scene.objects) {
-      // The kinds with an exact test of their own are tested in closed form;
-      // the others (meshes) through a BVH of their model (RayScene).
-      if (shape_kind(o.type).intersect) continue;
-      f.meshes_per_ray += 1.0;
-      if (std::find(models.begin(), models.end(), o.model.get()) != models.end()) continue;
-      models.push_back(o.model.get());
-      f.bvh_triangles += mesh_triangle_count(o);
-    }
-    f.meshes_per_ray = std::min(f.meshes_per_ray, f.objects_per_ray);
+    count_ray_meshes(request.scene, f);
   }
   return f;
 }
@@ -410,15 +420,7 @@ SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t
   const double samples_up = double(samples) * sun_up_share;
   f.shadow_rays = points * samples_up;
   f.objects_per_ray = std::log2(double(scene.objects.size()) + 1.0) + 1.0;
-  std::vector<const TriangleModel*> models;
-  for (const SceneObject& o : scene.objects) {
-    if (shape_kind(o.type).intersect) continue;
-    f.meshes_per_ray += 1.0;
-    if (std::find(models.begin(), models.end(), o.model.get()) != models.end()) continue;
-    models.push_back(o.model.get());
-    f.bvh_triangles += mesh_triangle_count(o);
-  }
-  f.meshes_per_ray = std::min(f.meshes_per_ray, f.objects_per_ray);
+  count_ray_meshes(scene, f);
   const bool points_dominate = points >= double(samples);
   const std::string rays_field = points_dominate ? "grid.spacing" : "period.step_minutes";
   const std::string rays_advice = "take a larger grid.spacing or a smaller grid.size, a longer period.step_minutes "
@@ -464,8 +466,10 @@ SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t
   const std::uint64_t per_point = sizeof(PointTally) + kAnswerBytesPerPoint + (out.footprints ? 3 * 8 : 0);
   cost.peak_bytes = std::uint64_t(points) * per_point + std::uint64_t(samples) * sizeof(SunSample) +
                     f.bvh_triangles * kBvhBytesPerTriangle + std::uint64_t(pixels) * (4 + 3 + 3);
-  cost.memory_field = "grid.spacing";
-  cost.memory_advice = "take a larger grid.spacing or a smaller grid.size";
+  // Over the memory budget: what holds most of it.
+  const bool picture_memory = pixels * (4 + 3 + 3) > points * double(per_point);
+  cost.memory_field = picture_memory ? "width" : "grid.spacing";
+  cost.memory_advice = picture_memory ? "lower width and height" : "take a larger grid.spacing or a smaller grid.size";
   return out;
 }
 
