@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Fuzzes the request parser, the HTTP reader and the glTF loader with
-# libFuzzer for a bounded time (a third of it each).
+# Fuzzes the request parser, the sun-hours parser, the HTTP reader and the
+# glTF loader with libFuzzer for a bounded time (a quarter of it each).
 #   scripts/fuzz.sh [SECONDS]   (default 60)
-# Seeds: fuzz/corpus and bench/scenes, fuzz/corpus-http, fuzz/corpus-gltf.
+# Seeds: fuzz/corpus and bench/scenes, fuzz/corpus-sun-hours, fuzz/corpus-http,
+# fuzz/corpus-gltf.
 # New inputs go to build-asan/corpus*; a crash is written to fuzz/crashes/
 # and fails the run: add it as a regression test (tests/test_request_parser.cpp,
 # tests/test_http_message.cpp, tests/test_gltf_loader.cpp), then fix the code.
@@ -11,14 +12,19 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 # The same tree as scripts/sanitize.sh: after it, only the fuzz targets
 # themselves are compiled here.
-bash scripts/asan-build.sh fuzz_request_parser fuzz_http_reader fuzz_gltf_loader
+bash scripts/asan-build.sh fuzz_request_parser fuzz_sun_hours_parser fuzz_http_reader fuzz_gltf_loader
 mkdir -p build-asan/corpus fuzz/crashes
-share=$(( seconds / 3 > 0 ? seconds / 3 : 1 ))
-parser_seconds=$(( seconds - 2 * share > 0 ? seconds - 2 * share : 1 ))
+share=$(( seconds / 4 > 0 ? seconds / 4 : 1 ))
+parser_seconds=$(( seconds - 3 * share > 0 ? seconds - 3 * share : 1 ))
 # -max_len: bodies up to 64 KiB (the server takes 1 MiB, but nothing in the
 # grammar needs more to be reached); -timeout: a slow input is a finding too.
 build-asan/fuzz/fuzz_request_parser build-asan/corpus fuzz/corpus bench/scenes \
   -dict=fuzz/request.dict -max_total_time="$parser_seconds" -max_len=65536 -timeout=5 -rss_limit_mb=2048 \
+  -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
+# The sun-hours body: the same grammar plus its own fields.
+mkdir -p build-asan/corpus-sun-hours
+build-asan/fuzz/fuzz_sun_hours_parser build-asan/corpus-sun-hours fuzz/corpus-sun-hours \
+  -dict=fuzz/request.dict -max_total_time="$share" -max_len=65536 -timeout=5 -rss_limit_mb=2048 \
   -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
 # The HTTP reader: inputs up to 4 KiB (its limits are set small inside).
 mkdir -p build-asan/corpus-http
