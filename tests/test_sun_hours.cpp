@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/light_math.hpp"
+#include "core/shapes/shape.hpp"
 #include "core/sun_hours.hpp"
 #include "reference/ray_cast.hpp"
 #include "reference/sun_hours_footprints.hpp"
@@ -455,6 +456,87 @@ TEST(SunHoursRayCast, AYearsHoursAreTheSunUpTimeOfPyEphem) {
   }
   EXPECT_EQ(rows, 24);
   EXPECT_EQ(years, 6);
+}
+
+}  // namespace
+}  // namespace umbra
+
+namespace umbra {
+namespace {
+
+// ShapeKind::surely_meets is a proof: whenever it says yes, the exact
+// intersection finds a hit in (0, infinity). Rays from everywhere (inside,
+// outside, grazing the shrunk surface) at boxes (turned) and spheres; and
+// it does say yes through the middle, and no for rays that only pass
+// within the margin of the surface.
+TEST(SunHoursFootprints, ASureHitIsAHitOfTheExactTest) {
+  std::uint64_t seed = 99;
+  const auto uniform = [&](double lo, double hi) {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return lo + (hi - lo) * double(seed >> 11) / double(1ull << 53);
+  };
+  SceneObject box;
+  box.type = SceneObject::Type::Box;
+  box.center = {1, 2, -3};
+  box.size = {2, 1, 0.5};
+  box.rotation_y_deg = 37;
+  SceneObject sphere;
+  sphere.type = SceneObject::Type::Sphere;
+  sphere.center = {-2, 1, 4};
+  sphere.radius = 1.5;
+  const double margin = 1e-3;
+  int sure = 0;
+  for (const SceneObject* o : {&box, &sphere}) {
+    const ShapeKind& kind = shape_kind(o->type);
+    ASSERT_NE(kind.surely_meets, nullptr) << kind.name;
+    for (int i = 0; i < 200000; ++i) {
+      const glm::dvec3 origin = o->center + glm::dvec3(uniform(-4, 4), uniform(-4, 4), uniform(-4, 4));
+      // Aim near the surface: a point on the object's bounds, jittered.
+      const Aabb b = object_bounds(*o);
+      const glm::dvec3 aim = glm::mix(b.min, b.max, glm::dvec3(uniform(-0.05, 1.05), uniform(-0.05, 1.05), uniform(-0.05, 1.05)));
+      const glm::dvec3 dir = glm::normalize(aim - origin);
+      if (!kind.surely_meets(*o, origin, dir, margin)) continue;
+      ++sure;
+      glm::dvec3 normal;
+      const double t = kind.intersect(*o, origin, dir, 0.0, std::numeric_limits<double>::infinity(), normal);
+      ASSERT_TRUE(t > 0.0 && t < std::numeric_limits<double>::infinity()) << kind.name << " ray " << i;
+    }
+  }
+  EXPECT_GT(sure, 100000);
+  // A point inside the object shrunk by twice the margin surely meets it
+  // in every direction (ShapeKind::contains).
+  int inside = 0;
+  for (const SceneObject* o : {&box, &sphere}) {
+    const ShapeKind& kind = shape_kind(o->type);
+    ASSERT_NE(kind.contains, nullptr) << kind.name;
+    const Aabb b = object_bounds(*o);
+    for (int i = 0; i < 20000; ++i) {
+      const glm::dvec3 p = glm::mix(b.min, b.max, glm::dvec3(uniform(0, 1), uniform(0, 1), uniform(0, 1)));
+      if (!kind.contains(*o, p, 2.0 * margin)) continue;
+      ++inside;
+      for (int j = 0; j < 8; ++j) {
+        const glm::dvec3 dir = glm::normalize(glm::dvec3(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1)));
+        ASSERT_TRUE(kind.surely_meets(*o, p, dir, margin)) << kind.name << " point " << i;
+        glm::dvec3 normal;
+        const double t = kind.intersect(*o, p, dir, 0.0, std::numeric_limits<double>::infinity(), normal);
+        ASSERT_TRUE(t > 0.0 && t < std::numeric_limits<double>::infinity()) << kind.name;
+      }
+    }
+  }
+  EXPECT_GT(inside, 5000);
+  // Just inside the surface (within twice the margin): not contained.
+  EXPECT_FALSE(shape_kind(sphere.type).contains(sphere, sphere.center + glm::dvec3(1.5 - margin, 0, 0), 2.0 * margin));
+  EXPECT_TRUE(shape_kind(sphere.type).contains(sphere, sphere.center + glm::dvec3(1.5 - 3 * margin, 0, 0), 2.0 * margin));
+  // Through the middle: yes, from outside and from inside.
+  EXPECT_TRUE(shape_kind(box.type).surely_meets(box, box.center + glm::dvec3(0, 0, 5), {0, 0, -1}, margin));
+  EXPECT_TRUE(shape_kind(box.type).surely_meets(box, box.center, {0, 1, 0}, margin));
+  EXPECT_TRUE(shape_kind(sphere.type).surely_meets(sphere, sphere.center, {1, 0, 0}, margin));
+  // Within the margin of the surface, or behind the origin: no.
+  EXPECT_FALSE(shape_kind(sphere.type).surely_meets(sphere, sphere.center + glm::dvec3(-5, 1.5 - margin / 2, 0), {1, 0, 0}, margin));
+  EXPECT_FALSE(shape_kind(sphere.type).surely_meets(sphere, sphere.center + glm::dvec3(5, 0, 0), {1, 0, 0}, margin));
+  EXPECT_FALSE(shape_kind(box.type).surely_meets(box, box.center + glm::dvec3(0, 0.5 - margin / 2, 9), {0, 0, -1}, margin));
+  // Leaving the surface from just inside, the exit nearer than the margin: no.
+  EXPECT_FALSE(shape_kind(box.type).surely_meets(box, box.center + glm::dvec3(0, 0.5 - margin / 4, 0), {0, 1, 0}, margin));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <mutex>
 #include <thread>
 
+#include "core/shapes/shape.hpp"
 #include "reference/ray_cast.hpp"
 #include "reference/sun_hours_ray_cast.hpp"
 
@@ -62,9 +63,13 @@ std::vector<Stretch> daylight_stretches(const std::vector<SunSample>& samples) {
 
 }  // namespace
 
+double rounding_margin(const Aabb& bounds, double reach) {
+  return 1e-5 * (1.0 + std::max({max_abs(bounds.min), max_abs(bounds.max), reach}));
+}
+
 Aabb reachable_bounds(const Aabb& bounds, double plane_y, double reach) {
   if (bounds.empty()) return bounds;
-  const double margin = 1e-5 * (1.0 + std::max({max_abs(bounds.min), max_abs(bounds.max), reach}));
+  const double margin = rounding_margin(bounds, reach);
   Aabb grown;
   grown.min = bounds.min - glm::dvec3(margin);
   grown.max = bounds.max + glm::dvec3(margin);
@@ -154,11 +159,41 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   result.pairs = std::uint64_t(points) * up;
   result.tally.assign(points, PointTally{});
 
+  // Each object that a ray from the plane can reach: its footprint's
+  // bounds, and the proof of a hit its kind offers (ShapeKind::surely_meets).
+  struct Reachable {
+    Aabb bounds;
+    const SceneObject* object;
+    bool (*surely_meets)(const SceneObject&, const glm::dvec3&, const glm::dvec3&, double);
+    double margin;
+  };
   const double reach = grid_reach(grid);
-  std::vector<Aabb> reachable;
+  std::vector<Reachable> reachable;
   for (const SceneObject& o : scene.objects) {
-    const Aabb b = reachable_bounds(object_bounds(o), grid.center.y, reach);
-    if (!b.empty()) reachable.push_back(b);
+    const Aabb exact = object_bounds(o);
+    const Aabb b = reachable_bounds(exact, grid.center.y, reach);
+    if (!b.empty()) reachable.push_back({b, &o, shape_kind(o.type).surely_meets, rounding_margin(exact, reach)});
+  }
+
+  // Points inside a closed convex solid (a box's, a sphere's) by twice
+  // the margin see no sun at any sample: every ray from them surely meets
+  // it (ShapeKind::contains). Settled once, for the whole period.
+  std::vector<std::uint8_t> inside(points, 0);
+  const glm::dvec3 origin = grid.origin();
+  for (const Reachable& object : reachable) {
+    const ShapeKind& kind = shape_kind(object.object->type);
+    if (!kind.contains) continue;
+    const Aabb b = object_bounds(*object.object);
+    if (!(grid.center.y > b.min.y && grid.center.y < b.max.y)) continue;
+    const int c0 = int(std::max(0.0, std::ceil((b.min.x - origin.x) / grid.spacing)));
+    const int c1 = int(std::min(double(grid.columns - 1), std::floor((b.max.x - origin.x) / grid.spacing)));
+    const int r0 = int(std::max(0.0, std::ceil((b.min.z - origin.z) / grid.spacing)));
+    const int r1 = int(std::min(double(grid.rows - 1), std::floor((b.max.z - origin.z) / grid.spacing)));
+    for (int r = r0; r <= r1; ++r)
+      for (int c = c0; c <= c1; ++c) {
+        const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+        if (!inside[i] && kind.contains(*object.object, grid.point(i), 2.0 * object.margin)) inside[i] = 1;
+      }
   }
 
   // Per point: the sample it was last tested at (each is tested once a
@@ -182,14 +217,22 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
         }
         if (stopped) return;
         const glm::dvec3& d = samples[k].direction;
-        for (const Aabb& bounds : reachable) {
-          footprint_spans(bounds, d, grid, r0, r1, [&](int r, int c0, int c1) {
+        for (const Reachable& object : reachable) {
+          footprint_spans(object.bounds, d, grid, r0, r1, [&](int r, int c0, int c1) {
             for (int c = c0; c <= c1; ++c) {
               const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
-              if (tested[i] == std::int64_t(k)) continue;
+              if (inside[i] || tested[i] == std::int64_t(k)) continue;
               tested[i] = std::int64_t(k);
-              ++casts;
-              if (sees_sun(rays, grid.point(i), d)) continue;
+              // Dark for certain when the ray passes well inside the object
+              // whose footprint holds the point: the pure ray cast's query
+              // would find that hit (ShapeKind::surely_meets). Else the
+              // query itself settles it.
+              const glm::dvec3 p = grid.point(i);
+              const bool surely_dark = object.surely_meets && object.surely_meets(*object.object, p, d, object.margin);
+              if (!surely_dark) {
+                ++casts;
+                if (sees_sun(rays, p, d)) continue;
+              }
               // Dark: the run since its last dark sample in this stretch
               // (or the stretch's start) ends here.
               const std::size_t start = dark_stretch[i] == std::int64_t(j) ? std::size_t(last_dark[i] + 1) : stretch.first;
@@ -205,6 +248,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
       }
       // The stretch ends: each point's last run in it.
       for (std::size_t i = std::size_t(r0) * std::size_t(grid.columns); i < std::size_t(r1) * std::size_t(grid.columns); ++i) {
+        if (inside[i]) continue;
         const std::size_t start = dark_stretch[i] == std::int64_t(j) ? std::size_t(last_dark[i] + 1) : stretch.first;
         PointTally& t = result.tally[i];
         t.longest = std::max<std::uint32_t>(t.longest, std::uint32_t(stretch.end - start));
@@ -217,8 +261,9 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   band(0);
   for (auto& t : pool) t.join();
   if (stopped) throw CastStopped();
-  for (PointTally& t : result.tally) {
-    t.lit = std::uint32_t(up) - t.run;
+  for (std::size_t i = 0; i < points; ++i) {
+    PointTally& t = result.tally[i];
+    t.lit = inside[i] ? 0 : std::uint32_t(up) - t.run;
     t.run = 0;
   }
   result.pairs_ray_cast = cast.load();

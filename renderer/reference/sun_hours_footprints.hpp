@@ -6,6 +6,10 @@
 // query as the pure ray cast (sees_sun), so the hours equal the pure ray
 // cast's at every point and sample, by construction (docs/sun-hours.md).
 //
+// Inside a footprint, a ray that passes well inside the object is dark for
+// certain (ShapeKind::surely_meets: boxes and spheres), so the query is
+// skipped: the pure ray cast's query would meet that object.
+//
 // Time is tallied by events: only a point's dark samples touch it, plus
 // one pass over the grid per stretch of daylight, so that a grid mostly
 // in the sun costs little more than its footprints.
@@ -45,8 +49,9 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
 double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions);
 
 /// ray_cast_sun_hours' answer, by footprints: fills result.tally,
-/// result.samples_up, pairs, pairs_by_maps (outside every footprint) and
-/// pairs_ray_cast (inside one: one sees_sun query each). On all hardware
+/// result.samples_up, pairs, pairs_by_maps (outside every footprint, or
+/// surely dark inside one) and pairs_ray_cast (the rest: one sees_sun
+/// query each). On all hardware
 /// threads, each a band of grid rows walking the samples in order;
 /// `stop_requested` is asked between samples (one thread at a time), and
 /// once it answers true the cast throws CastStopped.

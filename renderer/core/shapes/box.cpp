@@ -91,12 +91,40 @@ std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, 
   return points;
 }
 
+// The slab test against the box shrunk by `margin`: the ray is inside all
+// three slabs together over an interval reaching past t = margin.
+bool surely_meets(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double margin) {
+  const glm::dvec3 o_local = rotate_y(origin - o.center, -o.rotation_y_deg);
+  const glm::dvec3 d_local = rotate_y(dir, -o.rotation_y_deg);
+  const glm::dvec3 half = 0.5 * o.size - margin;
+  if (!(half.x > 0.0 && half.y > 0.0 && half.z > 0.0)) return false;
+  double t0 = margin, t1 = kInf;
+  for (int k = 0; k < 3; ++k) {
+    if (d_local[k] == 0.0) {
+      if (!(std::abs(o_local[k]) < half[k])) return false;
+      continue;
+    }
+    double a = (-half[k] - o_local[k]) / d_local[k];
+    double b = (half[k] - o_local[k]) / d_local[k];
+    if (a > b) std::swap(a, b);
+    t0 = std::max(t0, a);
+    t1 = std::min(t1, b);
+  }
+  return t0 < t1;
+}
+
+bool contains(const SceneObject& o, const glm::dvec3& point, double margin) {
+  const glm::dvec3 local = rotate_y(point - o.center, -o.rotation_y_deg);
+  const glm::dvec3 half = 0.5 * o.size - margin;
+  return std::abs(local.x) < half.x && std::abs(local.y) < half.y && std::abs(local.z) < half.z;
+}
+
 }  // namespace
 
 extern const ShapeKind kBoxShape;  // listed in shapes.cpp
 const ShapeKind kBoxShape = {
     SceneObject::Type::Box, "box", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside, /*tessellation_error=*/nullptr,
+    vertices, intersect, points_inside, /*tessellation_error=*/nullptr, surely_meets, contains,
 };
 
 }  // namespace umbra

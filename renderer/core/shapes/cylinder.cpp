@@ -140,7 +140,7 @@ TessellationError tessellation_error_of(const SceneObject& o) {
 extern const ShapeKind kCylinderShape;  // listed in shapes.cpp
 const ShapeKind kCylinderShape = {
     SceneObject::Type::Cylinder, "cylinder", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside, tessellation_error_of,
+    vertices, intersect, points_inside, tessellation_error_of, /*surely_meets=*/nullptr, /*contains=*/nullptr,
 };
 
 }  // namespace umbra

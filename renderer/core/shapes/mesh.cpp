@@ -18,7 +18,7 @@ extern const ShapeKind kMeshShape;  // listed in shapes.cpp
 const ShapeKind kMeshShape = {
     SceneObject::Type::Mesh, "mesh", mesh_bounds, mesh_surface_bounds, mesh_is_closed, /*horizontal_plane=*/false,
     tessellate, mesh_triangle_count, mesh_vertex_count, /*intersect=*/nullptr, /*points_inside=*/nullptr,
-    /*tessellation_error=*/nullptr,
+    /*tessellation_error=*/nullptr, /*surely_meets=*/nullptr, /*contains=*/nullptr,
 };
 
 }  // namespace umbra

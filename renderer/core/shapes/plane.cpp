@@ -45,7 +45,7 @@ double intersect(const SceneObject& o, const glm::dvec3& origin, const glm::dvec
 extern const ShapeKind kPlaneShape;  // listed in shapes.cpp
 const ShapeKind kPlaneShape = {
     SceneObject::Type::Plane, "plane", bounds, bounds, closed, /*horizontal_plane=*/true, tessellate, triangles,
-    vertices, intersect, /*points_inside=*/nullptr, /*tessellation_error=*/nullptr,
+    vertices, intersect, /*points_inside=*/nullptr, /*tessellation_error=*/nullptr, /*surely_meets=*/nullptr, /*contains=*/nullptr,
 };
 
 }  // namespace umbra

@@ -71,6 +71,22 @@ struct ShapeKind {
   /// model, whose triangles are the surface). Filter "exact" allows for it
   /// (docs/certified-shadows.md).
   TessellationError (*tessellation_error)(const SceneObject& object);
+  /// Whether origin + t * direction (unit), t > 0, certainly meets the
+  /// object: it passes through the object shrunk by `margin` world units on
+  /// every side, somewhere past t = margin. Then `intersect` (in double,
+  /// whose rounding is far below any margin the callers give) finds a hit
+  /// in (0, infinity) however its arithmetic falls, and the bounds around
+  /// the object are met. False proves nothing. Null for a kind without one
+  /// (a model, a plane). What sun hours settles dark pairs by without the
+  /// full query (reference/sun_hours_footprints.hpp).
+  bool (*surely_meets)(const SceneObject& object, const glm::dvec3& origin, const glm::dvec3& direction,
+                       double margin);
+  /// Whether `point` lies inside the object shrunk by `margin` world units
+  /// on every side. Then every ray from it, in any direction, passes
+  /// inside the object shrunk by margin / 2 past t = margin / 2
+  /// (surely_meets with margin / 2 holds for all directions): a point of a
+  /// closed convex solid's inside sees no sun. Null with surely_meets.
+  bool (*contains)(const SceneObject& object, const glm::dvec3& point, double margin);
 };
 
 /// Every kind, in SceneObject::Type order.

@@ -101,12 +101,31 @@ TessellationError tessellation_error_of(const SceneObject& o) {
   return {o.radius * (1.0 - std::cos(3.14159265358979323846 / kStacks)), 0.12};
 }
 
+// The ray's closest approach to the centre, within the sphere shrunk by
+// `margin`, past t = margin: the chord through the shrunk sphere reaches
+// beyond margin.
+bool surely_meets(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double margin) {
+  const double r = o.radius - margin;
+  if (!(r > 0.0)) return false;
+  const glm::dvec3 oc = origin - o.center;
+  const double b = glm::dot(oc, dir);
+  const double c = glm::dot(oc, oc) - b * b;  // squared distance from the centre to the line
+  if (!(c < r * r)) return false;
+  const double half_chord = std::sqrt(r * r - c);
+  return -b + half_chord > margin;  // the shrunk sphere's exit lies past t = margin
+}
+
+bool contains(const SceneObject& o, const glm::dvec3& point, double margin) {
+  const double r = o.radius - margin;
+  return r > 0.0 && glm::dot(point - o.center, point - o.center) < r * r;
+}
+
 }  // namespace
 
 extern const ShapeKind kSphereShape;  // listed in shapes.cpp
 const ShapeKind kSphereShape = {
     SceneObject::Type::Sphere, "sphere", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside, tessellation_error_of,
+    vertices, intersect, points_inside, tessellation_error_of, surely_meets, contains,
 };
 
 }  // namespace umbra
