@@ -120,32 +120,61 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
   }
 }
 
-double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions) {
+double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions,
+                       double* candidate_share) {
+  if (candidate_share) *candidate_share = 0.0;
   if (directions.empty() || grid.points() == 0) return 0.0;
   const double reach = grid_reach(grid);
-  std::vector<Aabb> reachable;
+  struct Object {
+    Aabb bounds;
+    const SceneObject* object;
+    const ShapeKind* kind;
+    double margin;
+  };
+  std::vector<Object> reachable;
   for (const SceneObject& o : scene.objects) {
-    const Aabb b = reachable_bounds(object_bounds(o), grid.center.y, reach);
-    if (!b.empty()) reachable.push_back(b);
+    const Aabb exact = object_bounds(o);
+    const Aabb b = reachable_bounds(exact, grid.center.y, reach);
+    if (!b.empty()) reachable.push_back({b, &o, &shape_kind(o.type), rounding_margin(exact, reach)});
   }
-  double covered = 0.0;
-  for (const glm::dvec3& d : directions) {
-    // Per row, the columns any footprint covers (overlaps counted once
-    // where spans overlap; disjoint spans in one row add up).
-    std::vector<std::vector<std::pair<int, int>>> rows(std::size_t(grid.rows));
-    for (const Aabb& b : reachable)
-      footprint_spans(b, d, grid, 0, grid.rows, [&](int r, int c0, int c1) { rows[std::size_t(r)].push_back({c0, c1}); });
-    for (auto& row : rows) {
-      std::sort(row.begin(), row.end());
-      int end = -1;
-      for (const auto& [c0, c1] : row) {
-        if (c1 <= end) continue;
-        covered += double(c1 - std::max(c0, end + 1) + 1);
-        end = c1;
+  // A lattice of at most about 128 x 128 of the grid's points, judged as
+  // footprint_sun_hours judges them: inside a footprint, and then settled
+  // by a proof of dark or left to the query.
+  const int stride = std::max(1, int(std::ceil(std::max(grid.columns, grid.rows) / 128.0)));
+  std::size_t lattice = 0;
+  for (int r = 0; r < grid.rows; r += stride)
+    for (int c = 0; c < grid.columns; c += stride) ++lattice;
+  std::vector<int> seen(grid.points(), -1);
+  std::vector<std::uint8_t> inside(grid.points(), 0);
+  for (const Object& o : reachable) {
+    if (!o.kind->contains) continue;
+    for (int r = 0; r < grid.rows; r += stride)
+      for (int c = 0; c < grid.columns; c += stride) {
+        const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+        const glm::dvec3 p = grid.point(i);
+        if (p.x >= o.bounds.min.x && p.x <= o.bounds.max.x && p.z >= o.bounds.min.z && p.z <= o.bounds.max.z &&
+            o.kind->contains(*o.object, p, 2.0 * o.margin))
+          inside[i] = 1;
       }
-    }
   }
-  return covered / (double(directions.size()) * double(grid.points()));
+  double candidates = 0.0, queried = 0.0;
+  for (std::size_t n = 0; n < directions.size(); ++n) {
+    const glm::dvec3& d = directions[n];
+    for (const Object& o : reachable)
+      footprint_spans(o.bounds, d, grid, 0, grid.rows, [&](int r, int c0, int c1) {
+        if (r % stride != 0) return;
+        for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
+          const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+          if (inside[i] || seen[i] == int(n)) continue;
+          seen[i] = int(n);
+          candidates += 1.0;
+          if (!(o.kind->surely_meets && o.kind->surely_meets(*o.object, grid.point(i), d, o.margin))) queried += 1.0;
+        }
+      });
+  }
+  const double judged = double(directions.size()) * double(lattice);
+  if (candidate_share) *candidate_share = candidates / judged;
+  return queried / judged;
 }
 
 void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid& grid,

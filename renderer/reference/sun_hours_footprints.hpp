@@ -43,10 +43,14 @@ Aabb reachable_bounds(const Aabb& bounds, double plane_y, double grid_reach);
 void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
                      int last_row, const std::function<void(int row, int first_column, int last_column)>& row_span);
 
-/// The share of the grid's points inside any object's footprint, averaged
-/// over `directions` (each with y > 0): what the cost model prices the
-/// rays by. Counts each point once per direction.
-double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions);
+/// The share of the grid's (point, sample) pairs that the footprints path
+/// leaves to the query (inside a footprint and not surely dark), averaged
+/// over `directions` (each with y > 0), judged on a lattice of at most
+/// about 128 x 128 of the points: what the cost model prices the rays by.
+/// `candidate_share`, if given, gets the share inside any footprint and not
+/// inside a solid (each judged for a proof of dark).
+double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions,
+                       double* candidate_share = nullptr);
 
 /// ray_cast_sun_hours' answer, by footprints: fills result.tally,
 /// result.samples_up, pairs, pairs_by_maps (outside every footprint, or

@@ -510,8 +510,9 @@ SunHoursPlan RenderService::plan_sun_hours(const SunHoursRequest& request) const
   std::vector<glm::dvec3> directions;
   const std::size_t picked = std::min<std::size_t>(32, up.size());
   for (std::size_t i = 0; i < picked; ++i) directions.push_back(up[i * up.size() / picked]);
-  plan.estimate = estimate_sun_hours_cost(request, plan.samples, sun_up_share(probes),
-                                          footprint_share(request.view.scene, request.grid, directions));
+  double candidates = 1.0;
+  const double queried = footprint_share(request.view.scene, request.grid, directions, &candidates);
+  plan.estimate = estimate_sun_hours_cost(request, plan.samples, sun_up_share(probes), queried, candidates);
   return plan;
 }
 

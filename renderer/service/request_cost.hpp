@@ -117,7 +117,8 @@ RequestCost estimate_cost(const RenderRequest& request);
 /// paths: the pure ray cast (one shadow ray per point and sample with the
 /// sun up: `sun_up_share` of the samples, core/sun_hours.hpp) or the
 /// footprints (each object's footprint per sample, and a ray only for the
-/// `footprint_share` of the pairs inside one; reference/sun_hours_footprints.hpp).
+/// `footprint_share` of the pairs left to the query, after a proof of dark
+/// for the `candidate_share` inside a footprint; reference/sun_hours_footprints.hpp).
 /// Both add the sun's positions and the models' BVHs. Peak memory: the
 /// tallies (and the footprints' per-point records), the samples, the BVHs
 /// and the answer's text.
@@ -127,7 +128,7 @@ struct SunHoursCost {
   double ray_cast_ms = 0;  ///< the pure ray cast's estimate, for comparison
 };
 SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t samples, double sun_up_share,
-                                     double footprint_share);
+                                     double footprint_share, double candidate_share = 1.0);
 
 /// Triangles tessellate() makes for `scene` (without building the mesh).
 std::uint64_t scene_triangles(const Scene& scene);
