@@ -374,8 +374,8 @@ struct HardRow {
   double pure_ms = 0.0;
   std::size_t compared = 0, differing = 0;
   std::string shrunk;
-  // The service's choice for this request (estimate_sun_hours_cost, as
-  // submit_sun_hours asks it) and its estimates, ms.
+  // The service's choice for this request (plan_sun_hours, the function
+  // submit_sun_hours plans by) and its estimates, ms.
   bool service_footprints = false;
   double service_estimate_ms = NAN, service_pure_estimate_ms = NAN;
   double fp_rate() const { return double(pairs) / (fp_ms / 1000.0); }
@@ -597,12 +597,8 @@ int main(int argc, char** argv) {
           whole.columns = whole.rows = full;
           row.share_estimate_here = umbra::footprint_share(q.view.scene, q.grid, directions);
           row.share_estimate_full = umbra::footprint_share(q.view.scene, whole, directions);
-          // As submit_sun_hours plans it: 32 of the 512 probes' suns.
-          std::vector<glm::dvec3> planned;
-          const std::size_t n32 = std::min<std::size_t>(32, up.size());
-          for (std::size_t i = 0; i < n32; ++i) planned.push_back(up[i * up.size() / n32]);
-          const umbra::SunHoursCost cost = umbra::estimate_sun_hours_cost(
-              q, count, umbra::sun_up_share(probes), umbra::footprint_share(q.view.scene, q.grid, planned));
+          // As submit_sun_hours plans it (the same function).
+          const umbra::SunHoursCost cost = umbra::plan_sun_hours(q).estimate;
           row.service_footprints = cost.footprints;
           row.service_pure_estimate_ms = cost.ray_cast_ms;
           row.service_estimate_ms = 0.0;
@@ -835,11 +831,12 @@ int main(int argc, char** argv) {
           "spread over the whole grid gives the pure ray cast's rate on it; the whole grid by the pure ray cast would "
           "take from minutes to hours for most cases.\n"
        << "- **speed-up** = footprints pairs/s / pure pairs/s (the same grid, samples and scene; both on all threads).\n"
-       << "- **share ray cast** = the footprints path's pairs_ray_cast / pairs: the pairs inside some object's footprint, "
-          "each settled by one `sees_sun`; the rest are lit without a ray.\n"
+       << "- **share ray cast** = the footprints path's pairs_ray_cast / pairs: the pairs inside some object's footprint "
+          "and not proved dark (a ray surely through a box or sphere, or a point inside one), each settled by one "
+          "`sees_sun`; the rest are proved lit or dark without a ray.\n"
        << "- **service picks**: the path `RenderService::submit_sun_hours` would run for this request: "
-          "`estimate_sun_hours_cost` from 512 probe samples and the footprints' share at 32 of their suns, as the "
-          "service asks it (the cost model's estimates, ms, are in the JSON); \"(the slower)\" where the measured "
+          "`plan_sun_hours`, the very function it plans by (512 probe samples; the footprints path simulated on a "
+          "lattice of the grid at 32 of their suns; the cost model's estimates, ms, are in the JSON); \"(the slower)\" where the measured "
           "speed-up says the other path is faster by more than 25 %, \"(paths within 25 %)\" where the two are too "
           "close for one run on a shared machine to tell.\n"
        << "- **differing points / compared**: the points of the subset whose tally (lit samples AND longest run of "

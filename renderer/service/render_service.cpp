@@ -495,25 +495,8 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
   });
 }
 
-// A sun-hours analysis needs no GL: like the exact output, it runs on its
-// own thread (the cast itself on every core) and holds a place in the queue.
 SunHoursPlan RenderService::plan_sun_hours(const SunHoursRequest& request) const {
-  SunHoursPlan plan;
-  plan.samples = sample_count(request.period).value_or(0);
-  // The path and its cost from a few hundred of the samples: the sun's
-  // share of the period, and the footprints' share of the grid at 32 of
-  // the probes with the sun up.
-  const std::vector<SunSample> probes = probe_samples(request.site, request.period, plan.samples);
-  std::vector<glm::dvec3> up;
-  for (const SunSample& s : probes)
-    if (s.up()) up.push_back(s.direction);
-  std::vector<glm::dvec3> directions;
-  const std::size_t picked = std::min<std::size_t>(32, up.size());
-  for (std::size_t i = 0; i < picked; ++i) directions.push_back(up[i * up.size() / picked]);
-  double candidates = 1.0;
-  const double queried = footprint_share(request.view.scene, request.grid, directions, &candidates);
-  plan.estimate = estimate_sun_hours_cost(request, plan.samples, sun_up_share(probes), queried, candidates);
-  return plan;
+  return umbra::plan_sun_hours(request);
 }
 
 // A sun-hours analysis needs no GL: like the exact output, it runs on its

@@ -96,11 +96,7 @@ struct SunHoursProgress {
   std::atomic<bool> started{false};
 };
 
-/// A sun-hours request's plan: the path the service will run and its cost.
-struct SunHoursPlan {
-  SunHoursCost estimate;
-  std::size_t samples = 0;
-};
+
 
 /// submit() refused the job: the queue holds queue_capacity jobs already.
 struct QueueFull : std::runtime_error {
@@ -172,8 +168,8 @@ class RenderService {
   /// pairs are settled, and its `cancel` stops the analysis (ClientGone).
   std::future<SunHoursResult> submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone = {},
                                                bool job = false, std::shared_ptr<SunHoursProgress> progress = {});
-  /// The path and cost estimate submit_sun_hours would use (cheap: a few
-  /// hundred sun positions and the footprints of 32 of them).
+  /// The path and cost estimate submit_sun_hours uses (plan_sun_hours,
+  /// request_cost.hpp).
   SunHoursPlan plan_sun_hours(const SunHoursRequest& request) const;
 
   const RendererInfo& info() const;

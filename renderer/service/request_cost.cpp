@@ -1,5 +1,7 @@
 #include "service/request_cost.hpp"
 
+#include "reference/sun_hours_footprints.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -475,6 +477,25 @@ SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t
   cost.memory_field = picture_memory ? "width" : "grid.spacing";
   cost.memory_advice = picture_memory ? "lower width and height" : "take a larger grid.spacing or a smaller grid.size";
   return out;
+}
+
+SunHoursPlan plan_sun_hours(const SunHoursRequest& request) {
+  SunHoursPlan plan;
+  plan.samples = sample_count(request.period).value_or(0);
+  // The path and its cost from a few hundred of the samples: the sun's
+  // share of the period, and the footprints' share of the grid at 32 of
+  // the probes with the sun up.
+  const std::vector<SunSample> probes = probe_samples(request.site, request.period, plan.samples);
+  std::vector<glm::dvec3> up;
+  for (const SunSample& s : probes)
+    if (s.up()) up.push_back(s.direction);
+  std::vector<glm::dvec3> directions;
+  const std::size_t picked = std::min<std::size_t>(32, up.size());
+  for (std::size_t i = 0; i < picked; ++i) directions.push_back(up[i * up.size() / picked]);
+  double candidates = 1.0;
+  const double queried = footprint_share(request.view.scene, request.grid, directions, &candidates);
+  plan.estimate = estimate_sun_hours_cost(request, plan.samples, sun_up_share(probes), queried, candidates);
+  return plan;
 }
 
 }  // namespace umbra

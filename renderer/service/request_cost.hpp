@@ -130,6 +130,17 @@ struct SunHoursCost {
 SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t samples, double sun_up_share,
                                      double footprint_share, double candidate_share = 1.0);
 
+/// A sun-hours request's plan: the path the service will run and its cost.
+struct SunHoursPlan {
+  SunHoursCost estimate;
+  std::size_t samples = 0;
+};
+/// The plan from a few hundred of the period's samples (probe_samples:
+/// the sun's share of the period) and, at 32 of them with the sun up, the
+/// footprints path simulated on a lattice of the grid (footprint_share).
+/// Cheap: what submit_sun_hours runs before it queues anything.
+SunHoursPlan plan_sun_hours(const SunHoursRequest& request);
+
 /// Triangles tessellate() makes for `scene` (without building the mesh).
 std::uint64_t scene_triangles(const Scene& scene);
 
