@@ -541,3 +541,27 @@ TEST(SunHoursFootprints, ASureHitIsAHitOfTheExactTest) {
 
 }  // namespace
 }  // namespace umbra
+
+namespace umbra {
+namespace {
+
+// A fine grid (a micrometre apart) and an object kilometres away: its
+// footprint lies billions of rows off the grid, past any int (the red-team
+// pass found this crash and hang). Both paths agree, and nothing is cast.
+TEST(SunHoursFootprints, AFootprintBillionsOfCellsAwayIsNoCrash) {
+  for (const char* center : {"[0, 0.5, 3000]", "[5000, 0.5, 3000]", "[3000, 0, 0]", "[-3000, 0, -3000]"}) {
+    const json body = json::parse(std::string(R"({"scene": {"objects": [{"type": "box", "center": )") + center +
+                                  R"(, "size": [10, 1, 10]}]}, "site": {"latitude": 51.5, "longitude": 0},
+        "period": {"start": "2026-03-21T00:00:00Z", "end": "2026-03-22T00:00:00Z", "step_minutes": 10},
+        "grid": {"center": [0, 0, 0], "size": [1e-4, 1e-4], "spacing": 1e-6}})");
+    const SunHoursRequest q = parsed(body);
+    const SunHoursResult footprints = cast_by_footprints(q);
+    expect_same_tallies(footprints, cast(q), center);
+    EXPECT_EQ(footprints.pairs_ray_cast, 0u) << center;
+    double queried = footprint_share(q.view.scene, q.grid, {glm::normalize(glm::dvec3(0.3, 0.2, 0.9))});
+    EXPECT_EQ(queried, 0.0) << center;
+  }
+}
+
+}  // namespace
+}  // namespace umbra

@@ -98,7 +98,11 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
   const glm::dvec3 origin = grid.origin();
   const double s = grid.spacing;
   const double row_low = std::ceil((z_low - origin.z) / s) - 1.0, row_high = std::floor((z_high - origin.z) / s) + 1.0;
-  const int r0 = int(std::max<double>(first_row, row_low)), r1 = int(std::min<double>(last_row - 1, row_high));
+  // Clamped in double before any int: a footprint far from a fine grid
+  // lies billions of rows away.
+  const double rows_from = std::max<double>(first_row, row_low), rows_to = std::min<double>(last_row - 1, row_high);
+  if (!(rows_from <= rows_to)) return;
+  const int r0 = int(rows_from), r1 = int(rows_to);
   for (int r = r0; r <= r1; ++r) {
     // The row's line z = const meets the hull in one interval; rows just
     // beside it (the spare ones) take the nearest vertex's x.
@@ -214,10 +218,13 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
     if (!kind.contains) continue;
     const Aabb b = object_bounds(*object.object);
     if (!(grid.center.y > b.min.y && grid.center.y < b.max.y)) continue;
-    const int c0 = int(std::max(0.0, std::ceil((b.min.x - origin.x) / grid.spacing)));
-    const int c1 = int(std::min(double(grid.columns - 1), std::floor((b.max.x - origin.x) / grid.spacing)));
-    const int r0 = int(std::max(0.0, std::ceil((b.min.z - origin.z) / grid.spacing)));
-    const int r1 = int(std::min(double(grid.rows - 1), std::floor((b.max.z - origin.z) / grid.spacing)));
+    // In double first: bounds far from a fine grid lie billions of cells away.
+    const double x0 = std::max(0.0, std::ceil((b.min.x - origin.x) / grid.spacing));
+    const double x1 = std::min(double(grid.columns - 1), std::floor((b.max.x - origin.x) / grid.spacing));
+    const double z0 = std::max(0.0, std::ceil((b.min.z - origin.z) / grid.spacing));
+    const double z1 = std::min(double(grid.rows - 1), std::floor((b.max.z - origin.z) / grid.spacing));
+    if (!(x0 <= x1 && z0 <= z1)) continue;
+    const int c0 = int(x0), c1 = int(x1), r0 = int(z0), r1 = int(z1);
     for (int r = r0; r <= r1; ++r)
       for (int c = c0; c <= c1; ++c) {
         const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
