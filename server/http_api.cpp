@@ -634,7 +634,10 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   const int socket = req.socket;
   SunHoursResult result;
   try {
-    result = renderer_.submit_sun_hours(std::move(*parsed.request), [socket] { return peer_closed(socket); }).get();
+    result = renderer_
+                 .submit_sun_hours(std::move(*parsed.request), [socket] { return peer_closed(socket); }, false, {},
+                                   estimate)
+                 .get();
   } catch (...) {
     return send_service_error(res, std::current_exception());
   }
@@ -693,7 +696,7 @@ void HttpApi::start_sun_hours_job(HttpResponse& res, SunHoursRequest request, co
   job->result_bytes = std::uint64_t(request.grid.points()) * sizeof(PointTally) + plan.samples * sizeof(SunSample) +
                       (request.picture ? std::uint64_t(request.view.width) * std::uint64_t(request.view.height) * 4 : 0);
   try {
-    job->result = renderer_.submit_sun_hours(std::move(request), {}, true, job->progress).share();
+    job->result = renderer_.submit_sun_hours(std::move(request), {}, true, job->progress, plan).share();
   } catch (...) {
     return send_service_error(res, std::current_exception());
   }

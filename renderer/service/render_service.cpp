@@ -502,8 +502,9 @@ SunHoursPlan RenderService::plan_sun_hours(const SunHoursRequest& request) const
 // A sun-hours analysis needs no GL: like the exact output, it runs on its
 // own thread (the cast itself on every core) and holds a place in the queue.
 std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone,
-                                                            bool job, std::shared_ptr<SunHoursProgress> progress) {
-  const SunHoursPlan plan = plan_sun_hours(request);
+                                                            bool job, std::shared_ptr<SunHoursProgress> progress,
+                                                            std::optional<SunHoursPlan> planned) {
+  const SunHoursPlan plan = planned ? std::move(*planned) : plan_sun_hours(request);
   const RequestCost& cost = plan.estimate.cost;
   if (job)
     impl_->check_budget(cost, impl_->limits.max_job_cost, " ms a job (--max-job-ms)", " to run");

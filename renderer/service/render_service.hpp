@@ -9,6 +9,7 @@
 #include <functional>
 #include <future>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -166,8 +167,11 @@ class RenderService {
   /// With `job`, the budget is max_job_cost and the run time twice that,
   /// and jobs run one after another. `progress`, if given, is counted as the
   /// pairs are settled, and its `cancel` stops the analysis (ClientGone).
+  /// `plan`, if given, is plan_sun_hours(request) made already (the route
+  /// plans first, to choose between an answer and a job): not made again.
   std::future<SunHoursResult> submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone = {},
-                                               bool job = false, std::shared_ptr<SunHoursProgress> progress = {});
+                                               bool job = false, std::shared_ptr<SunHoursProgress> progress = {},
+                                               std::optional<SunHoursPlan> plan = std::nullopt);
   /// The path and cost estimate submit_sun_hours uses (plan_sun_hours,
   /// request_cost.hpp).
   SunHoursPlan plan_sun_hours(const SunHoursRequest& request) const;
