@@ -369,7 +369,7 @@ struct HardRow {
   std::size_t samples = 0, samples_up = 0;
   std::uint64_t pairs = 0, pairs_ray_cast = 0;
   double fp_ms = 0.0;
-  double share_estimate_here = NAN, share_estimate_full = NAN;  // footprint_share over probe suns
+  double share_estimate_here = NAN, share_estimate_full = NAN;  // footprint_shares().queried over probe suns
   std::uint64_t pure_pairs = 0;
   double pure_ms = 0.0;
   std::size_t compared = 0, differing = 0;
@@ -581,7 +581,7 @@ int main(int argc, char** argv) {
         row.spacing = q.grid.spacing;
         row.samples = count;
 
-        // The cost model's own estimate of the share (footprint_share over
+        // The cost model's own estimate of the share (footprint_shares over
         // 64 of the probe suns), on this grid and on the whole 1000 x 1000
         // one: what a shrunk row would have cast there.
         {
@@ -595,8 +595,8 @@ int main(int argc, char** argv) {
           whole.size_x = whole.size_z = hs.grid_side;
           whole.spacing = hs.grid_side / full;
           whole.columns = whole.rows = full;
-          row.share_estimate_here = umbra::footprint_share(q.view.scene, q.grid, directions);
-          row.share_estimate_full = umbra::footprint_share(q.view.scene, whole, directions);
+          row.share_estimate_here = umbra::footprint_shares(q.view.scene, q.grid, directions).queried;
+          row.share_estimate_full = umbra::footprint_shares(q.view.scene, whole, directions).queried;
           // As submit_sun_hours plans it (the same function).
           const umbra::SunHoursCost cost = umbra::plan_sun_hours(q).estimate;
           row.service_footprints = cost.footprints;
@@ -846,7 +846,7 @@ int main(int argc, char** argv) {
           "instead: a coarser grid over the same area for both paths (`grid n x n (spacing xk)`: the whole scene, but "
           "each footprint widened by its spare cells, so the share ray cast grows), a window of the grid at its own "
           "spacing (`window`: the middle points only), or fewer pure points (1 column in k of the 20 rows). **est. "
-          "share** is the cost model's `footprint_share` over 64 of the period's probe suns, on the grid measured and on "
+          "share** is the cost model's `footprint_shares` (queried) over 64 of the period's probe suns, on the grid measured and on "
           "the whole 1000 x 1000 one: what a shrunk case would have ray cast there. Nothing is dropped.\n"
        << "- Periods: **day** = one UTC day at 1-minute steps (the equinox 2026-03-20 at London; Tromso's own day "
           "2026-01-28, when the sun stays within about 2 degrees of the horizon); **year** = 2026 at 10-minute steps, at "

@@ -612,6 +612,7 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   // path is exact: there is no step to skip).
   std::vector<std::string> unused;
   if (!parsed.request->picture) unused = parsed.picture_fields;
+  unused.insert(unused.end(), parsed.colour_fields.begin(), parsed.colour_fields.end());
   if (!parsed.request->exact) unused.push_back("exact");
   if (parsed.request->include_samples && *format != SunHoursFormat::Json) unused.push_back("include_samples");
   // A picture shows a grid only as its pass share: without require_hours

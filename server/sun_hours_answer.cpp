@@ -38,6 +38,20 @@ int specificity(const std::string& range, const std::string& type) {
   return 0;
 }
 
+// RFC 9110 12.4.2: qvalue = ( "0" [ "." 0*3DIGIT ] ) / ( "1" [ "." 0*3("0") ] ).
+// Anything else ("nan", "-1", "2", "0.5e1") makes its range unacceptable (0):
+// a malformed weight must not outrank the others.
+double qvalue(std::string_view text) {
+  if (text.empty() || text.size() > 5 || (text[0] != '0' && text[0] != '1')) return 0.0;
+  if (text.size() > 1 && (text[1] != '.' || text.size() == 2)) return 0.0;
+  double value = text[0] - '0', scale = 0.1;
+  for (std::size_t i = 2; i < text.size(); ++i, scale /= 10) {
+    if (text[i] < '0' || text[i] > '9' || (text[0] == '1' && text[i] != '0')) return 0.0;
+    value += (text[i] - '0') * scale;
+  }
+  return value;
+}
+
 // The q the header gives `type`: that of its most specific matching range
 // (RFC 9110 12.5.1), -1 when none matches.
 double quality(std::string_view accept, const std::string& type) {
@@ -55,7 +69,7 @@ double quality(std::string_view accept, const std::string& type) {
     for (std::size_t p = semi; p < item.size();) {
       const std::size_t next = std::min(item.find(';', p + 1), item.size());
       const std::string param = lower(trim(item.substr(p + 1, next - p - 1)));
-      if (param.rfind("q=", 0) == 0) item_q = std::strtod(param.c_str() + 2, nullptr);
+      if (param.rfind("q=", 0) == 0) item_q = qvalue(std::string_view(param).substr(2));
       p = next;
     }
     const int s = specificity(range, type);

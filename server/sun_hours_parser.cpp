@@ -192,6 +192,11 @@ ParsedSunHours parse_sun_hours_request(std::string_view body, const ModelLookup&
       return result;
     }
     q.view = std::move(*parsed.request);
+    if (const json* scene = member(root, "scene"); scene && scene->is_object())
+      if (const json* objects = member(*scene, "objects"); objects && objects->is_array())
+        for (std::size_t i = 0; i < objects->size(); ++i)
+          if ((*objects)[i].is_object() && (*objects)[i].contains("color"))
+            result.colour_fields.push_back("scene.objects[" + std::to_string(i) + "].color");
     result.request = std::move(q);
   } catch (const Refusal& r) {
     result.error = {r.message, r.field};

@@ -20,6 +20,9 @@ struct ParsedSunHours {
   /// The picture's fields sent (camera, width, height): used by the
   /// image/png answer only.
   std::vector<std::string> picture_fields;
+  /// The objects' colours sent (scene.objects[i].color): no answer shows
+  /// them, the picture colours every surface by its hours.
+  std::vector<std::string> colour_fields;
   bool grid_given = false;
   bool ok() const { return request.has_value(); }
 };

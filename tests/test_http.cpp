@@ -25,6 +25,7 @@
 #include "gltf_builder.hpp"
 #include "assets/gltf_loader.hpp"
 #include "http_api.hpp"
+#include "sun_hours_parser.hpp"
 #include "assets/model_store.hpp"
 #include "service/render_service.hpp"
 #include "core/sun_position.hpp"
@@ -772,6 +773,14 @@ TEST(Http, SunHoursAnswersJsonOrCsvByAccept) {
   ASSERT_TRUE(unused);
   EXPECT_EQ(unused->status, 200);
   EXPECT_EQ(unused->get_header_value("Umbra-Unused-Fields"), "height, width");
+  // An object's colour changes no answer (the picture colours by hours).
+  json coloured = sun_hours_body();
+  coloured["scene"] = json::parse(R"({"objects": [{"type": "box", "center": [0, 0.5, 0]},
+      {"type": "sphere", "center": [3, 1, 0], "color": "#ff0000"}]})");
+  auto colour = client().Post("/api/sun-hours", coloured.dump(), "application/json");
+  ASSERT_TRUE(colour);
+  EXPECT_EQ(colour->status, 200) << colour->body;
+  EXPECT_EQ(colour->get_header_value("Umbra-Unused-Fields"), "scene.objects[1].color");
   auto get = client().Get("/api/sun-hours");
   expect_json_error(get, 405, "");
   EXPECT_EQ(get->get_header_value("Allow"), "POST");
@@ -862,6 +871,15 @@ TEST(Http, ASunHoursJobGivesProgressThenTheSameAnswer) {
   ASSERT_TRUE(csv);
   EXPECT_EQ(csv->status, 200);
   EXPECT_EQ(std::count(csv->body.begin(), csv->body.end(), '\n'), 160 * 160 + 1);
+  // The picture is passed over for a grid job: the best of JSON and CSV,
+  // and a malformed weight (q=nan, which once chose the picture: 500) is 0.
+  httplib::Headers png_first = {{"Accept", "image/png, text/csv;q=0.5"}};
+  auto passed_over = c.Get("/api/sun-hours/jobs/" + id, png_first);
+  ASSERT_TRUE(passed_over);
+  EXPECT_EQ(passed_over->status, 200);
+  EXPECT_EQ(passed_over->get_header_value("Content-Type"), "text/csv; charset=utf-8");
+  httplib::Headers nan_weight = {{"Accept", "image/png;q=nan, application/json;q=nan"}};
+  expect_json_error(c.Get("/api/sun-hours/jobs/" + id, nan_weight), 406, "");
   auto removed = c.Delete("/api/sun-hours/jobs/" + id);
   ASSERT_TRUE(removed);
   EXPECT_EQ(json::parse(removed->body)["state"], "removed");
@@ -881,6 +899,9 @@ TEST(Http, ASunHoursJobGivesProgressThenTheSameAnswer) {
   ASSERT_TRUE(waiting);
   if (waiting->status == 202) {  // else the machine finished both already: nothing to cancel
     EXPECT_EQ(json::parse(waiting->body)["state"], "queued") << waiting->body;
+    // Only the running job holds a place in the queue: jobs waiting leave
+    // it to renders (sixteen of them once filled it: renders got 503).
+    EXPECT_LE(renderer.queue_depth(), 1u);
     const auto start = std::chrono::steady_clock::now();
     EXPECT_EQ(json::parse(c.Delete("/api/sun-hours/jobs/" + second)->body)["state"], "cancelled");
     EXPECT_EQ(c.Delete("/api/sun-hours/jobs/" + first)->status, 200);
@@ -900,6 +921,37 @@ TEST(Http, ASunHoursJobGivesProgressThenTheSameAnswer) {
   EXPECT_NE(refused->body.find("--max-job-ms"), std::string::npos) << refused->body;
   api.stop();
   server.join();
+}
+
+// Sun-hours jobs waiting for their turn hold no place in the queue: four
+// long jobs on a queue of two leave room for a request beside the running
+// one (jobs waiting once took a place each, and renders got 503).
+TEST(Http, WaitingSunHoursJobsLeaveTheQueueToOthers) {
+  ServiceLimits limits;
+  limits.queue_capacity = 2;
+  RenderService renderer(limits);
+  json body = sun_hours_body();
+  body["scene"] = "three-cubes";
+  body["period"]["step_minutes"] = 1;
+  body["grid"] = {{"center", {0, 0.01, 0}}, {"size", {20, 20}}, {"spacing", 0.02}};
+  const ParsedSunHours long_job = parse_sun_hours_request(body.dump());
+  ASSERT_TRUE(long_job.ok()) << long_job.error.message;
+  std::vector<std::shared_ptr<SunHoursProgress>> progress;
+  std::vector<std::future<SunHoursResult>> jobs;
+  for (int i = 0; i < 4; ++i) {
+    progress.push_back(std::make_shared<SunHoursProgress>());
+    jobs.push_back(renderer.submit_sun_hours(*long_job.request, {}, true, progress.back()));
+  }
+  while (!progress[0]->started) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_EQ(renderer.queue_depth(), 1u);
+  const ParsedSunHours small = parse_sun_hours_request(sun_hours_body().dump());
+  ASSERT_TRUE(small.ok());
+  std::future<SunHoursResult> beside;
+  ASSERT_NO_THROW(beside = renderer.submit_sun_hours(*small.request));
+  EXPECT_EQ(beside.get().tally.size(), small.request->grid.points());
+  for (auto& p : progress) p->cancel = true;
+  for (auto& j : jobs) EXPECT_THROW(j.get(), ClientGone);
+  EXPECT_EQ(renderer.queue_depth(), 0u);
 }
 
 TEST(Http, BodyOverOneMebibyteIs413) {

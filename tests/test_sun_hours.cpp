@@ -19,6 +19,7 @@
 #include "reference/ray_cast.hpp"
 #include "reference/sun_hours_footprints.hpp"
 #include "reference/sun_hours_ray_cast.hpp"
+#include "service/request_cost.hpp"
 #include "sun_hours_answer.hpp"
 #include "sun_hours_parser.hpp"
 
@@ -69,6 +70,25 @@ TEST(SunHours, SamplesStandForTheMiddleOfTheirSteps) {
   EXPECT_FALSE(sample_count(day));
   day.step_minutes = 0.5;
   EXPECT_EQ(sample_count(day), std::size_t(2880));
+}
+
+TEST(SunHours, ProbesDoNotAliasWithTheDay) {
+  // Periods whose probes' stretches are whole days: the middle of each
+  // stretch fell at one time of day (all midnight from a noon start: sun-up
+  // share 0, and a year's job priced at 1 % of its cost). The share the
+  // probes see must be the period's own, measured here at 97-minute steps
+  // (prime to the day: every time of day is taken).
+  const SunSite london{51.5, -0.12, 0.0};
+  for (const double start_hour : {0.0, 12.0})
+    for (const double step : {1.0, 2.0, 10.0}) {
+      const double start = kEquinox2026 + start_hour * 3600.0;
+      const SunPeriod period{start, start + 512.0 * kDay, step};
+      const std::size_t count = *sample_count(period);
+      const double seen = sun_up_share(probe_samples(london, period, count));
+      const SunPeriod steady{start, start + 7600.0 * 97.0 * 60.0, 97.0};
+      const double truth = sun_up_share(sun_samples(london, steady, *sample_count(steady)));
+      EXPECT_NEAR(seen, truth, 0.05) << "start " << start_hour << " h, step " << step << " min";
+    }
 }
 
 TEST(SunHours, TheGridIsTheCentresOfItsCells) {
@@ -180,6 +200,19 @@ TEST(SunHoursAnswer, AcceptChoosesJsonOrCsv) {
   EXPECT_EQ(sun_hours_format("image/png, application/json;q=0.9"), SunHoursFormat::Png);
   EXPECT_FALSE(sun_hours_format("application/xml"));
   EXPECT_FALSE(sun_hours_format("text/csv;q=0"));
+}
+
+TEST(SunHoursAnswer, MalformedWeightsAreUnacceptable) {
+  // A weight outside RFC 9110's qvalue grammar must not outrank the others:
+  // NaN survived std::max and chose the picture for a grid-only job (500).
+  for (const char* bad : {"nan", "NaN", "-1", "2", "1.5", "0.5e1", "inf", "0.1234", "1.", "", "x"})
+    EXPECT_EQ(sun_hours_format(std::string("image/png;q=") + bad + ", application/json;q=0.1", false),
+              SunHoursFormat::Json)
+        << bad;
+  EXPECT_EQ(sun_hours_format("application/json;q=nan, text/csv;q=0.001"), SunHoursFormat::Csv);
+  EXPECT_FALSE(sun_hours_format("application/json;q=nan"));
+  EXPECT_EQ(sun_hours_format("text/csv;q=1.000, application/json;q=0.999"), SunHoursFormat::Csv);
+  EXPECT_EQ(sun_hours_format("text/csv;q=0.5, application/json;q=0.50"), SunHoursFormat::Json);
 }
 
 TEST(SunHoursAnswer, InstantsKeepTheirFraction) {
@@ -558,9 +591,91 @@ TEST(SunHoursFootprints, AFootprintBillionsOfCellsAwayIsNoCrash) {
     const SunHoursResult footprints = cast_by_footprints(q);
     expect_same_tallies(footprints, cast(q), center);
     EXPECT_EQ(footprints.pairs_ray_cast, 0u) << center;
-    double queried = footprint_share(q.view.scene, q.grid, {glm::normalize(glm::dvec3(0.3, 0.2, 0.9))});
-    EXPECT_EQ(queried, 0.0) << center;
+    const FootprintShares shares = footprint_shares(q.view.scene, q.grid, {glm::normalize(glm::dvec3(0.3, 0.2, 0.9))});
+    EXPECT_EQ(shares.queried, 0.0) << center;
+    EXPECT_EQ(shares.depth, 0.0) << center;
   }
+}
+
+}  // namespace
+}  // namespace umbra
+
+namespace umbra {
+namespace {
+
+// One sample over a grid under a stack of thin turned boxes: the work of
+// one sample is long, and a stop must be seen within it (the red-team pass
+// measured one sample running 135 s past an 8 s watchdog, when the stop
+// was asked only between samples). stop_requested answers true from its
+// second call: asked only between samples, this single-sample cast would
+// finish and never throw.
+json stacked_spokes(int boxes, double spacing) {
+  json objects = json::array();
+  for (int i = 0; i < boxes; ++i)
+    objects.push_back({{"type", "box"}, {"center", {0, 1, 0}}, {"size", {10, 0.05, 0.002}}, {"rotation_y_deg", 45}});
+  return {{"scene", {{"objects", objects}}},
+          {"site", {{"latitude", 51.5}, {"longitude", 0}}},
+          {"period", {{"start", "2026-03-21T12:00:00Z"}, {"end", "2026-03-21T12:10:00Z"}, {"step_minutes", 10}}},
+          {"grid", {{"center", {0, 0, 0}}, {"size", {6.4, 6.4}}, {"spacing", spacing}}}};
+}
+
+TEST(SunHoursStop, IsAskedWithinOneSample) {
+  const SunHoursRequest q = parsed(stacked_spokes(50, 0.025));  // 256 x 256 points, 50 boxes
+  SunHoursResult result;
+  result.step_minutes = q.period.step_minutes;
+  result.samples = sun_samples(q.site, q.period, 1);
+  ASSERT_TRUE(result.samples[0].up());
+  const RayScene rays(q.view.scene);
+  const std::uint64_t pairs = q.grid.points();
+  for (const bool by_footprints : {true, false}) {
+    int calls = 0;
+    const std::function<bool()> stop = [&] { return ++calls > 1; };
+    std::atomic<std::uint64_t> done{0};
+    if (by_footprints)
+      EXPECT_THROW(footprint_sun_hours(rays, q.view.scene, q.grid, result.samples, result, stop, &done), CastStopped);
+    else
+      EXPECT_THROW(ray_cast_sun_hours(rays, q.grid, result.samples, result, stop, &done), CastStopped);
+    EXPECT_LT(done.load(), pairs) << (by_footprints ? "footprints" : "ray cast");
+  }
+}
+
+// The cost of a ray is the objects whose bounds it passes: a thousand thin
+// boxes stacked at one spot cost a thousand tests a ray, not log2(1000)
+// (the estimate was 160 times under the time taken).
+TEST(SunHoursCost, OverlappingObjectsArePricedByTheirDepth) {
+  const SunHoursRequest stacked = parsed(stacked_spokes(1000, 0.2));
+  json spread_body = stacked_spokes(1000, 0.2);
+  for (int i = 0; i < 1000; ++i)  // the same boxes, far apart and small: no ray meets two
+    spread_body["scene"]["objects"][std::size_t(i)] = {
+        {"type", "box"}, {"center", {1000.0 + 10.0 * (i % 40), 1, 1000.0 + 10.0 * (i / 40)}}, {"size", {0.1, 0.05, 0.1}}};
+  const SunHoursRequest spread = parsed(spread_body);
+  const SunHoursPlan a = plan_sun_hours(stacked), b = plan_sun_hours(spread);
+  EXPECT_GT(a.estimate.ray_cast_ms, 30.0 * b.estimate.ray_cast_ms);
+  // 32 x 32 points, one sample, up to 1000 objects each: about 10^6 tests.
+  EXPECT_GT(a.estimate.cost.total_ms, 1e6 * 1.0e-5);
+}
+
+// The plan runs before any budget: its time must not grow with rows x
+// objects (a 1 x 4M grid under 20 kilometre-long boxes took 64 s).
+TEST(SunHoursCost, ThePlanVisitsABoundedLattice) {
+  json body = stacked_spokes(0, 0.25);
+  json objects = json::array();
+  for (int i = 0; i < 20; ++i)
+    objects.push_back({{"type", "box"}, {"center", {0, 0.5, 0}}, {"size", {0.1 + 0.001 * i, 1, 999999}}});
+  body["scene"]["objects"] = objects;
+  body["grid"] = {{"center", {0, 0, 0}}, {"size", {0.25, 1048576}}, {"spacing", 0.25}};
+  const SunHoursRequest q = parsed(body);
+  ASSERT_EQ(q.grid.points(), std::size_t(4194304));
+  std::vector<glm::dvec3> directions;
+  for (int i = 0; i < 32; ++i) directions.push_back(glm::normalize(glm::dvec3(0.3, 0.2 + 0.02 * i, 0.9)));
+  // The rows each footprint is walked over: the lattice's, not the grid's.
+  std::size_t rows = 0;
+  for (const SceneObject& o : q.view.scene.objects)
+    footprint_spans(reachable_bounds(object_bounds(o), 0.0, 524288.0), directions[0], q.grid, 0, q.grid.rows,
+                    [&](int, int, int) { ++rows; }, 32768);
+  EXPECT_LE(rows, 20u * 130u);
+  const FootprintShares shares = footprint_shares(q.view.scene, q.grid, directions);
+  EXPECT_GT(shares.depth, 10.0);  // every point lies under the 20 boxes
 }
 
 }  // namespace

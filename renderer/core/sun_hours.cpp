@@ -59,8 +59,12 @@ std::vector<SunSample> probe_samples(const SunSite& site, const SunPeriod& perio
   if (count == 0) return out;
   const std::size_t n = std::min(count, std::max<std::size_t>(1, probes));
   for (std::size_t i = 0; i < n; ++i) {
-    // Probe i stands for the samples of the i-th of n equal stretches.
-    const std::size_t k = std::min(count - 1, std::size_t((double(i) + 0.5) * double(count) / double(n)));
+    // Probe i stands for the samples of the i-th of n equal stretches; it
+    // lies at a golden-ratio fraction of its stretch, not the middle: when
+    // a stretch is a whole number of days (737,280 one-minute samples from
+    // noon over 512 probes) the middles all fall at one time of day.
+    const double jitter = std::fmod(0.5 + double(i) * 0.6180339887498949, 1.0);
+    const std::size_t k = std::min(count - 1, std::size_t((double(i) + jitter) * double(count) / double(n)));
     out.push_back(sample_at(site, sample_time(period, k)));
   }
   return out;

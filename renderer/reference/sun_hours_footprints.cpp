@@ -79,7 +79,7 @@ Aabb reachable_bounds(const Aabb& bounds, double plane_y, double reach) {
 }
 
 void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
-                     int last_row, const std::function<void(int, int, int)>& row_span) {
+                     int last_row, const std::function<void(int, int, int)>& row_span, int row_step) {
   if (bounds.empty() || !(direction.y > 0.0)) return;
   // Each corner slides down the sun's direction to the plane: the points
   // whose rays pass through it. The bounds are convex, so the footprint is
@@ -102,8 +102,9 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
   // lies billions of rows away.
   const double rows_from = std::max<double>(first_row, row_low), rows_to = std::min<double>(last_row - 1, row_high);
   if (!(rows_from <= rows_to)) return;
-  const int r0 = int(rows_from), r1 = int(rows_to);
-  for (int r = r0; r <= r1; ++r) {
+  const int r1 = int(rows_to);
+  const int r0 = int(std::ceil(rows_from / row_step)) * row_step;
+  for (int r = r0; r <= r1; r += row_step) {
     // The row's line z = const meets the hull in one interval; rows just
     // beside it (the spare ones) take the nearest vertex's x.
     const double z = std::clamp(origin.z + r * s, z_low, z_high);
@@ -124,10 +125,9 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
   }
 }
 
-double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions,
-                       double* candidate_share) {
-  if (candidate_share) *candidate_share = 0.0;
-  if (directions.empty() || grid.points() == 0) return 0.0;
+FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions) {
+  FootprintShares out;
+  if (directions.empty() || grid.points() == 0) return out;
   const double reach = grid_reach(grid);
   struct Object {
     Aabb bounds;
@@ -141,44 +141,100 @@ double footprint_share(const Scene& scene, const SunGrid& grid, const std::vecto
     const Aabb b = reachable_bounds(exact, grid.center.y, reach);
     if (!b.empty()) reachable.push_back({b, &o, &shape_kind(o.type), rounding_margin(exact, reach)});
   }
-  // A lattice of at most about 128 x 128 of the grid's points, judged as
-  // footprint_sun_hours judges them: inside a footprint, and then settled
-  // by a proof of dark or left to the query.
+  // A lattice of at most about 128 x 128 of the grid's points (every
+  // stride-th row and column), judged as footprint_sun_hours judges them:
+  // inside a footprint, and then settled by a proof of dark or left to the
+  // query. Indexed by lattice cell, so the plan's memory and time do not
+  // grow with the grid.
   const int stride = std::max(1, int(std::ceil(std::max(grid.columns, grid.rows) / 128.0)));
-  std::size_t lattice = 0;
-  for (int r = 0; r < grid.rows; r += stride)
-    for (int c = 0; c < grid.columns; c += stride) ++lattice;
-  std::vector<int> seen(grid.points(), -1);
-  std::vector<std::uint8_t> inside(grid.points(), 0);
+  const int lattice_columns = (grid.columns + stride - 1) / stride, lattice_rows = (grid.rows + stride - 1) / stride;
+  const std::size_t lattice = std::size_t(lattice_columns) * std::size_t(lattice_rows);
+  const auto cell = [&](int r, int c) { return std::size_t(r / stride) * std::size_t(lattice_columns) + std::size_t(c / stride); };
+  std::vector<int> seen(lattice, -1);
+  std::vector<std::uint8_t> inside(lattice, 0);
   for (const Object& o : reachable) {
     if (!o.kind->contains) continue;
     for (int r = 0; r < grid.rows; r += stride)
       for (int c = 0; c < grid.columns; c += stride) {
-        const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
-        const glm::dvec3 p = grid.point(i);
+        const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
         if (p.x >= o.bounds.min.x && p.x <= o.bounds.max.x && p.z >= o.bounds.min.z && p.z <= o.bounds.max.z &&
             o.kind->contains(*o.object, p, 2.0 * o.margin))
-          inside[i] = 1;
+          inside[cell(r, c)] = 1;
       }
   }
-  double candidates = 0.0, queried = 0.0;
-  for (std::size_t n = 0; n < directions.size(); ++n) {
-    const glm::dvec3& d = directions[n];
-    for (const Object& o : reachable)
-      footprint_spans(o.bounds, d, grid, 0, grid.rows, [&](int r, int c0, int c1) {
-        if (r % stride != 0) return;
-        for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
-          const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
-          if (inside[i] || seen[i] == int(n)) continue;
-          seen[i] = int(n);
-          candidates += 1.0;
-          if (!(o.kind->surely_meets && o.kind->surely_meets(*o.object, grid.point(i), d, o.margin))) queried += 1.0;
-        }
-      });
+  // Directions in turn until about kMaxWork: a thousand objects over the
+  // whole grid are 16 M visits a direction, and the plan runs before any
+  // budget. A proof (a turned box's trigonometry) weighs 16 visits.
+  constexpr double kMaxWork = 16.0e6, kWorkPerProof = 16.0;
+  double work = 0.0;
+  double candidates = 0.0, queried = 0.0, visits = 0.0, tests = 0.0, queried_tests = 0.0;
+  std::vector<std::uint16_t> depth(lattice, 0);
+  std::vector<std::uint8_t> dark(lattice, 0), left(lattice, 0), proofs(lattice, 0);
+  std::vector<std::size_t> touched;
+  // The directions in van der Corput order (first, middle, quarters, ...):
+  // where the work runs out, those judged still spread over the period.
+  std::vector<std::size_t> order;
+  std::size_t span = 1;
+  while (span < directions.size()) span *= 2;
+  for (std::size_t m = 0; m < span; ++m) {
+    std::size_t reversed = 0;
+    for (std::size_t bit = 1, out_bit = span / 2; bit < span; bit *= 2, out_bit /= 2)
+      if (m & bit) reversed |= out_bit;
+    if (reversed < directions.size()) order.push_back(reversed);
   }
-  const double judged = double(directions.size()) * double(lattice);
-  if (candidate_share) *candidate_share = candidates / judged;
-  return queried / judged;
+  std::size_t judged_directions = 0;
+  for (std::size_t n = 0; n < order.size() && work < kMaxWork; ++n, ++judged_directions) {
+    const glm::dvec3& d = directions[order[n]];
+    for (const Object& o : reachable)
+      footprint_spans(
+          o.bounds, d, grid, 0, grid.rows,
+          [&](int r, int c0, int c1) {
+            for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
+              const std::size_t i = cell(r, c);
+              visits += 1.0;
+              work += 1.0;
+              if (depth[i] == 0) touched.push_back(i);
+              if (depth[i] < 65535) ++depth[i];
+              if (inside[i]) continue;
+              const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
+              // At most a few proofs a point: a thousand identical boxes
+              // that none proves would be a thousand.
+              const bool ask = !dark[i] && o.kind->surely_meets && proofs[i] < 4;
+              proofs[i] += ask ? 1 : 0;
+              work += ask ? kWorkPerProof : 0.0;
+              const bool sure = ask && o.kind->surely_meets(*o.object, p, d, o.margin);
+              dark[i] |= sure;
+              // As footprint_sun_hours: the first footprint holding the
+              // point judges it, and the query settles what it cannot.
+              if (seen[i] == int(n)) continue;
+              seen[i] = int(n);
+              candidates += 1.0;
+              if (!sure) {
+                queried += 1.0;
+                left[i] = 1;
+              }
+            }
+          },
+          stride);
+    // The objects a ray is tested against besides the tree's levels and
+    // the one the cost model prices every ray with: none where some object
+    // surely meets it (its first hit ends a shadow ray), else every other
+    // object whose bounds it passes.
+    for (const std::size_t i : touched) {
+      const double t = dark[i] || inside[i] ? 0.0 : double(depth[i]) - 1.0;
+      tests += t;
+      if (left[i]) queried_tests += t;
+      depth[i] = 0, dark[i] = 0, left[i] = 0, proofs[i] = 0;
+    }
+    touched.clear();
+  }
+  const double judged = double(judged_directions) * double(lattice);
+  out.queried = queried / judged;
+  out.candidates = candidates / judged;
+  out.depth = visits / judged;
+  out.tests = tests / judged;
+  out.queried_tests = queried > 0.0 ? queried_tests / queried : 0.0;
+  return out;
 }
 
 void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid& grid,
@@ -238,23 +294,22 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   // the end, and its longest lit run.
   std::vector<std::int64_t> tested(points, -1), last_dark(points, -1), dark_stretch(points, -1);
   std::atomic<std::uint64_t> cast{0};
-  std::atomic<bool> stopped{false};
-  std::mutex asking;
+  StopPoll poll(stop_requested);
   const int bands = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(grid.rows))));
   const auto band = [&](int b) {
     const int r0 = int(std::int64_t(grid.rows) * b / bands), r1 = int(std::int64_t(grid.rows) * (b + 1) / bands);
-    std::uint64_t casts = 0;
+    std::uint64_t casts = 0, since = 0;
     for (std::size_t j = 0; j < stretches.size(); ++j) {
       const Stretch& stretch = stretches[j];
       for (std::size_t k = stretch.first; k < stretch.end; ++k) {
-        if (stop_requested) {
-          std::lock_guard<std::mutex> lock(asking);
-          if (stopped || stop_requested()) stopped = true;
-        }
-        if (stopped) return;
+        if (poll.ask()) return;
         const glm::dvec3& d = samples[k].direction;
         for (const Reachable& object : reachable) {
+          // Asked within a sample too: one sample of a fine grid under a
+          // thousand overlapping objects is minutes of work.
+          if (poll.stopped()) return;
           footprint_spans(object.bounds, d, grid, r0, r1, [&](int r, int c0, int c1) {
+            if (poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
             for (int c = c0; c <= c1; ++c) {
               const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
               if (inside[i] || tested[i] == std::int64_t(k)) continue;
@@ -267,7 +322,9 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
               const bool surely_dark = object.surely_meets && object.surely_meets(*object.object, p, d, object.margin);
               if (!surely_dark) {
                 ++casts;
-                if (sees_sun(rays, p, d)) continue;
+                const bool lit = sees_sun(rays, p, d);
+                if (poll.after(since, 16)) return;  // a query weighs about as much as 16 visits
+                if (lit) continue;
               }
               // Dark: the run since its last dark sample in this stretch
               // (or the stretch's start) ends here.
@@ -296,7 +353,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   for (int b = 1; b < bands; ++b) pool.emplace_back(band, b);
   band(0);
   for (auto& t : pool) t.join();
-  if (stopped) throw CastStopped();
+  if (poll.stopped()) throw CastStopped();
   for (std::size_t i = 0; i < points; ++i) {
     PointTally& t = result.tally[i];
     t.lit = inside[i] ? 0 : std::uint32_t(up) - t.run;

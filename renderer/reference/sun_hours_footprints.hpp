@@ -39,26 +39,47 @@ Aabb reachable_bounds(const Aabb& bounds, double plane_y, double grid_reach);
 /// the footprint of `bounds` (reachable_bounds) along the unit sun
 /// direction (direction.y > 0) crosses, with the columns it covers, one
 /// spare column and row each side for the rounding of this computation,
-/// clamped to the grid and to rows [first_row, last_row).
+/// clamped to the grid and to rows [first_row, last_row); with `row_step`,
+/// only the rows that are multiples of it.
 void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
-                     int last_row, const std::function<void(int row, int first_column, int last_column)>& row_span);
+                     int last_row, const std::function<void(int row, int first_column, int last_column)>& row_span,
+                     int row_step = 1);
 
-/// The share of the grid's (point, sample) pairs that the footprints path
-/// leaves to the query (inside a footprint and not surely dark), averaged
+/// What the footprints path would meet, per (point, sample) pair, averaged
 /// over `directions` (each with y > 0), judged on a lattice of at most
-/// about 128 x 128 of the points: what the cost model prices the rays by.
-/// `candidate_share`, if given, gets the share inside any footprint and not
-/// inside a solid (each judged for a proof of dark).
-double footprint_share(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions,
-                       double* candidate_share = nullptr);
+/// about 128 x 128 of the grid's points: what the cost model prices the
+/// path and the rays by.
+struct FootprintShares {
+  /// Left to the query: inside a footprint and not surely dark.
+  double queried = 0.0;
+  /// Inside any footprint and not inside a solid: each judged for a proof
+  /// of dark.
+  double candidates = 0.0;
+  /// Footprints holding a pair, on average over all pairs: the footprints
+  /// path's visits.
+  double depth = 0.0;
+  /// Objects a pair's ray is tested against besides the tree's levels and
+  /// one more, on average over all pairs: every other object whose bounds
+  /// it passes through, or none where some object surely meets it (its
+  /// first hit ends a shadow ray).
+  double tests = 0.0;
+  /// The same, over the pairs left to the query only.
+  double queried_tests = 0.0;
+};
+/// The shares for `directions`, in turn until about 16 M units of work (a
+/// lattice point visited in a footprint, 16 for a proof of dark), so the
+/// plan's time stays bounded however many objects overlap; at least the
+/// first direction is judged.
+FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions);
 
 /// ray_cast_sun_hours' answer, by footprints: fills result.tally,
 /// result.samples_up, pairs, pairs_by_maps (outside every footprint, or
 /// surely dark inside one) and pairs_ray_cast (the rest: one sees_sun
 /// query each). On all hardware
 /// threads, each a band of grid rows walking the samples in order;
-/// `stop_requested` is asked between samples (one thread at a time), and
-/// once it answers true the cast throws CastStopped.
+/// `stop_requested` is asked between samples and every few thousand points
+/// visited or rays cast (StopPoll), and once it answers true the cast
+/// throws CastStopped.
 void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid& grid,
                          const std::vector<SunSample>& samples, SunHoursResult& result,
                          const std::function<bool()>& stop_requested = nullptr,

@@ -10,26 +10,29 @@
 
 namespace umbra {
 
+bool StopPoll::ask() {
+  if (!ask_ || stopped()) return stopped();
+  std::lock_guard<std::mutex> lock(asking_);
+  if (!stopped() && ask_()) stopped_ = true;
+  return stopped();
+}
+
 namespace {
 
-// Calls task(i) for every i in [0, count) on all hardware threads, each
-// thread taking the next i; asks stop_requested (if given, one thread at a
-// time) before each, and throws CastStopped once it answered true.
+// Calls task(i, poll) for every i in [0, count) on all hardware threads,
+// each thread taking the next i; asks stop_requested (StopPoll) before
+// each, and throws CastStopped once it answered true. A long task asks
+// within itself (poll.after) and returns early once poll.stopped().
 void run_tasks(std::size_t count, const std::function<bool()>& stop_requested,
-               const std::function<void(std::size_t)>& task) {
+               const std::function<void(std::size_t, StopPoll&)>& task) {
   std::atomic<std::size_t> next{0};
-  std::atomic<bool> stopped{false};
-  std::mutex asking;  // stop_requested need not be thread-safe
+  StopPoll poll(stop_requested);
   const auto work = [&] {
     for (;;) {
-      if (stop_requested) {
-        std::lock_guard<std::mutex> lock(asking);
-        if (stopped || stop_requested()) stopped = true;
-      }
-      if (stopped) return;
+      if (poll.ask()) return;
       const std::size_t i = next.fetch_add(1);
       if (i >= count) return;
-      task(i);
+      task(i, poll);
     }
   };
   const unsigned threads =
@@ -38,7 +41,7 @@ void run_tasks(std::size_t count, const std::function<bool()>& stop_requested,
   for (unsigned i = 1; i < threads; ++i) pool.emplace_back(work);
   work();
   for (auto& t : pool) t.join();
-  if (stopped) throw CastStopped();
+  if (poll.stopped()) throw CastStopped();
 }
 
 }  // namespace
@@ -47,7 +50,7 @@ std::vector<SunSample> sun_samples_on_all_cores(const SunSite& site, const SunPe
                                                 const std::function<bool()>& stop_requested) {
   std::vector<SunSample> samples(count);
   constexpr std::size_t kBlock = 4096;
-  run_tasks((count + kBlock - 1) / kBlock, stop_requested, [&](std::size_t b) {
+  run_tasks((count + kBlock - 1) / kBlock, stop_requested, [&](std::size_t b, StopPoll&) {
     for (std::size_t k = b * kBlock; k < std::min(count, (b + 1) * kBlock); ++k) samples[k] = sun_sample(site, period, k);
   });
   return samples;
@@ -68,12 +71,17 @@ void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::ve
   // About 2^16 rays a chunk: a few milliseconds, so a stop is seen soon.
   const std::size_t chunk = std::max<std::size_t>(1, (std::size_t(1) << 16) / std::max<std::size_t>(1, up));
   const std::size_t chunks = (points + chunk - 1) / chunk;
-  run_tasks(chunks, stop_requested, [&](std::size_t c) {
+  run_tasks(chunks, stop_requested, [&](std::size_t c, StopPoll& poll) {
     const std::size_t first = c * chunk, last = std::min(points, first + chunk);
+    std::uint64_t since = 0;
     for (const SunSample& sample : samples) {
       const bool sun_up = sample.up();
-      for (std::size_t i = first; i < last; ++i)
+      for (std::size_t i = first; i < last; ++i) {
         result.tally[i].record(sun_up && sees_sun(rays, grid.point(i), sample.direction));
+        // Asked by rays, not chunks: a ray through a thousand overlapping
+        // objects costs a thousand tests.
+        if (sun_up && poll.after(since, 1)) return;
+      }
     }
     if (pairs_done) pairs_done->fetch_add(std::uint64_t(last - first) * up);
   });
@@ -89,8 +97,10 @@ std::vector<float> sun_hours_per_pixel(const ExactView& view, int width, int hei
   for (const SunSample& s : samples)
     if (s.up()) up.push_back(s.direction);
   const RayScene& rays = view.rays();
-  run_tasks(std::size_t(std::max(0, height)), stop_requested, [&](std::size_t y) {
+  run_tasks(std::size_t(std::max(0, height)), stop_requested, [&](std::size_t y, StopPoll& poll) {
+    std::uint64_t since = 0;
     for (int x = 0; x < width; ++x) {
+      if (poll.after(since, up.size() + 1)) return;
       const std::optional<RayHit> hit = view.surface_at(x + 0.5, double(y) + 0.5);
       if (!hit) continue;
       std::uint32_t lit = 0;

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <mutex>
 #include <vector>
 
 #include "core/sun_hours.hpp"
@@ -16,6 +17,33 @@ namespace umbra {
 
 class RayScene;   // reference/ray_cast.hpp
 class ExactView;  // reference/ray_cast.hpp
+
+/// A stop_requested shared by many threads: asked by one thread at a time
+/// (it need not be thread-safe), by each thread once per kWorkPerAsk units
+/// of work it reports (a ray cast, a point visited), so a stop is seen
+/// within milliseconds however long one sample or one row of work is; once
+/// it answered true, stopped() is true for every thread.
+class StopPoll {
+ public:
+  static constexpr std::uint64_t kWorkPerAsk = 4096;
+  explicit StopPoll(const std::function<bool()>& ask) : ask_(ask) {}
+  /// Asks now (no-op without a stop_requested). True once stopped.
+  bool ask();
+  /// Adds `work` to the calling thread's own count `since`; asks when it
+  /// reaches kWorkPerAsk. True once stopped.
+  bool after(std::uint64_t& since, std::uint64_t work) {
+    since += work;
+    if (since < kWorkPerAsk) return stopped();
+    since = 0;
+    return ask();
+  }
+  bool stopped() const { return stopped_.load(std::memory_order_relaxed); }
+
+ private:
+  const std::function<bool()>& ask_;
+  std::atomic<bool> stopped_{false};
+  std::mutex asking_;
+};
 
 /// Every sample of the period (sun_sample) on all hardware threads: a
 /// year at one-minute steps is half a million positions by NREL SPA.
@@ -32,8 +60,8 @@ bool sees_sun(const RayScene& rays, const glm::dvec3& point, const glm::dvec3& d
 /// result.tally, and counts the pairs cast (result.pairs,
 /// result.pairs_ray_cast). On all hardware threads, in chunks of points
 /// that each walk the samples in order (neighbouring rays share a
-/// direction). `stop_requested`, if given, is asked between chunks (one
-/// thread at a time); once it answers true the cast throws CastStopped.
+/// direction). `stop_requested`, if given, is asked every few thousand rays
+/// (StopPoll); once it answers true the cast throws CastStopped.
 void ray_cast_sun_hours(const RayScene& rays, const SunGrid& grid, const std::vector<SunSample>& samples,
                         SunHoursResult& result, const std::function<bool()>& stop_requested = nullptr,
                         std::atomic<std::uint64_t>* pairs_done = nullptr);

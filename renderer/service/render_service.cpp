@@ -9,6 +9,7 @@
 #include <deque>
 #include <mutex>
 #include <optional>
+#include <memory>
 #include <thread>
 
 #include <malloc.h>
@@ -74,15 +75,19 @@ struct RenderService::Impl {
 
   explicit Impl(ServiceLimits l) : limits(l) {}
 
-  // Claims a place in the queue, or throws QueueFull.
-  void reserve() {
+  // Claims a place in the queue; false when it is full.
+  bool try_reserve() {
     std::size_t current = in_flight.load();
     do {
-      if (current >= limits.queue_capacity) {
-        rejected_count.fetch_add(1);
-        throw QueueFull();
-      }
+      if (current >= limits.queue_capacity) return false;
     } while (!in_flight.compare_exchange_weak(current, current + 1));
+    return true;
+  }
+  // Claims a place in the queue, or throws QueueFull.
+  void reserve() {
+    if (try_reserve()) return;
+    rejected_count.fetch_add(1);
+    throw QueueFull();
   }
 
   const ServiceLimits limits;
@@ -500,7 +505,9 @@ SunHoursPlan RenderService::plan_sun_hours(const SunHoursRequest& request) const
 }
 
 // A sun-hours analysis needs no GL: like the exact output, it runs on its
-// own thread (the cast itself on every core) and holds a place in the queue.
+// own thread (the cast itself on every core) and holds a place in the queue
+// while it runs. A job waiting for its turn holds none: sixteen jobs
+// waiting must not fill the queue that renders share.
 std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest request, ClientGoneCheck client_gone,
                                                             bool job, std::shared_ptr<SunHoursProgress> progress,
                                                             std::optional<SunHoursPlan> planned) {
@@ -510,25 +517,37 @@ std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest requ
     impl_->check_budget(cost, impl_->limits.max_job_cost, " ms a job (--max-job-ms)", " to run");
   else
     impl_->check_budget(cost, impl_->limits.max_request_cost, " ms a request", " to run");
-  impl_->reserve();
-  impl_->reserved_bytes.fetch_add(cost.peak_bytes);
+  if (!job) {
+    impl_->reserve();
+    impl_->reserved_bytes.fetch_add(cost.peak_bytes);
+  }
   if (!progress) progress = std::make_shared<SunHoursProgress>();
   Impl* impl = impl_.get();
   const auto queued = std::chrono::steady_clock::now();
   return std::async(std::launch::async, [impl, queued, plan, job, progress, request = std::move(request),
                                          client_gone = std::move(client_gone), dominant = cost.dominant(),
                                          peak_bytes = cost.peak_bytes]() {
-    const Impl::CastPlace place{impl, peak_bytes};
+    std::unique_ptr<Impl::CastPlace> place;
+    if (!job) place.reset(new Impl::CastPlace{impl, peak_bytes});
     // Jobs one after another: each uses every core. A job waits for its
-    // turn however long it takes (its client comes back for it later).
+    // turn however long it takes (its client comes back for it later), and
+    // then for a place in the queue.
     std::unique_lock<std::timed_mutex> turn(impl->sun_hours_jobs, std::defer_lock);
     if (job) {
-      while (!turn.try_lock_for(std::chrono::milliseconds(50)))
-        if (progress->cancel) break;
-      if (progress->cancel) {
+      const auto cancelled = [&] {
+        if (!progress->cancel) return false;
         impl->abandoned_count.fetch_add(1);
-        throw ClientGone();
+        return true;
+      };
+      while (!turn.try_lock_for(std::chrono::milliseconds(50)))
+        if (cancelled()) throw ClientGone();
+      while (!impl->try_reserve()) {
+        if (cancelled()) throw ClientGone();
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
       }
+      impl->reserved_bytes.fetch_add(peak_bytes);
+      place.reset(new Impl::CastPlace{impl, peak_bytes});
+      if (cancelled()) throw ClientGone();
     } else {
       impl->check_still_wanted(queued, client_gone);
     }

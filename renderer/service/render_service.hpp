@@ -165,7 +165,9 @@ class RenderService {
   /// max_run_time) as submit()'s do.
   ///
   /// With `job`, the budget is max_job_cost and the run time twice that,
-  /// and jobs run one after another. `progress`, if given, is counted as the
+  /// and jobs run one after another; a job takes its place in the queue
+  /// when its turn comes (waiting for one if the queue is full), so jobs
+  /// waiting leave the queue to renders. `progress`, if given, is counted as the
   /// pairs are settled, and its `cancel` stops the analysis (ClientGone).
   /// `plan`, if given, is plan_sun_hours(request) made already (the route
   /// plans first, to choose between an answer and a job): not made again.

@@ -15,6 +15,7 @@
 
 #include "core/request.hpp"
 #include "core/sun_hours.hpp"
+#include "reference/sun_hours_footprints.hpp"
 
 namespace umbra {
 
@@ -117,18 +118,21 @@ RequestCost estimate_cost(const RenderRequest& request);
 /// paths: the pure ray cast (one shadow ray per point and sample with the
 /// sun up: `sun_up_share` of the samples, core/sun_hours.hpp) or the
 /// footprints (each object's footprint per sample, and a ray only for the
-/// `footprint_share` of the pairs left to the query, after a proof of dark
-/// for the `candidate_share` inside a footprint; reference/sun_hours_footprints.hpp).
-/// Both add the sun's positions and the models' BVHs. Peak memory: the
-/// tallies (and the footprints' per-point records), the samples, the BVHs
-/// and the answer's text.
+/// pairs `shares` says are left to the query, after a proof of dark for
+/// those inside a footprint; reference/sun_hours_footprints.hpp). A ray is
+/// priced by the objects its traversal tests: the tree's depth plus the
+/// footprints holding it (FootprintShares::depth: a thousand objects
+/// stacked at one spot are a thousand tests). Both add the sun's positions
+/// and the models' BVHs; with include_samples, the samples' text. Peak
+/// memory: the tallies (and the footprints' per-point records), the
+/// samples, the BVHs and the answer's text.
 struct SunHoursCost {
   RequestCost cost;        ///< of the path chosen
   bool footprints = true;  ///< the path chosen
   double ray_cast_ms = 0;  ///< the pure ray cast's estimate, for comparison
 };
 SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t samples, double sun_up_share,
-                                     double footprint_share, double candidate_share = 1.0);
+                                     const FootprintShares& shares);
 
 /// A sun-hours request's plan: the path the service will run and its cost.
 struct SunHoursPlan {
@@ -137,7 +141,7 @@ struct SunHoursPlan {
 };
 /// The plan from a few hundred of the period's samples (probe_samples:
 /// the sun's share of the period) and, at 32 of them with the sun up, the
-/// footprints path simulated on a lattice of the grid (footprint_share).
+/// footprints path simulated on a lattice of the grid (footprint_shares).
 /// Cheap: what submit_sun_hours runs before it queues anything.
 SunHoursPlan plan_sun_hours(const SunHoursRequest& request);
 
