@@ -3,7 +3,8 @@
 # glTF loader with libFuzzer for a bounded time (a quarter of it each).
 #   scripts/fuzz.sh [SECONDS]   (default 60)
 # Seeds: fuzz/corpus and bench/scenes, fuzz/corpus-sun-hours, fuzz/corpus-http,
-# fuzz/corpus-gltf.
+# fuzz/corpus-gltf (its box-*.glb: Debian's gltfpack and draco_transcoder output of
+# assimp-testmodels' BoxTextured.glb, compressed seeds).
 # New inputs go to build-asan/corpus*; a crash is written to fuzz/crashes/
 # and fails the run: add it as a regression test (tests/test_request_parser.cpp,
 # tests/test_http_message.cpp, tests/test_gltf_loader.cpp), then fix the code.

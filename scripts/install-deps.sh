@@ -17,6 +17,10 @@ PACKAGES=(
   libtinygltf-dev                                     # glTF 2.0 parser (header; renderer/assets/tiny_gltf_impl.cpp compiles it)
   nettle-dev                                          # SHA-256: the ids of uploaded models
   libembree-dev                                       # Embree 3: the exact reference's ray cast against meshes
+  libmeshoptimizer-dev                                # EXT_meshopt_compression in uploaded glTF (renderer/assets/gltf_meshopt.cpp)
+  libdraco-dev                                        # KHR_draco_mesh_compression in uploaded glTF (renderer/assets/gltf_draco.cpp)
+  libassimp-dev                                       # OBJ, STL, PLY, COLLADA, FBX, 3DS, IFC uploads (server/model_import_main.cpp)
+  gltfpack draco assimp-testmodels                    # tests: compressed variants written by Debian's own tools from real models
   python3-ephem                                       # PyEphem: the sun positions tests/data/sun_positions.csv is checked against
 )
 # Optional groups:

@@ -13,6 +13,7 @@
 #include "client_socket.hpp"
 #include "assets/folder_file.hpp"
 #include "assets/gltf_loader.hpp"
+#include "assets/model_import.hpp"
 #include "png.hpp"
 #include "request_fields.hpp"
 #include "request_parser.hpp"
@@ -52,6 +53,7 @@ json model_json(const HeldModel& held) {
             {"bounds", {{"min", vec3_json(model.bounds.min)}, {"max", vec3_json(model.bounds.max)}}},
             {"parts", model.parts.size()},
             {"closed", model.closed},
+            {"skipped_primitives", model.skipped_primitives},
             {"bytes", held.bytes}};
   if (!held.name.empty()) j["name"] = held.name;
   j["pinned"] = held.pinned;
@@ -810,7 +812,9 @@ void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
   res.set_content(model_json(*held).dump(), "application/json");
 }
 
-std::optional<LoadResult> HttpApi::load_model(const std::string& body, const LoadOptions& options) {
+std::optional<LoadResult> HttpApi::load_model(const std::string& body, const LoadOptions& options,
+                                              const std::function<bool(std::string&)>& convert,
+                                              std::string* converted) {
   {
     std::lock_guard<std::mutex> lock(model_loads_mutex_);
     if (model_loads_ >= kMaxConcurrentModelLoads) return std::nullopt;
@@ -823,7 +827,9 @@ std::optional<LoadResult> HttpApi::load_model(const std::string& body, const Loa
       --api.model_loads_;
     }
   } release{*this};
-  LoadResult result = load_gltf(body, options);
+  // A conversion runs in the same place: it holds the file and its .glb.
+  if (convert && !convert(*converted)) return LoadResult{};
+  LoadResult result = load_gltf(convert ? *converted : body, options);
   if (result.ok()) models_loaded_.fetch_add(1);
   return result;
 }
@@ -982,33 +988,111 @@ std::shared_ptr<const HeldModel> HttpApi::find_model(ModelPlan& plan, const std:
   return keep(added.held);
 }
 
-// A .glb or a self-contained .gltf; its id is the SHA-256 of the body, so
-// the same upload twice is one model (the second answered 200 at once).
-// Its room is reserved before it is built (it may hold at most
-// max_loaded_bytes of its body, and its owner's share); it is held, then
-// written to --model-store: nothing refused is written.
-void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
+namespace {
+
+// What an upload is: a glTF (by Content-Type, or ?format=glb|gltf), or a
+// format umbra-model-import converts (by ?format=obj... or a media type
+// that names one), with its conventions (?up=, ?unit=). Sends the 400 or
+// 415 itself and answers nullopt when the request says none of these.
+struct UploadKind {
+  LoadOptions::Format gltf = LoadOptions::Format::Binary;
+  const ImportFormat* imported = nullptr;
+  std::string up = "file", unit = "file";
+};
+
+std::string import_format_list() {
+  std::string list;
+  for (const ImportFormat& f : import_formats()) list += (list.empty() ? "" : ", ") + std::string(f.extension);
+  return list;
+}
+
+std::optional<UploadKind> upload_kind(const HttpRequest& req, HttpResponse& res) {
+  std::vector<std::pair<std::string, std::string>> params;
+  if (!query_params(req.target, params)) {
+    send_error(res, 400, "malformed query: a bad %-escape", "");
+    return std::nullopt;
+  }
+  UploadKind kind;
+  std::string format;
+  bool conventions = false;
+  for (const auto& [name, value] : params) {
+    if (name == "format") {
+      format = value;
+    } else if (name == "up" || name == "unit") {
+      const std::vector<std::string> allowed = name == "up" ? std::vector<std::string>{"file", "y", "z"}
+                                                            : std::vector<std::string>{"file", "m", "cm", "mm", "in", "ft"};
+      if (std::find(allowed.begin(), allowed.end(), value) == allowed.end()) {
+        std::string list;
+        for (const std::string& a : allowed) list += (list.empty() ? "" : ", ") + a;
+        send_error(res, 400, "must be one of " + list + ", not '" + value.substr(0, 40) + "'", name);
+        return std::nullopt;
+      }
+      (name == "up" ? kind.up : kind.unit) = value;
+      conventions = true;
+    } else {
+      send_error(res, 400, "unknown query parameter (expected format, up or unit)", name.substr(0, 40));
+      return std::nullopt;
+    }
+  }
   const std::string full_type = req.header("Content-Type");
   std::string type = full_type.substr(0, full_type.find(';'));
   while (!type.empty() && (type.back() == ' ' || type.back() == '\t')) type.pop_back();
+  const bool glb = format.empty() ? equal_ci(type, "model/gltf-binary") : equal_ci(format, "glb");
+  const bool gltf = format.empty() ? equal_ci(type, "model/gltf+json") : equal_ci(format, "gltf");
+  if (glb || gltf) {
+    kind.gltf = glb ? LoadOptions::Format::Binary : LoadOptions::Format::Json;
+    if (conventions) {
+      send_error(res, 400, "applies to formats other than glTF (glTF is Y up, in metres, by its specification)",
+                 std::find_if(params.begin(), params.end(), [](const auto& p) { return p.first != "format"; })->first);
+      return std::nullopt;
+    }
+    return kind;
+  }
+  kind.imported = import_format_named(format.empty() ? type : format);
+  if (kind.imported) return kind;
+  if (!format.empty()) {
+    send_error(res, 400, "'" + format.substr(0, 40) + "' is not a format this server reads (glb, gltf, " +
+                             import_format_list() + ")", "format");
+    return std::nullopt;
+  }
+  send_error(res, 415,
+             "unsupported Content-Type " + (type.empty() ? std::string("(none)") : type.substr(0, 100)) +
+                 "; send a .glb as model/gltf-binary, a self-contained .gltf as model/gltf+json, or another "
+                 "format named by ?format= (" + import_format_list() + ")",
+             "");
+  return std::nullopt;
+}
+
+}  // namespace
+
+// A .glb or a self-contained .gltf, or a file of another format converted
+// to a .glb by umbra-model-import (renderer/assets/model_import.hpp); its
+// id is the SHA-256 of the body (and of the conversion asked for), so the
+// same upload twice is one model (the second answered 200 at once). Its
+// room is reserved before it is built (it may hold at most
+// max_loaded_bytes of its body, and its owner's share); it is held, then
+// written to --model-store (a converted model as its .glb): nothing
+// refused is written.
+void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
+  const std::optional<UploadKind> kind = upload_kind(req, res);
+  if (!kind) return;
   LoadOptions options;  // no external folder: nothing outside the body is read
-  if (equal_ci(type, "model/gltf-binary"))
-    options.format = LoadOptions::Format::Binary;
-  else if (equal_ci(type, "model/gltf+json"))
-    options.format = LoadOptions::Format::Json;
-  else
-    return send_error(res, 415,
-                      "unsupported Content-Type " + (type.empty() ? std::string("(none)") : type.substr(0, 100)) +
-                          "; send a .glb as model/gltf-binary or a self-contained .gltf as model/gltf+json",
-                      "");
-  const std::string id = model_id_for(req.body);
+  options.format = kind->imported ? LoadOptions::Format::Binary : kind->gltf;
+  const std::string id =
+      kind->imported ? model_id_for(req.body + std::string("\0umbra-model-import ") + kind->imported->extension +
+                                    " up=" + kind->up + " unit=" + kind->unit)
+                     : model_id_for(req.body);
+  // What is loaded and stored: the body, or the .glb converted from it.
+  std::string converted;
+  const std::string* stored_body = &req.body;
+
   // Every server of a cluster must find a model it is told of: it is in
   // the shared folder before the upload is answered, also when this server
   // held it already (another server may have evicted the file).
   const auto archived = [&](const std::optional<ModelArchive::Record>& record) {
     std::string why;
     if (!archive_) return true;
-    const ModelArchive::Saved saved = archive_->save(id, options.format, req.body, why, record);
+    const ModelArchive::Saved saved = archive_->save(id, options.format, *stored_body, why, record);
     if (saved) return true;
     if (!saved.detail.empty()) std::fprintf(stderr, "umbra-server: --model-store: %s\n", saved.detail.c_str());
     switch (saved.status) {
@@ -1051,7 +1135,24 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
     why = refused.message;
     return refused.status;
   };
-  std::optional<LoadResult> result = load_model(req.body, options);
+  std::optional<LoadResult> result;
+  if (kind->imported) {
+    ImportOptions convert;
+    convert.importer = options_.model_importer.empty() ? default_importer_path() : options_.model_importer;
+    convert.up = kind->up;
+    convert.unit = kind->unit;
+    convert.max_output_bytes = std::min<std::uint64_t>(max_loaded_bytes(req.body.size()), std::uint64_t(256) << 20);
+    ImportResult imported;
+    result = load_model(req.body, options, [&](std::string& glb) {
+      imported = import_model(req.body, *kind->imported, convert);
+      glb = std::move(imported.glb);
+      return imported.ok();
+    }, &converted);
+    if (result && !imported.ok()) return send_error(res, imported.status, imported.error, "");
+    stored_body = &converted;
+  } else {
+    result = load_model(req.body, options);
+  }
   if (!result) return send_models_busy(res);
   LoadResult& loaded = *result;
   if (!loaded.ok()) return send_error(res, loaded.status, loaded.error, "");

@@ -62,6 +62,9 @@ struct ServerOptions {
   /// --name: this server's name in a cluster; sun-hours job ids begin with
   /// it, so that HAProxy sends a job's requests back to its server.
   std::string name;
+  /// umbra-model-import, which converts OBJ, STL, IFC... uploads; empty:
+  /// the one beside the server's executable (--model-importer).
+  std::string model_importer;
   /// Sun-hours jobs held (--job-keep-s keeps finished ones).
   SunHoursJobs::Limits jobs;
 };
@@ -166,7 +169,12 @@ class HttpApi {
   ModelLookup model_lookup(ModelPlan& plan);
   /// load_gltf in one of kMaxConcurrentModelLoads places (a load holds a
   /// few times its body in memory): nullopt, unloaded, if none is free.
-  std::optional<LoadResult> load_model(const std::string& body, const LoadOptions& options);
+  /// With `convert`, it first fills `converted` (a format converted to a
+  /// .glb), in the same place, and that is loaded; its false ends the load
+  /// (an empty result).
+  std::optional<LoadResult> load_model(const std::string& body, const LoadOptions& options,
+                                       const std::function<bool(std::string&)>& convert = {},
+                                       std::string* converted = nullptr);
   /// 503 with Retry-After: every model-load place is taken.
   void send_models_busy(HttpResponse& res) const;
   struct ModelLoadsBusy {};

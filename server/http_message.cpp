@@ -1,5 +1,6 @@
 #include "http_message.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cstdint>
 
@@ -168,6 +169,30 @@ bool decode_path(std::string_view encoded, std::string& decoded) {
       i += 2;
     }
     decoded += c;
+  }
+  return true;
+}
+
+bool query_params(std::string_view target, std::vector<std::pair<std::string, std::string>>& params) {
+  params.clear();
+  const std::size_t question = target.find('?');
+  if (question == std::string_view::npos) return true;
+  std::string_view query = target.substr(question + 1);
+  query = query.substr(0, query.find('#'));
+  while (!query.empty()) {
+    const std::size_t amp = std::min(query.find('&'), query.size());
+    const std::string_view item = query.substr(0, amp);
+    query.remove_prefix(std::min(query.size(), amp + 1));
+    if (item.empty()) continue;
+    const std::size_t equals = std::min(item.find('='), item.size());
+    std::string name(item.substr(0, equals)), value(item.substr(std::min(item.size(), equals + 1)));
+    for (std::string* part : {&name, &value}) {
+      std::replace(part->begin(), part->end(), '+', ' ');
+      std::string decoded;
+      if (!decode_path(*part, decoded)) return false;
+      *part = std::move(decoded);
+    }
+    params.emplace_back(std::move(name), std::move(value));
   }
   return true;
 }

@@ -76,6 +76,11 @@ bool equal_ci(std::string_view a, std::string_view b);
 /// kept (it names no file and no route: 404).
 bool decode_path(std::string_view encoded, std::string& decoded);
 
+/// The request-target's query ("?a=1&b=two") as name, value pairs in
+/// order, percent-decoded ('+' is a space); a name without '=' has an
+/// empty value. False on a malformed escape.
+bool query_params(std::string_view target, std::vector<std::pair<std::string, std::string>>& params);
+
 class RequestReader {
  public:
   explicit RequestReader(HttpLimits limits = {}) : limits_(limits) {}

@@ -151,6 +151,17 @@ const std::vector<Flag>& flags() {
                     s.options.name = t;
                     return true;
                   }),
+        text_flag("--model-importer", "PATH",
+                  "the umbra-model-import program that converts OBJ, STL, PLY, DAE, FBX, 3DS and IFC\n"
+                  "uploads to glTF (default: the one beside this umbra-server)",
+                  [](ServerSettings& s, const std::string& t, std::string& why) {
+                    if (t.empty()) {
+                      why = "must name a program";
+                      return false;
+                    }
+                    s.options.model_importer = t;
+                    return true;
+                  }),
         text_flag("--model-store", "DIR",
                   "a folder shared with other servers (several on one machine, or a network file system):\n"
                   "every upload is written there, named by its id, and a model this server does not hold\n"

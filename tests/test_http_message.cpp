@@ -228,3 +228,24 @@ TEST(HttpMessage, AResponseHeadFramesTheBodyAndNeverBreaksALine) {
 
 }  // namespace
 }  // namespace umbra
+
+namespace umbra {
+namespace {
+
+TEST(QueryParams, NamesAndValuesDecodedInOrder) {
+  std::vector<std::pair<std::string, std::string>> params;
+  ASSERT_TRUE(query_params("/api/models?format=ifc&unit=mm&name=a+b%2Fc&flag&&=x#frag", params));
+  ASSERT_EQ(params.size(), 5u);
+  EXPECT_EQ(params[0], std::make_pair(std::string("format"), std::string("ifc")));
+  EXPECT_EQ(params[1], std::make_pair(std::string("unit"), std::string("mm")));
+  EXPECT_EQ(params[2], std::make_pair(std::string("name"), std::string("a b/c")));
+  EXPECT_EQ(params[3], std::make_pair(std::string("flag"), std::string("")));
+  EXPECT_EQ(params[4], std::make_pair(std::string(""), std::string("x")));
+  ASSERT_TRUE(query_params("/api/models", params));
+  EXPECT_TRUE(params.empty());
+  EXPECT_FALSE(query_params("/api/models?format=%zz", params));
+  EXPECT_FALSE(query_params("/api/models?format=%4", params));
+}
+
+}  // namespace
+}  // namespace umbra

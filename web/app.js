@@ -1270,8 +1270,23 @@ function rememberFileName(id, fileName) {
   } catch (_) { /* storage off: the list shows the id */ }
 }
 
+// Formats the server converts to glTF (docs/api.md, "Other formats"): named
+// by ?format=, the file's extension.
+const CONVERTED_FORMATS = ["obj", "stl", "ply", "dae", "fbx", "3ds", "ifc"];
+
+function extensionOf(fileName) {
+  const dot = fileName.lastIndexOf(".");
+  return dot < 0 ? "" : fileName.slice(dot + 1).toLowerCase();
+}
+
 function contentTypeFor(fileName) {
+  if (CONVERTED_FORMATS.includes(extensionOf(fileName))) return "application/octet-stream";
   return /\.gltf$/i.test(fileName) ? "model/gltf+json" : "model/gltf-binary";
+}
+
+function uploadPathFor(fileName) {
+  const ext = extensionOf(fileName);
+  return CONVERTED_FORMATS.includes(ext) ? `/api/models?format=${ext}` : "/api/models";
 }
 
 // POST /api/models through XMLHttpRequest: fetch cannot report how much
@@ -1279,7 +1294,7 @@ function contentTypeFor(fileName) {
 function sendModel(file, onProgress) {
   return new Promise((resolve, reject) => {
     const xhr = new XMLHttpRequest();
-    xhr.open("POST", "/api/models");
+    xhr.open("POST", uploadPathFor(file.name));
     for (const [name, value] of Object.entries(withToken({ "Content-Type": contentTypeFor(file.name) })))
       xhr.setRequestHeader(name, value);
     xhr.upload.addEventListener("progress", (e) => { if (e.lengthComputable) onProgress(e.loaded / e.total); });

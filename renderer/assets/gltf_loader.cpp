@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <new>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
 #include <glm/gtc/matrix_inverse.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -24,18 +26,23 @@
 #include <tiny_gltf.h>
 
 #include "assets/folder_file.hpp"
+#include "assets/gltf_compression.hpp"
 
 namespace umbra {
 
+void refuse_gltf(int status, std::string message) { throw GltfRefusal{status, std::move(message)}; }
+
+void DecodeBudget::spend(std::uint64_t bytes, const std::string& what) {
+  if (bytes > limit - std::min(limit, spent))
+    refuse_gltf(422, what + " decodes to about " + std::to_string(bytes >> 20) + " MiB, over the " +
+                         std::to_string(limit >> 20) + " MiB this server decodes for one model" +
+                         (spent ? " (" + std::to_string(spent >> 20) + " MiB decoded already)" : std::string()));
+  spent += bytes;
+}
+
 namespace {
 
-// A refusal: thrown inside the loader, returned as a LoadResult.
-struct Refusal {
-  int status;
-  std::string message;
-};
-
-[[noreturn]] void refuse(int status, std::string message) { throw Refusal{status, std::move(message)}; }
+[[noreturn]] void refuse(int status, std::string message) { refuse_gltf(status, std::move(message)); }
 
 std::string index_of(const char* array, std::size_t i) { return std::string(array) + "[" + std::to_string(i) + "]"; }
 
@@ -198,17 +205,124 @@ const char* component_name(int type) {
   }
 }
 
-// The bytes of an accessor's elements: element i starts at base + i * stride.
+// The bytes of an accessor's elements: element i starts at base + i * stride;
+// no base: the accessor has no buffer view, and its elements are zeros.
 struct ElementView {
   const unsigned char* base = nullptr;
   std::size_t stride = 0;
   std::size_t count = 0;
   int component_type = 0;
+  bool normalized = false;
 };
+
+// One component as a number: an integer's value, or with `normalized` its
+// value mapped to [0, 1] (unsigned) or [-1, 1] (signed), as glTF 2.0
+// §3.11 says (KHR_mesh_quantization stores positions and normals so).
+double component_at(const unsigned char* at, int type, bool normalized) {
+  switch (type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE: {
+      std::int8_t x;
+      std::memcpy(&x, at, 1);
+      return normalized ? std::max(x / 127.0, -1.0) : x;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? *at / 255.0 : *at;
+    case TINYGLTF_COMPONENT_TYPE_SHORT: {
+      std::int16_t x;
+      std::memcpy(&x, at, 2);
+      return normalized ? std::max(x / 32767.0, -1.0) : x;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+      std::uint16_t x;
+      std::memcpy(&x, at, 2);
+      return normalized ? x / 65535.0 : x;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+      std::uint32_t x;
+      std::memcpy(&x, at, 4);
+      return x;
+    }
+    default: {
+      float x;
+      std::memcpy(&x, at, 4);
+      return x;
+    }
+  }
+}
+
+// The extensions a model may require: one row each. Those that store
+// geometry compressed rewrite the document for tinygltf first (prepare,
+// gltf_compression.hpp) and are decoded by the loader once admitted.
+struct ReadExtension {
+  const char* name;
+  void (*prepare)(nlohmann::json& document, CompressedParts& parts);
+};
+constexpr ReadExtension kReadExtensions[] = {
+    {"KHR_mesh_quantization", nullptr},  // integer accessors: read_vec3
+    {"EXT_meshopt_compression", prepare_meshopt},
+    {"KHR_meshopt_compression", prepare_meshopt},
+    {"KHR_draco_mesh_compression", prepare_draco},
+};
+
+const ReadExtension* read_extension(const std::string& name) {
+  for (const ReadExtension& e : kReadExtensions)
+    if (name == e.name) return &e;
+  return nullptr;
+}
+
+std::string read_extension_list() {
+  std::string list;
+  for (const ReadExtension& e : kReadExtensions) list += (list.empty() ? "" : ", ") + std::string(e.name);
+  return list;
+}
+
+// A GLB with `json` as its JSON chunk and the original's binary chunk.
+std::string rebuild_glb(std::string_view original, const std::string& json) {
+  const std::uint32_t json_length = read_u32(original, 12);
+  const std::string_view rest = original.substr(20 + json_length);
+  std::string padded = json;
+  while (padded.size() % 4 != 0) padded += ' ';
+  std::string out;
+  const auto put_u32 = [&out](std::uint32_t v) { out.append(reinterpret_cast<const char*>(&v), 4); };
+  out.append("glTF", 4);
+  put_u32(2);
+  put_u32(std::uint32_t(12 + 8 + padded.size() + rest.size()));
+  put_u32(std::uint32_t(padded.size()));
+  put_u32(0x4E4F534Au);
+  out += padded;
+  out.append(rest.data(), rest.size());
+  return out;
+}
+
+// The document as tinygltf will take it: with a compression extension in
+// extensionsUsed, each such extension's prepare step rewrites it (see
+// gltf_compression.hpp). Else `bytes` unchanged (empty `rewritten`).
+void prepare_compressed(std::string_view bytes, bool glb, std::string& rewritten, CompressedParts& parts) {
+  const std::string_view text = glb ? glb_json_chunk(bytes) : bytes;
+  // Cheap test first: most models use none of these.
+  bool mentioned = false;
+  for (const ReadExtension& e : kReadExtensions)
+    mentioned |= e.prepare && text.find(e.name) != std::string_view::npos;
+  if (!mentioned) return;
+  nlohmann::json document = nlohmann::json::parse(text.begin(), text.end(), nullptr, false);
+  if (document.is_discarded() || !document.is_object()) return;  // tinygltf names what is wrong
+  const auto used = document.find("extensionsUsed");
+  if (used == document.end() || !used->is_array()) return;
+  bool changed = false;
+  for (const ReadExtension& e : kReadExtensions) {
+    if (!e.prepare || std::find(used->begin(), used->end(), e.name) == used->end()) continue;
+    e.prepare(document, parts);
+    changed = true;
+  }
+  if (!changed) return;
+  const std::string json = document.dump();
+  rewritten = glb ? rebuild_glb(bytes, json) : json;
+}
 
 class Loader {
  public:
-  Loader(const tinygltf::Model& model, const LoadOptions& options) : gltf_(model), options_(options) {}
+  Loader(tinygltf::Model& model, const LoadOptions& options, const CompressedParts& compressed,
+         std::uint64_t input_bytes)
+      : gltf_(model), options_(options), compressed_(compressed), input_bytes_(input_bytes) {}
 
   std::shared_ptr<TriangleModel> build();
   /// What check_primitives found the model will hold at most.
@@ -222,7 +336,13 @@ class Loader {
   };
 
   const tinygltf::Accessor& accessor(int index, const std::string& where) const;
+  const unsigned char* elements(int buffer_view, std::size_t offset, std::size_t count, std::size_t element,
+                                bool strided, const std::string& name, std::size_t& stride) const;
   ElementView view(int index, const std::string& where, int type, std::initializer_list<int> component_types) const;
+  /// Calls set(element, component values) for each of the accessor's
+  /// sparse substitutions (none unless it is sparse).
+  void apply_sparse(int index, const std::string& where, int type,
+                    const std::function<void(std::size_t, const unsigned char*)>& set) const;
   std::vector<glm::vec3> read_vec3(int index, const std::string& where) const;
   std::vector<std::uint32_t> read_indices(int index, const std::string& where, std::size_t vertex_count) const;
   glm::dmat4 local_matrix(std::size_t node) const;
@@ -230,13 +350,16 @@ class Loader {
   struct Size {
     std::size_t triangles = 0;
     std::uint64_t bytes = 0;  // model_bytes_bound of what the instances will build
+    std::size_t skipped = 0;  // primitive instances of points or lines
   };
   Size check_primitives(const std::vector<Instance>& instances) const;
   glm::vec3 base_color(int material, const std::string& where) const;
   void add_primitive(const Instance& instance, std::size_t p, TriangleModel& out, std::map<std::array<float, 3>, std::size_t>& parts) const;
 
-  const tinygltf::Model& gltf_;
+  tinygltf::Model& gltf_;  // decoding fills its compressed buffers
   const LoadOptions& options_;
+  const CompressedParts& compressed_;
+  std::uint64_t input_bytes_;  // the document's (the buffers' are counted once loaded)
   std::uint64_t bytes_bound_ = 0;
 };
 
@@ -247,10 +370,38 @@ const tinygltf::Accessor& Loader::accessor(int index, const std::string& where) 
   return gltf_.accessors[std::size_t(index)];
 }
 
+// `count` elements of `element` bytes from byte `offset` of a buffer view,
+// every `stride` bytes (the view's byteStride when `strided`, else packed),
+// checked to lie inside the view and the view inside its buffer.
+const unsigned char* Loader::elements(int buffer_view, std::size_t offset, std::size_t count, std::size_t element,
+                                      bool strided, const std::string& name, std::size_t& stride) const {
+  if (buffer_view < 0 || std::size_t(buffer_view) >= gltf_.bufferViews.size())
+    refuse(400, name + ": bufferView " + std::to_string(buffer_view) + " is out of range (" +
+                    std::to_string(gltf_.bufferViews.size()) + " buffer views)");
+  const tinygltf::BufferView& bv = gltf_.bufferViews[std::size_t(buffer_view)];
+  const std::string bv_name = index_of("bufferViews", std::size_t(buffer_view));
+  if (bv.buffer < 0 || std::size_t(bv.buffer) >= gltf_.buffers.size())
+    refuse(400, bv_name + ": buffer " + std::to_string(bv.buffer) + " is out of range (" +
+                    std::to_string(gltf_.buffers.size()) + " buffers)");
+  const std::size_t buffer_size = gltf_.buffers[std::size_t(bv.buffer)].data.size();
+  // Each step compares before it adds or multiplies: nothing can wrap.
+  if (bv.byteOffset > buffer_size || bv.byteLength > buffer_size - bv.byteOffset)
+    refuse(400, bv_name + ": bytes " + std::to_string(bv.byteOffset) + " + " + std::to_string(bv.byteLength) +
+                    " run past the end of its buffer (" + std::to_string(buffer_size) + " bytes)");
+  stride = strided && bv.byteStride != 0 ? bv.byteStride : element;
+  if (stride < element)
+    refuse(400, bv_name + ": byteStride " + std::to_string(bv.byteStride) + " is less than the element size " +
+                    std::to_string(element) + " of " + name);
+  if (offset > bv.byteLength || element > bv.byteLength - offset || count - 1 > (bv.byteLength - offset - element) / stride)
+    refuse(400, name + ": " + std::to_string(count) + " elements of " + std::to_string(element) + " bytes every " +
+                    std::to_string(stride) + " from byte " + std::to_string(offset) + " run past the end of " +
+                    bv_name + " (" + std::to_string(bv.byteLength) + " bytes)");
+  return gltf_.buffers[std::size_t(bv.buffer)].data.data() + bv.byteOffset + offset;
+}
+
 ElementView Loader::view(int index, const std::string& where, int type, std::initializer_list<int> component_types) const {
   const tinygltf::Accessor& a = accessor(index, where);
   const std::string name = where + " (" + index_of("accessors", std::size_t(index)) + ")";
-  if (a.sparse.isSparse) refuse(422, name + ": sparse accessors are not supported");
   if (a.type != type)
     refuse(400, name + ": type " + std::to_string(a.type) + " where " +
                     (type == TINYGLTF_TYPE_SCALAR ? "SCALAR" : "VEC3") + " is required");
@@ -263,44 +414,68 @@ ElementView Loader::view(int index, const std::string& where, int type, std::ini
   ElementView v;
   v.count = a.count;
   v.component_type = a.componentType;
-  if (a.count == 0) return v;
-  if (a.bufferView < 0 || std::size_t(a.bufferView) >= gltf_.bufferViews.size())
-    refuse(400, name + ": bufferView " + std::to_string(a.bufferView) + " is out of range (" +
-                    std::to_string(gltf_.bufferViews.size()) + " buffer views)");
-  const tinygltf::BufferView& bv = gltf_.bufferViews[std::size_t(a.bufferView)];
-  const std::string bv_name = index_of("bufferViews", std::size_t(a.bufferView));
-  if (bv.buffer < 0 || std::size_t(bv.buffer) >= gltf_.buffers.size())
-    refuse(400, bv_name + ": buffer " + std::to_string(bv.buffer) + " is out of range (" +
-                    std::to_string(gltf_.buffers.size()) + " buffers)");
-  const std::size_t buffer_size = gltf_.buffers[std::size_t(bv.buffer)].data.size();
-  // Each step compares before it adds or multiplies: nothing can wrap.
-  if (bv.byteOffset > buffer_size || bv.byteLength > buffer_size - bv.byteOffset)
-    refuse(400, bv_name + ": bytes " + std::to_string(bv.byteOffset) + " + " + std::to_string(bv.byteLength) +
-                    " run past the end of its buffer (" + std::to_string(buffer_size) + " bytes)");
+  v.normalized = a.normalized;
+  // Without a buffer view the elements are zeros (glTF 2.0 §3.6.2.1),
+  // sparse substitutions aside.
+  if (a.count == 0 || a.bufferView < 0) return v;
   const std::size_t components = type == TINYGLTF_TYPE_SCALAR ? 1 : 3;
-  const std::size_t element = components * component_bytes(a.componentType);
-  v.stride = bv.byteStride == 0 ? element : bv.byteStride;
-  if (v.stride < element)
-    refuse(400, bv_name + ": byteStride " + std::to_string(bv.byteStride) + " is less than the element size " +
-                    std::to_string(element) + " of " + name);
-  if (a.byteOffset > bv.byteLength || element > bv.byteLength - a.byteOffset ||
-      a.count - 1 > (bv.byteLength - a.byteOffset - element) / v.stride)
-    refuse(400, name + ": " + std::to_string(a.count) + " elements of " + std::to_string(element) +
-                    " bytes every " + std::to_string(v.stride) + " from byte " + std::to_string(a.byteOffset) +
-                    " run past the end of " + bv_name + " (" + std::to_string(bv.byteLength) + " bytes)");
-  v.base = gltf_.buffers[std::size_t(bv.buffer)].data.data() + bv.byteOffset + a.byteOffset;
+  v.base = elements(a.bufferView, a.byteOffset, a.count, components * component_bytes(a.componentType), true, name,
+                    v.stride);
   return v;
 }
 
+void Loader::apply_sparse(int index, const std::string& where, int type,
+                          const std::function<void(std::size_t, const unsigned char*)>& set) const {
+  const tinygltf::Accessor& a = accessor(index, where);
+  if (!a.sparse.isSparse) return;
+  const std::string name = where + " (" + index_of("accessors", std::size_t(index)) + ").sparse";
+  if (a.sparse.count < 1 || std::size_t(a.sparse.count) > a.count)
+    refuse(400, name + ".count: " + std::to_string(a.sparse.count) + " is not from 1 to the accessor's count " +
+                    std::to_string(a.count));
+  const std::size_t count = std::size_t(a.sparse.count);
+  const int index_type = a.sparse.indices.componentType;
+  if (index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+      index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+    refuse(400, name + ".indices.componentType: " + std::to_string(index_type) +
+                    " is not UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT");
+  if (a.sparse.indices.byteOffset < 0 || a.sparse.values.byteOffset < 0)
+    refuse(400, name + ": a byteOffset is negative");
+  std::size_t index_stride = 0, value_stride = 0;
+  const std::size_t index_bytes = component_bytes(index_type);
+  const std::size_t value_bytes = (type == TINYGLTF_TYPE_SCALAR ? 1 : 3) * component_bytes(a.componentType);
+  const unsigned char* indices = elements(a.sparse.indices.bufferView, std::size_t(a.sparse.indices.byteOffset), count,
+                                          index_bytes, false, name + ".indices", index_stride);
+  const unsigned char* values = elements(a.sparse.values.bufferView, std::size_t(a.sparse.values.byteOffset), count,
+                                         value_bytes, false, name + ".values", value_stride);
+  for (std::size_t k = 0; k < count; ++k) {
+    const double i = component_at(indices + k * index_stride, index_type, false);
+    if (i >= double(a.count))
+      refuse(400, name + ".indices: element " + std::to_string(k) + " is " + std::to_string(std::uint64_t(i)) +
+                      ", out of range (" + std::to_string(a.count) + " elements)");
+    set(std::size_t(i), values + k * value_stride);
+  }
+}
+
 std::vector<glm::vec3> Loader::read_vec3(int index, const std::string& where) const {
-  const ElementView v = view(index, where, TINYGLTF_TYPE_VEC3, {TINYGLTF_COMPONENT_TYPE_FLOAT});
-  std::vector<glm::vec3> out(v.count);
-  for (std::size_t i = 0; i < v.count; ++i) {
-    std::memcpy(&out[i], v.base + i * v.stride, sizeof(glm::vec3));
+  // FLOAT, or the integers KHR_mesh_quantization allows (normalized or not).
+  const ElementView v = view(index, where, TINYGLTF_TYPE_VEC3,
+                             {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE,
+                              TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT,
+                              TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT});
+  const std::size_t size = component_bytes(v.component_type);
+  const auto element = [&](const unsigned char* at) {
+    return glm::vec3(float(component_at(at, v.component_type, v.normalized)),
+                     float(component_at(at + size, v.component_type, v.normalized)),
+                     float(component_at(at + 2 * size, v.component_type, v.normalized)));
+  };
+  std::vector<glm::vec3> out(v.count, glm::vec3(0.0f));
+  if (v.base)
+    for (std::size_t i = 0; i < v.count; ++i) out[i] = element(v.base + i * v.stride);
+  apply_sparse(index, where, TINYGLTF_TYPE_VEC3, [&](std::size_t i, const unsigned char* at) { out[i] = element(at); });
+  for (std::size_t i = 0; i < v.count; ++i)
     if (!std::isfinite(out[i].x) || !std::isfinite(out[i].y) || !std::isfinite(out[i].z))
       refuse(400, where + " (" + index_of("accessors", std::size_t(index)) + "): element " + std::to_string(i) +
                       " is not finite (NaN or infinity)");
-  }
   return out;
 }
 
@@ -308,23 +483,18 @@ std::vector<std::uint32_t> Loader::read_indices(int index, const std::string& wh
   const ElementView v = view(index, where, TINYGLTF_TYPE_SCALAR,
                              {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                               TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT});
-  std::vector<std::uint32_t> out(v.count);
-  for (std::size_t i = 0; i < v.count; ++i) {
-    const unsigned char* at = v.base + i * v.stride;
-    if (v.component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) {
-      out[i] = *at;
-    } else if (v.component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) {
-      std::uint16_t x;
-      std::memcpy(&x, at, 2);
-      out[i] = x;
-    } else {
-      std::memcpy(&out[i], at, 4);
-    }
+  const auto element = [&](const unsigned char* at) {
+    return std::uint32_t(component_at(at, v.component_type, false));
+  };
+  std::vector<std::uint32_t> out(v.count, 0);
+  if (v.base)
+    for (std::size_t i = 0; i < v.count; ++i) out[i] = element(v.base + i * v.stride);
+  apply_sparse(index, where, TINYGLTF_TYPE_SCALAR, [&](std::size_t i, const unsigned char* at) { out[i] = element(at); });
+  for (std::size_t i = 0; i < v.count; ++i)
     if (out[i] >= vertex_count)
       refuse(400, where + " (" + index_of("accessors", std::size_t(index)) + "): index " + std::to_string(out[i]) +
                       " at element " + std::to_string(i) + " is out of range (" + std::to_string(vertex_count) +
                       " vertices)");
-  }
   return out;
 }
 
@@ -444,14 +614,8 @@ std::vector<Loader::Instance> Loader::instances() const {
   return out;
 }
 
-const char* mode_name(int mode) {
-  switch (mode) {
-    case TINYGLTF_MODE_POINTS: return "POINTS";
-    case TINYGLTF_MODE_LINE: return "LINES";
-    case TINYGLTF_MODE_LINE_LOOP: return "LINE_LOOP";
-    case TINYGLTF_MODE_LINE_STRIP: return "LINE_STRIP";
-    default: return "unknown";
-  }
+bool is_triangles(int mode) {
+  return mode == TINYGLTF_MODE_TRIANGLES || mode == TINYGLTF_MODE_TRIANGLE_STRIP || mode == TINYGLTF_MODE_TRIANGLE_FAN;
 }
 
 std::string primitive_name(std::size_t mesh, std::size_t p) {
@@ -464,11 +628,11 @@ Loader::Size Loader::check_primitives(const std::vector<Instance>& instances) co
   std::vector<std::size_t> mesh_triangles(gltf_.meshes.size(), 0), mesh_vertices(gltf_.meshes.size(), 0);
   // Vertices an instance keeps (only those its triangles use: at most the
   // accessor's count and at most one per corner).
-  std::vector<std::size_t> mesh_kept(gltf_.meshes.size(), 0);
+  std::vector<std::size_t> mesh_kept(gltf_.meshes.size(), 0), mesh_skipped(gltf_.meshes.size(), 0);
   std::uint64_t kept_vertices = 0, primitive_instances = 0;
   std::vector<bool> checked(gltf_.meshes.size(), false);
   const std::size_t max_vertices = 3 * options_.max_triangles;
-  std::size_t triangles = 0, vertices = 0;
+  std::size_t triangles = 0, vertices = 0, skipped = 0;
   for (const Instance& instance : instances) {
     const std::size_t m = instance.mesh;
     if (!checked[m]) {
@@ -477,8 +641,13 @@ Loader::Size Loader::check_primitives(const std::vector<Instance>& instances) co
         const tinygltf::Primitive& primitive = gltf_.meshes[m].primitives[p];
         const std::string name = primitive_name(m, p);
         const int mode = primitive.mode;
-        if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
-          refuse(422, name + ": mode " + std::to_string(mode) + " (" + mode_name(mode) + ") is not triangles");
+        // Points and lines cast no shadow: left out, and counted.
+        if (!is_triangles(mode)) {
+          if (mode < TINYGLTF_MODE_POINTS || mode > TINYGLTF_MODE_LINE_STRIP)
+            refuse(400, name + ": mode " + std::to_string(mode) + " is not a glTF primitive mode (0 to 6)");
+          ++mesh_skipped[m];
+          continue;
+        }
         const auto position = primitive.attributes.find("POSITION");
         if (position == primitive.attributes.end()) refuse(422, name + ": no POSITION attribute");
         const std::size_t vertex_count = accessor(position->second, name + ".attributes.POSITION").count;
@@ -504,6 +673,7 @@ Loader::Size Loader::check_primitives(const std::vector<Instance>& instances) co
     triangles += mesh_triangles[m];
     vertices += mesh_vertices[m];
     kept_vertices += mesh_kept[m];
+    skipped += mesh_skipped[m];
     primitive_instances += gltf_.meshes[m].primitives.size();
     if (triangles > options_.max_triangles || vertices > max_vertices)
       refuse(422, "the model has more than " + std::to_string(options_.max_triangles) +
@@ -512,7 +682,7 @@ Loader::Size Loader::check_primitives(const std::vector<Instance>& instances) co
   }
   // One part per base colour: at most one per material and the default.
   const std::uint64_t parts = std::min<std::uint64_t>(primitive_instances, gltf_.materials.size() + 1);
-  return {triangles, model_bytes_bound(triangles, kept_vertices, parts)};
+  return {triangles, model_bytes_bound(triangles, kept_vertices, parts), skipped};
 }
 
 glm::vec3 Loader::base_color(int material, const std::string& where) const {
@@ -532,6 +702,7 @@ glm::vec3 Loader::base_color(int material, const std::string& where) const {
 void Loader::add_primitive(const Instance& instance, std::size_t p, TriangleModel& out,
                            std::map<std::array<float, 3>, std::size_t>& parts) const {
   const tinygltf::Primitive& primitive = gltf_.meshes[instance.mesh].primitives[p];
+  if (!is_triangles(primitive.mode)) return;  // counted by check_primitives
   const std::string name = primitive_name(instance.mesh, p);
   std::vector<glm::vec3> positions = read_vec3(primitive.attributes.at("POSITION"), name + ".attributes.POSITION");
   std::vector<std::uint32_t> corners;
@@ -630,8 +801,9 @@ void Loader::add_primitive(const Instance& instance, std::size_t p, TriangleMode
 
 std::shared_ptr<TriangleModel> Loader::build() {
   for (const std::string& extension : gltf_.extensionsRequired)
-    refuse(422, "extensionsRequired: " + short_message(extension) +
-                    " is not supported (Umbra reads uncompressed glTF 2.0: decompress Draco or meshopt first)");
+    if (!read_extension(extension))
+      refuse(422, "extensionsRequired: " + short_message(extension) + " is not supported (Umbra reads glTF 2.0 with " +
+                      read_extension_list() + ")");
   const std::vector<Instance> all = instances();
   const Size size = check_primitives(all);
   bytes_bound_ = size.bytes;
@@ -639,13 +811,33 @@ std::shared_ptr<TriangleModel> Loader::build() {
     std::string why;
     if (const int status = options_.admit(size.bytes, size.triangles, why)) refuse(status, why);
   }
+  // Compressed data is decoded only now, the model's size known and
+  // admitted; every decoded size counted against the budget first.
+  // meshopt's fallback buffers declare their own lengths: at most what a
+  // file of these bytes can fairly hold (the bound an upload has once
+  // loaded: 16 times its bytes and 32 MiB), so a small file cannot claim
+  // the whole budget. Draco's counts are the accessors' (bounded and
+  // admitted above: Draco packs a dense mesh 30 times smaller than that
+  // rule would allow): only max_decoded_bytes holds for them.
+  std::uint64_t input = input_bytes_;
+  for (const tinygltf::Buffer& buffer : gltf_.buffers) input += buffer.data.size();
+  DecodeBudget fallback{std::min<std::uint64_t>(options_.max_decoded_bytes, 16 * input + (std::uint64_t(32) << 20)), 0};
+  decode_meshopt(gltf_, compressed_, fallback);
+  DecodeBudget budget{options_.max_decoded_bytes, fallback.spent};
+  std::vector<bool> instanced(gltf_.meshes.size(), false);
+  for (const Instance& instance : all) instanced[instance.mesh] = true;
+  decode_draco(gltf_, compressed_, instanced, budget);
   auto model = std::make_shared<TriangleModel>();
+  model->skipped_primitives = size.skipped;
   std::map<std::array<float, 3>, std::size_t> parts;
   for (const Instance& instance : all)
     for (std::size_t p = 0; p < gltf_.meshes[instance.mesh].primitives.size(); ++p)
       add_primitive(instance, p, *model, parts);
   if (model->triangle_count() == 0)
-    refuse(422, "the model has no triangles (in the nodes of its scene, or in any root node when it names no scene)");
+    refuse(422, "the model has no triangles (in the nodes of its scene, or in any root node when it names no scene)" +
+                    (size.skipped ? ": " + std::to_string(size.skipped) +
+                                        " primitives of points or lines were left out, as they cast no shadow"
+                                  : std::string()));
   finish_model(*model);
   return model;
 }
@@ -662,6 +854,10 @@ LoadResult load_gltf(std::string_view bytes, const LoadOptions& options) {
       refuse(400, "this is a glTF binary (.glb), not JSON: send it as model/gltf-binary");
     if (bytes.size() > std::numeric_limits<std::uint32_t>::max()) refuse(422, "the model is larger than 4 GiB");
     check_json_shape(glb ? glb_json_chunk(bytes) : bytes);
+    CompressedParts compressed;
+    std::string rewritten;
+    prepare_compressed(bytes, glb, rewritten, compressed);
+    if (!rewritten.empty()) bytes = rewritten;
 
     FileAccess access{&options, ""};
     tinygltf::TinyGLTF parser;
@@ -676,10 +872,10 @@ LoadResult load_gltf(std::string_view bytes, const LoadOptions& options) {
                             : parser.LoadASCIIFromString(&gltf, &err, &warn, bytes.data(), size, options.external_folder);
     if (!access.refused.empty()) refuse(options.external_folder.empty() ? 422 : 400, "a buffer " + access.refused);
     if (!parsed) refuse(400, "not a valid glTF 2.0 file: " + short_message(err.empty() ? "unreadable" : err));
-    Loader loader(gltf, options);
+    Loader loader(gltf, options, compressed, bytes.size());
     result.model = loader.build();
     result.bytes_bound = loader.bytes_bound();
-  } catch (const Refusal& r) {
+  } catch (const GltfRefusal& r) {
     result.model.reset();
     result.status = r.status;
     result.error = r.message;

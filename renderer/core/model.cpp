@@ -100,6 +100,11 @@ bool is_closed(const std::vector<ModelPart>& parts) {
     std::uint32_t triangle;
   };
   std::vector<Edge> edges;
+  // Reserved: grown by push_back, the old and new arrays together were the
+  // peak of a million-triangle load (about 100 MiB).
+  std::size_t corner_count = 0;
+  for (const ModelPart& part : parts) corner_count += part.indices.size();
+  edges.reserve(corner_count);
   std::uint32_t triangles = 0;
   for_each_welded_triangle(parts, welded, [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
     edges.push_back({std::uint64_t(a) << 32 | b, triangles});

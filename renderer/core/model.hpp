@@ -54,6 +54,9 @@ struct TriangleModel {
   /// projected bounding boxes, not with their area: a long sliver has
   /// almost none.
   std::vector<EdgeLengthBin> edge_lengths;
+  /// Primitives of points or lines the file held (once per node that
+  /// instances them), left out: they cast no shadow.
+  std::size_t skipped_primitives = 0;
 
   std::size_t triangle_count() const;
   /// What the model holds in memory (its vectors' capacities and itself):

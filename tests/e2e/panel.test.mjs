@@ -1165,10 +1165,24 @@ try {
     await page.waitForFunction(() => /lines\.glb/.test(document.getElementById("error").textContent), null,
                                { timeout: 60000 });
     assert.match(await page.$eval("#error", (e) => e.textContent),
-                 /^lines\.glb was not loaded \(422\): meshes\[0\]\.primitives\[0\]: mode 1 \(LINES\) is not triangles/);
+                 /^lines\.glb was not loaded \(422\): the model has no triangles .*1 primitives of points or lines were left out/);
     // The box stays chosen and shown.
     assert.equal(await page.$eval("#scene", (s) => s.value), `model:${boxId}`);
     assert.equal(await page.$eval("#frame", (img) => img.src), frameSrc);
+  });
+
+  await step(page, "an-obj-is-converted-by-the-server", async () => {
+    // A cube as SketchUp or Blender writes OBJ: eight vertices, six quads.
+    const cube = ["v -1 0 -1", "v 1 0 -1", "v 1 2 -1", "v -1 2 -1", "v -1 0 1", "v 1 0 1", "v 1 2 1", "v -1 2 1",
+                  "f 1 4 3 2", "f 5 6 7 8", "f 1 2 6 5", "f 2 3 7 6", "f 3 4 8 7", "f 4 1 5 8"].join("\n") + "\n";
+    await chooseFile(page, "cube.obj", Buffer.from(cube));
+    await page.waitForFunction(() => /cube\.obj: 12 triangles/.test(document.getElementById("model-status").textContent),
+                               null, { timeout: 60000 });
+    assert.match(await page.$eval("#scene", (s) => s.selectedOptions[0].textContent), /^model: cube\.obj \(12 triangles\)$/);
+    // Back to the box for the steps that follow.
+    const before = await currentSources(page);
+    await page.selectOption("#scene", `model:${boxId}`);
+    await waitForNewImages(page, before);
   });
 
   await step(page, "model-link-chooses-the-model", async () => {
