@@ -14,6 +14,8 @@
 #include "assets/folder_file.hpp"
 #include "assets/gltf_loader.hpp"
 #include "assets/model_import.hpp"
+#include "assets/cityjson_loader.hpp"
+#include "assets/glb_writer.hpp"
 #include "png.hpp"
 #include "request_fields.hpp"
 #include "request_parser.hpp"
@@ -313,7 +315,7 @@ void HttpApi::add_cors_headers(HttpResponse& res) const {
   res.set_header("Vary", "Origin");
   res.set_header("Access-Control-Expose-Headers",
                  "Server-Timing, Retry-After, Umbra-Unused-Fields, Umbra-Shadow-Views, Umbra-Shadow-Error, Umbra-Sun, "
-                 "Umbra-Certified, WWW-Authenticate, Umbra-Sun-Hours, Location");
+                 "Umbra-Certified, WWW-Authenticate, Umbra-Sun-Hours, Location, Umbra-CityJSON");
   res.set_header("Timing-Allow-Origin", options_.cors_origin);
 }
 
@@ -997,7 +999,8 @@ namespace {
 struct UploadKind {
   LoadOptions::Format gltf = LoadOptions::Format::Binary;
   const ImportFormat* imported = nullptr;
-  std::string up = "file", unit = "file";
+  bool cityjson = false;  ///< read here (assets/cityjson_loader.hpp), at `lod`
+  std::string up = "file", unit = "file", lod;
 };
 
 std::string import_format_list() {
@@ -1018,6 +1021,12 @@ std::optional<UploadKind> upload_kind(const HttpRequest& req, HttpResponse& res)
   for (const auto& [name, value] : params) {
     if (name == "format") {
       format = value;
+    } else if (name == "lod") {
+      if (value.empty() || value.size() > 8 || value.find_first_not_of("0123456789.") != std::string::npos) {
+        send_error(res, 400, "must be a level of detail such as 2 or 2.2, not '" + value.substr(0, 40) + "'", "lod");
+        return std::nullopt;
+      }
+      kind.lod = value;
     } else if (name == "up" || name == "unit") {
       const std::vector<std::string> allowed = name == "up" ? std::vector<std::string>{"file", "y", "z"}
                                                             : std::vector<std::string>{"file", "m", "cm", "mm", "in", "ft"};
@@ -1030,13 +1039,26 @@ std::optional<UploadKind> upload_kind(const HttpRequest& req, HttpResponse& res)
       (name == "up" ? kind.up : kind.unit) = value;
       conventions = true;
     } else {
-      send_error(res, 400, "unknown query parameter (expected format, up or unit)", name.substr(0, 40));
+      send_error(res, 400, "unknown query parameter (expected format, lod, up or unit)", name.substr(0, 40));
       return std::nullopt;
     }
   }
   const std::string full_type = req.header("Content-Type");
   std::string type = full_type.substr(0, full_type.find(';'));
   while (!type.empty() && (type.back() == ' ' || type.back() == '\t')) type.pop_back();
+  kind.cityjson = format.empty() ? equal_ci(type, "application/city+json") : equal_ci(format, "cityjson");
+  if (!kind.lod.empty() && !kind.cityjson) {
+    send_error(res, 400, "applies to CityJSON only (?format=cityjson or Content-Type application/city+json)", "lod");
+    return std::nullopt;
+  }
+  if (kind.cityjson) {
+    if (conventions) {
+      send_error(res, 400, "does not apply to CityJSON (its reference system is in metres, z up: see docs/api.md)",
+                 std::find_if(params.begin(), params.end(), [](const auto& p) { return p.first == "up" || p.first == "unit"; })->first);
+      return std::nullopt;
+    }
+    return kind;
+  }
   const bool glb = format.empty() ? equal_ci(type, "model/gltf-binary") : equal_ci(format, "glb");
   const bool gltf = format.empty() ? equal_ci(type, "model/gltf+json") : equal_ci(format, "gltf");
   if (glb || gltf) {
@@ -1051,14 +1073,14 @@ std::optional<UploadKind> upload_kind(const HttpRequest& req, HttpResponse& res)
   kind.imported = import_format_named(format.empty() ? type : format);
   if (kind.imported) return kind;
   if (!format.empty()) {
-    send_error(res, 400, "'" + format.substr(0, 40) + "' is not a format this server reads (glb, gltf, " +
+    send_error(res, 400, "'" + format.substr(0, 40) + "' is not a format this server reads (glb, gltf, cityjson, " +
                              import_format_list() + ")", "format");
     return std::nullopt;
   }
   send_error(res, 415,
              "unsupported Content-Type " + (type.empty() ? std::string("(none)") : type.substr(0, 100)) +
-                 "; send a .glb as model/gltf-binary, a self-contained .gltf as model/gltf+json, or another "
-                 "format named by ?format= (" + import_format_list() + ")",
+                 "; send a .glb as model/gltf-binary, a self-contained .gltf as model/gltf+json, CityJSON as "
+                 "application/city+json, or another format named by ?format= (" + import_format_list() + ")",
              "");
   return std::nullopt;
 }
@@ -1077,11 +1099,13 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
   const std::optional<UploadKind> kind = upload_kind(req, res);
   if (!kind) return;
   LoadOptions options;  // no external folder: nothing outside the body is read
-  options.format = kind->imported ? LoadOptions::Format::Binary : kind->gltf;
+  const bool converted_here = kind->imported || kind->cityjson;
+  options.format = converted_here ? LoadOptions::Format::Binary : kind->gltf;
   const std::string id =
-      kind->imported ? model_id_for(req.body + std::string("\0umbra-model-import ") + kind->imported->extension +
-                                    " up=" + kind->up + " unit=" + kind->unit)
-                     : model_id_for(req.body);
+      kind->imported   ? model_id_for(req.body + std::string("\0umbra-model-import ") + kind->imported->extension +
+                                      " up=" + kind->up + " unit=" + kind->unit)
+      : kind->cityjson ? model_id_for(req.body + std::string("\0umbra-cityjson lod=") + kind->lod)
+                       : model_id_for(req.body);
   // What is loaded and stored: the body, or the .glb converted from it.
   std::string converted;
   const std::string* stored_body = &req.body;
@@ -1149,6 +1173,33 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
       return imported.ok();
     }, &converted);
     if (result && !imported.ok()) return send_error(res, imported.status, imported.error, "");
+    stored_body = &converted;
+  } else if (kind->cityjson) {
+    CityJsonResult city;
+    CityJsonOptions read;
+    read.lod = kind->lod;
+    // Built before its room is reserved (the .glb's load reserves it): at
+    // most what an upload of this body may hold.
+    read.admit = [&](std::uint64_t bytes, std::size_t, std::string& why) {
+      if (bytes <= max_loaded_bytes(req.body.size())) return 0;
+      why = "the city model would hold up to " + mib(bytes) + " once loaded, more than an upload of " +
+            std::to_string(req.body.size()) + " bytes may (" + mib(max_loaded_bytes(req.body.size())) + ")";
+      return 422;
+    };
+    result = load_model(req.body, options, [&](std::string& glb) {
+      city = load_cityjson(req.body, read);
+      if (city.ok()) glb = write_glb(*city.model);
+      return city.ok();
+    }, &converted);
+    if (result && !city.ok()) return send_error(res, city.status, city.error, city.status == 422 && !kind->lod.empty() ? "lod" : "");
+    if (result) {
+      std::string lods;
+      for (const std::string& l : city.lods) lods += (lods.empty() ? "" : ",") + l;
+      res.set_header("Umbra-CityJSON", "objects=" + std::to_string(city.objects) + "; lods=" + lods +
+                                           "; lod=" + (kind->lod.empty() ? std::string("highest") : kind->lod) +
+                                           "; left_out=" + std::to_string(city.left_out) +
+                                           "; fanned=" + std::to_string(city.fell_back));
+    }
     stored_body = &converted;
   } else {
     result = load_model(req.body, options);

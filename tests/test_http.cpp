@@ -1330,6 +1330,44 @@ TEST(Http, OtherFormatsAreConvertedAndRender) {
   EXPECT_LT(std::stod(error.substr(error.find("mae=") + 4)), 0.01) << error;
 }
 
+// A CityJSON city model (one building as a box solid at LoD 1 and 2, in a
+// national grid), read by the server: held as its .glb, one model per LoD.
+TEST(Http, CityJsonIsReadAtTheLevelOfDetailAsked) {
+  const json box = {{{{0, 3, 2, 1}}, {{4, 5, 6, 7}}, {{0, 1, 5, 4}}, {{1, 2, 6, 5}}, {{2, 3, 7, 6}}, {{3, 0, 4, 7}}}};
+  const json city = {
+      {"type", "CityJSON"}, {"version", "2.0"},
+      {"transform", {{"scale", {0.01, 0.01, 0.01}}, {"translate", {85000, 446000, 0}}}},
+      {"CityObjects", {{"b1", {{"type", "Building"},
+                               {"geometry", {{{"type", "Solid"}, {"lod", "1"}, {"boundaries", box}},
+                                             {{"type", "Solid"}, {"lod", "2"}, {"boundaries", box}}}}}}}},
+      {"vertices", {{0, 0, 0}, {1000, 0, 0}, {1000, 600, 0}, {0, 600, 0},
+                    {0, 0, 900}, {1000, 0, 900}, {1000, 600, 900}, {0, 600, 900}}}};
+  auto res = client().Post("/api/models?format=cityjson", city.dump(), "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 201) << res->body;
+  EXPECT_EQ(res->get_header_value("Umbra-CityJSON"), "objects=1; lods=1,2; lod=highest; left_out=0; fanned=0");
+  const json held = json::parse(res->body);
+  EXPECT_EQ(held["triangles"], 12);
+  EXPECT_EQ(held["closed"], true);
+  EXPECT_NEAR(held["bounds"]["max"][1].get<double>(), 9.0, 1e-4);  // 9 m tall, y up
+  EXPECT_NEAR(held["bounds"]["max"][0].get<double>(), 5.0, 1e-4);  // centred on its plan
+  auto lod1 = client().Post("/api/models?lod=1", city.dump(), "application/city+json");
+  ASSERT_TRUE(lod1);
+  ASSERT_EQ(lod1->status, 201) << lod1->body;
+  EXPECT_NE(json::parse(lod1->body)["id"], held["id"]);
+  expect_json_error(client().Post("/api/models?format=cityjson&lod=3", city.dump(), "application/json"), 422, "lod");
+  expect_json_error(client().Post("/api/models?format=cityjson&lod=x", city.dump(), "application/json"), 400, "lod");
+  expect_json_error(client().Post("/api/models?format=cityjson&up=z", city.dump(), "application/json"), 400, "up");
+  expect_json_error(client().Post("/api/models?format=obj&lod=2", "v 0 0 0", "application/json"), 400, "lod");
+  // It renders as any model.
+  const json body = {{"scene", {{"objects", {{{"type", "plane"}, {"size", {40, 40}}},
+                                             {{"type", "mesh"}, {"model", held["id"]}}}}}},
+                     {"width", 64}, {"height", 48}};
+  auto rendered = client().Post("/api/render", body.dump(), "application/json");
+  ASSERT_TRUE(rendered);
+  EXPECT_EQ(rendered->status, 200) << rendered->body;
+}
+
 TEST(Http, OnlyModelUploadsMayBeLargerThanOneMebibyte) {
   ServerOptions options;
   options.max_model_bytes = std::size_t(4) << 20;

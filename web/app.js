@@ -1279,7 +1279,13 @@ function extensionOf(fileName) {
   return dot < 0 ? "" : fileName.slice(dot + 1).toLowerCase();
 }
 
+// CityJSON: "tile.city.json", or any ".json" a person picks as a model.
+function isCityJson(fileName) {
+  return /\.json$/i.test(fileName);
+}
+
 function contentTypeFor(fileName) {
+  if (isCityJson(fileName)) return "application/city+json";
   if (CONVERTED_FORMATS.includes(extensionOf(fileName))) return "application/octet-stream";
   return /\.gltf$/i.test(fileName) ? "model/gltf+json" : "model/gltf-binary";
 }

@@ -27,6 +27,7 @@
 
 #include "assets/folder_file.hpp"
 #include "assets/gltf_compression.hpp"
+#include "assets/json_shape.hpp"
 
 namespace umbra {
 
@@ -89,42 +90,14 @@ std::string_view glb_json_chunk(std::string_view bytes) {
   return bytes.substr(20, std::size_t(json_length));
 }
 
-// Nesting depth and value count of a JSON text, strings skipped, so that
-// the parsers below never meet a document that would exhaust the stack or
-// the memory (kMaxJsonDepth, kMaxJsonValues). Malformed JSON is left to
-// the parser.
+// The JSON's nesting and size before tinygltf parses it (json_shape.hpp).
 void check_json_shape(std::string_view text) {
-  std::size_t depth = 0, values = 1;
-  bool in_string = false;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
-    if (in_string) {
-      if (c == '\\')
-        ++i;
-      else if (c == '"')
-        in_string = false;
-      continue;
-    }
-    switch (c) {
-      case '"': in_string = true; break;
-      case '[':
-      case '{':
-        if (++depth > kMaxJsonDepth)
-          refuse(422, "the glTF JSON nests arrays and objects deeper than " + std::to_string(kMaxJsonDepth));
-        break;
-      case ']':
-      case '}':
-        if (depth > 0) --depth;
-        break;
-      case ',':
-      case ':':
-        if (++values > kMaxJsonValues)
-          refuse(422, "the glTF JSON has more than " + std::to_string(kMaxJsonValues) +
-                          " values; put geometry in buffers, not in JSON");
-        break;
-      default: break;
-    }
-  }
+  const JsonShape shape = json_shape(text, kMaxJsonDepth, kMaxJsonValues);
+  if (shape.depth > kMaxJsonDepth)
+    refuse(422, "the glTF JSON nests arrays and objects deeper than " + std::to_string(kMaxJsonDepth));
+  if (shape.values > kMaxJsonValues)
+    refuse(422, "the glTF JSON has more than " + std::to_string(kMaxJsonValues) +
+                    " values; put geometry in buffers, not in JSON");
 }
 
 // --- Files, only through these callbacks ------------------------------------
