@@ -141,8 +141,9 @@ class HttpApi {
   void sun_hours_job(const HttpRequest& req, HttpResponse& res);
   void cancel_sun_hours_job(const HttpRequest& req, HttpResponse& res);
   void start_sun_hours_job(HttpResponse& res, SunHoursRequest request, const SunHoursPlan& plan);
+  /// With `job`, its last encoded answer is reused when the format is the same.
   void send_sun_hours(HttpResponse& res, SunHoursFormat format, const SunHoursRequest& request,
-                      const SunHoursResult& result, double queue_ms);
+                      const SunHoursResult& result, double queue_ms, SunHoursJob* job = nullptr);
   void send_service_error(HttpResponse& res, std::exception_ptr error) const;
   void static_file(const HttpRequest& req, HttpResponse& res);
   void preflight(const HttpRequest& req, HttpResponse& res);

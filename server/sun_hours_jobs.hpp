@@ -14,6 +14,7 @@
 #include <string>
 
 #include "core/sun_hours.hpp"
+#include "sun_hours_answer.hpp"
 #include "service/render_service.hpp"
 
 namespace umbra {
@@ -28,6 +29,12 @@ struct SunHoursJob {
   std::uint64_t result_bytes = 0;  ///< the tally and samples it will hold
   /// Set once the result is ready: when the job may be dropped.
   std::optional<std::chrono::steady_clock::time_point> finished;
+  /// The last answer sent (its format and body, counted in result_bytes):
+  /// a client that fetches a big finished job again is not answered by
+  /// encoding a hundred megabytes again.
+  std::mutex encoded_mutex;
+  std::optional<SunHoursFormat> encoded_format;
+  std::string encoded;
   bool ready() const;
 };
 

@@ -867,11 +867,19 @@ TEST(Http, ASunHoursJobGivesProgressThenTheSameAnswer) {
   ASSERT_EQ(direct->status, 200) << direct->body;
   EXPECT_EQ(json::parse(done_body)["hours"], json::parse(direct->body)["hours"]);
   EXPECT_EQ(json::parse(done_body)["longest_run_hours"], json::parse(direct->body)["longest_run_hours"]);
-  // Fetched again, as CSV; then removed.
+  // Fetched again (its answer kept encoded: the same bytes), as CSV (the
+  // kept answer changes format), and as JSON again; then removed.
+  auto again = c.Get("/api/sun-hours/jobs/" + id);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->body, done_body);
   httplib::Headers csv_accept = {{"Accept", "text/csv"}};
   auto csv = c.Get("/api/sun-hours/jobs/" + id, csv_accept);
   ASSERT_TRUE(csv);
   EXPECT_EQ(csv->status, 200);
+  EXPECT_EQ(csv->get_header_value("Content-Type"), "text/csv; charset=utf-8");
+  auto json_again = c.Get("/api/sun-hours/jobs/" + id);
+  ASSERT_TRUE(json_again);
+  EXPECT_EQ(json_again->body, done_body);
   EXPECT_EQ(std::count(csv->body.begin(), csv->body.end(), '\n'), 160 * 160 + 1);
   // The picture is passed over for a grid job: the best of JSON and CSV,
   // and a malformed weight (q=nan, which once chose the picture: 500) is 0.
