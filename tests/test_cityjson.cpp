@@ -172,6 +172,40 @@ TEST(CityJson, ABuildingAtEachLevelOfDetailInUmbrasFrame) {
   EXPECT_EQ(glb.model->parts.size(), highest.model->parts.size());
 }
 
+// Trees as city models share them: one template (a pyramid "tree", in
+// its own vertices) placed twice by GeometryInstance, moved by its matrix
+// (twice the size for the second) and then to its reference point.
+TEST(CityJson, TemplatesArePlacedAtTheirReferencePoints) {
+  json doc = city();
+  doc["geometry-templates"] = {
+      {"templates", {{{"type", "Solid"}, {"lod", "2.2"},
+                      {"boundaries", {{{{0, 2, 1}}, {{0, 1, 3}}, {{1, 2, 3}}, {{2, 0, 3}}}}}}}},
+      {"vertices-templates", {{-1, -1, 0}, {1, -1, 0}, {0, 1, 0}, {0, 0, 4}}}};
+  const std::size_t first = doc["vertices"].size();
+  doc["vertices"].push_back({5000, 20000, 0});   // 5 m east, 20 m north of the grid origin
+  doc["vertices"].push_back({15000, 20000, 0});
+  const json identity = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  const json doubled = {2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1};
+  doc["CityObjects"]["tree1"] = {{"type", "SolitaryVegetationObject"},
+                                 {"geometry", {{{"type", "GeometryInstance"}, {"template", 0},
+                                                {"boundaries", {first}}, {"transformationMatrix", identity}}}}};
+  doc["CityObjects"]["tree2"] = {{"type", "SolitaryVegetationObject"},
+                                 {"geometry", {{{"type", "GeometryInstance"}, {"template", 0},
+                                                {"boundaries", {first + 1}}, {"transformationMatrix", doubled}}}}};
+  const CityJsonResult r = load(doc);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.objects, 4u);
+  EXPECT_EQ(r.model->triangle_count(), 16u + 8u + 4u + 4u);
+  EXPECT_NEAR(r.model->bounds.max.y, 8.0, 1e-4);  // the doubled tree, 8 m tall
+  // The trees' own colour; the houses' and the facade's.
+  EXPECT_EQ(r.model->parts.size(), 3u);
+  doc["CityObjects"]["tree2"]["geometry"][0]["template"] = 3;
+  EXPECT_EQ(load(doc).error, "CityObjects[\"tree2\"].geometry[0].template: is not a template's index (1 templates)");
+  doc["CityObjects"]["tree2"]["geometry"][0]["template"] = 0;
+  doc["CityObjects"]["tree2"]["geometry"][0]["transformationMatrix"] = {1, 2, 3};
+  EXPECT_EQ(load(doc).error, "CityObjects[\"tree2\"].geometry[0].transformationMatrix: must be 16 numbers");
+}
+
 TEST(CityJson, BrokenFilesAreRefusedNamingThePlace) {
   json doc = city();
   doc["CityObjects"]["house"]["geometry"][1]["boundaries"][0][3][0][2] = 99;

@@ -8,6 +8,7 @@
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <glm/mat4x4.hpp>
 #include <nlohmann/json.hpp>
 
 #include "assets/json_shape.hpp"
@@ -67,13 +68,79 @@ class Reader {
 
  private:
   void read_vertices();
-  Surface surface(const json& rings, const std::string& where) const;
-  void surfaces(const json& boundaries, int depth, const std::string& where, std::vector<Surface>& out) const;
+  Surface surface(const json& rings, const std::string& where, std::size_t vertex_count) const;
+  void surfaces(const json& boundaries, int depth, const std::string& where, std::vector<Surface>& out,
+                std::size_t vertex_count) const;
+  void read_templates();
+  std::vector<Surface> instance(const json& geometry, const std::string& where);
 
   const json& root_;
   const CityJsonOptions& options_;
   std::vector<glm::dvec3> vertices_;
+  // Geometry templates (trees, street furniture): their geometries and
+  // their own vertices, in real coordinates (no transform applies).
+  const json* templates_ = nullptr;
+  std::vector<glm::dvec3> template_vertices_;
 };
+
+void Reader::read_templates() {
+  const auto section = root_.find("geometry-templates");
+  if (section == root_.end()) return;
+  const auto templates = section->find("templates");
+  const auto vertices = section->find("vertices-templates");
+  if (templates == section->end() || !templates->is_array() || vertices == section->end() || !vertices->is_array())
+    refuse(400, "geometry-templates: must hold \"templates\" and \"vertices-templates\" arrays");
+  templates_ = &*templates;
+  for (std::size_t i = 0; i < vertices->size(); ++i) {
+    const json& v = (*vertices)[i];
+    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
+      refuse(400, "geometry-templates.vertices-templates[" + std::to_string(i) + "]: must be [x, y, z]");
+    template_vertices_.emplace_back(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+  }
+}
+
+// A GeometryInstance's surfaces: its template's, each template vertex
+// moved by the transformation matrix (row-major) and then by the reference
+// point (a vertex of the model), added to the model's vertices.
+std::vector<Surface> Reader::instance(const json& geometry, const std::string& where) {
+  const json& t = geometry["template"];
+  const json& template_geometry = (*templates_)[t.get<std::size_t>()];
+  const json& m = geometry["transformationMatrix"];
+  glm::dmat4 matrix;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) matrix[c][r] = m[std::size_t(r * 4 + c)].get<double>();  // glm is column-major
+  const json& reference = geometry["boundaries"];
+  if (!reference.is_array() || reference.size() != 1 || !reference[0].is_number_unsigned() ||
+      reference[0].get<std::uint64_t>() >= vertices_.size())
+    refuse(400, where + ".boundaries: must be [the reference point's vertex index]");
+  const glm::dvec3 origin = vertices_[reference[0].get<std::size_t>()];
+  const std::string type = template_geometry["type"].get<std::string>();
+  const int depth = type == "MultiSurface" || type == "CompositeSurface" ? 1 : type == "Solid" ? 2 : 3;
+  std::vector<Surface> out;
+  surfaces(template_geometry["boundaries"], depth, "geometry-templates.templates[" + std::to_string(t.get<std::size_t>()) + "].boundaries",
+           out, template_vertices_.size());
+  std::map<std::size_t, std::size_t> moved;
+  for (Surface& surface : out)
+    for (auto& ring : surface)
+      for (std::size_t& i : ring) {
+        const auto found = moved.find(i);
+        if (found != moved.end()) {
+          i = found->second;
+          continue;
+        }
+        if (vertices_.size() >= 3 * options_.max_triangles)
+          refuse(422, "the templates' instances make more vertices than a model of " +
+                          std::to_string(options_.max_triangles) + " triangles may have");
+        const glm::dvec4 p = matrix * glm::dvec4(template_vertices_[i], 1.0);
+        const glm::dvec3 world = origin + glm::dvec3(p);
+        if (!std::isfinite(world.x) || !std::isfinite(world.y) || !std::isfinite(world.z))
+          refuse(400, where + ": a template vertex is not finite once placed");
+        vertices_.push_back(world);
+        moved.emplace(i, vertices_.size() - 1);
+        i = vertices_.size() - 1;
+      }
+  return out;
+}
 
 void Reader::read_vertices() {
   const auto t = root_.find("transform");
@@ -105,7 +172,7 @@ void Reader::read_vertices() {
   }
 }
 
-Surface Reader::surface(const json& rings, const std::string& where) const {
+Surface Reader::surface(const json& rings, const std::string& where, std::size_t vertex_count) const {
   if (!rings.is_array() || rings.empty()) refuse(400, where + ": a surface must be an array of rings");
   Surface out;
   for (std::size_t r = 0; r < rings.size(); ++r) {
@@ -113,9 +180,9 @@ Surface Reader::surface(const json& rings, const std::string& where) const {
     if (!ring.is_array()) refuse(400, where + "[" + std::to_string(r) + "]: a ring must be an array of vertex indices");
     std::vector<std::size_t> indices;
     for (const json& i : ring) {
-      if (!i.is_number_unsigned() || i.get<std::uint64_t>() >= vertices_.size())
+      if (!i.is_number_unsigned() || i.get<std::uint64_t>() >= vertex_count)
         refuse(400, where + "[" + std::to_string(r) + "]: " + i.dump().substr(0, 30) + " is not a vertex index (" +
-                        std::to_string(vertices_.size()) + " vertices)");
+                        std::to_string(vertex_count) + " vertices)");
       indices.push_back(i.get<std::size_t>());
     }
     out.push_back(std::move(indices));
@@ -125,17 +192,19 @@ Surface Reader::surface(const json& rings, const std::string& where) const {
 
 // `depth` array levels above the surfaces: 1 for MultiSurface, 2 for a
 // Solid's shells, 3 for MultiSolid's solids.
-void Reader::surfaces(const json& boundaries, int depth, const std::string& where, std::vector<Surface>& out) const {
+void Reader::surfaces(const json& boundaries, int depth, const std::string& where, std::vector<Surface>& out,
+                      std::size_t vertex_count) const {
   if (!boundaries.is_array()) refuse(400, where + ": must be an array");
   if (depth == 1) {
     for (std::size_t s = 0; s < boundaries.size(); ++s)
-      out.push_back(surface(boundaries[s], where + "[" + std::to_string(s) + "]"));
+      out.push_back(surface(boundaries[s], where + "[" + std::to_string(s) + "]", vertex_count));
     return;
   }
   // A solid's first shell is its outside; the others bound voids inside it,
   // which no ray from outside reaches.
   const std::size_t count = depth == 2 ? std::min<std::size_t>(1, boundaries.size()) : boundaries.size();
-  for (std::size_t k = 0; k < count; ++k) surfaces(boundaries[k], depth - 1, where + "[" + std::to_string(k) + "]", out);
+  for (std::size_t k = 0; k < count; ++k)
+    surfaces(boundaries[k], depth - 1, where + "[" + std::to_string(k) + "]", out, vertex_count);
 }
 
 CityJsonResult Reader::read() {
@@ -148,6 +217,7 @@ CityJsonResult Reader::read() {
   if (v != "1.0" && v != "1.1" && v != "2.0")
     refuse(422, "CityJSON version '" + v.substr(0, 20) + "' is not read (1.0, 1.1 and 2.0 are: cjio upgrade converts older files)");
   read_vertices();
+  read_templates();
   const auto objects = root_.find("CityObjects");
   if (objects == root_.end() || !objects->is_object()) refuse(400, "CityObjects: is required, an object");
 
@@ -172,13 +242,32 @@ CityJsonResult Reader::read() {
       if (!geom.is_object() || !geom.contains("type") || !geom["type"].is_string())
         refuse(400, where + ".geometry[" + std::to_string(g) + "].type: is required");
       const std::string gtype = geom["type"].get<std::string>();
-      const bool surfaces_of = gtype == "MultiSurface" || gtype == "CompositeSurface" || gtype == "Solid" ||
-                               gtype == "MultiSolid" || gtype == "CompositeSolid";
-      if (!surfaces_of) {
-        ++result.left_out;  // MultiPoint, MultiLineString, GeometryInstance
+      const auto has_surfaces = [](const std::string& type) {
+        return type == "MultiSurface" || type == "CompositeSurface" || type == "Solid" || type == "MultiSolid" ||
+               type == "CompositeSolid";
+      };
+      // An instance of a template takes the template's type and LoD.
+      const json* described = &geom;
+      if (gtype == "GeometryInstance") {
+        const std::string iwhere = where + ".geometry[" + std::to_string(g) + "]";
+        if (!templates_) refuse(400, iwhere + ": a GeometryInstance, and the file has no geometry-templates");
+        const auto t = geom.find("template");
+        if (t == geom.end() || !t->is_number_unsigned() || t->get<std::uint64_t>() >= templates_->size())
+          refuse(400, iwhere + ".template: is not a template's index (" + std::to_string(templates_->size()) + " templates)");
+        const auto m = geom.find("transformationMatrix");
+        if (m == geom.end() || !m->is_array() || m->size() != 16 ||
+            !std::all_of(m->begin(), m->end(), [](const json& x) { return x.is_number(); }))
+          refuse(400, iwhere + ".transformationMatrix: must be 16 numbers");
+        described = &(*templates_)[t->get<std::size_t>()];
+        if (!described->is_object() || !described->contains("type") || !(*described)["type"].is_string() ||
+            !described->contains("boundaries"))
+          refuse(400, "geometry-templates.templates[" + std::to_string(t->get<std::size_t>()) + "]: must have a type and boundaries");
+      }
+      if (!has_surfaces((*described)["type"].get<std::string>())) {
+        ++result.left_out;  // MultiPoint, MultiLineString (or a template of them)
         continue;
       }
-      const std::string lod = geom.contains("lod") ? lod_text(geom["lod"]) : "";
+      const std::string lod = described->contains("lod") ? lod_text((*described)["lod"]) : "";
       if (std::find(lods.begin(), lods.end(), lod) == lods.end()) lods.push_back(lod);
       const double value = lod_value(lod);
       const bool wanted = options_.lod.empty() ? value > best : lod_value(options_.lod) == value;
@@ -189,13 +278,17 @@ CityJsonResult Reader::read() {
       }
     }
     if (!pick) continue;
-    const std::string gwhere = where + ".geometry[" + std::to_string(pick_index) + "].boundaries";
+    const std::string gwhere = where + ".geometry[" + std::to_string(pick_index) + "]";
     const std::string gtype = (*pick)["type"].get<std::string>();
-    const int depth = gtype == "MultiSurface" || gtype == "CompositeSurface" ? 1 : gtype == "Solid" ? 2 : 3;
-    if (!pick->contains("boundaries")) refuse(400, gwhere + ": is required");
     Chosen c;
     c.type = object.contains("type") && object["type"].is_string() ? object["type"].get<std::string>() : "";
-    surfaces((*pick)["boundaries"], depth, gwhere, c.surfaces);
+    if (gtype == "GeometryInstance") {
+      c.surfaces = instance(*pick, gwhere);
+    } else {
+      const int depth = gtype == "MultiSurface" || gtype == "CompositeSurface" ? 1 : gtype == "Solid" ? 2 : 3;
+      if (!pick->contains("boundaries")) refuse(400, gwhere + ".boundaries: is required");
+      surfaces((*pick)["boundaries"], depth, gwhere + ".boundaries", c.surfaces, vertices_.size());
+    }
     if (!c.surfaces.empty()) chosen.push_back(std::move(c));
   }
   std::sort(lods.begin(), lods.end(), [](const std::string& a, const std::string& b) { return lod_value(a) < lod_value(b); });

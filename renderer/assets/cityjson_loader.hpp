@@ -42,7 +42,7 @@ struct CityJsonResult {
   std::string error;
   std::vector<std::string> lods;   ///< the levels of detail the file has, ascending
   std::size_t objects = 0;         ///< city objects with a surface at the LoD read
-  std::size_t left_out = 0;        ///< geometries not read: points, lines, instances of templates
+  std::size_t left_out = 0;        ///< geometries not read: points and lines (or templates of them)
   std::size_t fell_back = 0;       ///< surfaces ear clipping could not finish (fanned)
   bool ok() const { return model != nullptr; }
 };
