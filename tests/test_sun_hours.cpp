@@ -517,9 +517,19 @@ TEST(SunHoursFootprints, ASureHitIsAHitOfTheExactTest) {
   sphere.type = SceneObject::Type::Sphere;
   sphere.center = {-2, 1, 4};
   sphere.radius = 1.5;
+  SceneObject pole;  // thin and tall, as the bench's poles
+  pole.type = SceneObject::Type::Cylinder;
+  pole.center = {0.5, 1.5, 2};
+  pole.radius = 0.05;
+  pole.size.y = 3.0;
+  SceneObject column;
+  column.type = SceneObject::Type::Cylinder;
+  column.center = {-1, 0, -1};
+  column.radius = 1.2;
+  column.size.y = 0.8;
   const double margin = 1e-3;
   int sure = 0;
-  for (const SceneObject* o : {&box, &sphere}) {
+  for (const SceneObject* o : {&box, &sphere, &pole, &column}) {
     const ShapeKind& kind = shape_kind(o->type);
     ASSERT_NE(kind.surely_meets, nullptr) << kind.name;
     for (int i = 0; i < 200000; ++i) {
@@ -539,7 +549,7 @@ TEST(SunHoursFootprints, ASureHitIsAHitOfTheExactTest) {
   // A point inside the object shrunk by twice the margin surely meets it
   // in every direction (ShapeKind::contains).
   int inside = 0;
-  for (const SceneObject* o : {&box, &sphere}) {
+  for (const SceneObject* o : {&box, &sphere, &pole, &column}) {
     const ShapeKind& kind = shape_kind(o->type);
     ASSERT_NE(kind.contains, nullptr) << kind.name;
     const Aabb b = object_bounds(*o);

@@ -137,10 +137,47 @@ TessellationError tessellation_error_of(const SceneObject& o) {
 
 }  // namespace
 
+// The ray's stretch inside the cylinder shrunk by `margin` (radius and
+// half height), intersected with t > margin: the side's quadratic gives
+// the stretch within the radius, the caps' planes the stretch within the
+// height.
+bool surely_meets(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double margin) {
+  const double r = o.radius - margin, h = half_height(o) - margin;
+  if (!(r > 0.0 && h > 0.0)) return false;
+  const glm::dvec3 p = origin - o.center;
+  double t0 = margin, t1 = kInf;
+  const double a = dir.x * dir.x + dir.z * dir.z;
+  const double c = p.x * p.x + p.z * p.z - r * r;
+  if (a > 0.0) {
+    const double b = p.x * dir.x + p.z * dir.z, disc = b * b - a * c;
+    if (!(disc > 0.0)) return false;
+    const double root = std::sqrt(disc);
+    t0 = std::max(t0, (-b - root) / a);
+    t1 = std::min(t1, (-b + root) / a);
+  } else if (!(c < 0.0)) {
+    return false;  // vertical, outside the radius
+  }
+  if (dir.y != 0.0) {
+    double a_y = (-h - p.y) / dir.y, b_y = (h - p.y) / dir.y;
+    if (a_y > b_y) std::swap(a_y, b_y);
+    t0 = std::max(t0, a_y);
+    t1 = std::min(t1, b_y);
+  } else if (!(std::abs(p.y) < h)) {
+    return false;
+  }
+  return t0 < t1;
+}
+
+bool contains(const SceneObject& o, const glm::dvec3& point, double margin) {
+  const double r = o.radius - margin, h = half_height(o) - margin;
+  const glm::dvec3 p = point - o.center;
+  return r > 0.0 && h > 0.0 && p.x * p.x + p.z * p.z < r * r && std::abs(p.y) < h;
+}
+
 extern const ShapeKind kCylinderShape;  // listed in shapes.cpp
 const ShapeKind kCylinderShape = {
     SceneObject::Type::Cylinder, "cylinder", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside, tessellation_error_of, /*surely_meets=*/nullptr, /*contains=*/nullptr,
+    vertices, intersect, points_inside, tessellation_error_of, surely_meets, contains,
 };
 
 }  // namespace umbra
