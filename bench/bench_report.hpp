@@ -3,6 +3,8 @@
 // machine, round numbers and write files the same way.
 #pragma once
 
+#include "machine.hpp"
+
 #include <string>
 #include <vector>
 
@@ -21,8 +23,6 @@ double median(std::vector<double> values);
 /// "CPU model, N hardware threads; GL: <GL_RENDERER of the service's context>".
 std::string machine_description(const RenderService& service);
 
-/// The current time as "YYYY-MM-DD HH:MM UTC".
-std::string utc_now();
 
 /// One double through a printf pattern, e.g. format("%.2f", 1.234) == "1.23".
 std::string format(const char* pattern, double value);

@@ -46,8 +46,12 @@
 #include <sys/stat.h>
 #include <nlohmann/json.hpp>
 
+#include "machine.hpp"
 #include "scene_files.hpp"
 #include "server_process.hpp"
+
+using umbra::bench::cpu_model_and_threads;
+using umbra::bench::utc_now;
 
 namespace {
 
@@ -416,25 +420,6 @@ struct RandomResult {
 };
 
 // ---------------------------------------------------------------- report
-
-std::string cpu_model_and_threads() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line, model = "unknown CPU";
-  int threads = 0;
-  bool found = false;
-  while (std::getline(in, line)) {
-    if (!found && line.rfind("model name", 0) == 0) model = line.substr(line.find(':') + 2), found = true;
-    if (line.rfind("processor", 0) == 0) ++threads;
-  }
-  return model + ", " + std::to_string(threads) + " hardware threads (/proc/cpuinfo)";
-}
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  char buffer[32];
-  std::strftime(buffer, sizeof buffer, "%Y-%m-%d %H:%M UTC", std::gmtime(&t));
-  return buffer;
-}
 
 std::string cell(double v, const char* pattern) { return std::isnan(v) ? "-" : fmt(pattern, v); }
 

@@ -52,8 +52,12 @@
 #include <glm/vec3.hpp>
 #include <nlohmann/json.hpp>
 
+#include "machine.hpp"
 #include "assets/gltf_loader.hpp"
 #include "gltf_builder.hpp"
+
+using umbra::bench::cpu_model_and_threads;
+using umbra::bench::utc_now;
 
 namespace {
 
@@ -357,30 +361,12 @@ std::string first_line(const char* command) {
   return line.empty() ? "unknown" : line;
 }
 
-std::string cpu_model_and_threads() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line, model = "unknown CPU";
-  int threads = 0;
-  bool found = false;
-  while (std::getline(in, line)) {
-    if (!found && line.rfind("model name", 0) == 0) model = line.substr(line.find(':') + 2), found = true;
-    if (line.rfind("processor", 0) == 0) ++threads;
-  }
-  return model + ", " + std::to_string(threads) + " hardware threads (/proc/cpuinfo); each load is single-threaded";
-}
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  char buffer[32];
-  std::strftime(buffer, sizeof buffer, "%Y-%m-%d %H:%M UTC", std::gmtime(&t));
-  return buffer;
-}
-
 // What the numbers were measured on: the source tree's commit ("-dirty"
 // when it has uncommitted changes, as the loader's may be) and the tools'
 // Debian versions.
 struct Provenance {
-  std::string date = utc_now(), machine = cpu_model_and_threads();
+  std::string date = utc_now(),
+              machine = cpu_model_and_threads() + "; each load is single-threaded";
   std::string commit = first_line("git -C '" UMBRA_SOURCE_DIR "' describe --always --dirty 2>/dev/null");
   std::string tools = first_line("dpkg-query -W -f='${Package} ${Version}  ' gltfpack draco 2>/dev/null");
 };

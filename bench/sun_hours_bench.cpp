@@ -50,6 +50,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "machine.hpp"
 #include "core/sun_hours.hpp"
 #include "reference/ray_cast.hpp"
 #include "reference/sun_hours_footprints.hpp"
@@ -57,7 +58,14 @@
 #include "service/request_cost.hpp"
 #include "sun_hours_parser.hpp"
 
+using umbra::bench::cpu_model_and_threads;
+using umbra::bench::utc_now;
+
 namespace {
+
+std::string machine() {
+  return cpu_model_and_threads() + "; the benchmark uses " + std::to_string(std::thread::hardware_concurrency());
+}
 
 using json = nlohmann::json;
 using umbra::PointTally;
@@ -471,26 +479,6 @@ std::string day_of_2026(int day) {
   return buffer;
 }
 
-std::string cpu_model_and_threads() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line, model = "unknown CPU";
-  int threads = 0;
-  bool found = false;
-  while (std::getline(in, line)) {
-    if (!found && line.rfind("model name", 0) == 0) model = line.substr(line.find(':') + 2), found = true;
-    if (line.rfind("processor", 0) == 0) ++threads;
-  }
-  return model + ", " + std::to_string(threads) + " hardware threads (/proc/cpuinfo); the benchmark uses " +
-         std::to_string(std::thread::hardware_concurrency());
-}
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  char buffer[32];
-  std::strftime(buffer, sizeof buffer, "%Y-%m-%d %H:%M UTC", std::gmtime(&t));
-  return buffer;
-}
-
 double median(std::vector<double> v) {
   if (v.empty()) return NAN;
   std::sort(v.begin(), v.end());
@@ -806,7 +794,7 @@ int main(int argc, char** argv) {
     std::ofstream md(md_path);
     md << "# Sun hours: the footprints path against the pure ray cast\n\n"
        << "Written by `umbra-sun-hours-bench` (" << utc_now() << ").\n\n"
-       << "- Machine: " << cpu_model_and_threads() << "\n"
+       << "- Machine: " << machine() << "\n"
        << "- Command: `" << command_line << "`" << (quick ? " (a smoke run: small grids, coarse steps)" : "") << "\n"
        << "- Run time: " << fmt("%.0f", total_s) << " s in all (random scenes " << fmt("%.0f", random_ms / 1000.0) << " s)\n"
        << "- Result: hard scenes " << differing << " differing of " << compared << " compared points; random scenes "
@@ -896,7 +884,7 @@ int main(int argc, char** argv) {
     const auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
     const json doc = {{"generator", "umbra-sun-hours-bench"},
                       {"date", utc_now()},
-                      {"machine", cpu_model_and_threads()},
+                      {"machine", machine()},
                       {"command", command_line},
                       {"quick", quick},
                       {"seed", seed},

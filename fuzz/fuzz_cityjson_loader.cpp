@@ -13,6 +13,7 @@
 #include "assets/cityjson_loader.hpp"
 #include "assets/glb_writer.hpp"
 #include "assets/gltf_loader.hpp"
+#include "model_invariants.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   umbra::CityJsonOptions options;
@@ -24,16 +25,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     return 0;
   }
   const umbra::TriangleModel& model = *result.model;
-  if (model.triangle_count() == 0 || model.triangle_count() > options.max_triangles) std::abort();
-  for (const umbra::ModelPart& part : model.parts) {
-    if (part.normals.size() != part.positions.size() || part.indices.size() % 3 != 0) std::abort();
-    for (std::uint32_t i : part.indices)
-      if (i >= part.positions.size()) std::abort();
-    for (const auto& p : part.positions)
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) std::abort();
-    for (const auto& n : part.normals)
-      if (!(std::abs(n.x * n.x + n.y * n.y + n.z * n.z - 1.0f) < 1e-3f)) std::abort();
-  }
+  if (!umbra::model_keeps_its_promises(model, options.max_triangles)) std::abort();
   const umbra::LoadResult held = umbra::load_gltf(umbra::write_glb(model), umbra::LoadOptions{});
   if (!held.ok() || held.model->triangle_count() != model.triangle_count()) std::abort();
   return 0;

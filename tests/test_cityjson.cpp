@@ -202,6 +202,9 @@ TEST(CityJson, TemplatesArePlacedAtTheirReferencePoints) {
   doc["CityObjects"]["tree2"]["geometry"][0]["template"] = 3;
   EXPECT_EQ(load(doc).error, "CityObjects[\"tree2\"].geometry[0].template: is not a template's index (1 templates)");
   doc["CityObjects"]["tree2"]["geometry"][0]["template"] = 0;
+  doc["CityObjects"]["tree2"]["geometry"][0].erase("boundaries");  // found by fuzzing: read past a missing key
+  EXPECT_EQ(load(doc).error, "CityObjects[\"tree2\"].geometry[0].boundaries: must be [the reference point's vertex index]");
+  doc["CityObjects"]["tree2"]["geometry"][0]["boundaries"] = {first + 1};
   doc["CityObjects"]["tree2"]["geometry"][0]["transformationMatrix"] = {1, 2, 3};
   EXPECT_EQ(load(doc).error, "CityObjects[\"tree2\"].geometry[0].transformationMatrix: must be 16 numbers");
 }

@@ -109,11 +109,13 @@ std::vector<Surface> Reader::instance(const json& geometry, const std::string& w
   glm::dmat4 matrix;
   for (int r = 0; r < 4; ++r)
     for (int c = 0; c < 4; ++c) matrix[c][r] = m[std::size_t(r * 4 + c)].get<double>();  // glm is column-major
-  const json& reference = geometry["boundaries"];
-  if (!reference.is_array() || reference.size() != 1 || !reference[0].is_number_unsigned() ||
-      reference[0].get<std::uint64_t>() >= vertices_.size())
+  // find, not []: a const json's operator[] on a missing key is undefined
+  // (found by fuzzing: an instance without "boundaries").
+  const auto reference = geometry.find("boundaries");
+  if (reference == geometry.end() || !reference->is_array() || reference->size() != 1 ||
+      !(*reference)[0].is_number_unsigned() || (*reference)[0].get<std::uint64_t>() >= vertices_.size())
     refuse(400, where + ".boundaries: must be [the reference point's vertex index]");
-  const glm::dvec3 origin = vertices_[reference[0].get<std::size_t>()];
+  const glm::dvec3 origin = vertices_[(*reference)[0].get<std::size_t>()];
   const std::string type = template_geometry["type"].get<std::string>();
   const int depth = type == "MultiSurface" || type == "CompositeSurface" ? 1 : type == "Solid" ? 2 : 3;
   std::vector<Surface> out;
