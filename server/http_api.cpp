@@ -832,12 +832,10 @@ void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
   res.set_content(model_json(*held).dump(), "application/json");
 }
 
-std::optional<LoadResult> HttpApi::load_model(const std::string& body, const LoadOptions& options,
-                                              const std::function<bool(std::string&)>& convert,
-                                              std::string* converted) {
+bool HttpApi::in_load_place(const std::function<void()>& work) {
   {
     std::lock_guard<std::mutex> lock(model_loads_mutex_);
-    if (model_loads_ >= kMaxConcurrentModelLoads) return std::nullopt;
+    if (model_loads_ >= kMaxConcurrentModelLoads) return false;
     ++model_loads_;
   }
   struct Release {
@@ -847,10 +845,14 @@ std::optional<LoadResult> HttpApi::load_model(const std::string& body, const Loa
       --api.model_loads_;
     }
   } release{*this};
-  // A conversion runs in the same place: it holds the file and its .glb.
-  if (convert && !convert(*converted)) return LoadResult{};
-  LoadResult result = load_gltf(convert ? *converted : body, options);
-  if (result.ok()) models_loaded_.fetch_add(1);
+  work();
+  return true;
+}
+
+std::optional<LoadResult> HttpApi::load_model(const std::string& body, const LoadOptions& options) {
+  std::optional<LoadResult> result;
+  if (!in_load_place([&] { result = load_gltf(body, options); })) return std::nullopt;
+  if (result->ok()) models_loaded_.fetch_add(1);
   return result;
 }
 
@@ -1106,9 +1108,9 @@ std::optional<UploadKind> upload_kind(const HttpRequest& req, HttpResponse& res)
 }  // namespace
 
 // A .glb or a self-contained .gltf, or a file of another format converted
-// to a .glb by umbra-model-import (renderer/assets/model_import.hpp); its
-// id is the SHA-256 of the body (and of the conversion asked for), so the
-// same upload twice is one model (the second answered 200 at once). Its
+// to a .glb (CityJSON here, the others by umbra-model-import); its id is
+// the SHA-256 of the body (of the .glb, when converted), so the same upload
+// twice is one model (the second answered 200 at once). Its
 // room is reserved before it is built (it may hold at most
 // max_loaded_bytes of its body, and its owner's share); it is held, then
 // written to --model-store (a converted model as its .glb): nothing
@@ -1119,14 +1121,54 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
   LoadOptions options;  // no external folder: nothing outside the body is read
   const bool converted_here = kind->imported || kind->cityjson;
   options.format = converted_here ? LoadOptions::Format::Binary : kind->gltf;
-  const std::string id =
-      kind->imported   ? model_id_for(req.body + std::string("\0umbra-model-import ") + kind->imported->extension +
-                                      " up=" + kind->up + " unit=" + kind->unit)
-      : kind->cityjson ? model_id_for(req.body + std::string("\0umbra-cityjson lod=") + kind->lod)
-                       : model_id_for(req.body);
-  // What is loaded and stored: the body, or the .glb converted from it.
+  // What is loaded and stored: the body, or the .glb converted from it (in
+  // one of the places loads run in). A converted model's id is its .glb's
+  // SHA-256: the store checks a file against its name, and the same .glb
+  // is the same model whatever it was made from.
   std::string converted;
-  const std::string* stored_body = &req.body;
+  if (converted_here) {
+    int status = 0;
+    std::string why, field;
+    const bool ran = in_load_place([&] {
+      if (kind->imported) {
+        ImportOptions convert;
+        convert.importer = options_.model_importer.empty() ? default_importer_path() : options_.model_importer;
+        convert.up = kind->up;
+        convert.unit = kind->unit;
+        convert.max_output_bytes =
+            std::min<std::uint64_t>(max_loaded_bytes(req.body.size()), std::uint64_t(256) << 20);
+        ImportResult imported = import_model(req.body, *kind->imported, convert);
+        status = imported.status, why = std::move(imported.error), converted = std::move(imported.glb);
+        return;
+      }
+      CityJsonOptions read;
+      read.lod = kind->lod;
+      // At most what an upload of this body may hold once loaded (its
+      // .glb's load reserves the room).
+      read.admit = [&](std::uint64_t bytes, std::size_t, std::string& message) {
+        if (bytes <= max_loaded_bytes(req.body.size())) return 0;
+        message = "the city model would hold up to " + mib(bytes) + " once loaded, more than an upload of " +
+                  std::to_string(req.body.size()) + " bytes may (" + mib(max_loaded_bytes(req.body.size())) + ")";
+        return 422;
+      };
+      const CityJsonResult city = load_cityjson(req.body, read);
+      if (!city.ok()) {
+        status = city.status, why = city.error, field = city.status == 422 && !kind->lod.empty() ? "lod" : "";
+        return;
+      }
+      converted = write_glb(*city.model);
+      std::string lods;
+      for (const std::string& l : city.lods) lods += (lods.empty() ? "" : ",") + l;
+      res.set_header("Umbra-CityJSON", "objects=" + std::to_string(city.objects) + "; lods=" + lods +
+                                           "; lod=" + (kind->lod.empty() ? std::string("highest") : kind->lod) +
+                                           "; left_out=" + std::to_string(city.left_out) +
+                                           "; fanned=" + std::to_string(city.fell_back));
+    });
+    if (!ran) return send_models_busy(res);
+    if (status) return send_error(res, status, why, field);
+  }
+  const std::string* stored_body = converted_here ? &converted : &req.body;
+  const std::string id = model_id_for(*stored_body);
 
   // Every server of a cluster must find a model it is told of: it is in
   // the shared folder before the upload is answered, also when this server
@@ -1177,51 +1219,7 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
     why = refused.message;
     return refused.status;
   };
-  std::optional<LoadResult> result;
-  if (kind->imported) {
-    ImportOptions convert;
-    convert.importer = options_.model_importer.empty() ? default_importer_path() : options_.model_importer;
-    convert.up = kind->up;
-    convert.unit = kind->unit;
-    convert.max_output_bytes = std::min<std::uint64_t>(max_loaded_bytes(req.body.size()), std::uint64_t(256) << 20);
-    ImportResult imported;
-    result = load_model(req.body, options, [&](std::string& glb) {
-      imported = import_model(req.body, *kind->imported, convert);
-      glb = std::move(imported.glb);
-      return imported.ok();
-    }, &converted);
-    if (result && !imported.ok()) return send_error(res, imported.status, imported.error, "");
-    stored_body = &converted;
-  } else if (kind->cityjson) {
-    CityJsonResult city;
-    CityJsonOptions read;
-    read.lod = kind->lod;
-    // Built before its room is reserved (the .glb's load reserves it): at
-    // most what an upload of this body may hold.
-    read.admit = [&](std::uint64_t bytes, std::size_t, std::string& why) {
-      if (bytes <= max_loaded_bytes(req.body.size())) return 0;
-      why = "the city model would hold up to " + mib(bytes) + " once loaded, more than an upload of " +
-            std::to_string(req.body.size()) + " bytes may (" + mib(max_loaded_bytes(req.body.size())) + ")";
-      return 422;
-    };
-    result = load_model(req.body, options, [&](std::string& glb) {
-      city = load_cityjson(req.body, read);
-      if (city.ok()) glb = write_glb(*city.model);
-      return city.ok();
-    }, &converted);
-    if (result && !city.ok()) return send_error(res, city.status, city.error, city.status == 422 && !kind->lod.empty() ? "lod" : "");
-    if (result) {
-      std::string lods;
-      for (const std::string& l : city.lods) lods += (lods.empty() ? "" : ",") + l;
-      res.set_header("Umbra-CityJSON", "objects=" + std::to_string(city.objects) + "; lods=" + lods +
-                                           "; lod=" + (kind->lod.empty() ? std::string("highest") : kind->lod) +
-                                           "; left_out=" + std::to_string(city.left_out) +
-                                           "; fanned=" + std::to_string(city.fell_back));
-    }
-    stored_body = &converted;
-  } else {
-    result = load_model(req.body, options);
-  }
+  std::optional<LoadResult> result = load_model(*stored_body, options);
   if (!result) return send_models_busy(res);
   LoadResult& loaded = *result;
   if (!loaded.ok()) return send_error(res, loaded.status, loaded.error, "");

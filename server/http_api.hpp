@@ -170,12 +170,10 @@ class HttpApi {
   ModelLookup model_lookup(ModelPlan& plan);
   /// load_gltf in one of kMaxConcurrentModelLoads places (a load holds a
   /// few times its body in memory): nullopt, unloaded, if none is free.
-  /// With `convert`, it first fills `converted` (a format converted to a
-  /// .glb), in the same place, and that is loaded; its false ends the load
-  /// (an empty result).
-  std::optional<LoadResult> load_model(const std::string& body, const LoadOptions& options,
-                                       const std::function<bool(std::string&)>& convert = {},
-                                       std::string* converted = nullptr);
+  std::optional<LoadResult> load_model(const std::string& body, const LoadOptions& options);
+  /// Runs `work` (a load, or a conversion to a .glb) in one of the
+  /// kMaxConcurrentModelLoads places; false when none is free.
+  bool in_load_place(const std::function<void()>& work);
   /// 503 with Retry-After: every model-load place is taken.
   void send_models_busy(HttpResponse& res) const;
   struct ModelLoadsBusy {};

@@ -14,8 +14,8 @@
 // a file that states nothing (OBJ, STL, PLY, 3DS) is read as glTF is: Y up,
 // metres. --up z turns a Z-up model to Y up (-90 degrees about X); --unit
 // scales it to metres. Exit 0 with the .glb on stdout, else 2 (Assimp could
-// not read the file) or 4 (it holds no triangles) with one line on stderr
-// saying why.
+// not read the file), 4 (it holds no triangles) or 5 (out of memory) with
+// one line on stderr saying why.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -178,7 +178,13 @@ int main(int argc, char** argv) {
   // then every face made triangles, split from points and lines (which the
   // glTF loader leaves out and counts).
   const aiScene* scene = importer.ReadFileFromMemory(input.data(), input.size(), 0, format.c_str());
-  if (!scene) fail(importer.GetErrorString());
+  // Assimp catches an allocation that its address-space limit refused and
+  // reports it as an error: out of memory (5), not an unreadable file.
+  const auto failed = [&] {
+    const std::string why = importer.GetErrorString();
+    fail(why, why.find("bad_alloc") != std::string::npos ? 5 : 2);
+  };
+  if (!scene) failed();
   if (!scene->mRootNode) fail("the file holds no scene");
   drop_empty_meshes(const_cast<aiScene&>(*scene));
   // A file of points or lines only is valid, but has nothing to cast a
@@ -191,7 +197,7 @@ int main(int argc, char** argv) {
     fail(std::to_string(scene->mNumMeshes) + " meshes of points or lines, which cast no shadow", 4);
   scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_JoinIdenticalVertices |
                                        aiProcess_ValidateDataStructure);
-  if (!scene) fail(importer.GetErrorString());
+  if (!scene) failed();
   valid_utf8_names(*scene);
   // The up axis: told, or the file's own where it states one that Assimp
   // leaves as it is (FBX's UpAxis metadata: 2 is Z).

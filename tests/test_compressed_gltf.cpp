@@ -330,7 +330,7 @@ TEST(CompressedGltf, DracoBombsAndBrokenStreamsAreRefusedBeforeDecoding) {
   // pass): found by fuzzing, it was written past the accessors.
   Glb out_of_range = box;
   out_of_range.json["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 99;
-  expect_refused(out_of_range, 400, "meshes[0].primitives[0]: accessor 99 is out of range");
+  expect_refused(out_of_range, 400, "meshes[0].primitives[0].attributes.NORMAL: accessor 99 is out of range");
   // A budget smaller than the decoded box.
   LoadOptions tight;
   tight.max_decoded_bytes = 64;

@@ -352,6 +352,15 @@ TEST(GltfLoader, SparseAccessorsSubstituteTheirValues) {
   expect_refused(b.glb(), 400, ".sparse.count: 9 is not from 1 to the accessor's count 8");
 }
 
+// A NORMAL accessor without a buffer view reads as zeros: its count is
+// bounded by the positions' before any is read (a billion was 12 GB).
+TEST(GltfLoader, NormalsAreCountedBeforeTheyAreRead) {
+  GltfBuilder b = cube_file();
+  const int normals = b.push("accessors", {{"componentType", 5126}, {"count", 1000000000}, {"type", "VEC3"}});
+  b.doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = normals;
+  expect_refused(b.glb(), 400, "meshes[0].primitives[0]: 1000000000 normals for 8 positions");
+}
+
 TEST(GltfLoader, QuantizedPositionsAreDequantized) {
   // KHR_mesh_quantization as gltfpack writes it: normalized SHORT
   // positions (padded to 8 bytes), the scale in the node.

@@ -1361,10 +1361,18 @@ TEST(Http, CityJsonIsReadAtTheLevelOfDetailAsked) {
   EXPECT_EQ(held["closed"], true);
   EXPECT_NEAR(held["bounds"]["max"][1].get<double>(), 9.0, 1e-4);  // 9 m tall, y up
   EXPECT_NEAR(held["bounds"]["max"][0].get<double>(), 5.0, 1e-4);  // centred on its plan
+  // Its LoD 1 is the same box: the same .glb, so the same model (its id is
+  // the .glb's hash); a LoD 1 that differs is another model.
   auto lod1 = client().Post("/api/models?lod=1", city.dump(), "application/city+json");
   ASSERT_TRUE(lod1);
-  ASSERT_EQ(lod1->status, 201) << lod1->body;
-  EXPECT_NE(json::parse(lod1->body)["id"], held["id"]);
+  ASSERT_EQ(lod1->status, 200) << lod1->body;
+  EXPECT_EQ(json::parse(lod1->body)["id"], held["id"]);
+  json lower = city;
+  lower["CityObjects"]["b1"]["geometry"][0]["boundaries"] = {{{{0, 3, 2, 1}}, {{0, 1, 5, 4}}, {{1, 2, 6, 5}}}};
+  auto other = client().Post("/api/models?lod=1", lower.dump(), "application/city+json");
+  ASSERT_TRUE(other);
+  ASSERT_EQ(other->status, 201) << other->body;
+  EXPECT_NE(json::parse(other->body)["id"], held["id"]);
   expect_json_error(client().Post("/api/models?format=cityjson&lod=3", city.dump(), "application/json"), 422, "lod");
   expect_json_error(client().Post("/api/models?format=cityjson&lod=x", city.dump(), "application/json"), 400, "lod");
   expect_json_error(client().Post("/api/models?format=cityjson&up=z", city.dump(), "application/json"), 400, "up");
@@ -1537,6 +1545,18 @@ TEST(Http, AModelUploadedToOneServerRendersOnAnotherThroughTheSharedStore) {
   EXPECT_EQ(to_b.Get("/api/models/" + id)->status, 200);
   // By id only: a name is never looked for in the folder.
   EXPECT_EQ(to_b.Get("/api/models/" + id.substr(7))->status, 404);
+  // A converted model is stored as its .glb, named by the .glb's hash, so
+  // B finds and checks it (the original body's hash named it once: B
+  // refused the file as cut short).
+  const std::string obj = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 2 0\nf 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\nf 1 4 3 2\n";
+  res = to_a.Post("/api/models?format=obj", obj, "text/plain");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 201) << res->body;
+  const std::string pyramid = json::parse(res->body)["id"];
+  res = to_b.Post("/api/render", mesh_scene_body(pyramid, "color"), "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200) << res->body;
+  EXPECT_EQ(to_b.Get("/api/models/" + pyramid)->status, 200);
 
   // A body that does not load is refused and not written.
   res = to_a.Post("/api/models", "glTF but no more", "model/gltf-binary");

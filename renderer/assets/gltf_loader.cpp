@@ -624,6 +624,16 @@ Loader::Size Loader::check_primitives(const std::vector<Instance>& instances) co
         const auto position = primitive.attributes.find("POSITION");
         if (position == primitive.attributes.end()) refuse(422, name + ": no POSITION attribute");
         const std::size_t vertex_count = accessor(position->second, name + ".attributes.POSITION").count;
+        // NORMAL is read too: one per position, known before a byte of it is
+        // (an accessor without a buffer view reads as zeros: a count of a
+        // billion was 12 GB of them; found by the red-team pass).
+        const auto normal = primitive.attributes.find("NORMAL");
+        if (normal != primitive.attributes.end()) {
+          const std::size_t normals = accessor(normal->second, name + ".attributes.NORMAL").count;
+          if (normals != vertex_count)
+            refuse(400, name + ": " + std::to_string(normals) + " normals for " + std::to_string(vertex_count) +
+                            " positions");
+        }
         const std::size_t corners =
             primitive.indices >= 0 ? accessor(primitive.indices, name + ".indices").count : vertex_count;
         if (vertex_count > max_vertices || corners > max_vertices)

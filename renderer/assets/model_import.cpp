@@ -200,6 +200,9 @@ ImportResult import_model(std::string_view bytes, const ImportFormat& format, co
   const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   if (code == 2) return refuse(400, std::string("not a ") + format.name + " file Assimp can read: " + message);
   if (code == 4) return refuse(422, std::string("the ") + format.name + " file has no triangles: " + message);
+  if (code == 5)
+    return refuse(422, std::string("the ") + format.name + " file could not be read within " +
+                           std::to_string(options.max_memory_mib) + " MiB (" + message + ")");
   if (code != 0) return refuse(503, "the model importer failed (" + std::to_string(code) + "): " + message);
   if (result.glb.empty()) return refuse(400, std::string("the ") + format.name + " file holds nothing to convert");
   return result;
