@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 #include <new>
+#include <set>
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
@@ -305,11 +306,11 @@ CityJsonResult Reader::read() {
 
   // Counted before anything is built: a ring of n points with h holes
   // makes n - 2 + 2h triangles.
-  std::size_t triangles = 0, parts = 0;
-  std::map<std::string, int> colours;
+  std::size_t triangles = 0;
+  std::set<std::array<float, 3>> colours;  // one part each
   for (const Chosen& c : chosen) {
     const glm::vec3 colour = colour_of(c.type);
-    colours.emplace(std::to_string(colour.r) + std::to_string(colour.g) + std::to_string(colour.b), 0);
+    colours.insert({colour.r, colour.g, colour.b});
     for (const Surface& s : c.surfaces) {
       std::size_t points = 0;
       for (const auto& ring : s) points += ring.size();
@@ -319,8 +320,7 @@ CityJsonResult Reader::read() {
                         " triangles at this LoD; that is the most one model may have");
     }
   }
-  parts = colours.size();
-  const std::uint64_t bound = model_bytes_bound(triangles, 3 * std::uint64_t(triangles), parts);
+  const std::uint64_t bound = model_bytes_bound(triangles, 3 * std::uint64_t(triangles), colours.size());
   if (options_.admit) {
     std::string why;
     if (const int status = options_.admit(bound, triangles, why)) refuse(status, why);

@@ -51,18 +51,24 @@ std::string write_glb(const TriangleModel& model) {
   doc["nodes"] = json::array({{{"mesh", 0}}});
   doc["scenes"] = json::array({{{"nodes", {0}}}});
   doc["scene"] = 0;
-  std::string text = doc.dump();
-  while (text.size() % 4) text += ' ';
+  std::string chunk(8, '\0');
+  const std::uint32_t bin_length = std::uint32_t(bin.size()), bin_type = 0x004E4942u;
+  std::memcpy(chunk.data(), &bin_length, 4);
+  std::memcpy(chunk.data() + 4, &bin_type, 4);
+  return glb_container(doc.dump(), chunk + bin);
+}
+
+std::string glb_container(std::string json, std::string_view chunks) {
+  while (json.size() % 4) json += ' ';
   std::string out = "glTF";
   const auto u32 = [&out](std::uint32_t v) { out.append(reinterpret_cast<const char*>(&v), 4); };
   u32(2);
-  u32(std::uint32_t(28 + text.size() + bin.size()));
-  u32(std::uint32_t(text.size()));
+  u32(std::uint32_t(20 + json.size() + chunks.size()));
+  u32(std::uint32_t(json.size()));
   u32(0x4E4F534Au);
-  out += text;
-  u32(std::uint32_t(bin.size()));
-  u32(0x004E4942u);
-  return out + bin;
+  out += json;
+  out.append(chunks.data(), chunks.size());
+  return out;
 }
 
 }  // namespace umbra

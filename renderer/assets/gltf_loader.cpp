@@ -26,6 +26,7 @@
 #include <tiny_gltf.h>
 
 #include "assets/folder_file.hpp"
+#include "assets/glb_writer.hpp"
 #include "assets/gltf_compression.hpp"
 #include "assets/json_shape.hpp"
 
@@ -248,24 +249,6 @@ std::string read_extension_list() {
   return list;
 }
 
-// A GLB with `json` as its JSON chunk and the original's binary chunk.
-std::string rebuild_glb(std::string_view original, const std::string& json) {
-  const std::uint32_t json_length = read_u32(original, 12);
-  const std::string_view rest = original.substr(20 + json_length);
-  std::string padded = json;
-  while (padded.size() % 4 != 0) padded += ' ';
-  std::string out;
-  const auto put_u32 = [&out](std::uint32_t v) { out.append(reinterpret_cast<const char*>(&v), 4); };
-  out.append("glTF", 4);
-  put_u32(2);
-  put_u32(std::uint32_t(12 + 8 + padded.size() + rest.size()));
-  put_u32(std::uint32_t(padded.size()));
-  put_u32(0x4E4F534Au);
-  out += padded;
-  out.append(rest.data(), rest.size());
-  return out;
-}
-
 // The document as tinygltf will take it: with a compression extension in
 // extensionsUsed, each such extension's prepare step rewrites it (see
 // gltf_compression.hpp). Else `bytes` unchanged (empty `rewritten`).
@@ -288,7 +271,8 @@ void prepare_compressed(std::string_view bytes, bool glb, std::string& rewritten
   }
   if (!changed) return;
   const std::string json = document.dump();
-  rewritten = glb ? rebuild_glb(bytes, json) : json;
+  // A GLB keeps the chunks after its JSON (its BIN) as they are.
+  rewritten = glb ? glb_container(json, bytes.substr(20 + read_u32(bytes, 12))) : json;
 }
 
 class Loader {
@@ -437,6 +421,11 @@ std::vector<glm::vec3> Loader::read_vec3(int index, const std::string& where) co
                               TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT});
   const std::size_t size = component_bytes(v.component_type);
   const auto element = [&](const unsigned char* at) {
+    if (v.component_type == TINYGLTF_COMPONENT_TYPE_FLOAT) {  // most files: copied as they are
+      glm::vec3 f;
+      std::memcpy(&f, at, sizeof f);
+      return f;
+    }
     return glm::vec3(float(component_at(at, v.component_type, v.normalized)),
                      float(component_at(at + size, v.component_type, v.normalized)),
                      float(component_at(at + 2 * size, v.component_type, v.normalized)));
