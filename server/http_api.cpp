@@ -1038,8 +1038,19 @@ std::optional<UploadKind> upload_kind(const HttpRequest& req, HttpResponse& res)
   UploadKind kind;
   std::string format;
   bool conventions = false;
-  for (const auto& [name, value] : params) {
+  for (std::size_t i = 0; i < params.size(); ++i) {
+    const auto& [name, value] = params[i];
+    // One meaning per parameter: `?format=obj&format=` let the second win.
+    for (std::size_t j = 0; j < i; ++j)
+      if (params[j].first == name) {
+        send_error(res, 400, "is given twice in the query", name.substr(0, 40));
+        return std::nullopt;
+      }
     if (name == "format") {
+      if (value.empty()) {
+        send_error(res, 400, "is empty: name a format (glb, gltf, cityjson, " + import_format_list() + ")", "format");
+        return std::nullopt;
+      }
       format = value;
     } else if (name == "lod") {
       if (value.empty() || value.size() > 8 || value.find_first_not_of("0123456789.") != std::string::npos) {
@@ -1137,6 +1148,9 @@ void HttpApi::upload_model(const HttpRequest& req, HttpResponse& res) {
         convert.unit = kind->unit;
         convert.max_output_bytes =
             std::min<std::uint64_t>(max_loaded_bytes(req.body.size()), std::uint64_t(256) << 20);
+        convert.max_seconds = import_cpu_seconds(req.body.size(), convert.max_seconds);
+        const int socket = req.socket;
+        if (socket >= 0) convert.stop = [socket] { return peer_closed(socket); };
         ImportResult imported = import_model(req.body, *kind->imported, convert);
         status = imported.status, why = std::move(imported.error), converted = std::move(imported.glb);
         return;

@@ -16,6 +16,8 @@
 
 #include <unistd.h>
 
+#include <draco/compression/encode.h>
+#include <draco/mesh/mesh.h>
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
@@ -150,7 +152,10 @@ TEST(CompressedGltf, GltfpackVariantsHoldTheSameTriangles) {
     double step;
   };
   for (const Variant& v : {Variant{"quantized", "", step}, Variant{"meshopt", " -cc", step},
-                           Variant{"meshopt-float", " -cc -noq", 1e-6 * extent}, Variant{"meshopt-c", " -c", step}}) {
+                           Variant{"meshopt-float", " -cc -noq", 1e-6 * extent}, Variant{"meshopt-c", " -c", step},
+                           // -cf: the fallback buffer as a .fallback.bin beside the file, which an
+                           // upload does not carry and a decoder never needs.
+                           Variant{"meshopt-fallback-file", " -cc -cf", step}}) {
     const fs::path out = dir / (std::string(v.name) + ".glb");
     expect_same_model(load_file(run_tool("gltfpack" + in + out.string() + v.flags, out)), plain, v.step, v.name);
   }
@@ -241,6 +246,20 @@ TEST(CompressedGltf, MeshoptBombsAndBrokenStreamsAreRefused) {
   LoadOptions tight;
   tight.max_decoded_bytes = 16;
   expect_refused(box, 422, "(a meshopt fallback buffer) decodes to about 0 MiB, over the 0 MiB", tight);
+  // Views decoding over each other (copies of one compressed view): the
+  // bytes past the fallback buffer's length are charged (a red-team pass:
+  // 5000 views of 16 MB from one source, 24 s of CPU for a 1.1 MB upload).
+  Glb overlapping = box;
+  std::size_t compressed_view = 0;
+  for (std::size_t v = 0; v < box.json["bufferViews"].size(); ++v)
+    if (box.json["bufferViews"][v].contains("extensions")) compressed_view = v;
+  const json copy = box.json["bufferViews"][compressed_view];
+  for (int k = 0; k < 4000; ++k) overlapping.json["bufferViews"].push_back(copy);
+  ASSERT_TRUE(load_gltf(join(box), tight).status == 422);
+  LoadOptions room;
+  room.max_decoded_bytes = std::uint64_t(box.json["buffers"][std::size_t(fallback)]["byteLength"]) + 4096;
+  ASSERT_TRUE(load_gltf(join(box), room).ok());
+  expect_refused(overlapping, 422, "(meshopt views decoding over each other) decodes to about", room);
   // A compressed view whose bytes are cut short: the decoder says so.
   Glb cut = box;
   for (auto& view : cut.json["bufferViews"])
@@ -335,6 +354,78 @@ TEST(CompressedGltf, DracoBombsAndBrokenStreamsAreRefusedBeforeDecoding) {
   LoadOptions tight;
   tight.max_decoded_bytes = 64;
   expect_refused(box, 422, "(its Draco stream) decodes to about", tight);
+}
+
+// A Draco stream of `points` points in a fan of triangles, its positions
+// and `extra` undeclared attributes of 255 byte components each: what a
+// glTF's extension does not name is decoded all the same.
+std::string draco_stream_with_undeclared(int points, int extra, int& position_id) {
+  draco::Mesh mesh;
+  mesh.set_num_points(std::uint32_t(points));
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false, 12, 0);
+  const int p = mesh.AddAttribute(position, true, std::uint32_t(points));
+  for (int i = 0; i < points; ++i) {
+    const float v[3] = {float(i % 50), float(i / 50), float((i * 7) % 3)};
+    mesh.attribute(p)->SetAttributeValue(draco::AttributeValueIndex(i), v);
+  }
+  const std::vector<std::int8_t> zeros(255, 0);
+  for (int a = 0; a < extra; ++a) {
+    draco::GeometryAttribute generic;
+    generic.Init(draco::GeometryAttribute::GENERIC, nullptr, 255, draco::DT_INT8, false, 255, 0);
+    const int g = mesh.AddAttribute(generic, true, std::uint32_t(points));
+    for (int i = 0; i < points; ++i) mesh.attribute(g)->SetAttributeValue(draco::AttributeValueIndex(i), zeros.data());
+  }
+  for (int i = 0; i + 2 < points; ++i)
+    mesh.AddFace({draco::PointIndex(0), draco::PointIndex(std::uint32_t(i + 1)), draco::PointIndex(std::uint32_t(i + 2))});
+  position_id = int(mesh.attribute(p)->unique_id());
+  draco::Encoder encoder;
+  encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
+  draco::EncoderBuffer buffer;
+  EXPECT_TRUE(encoder.EncodeMeshToBuffer(mesh, &buffer).ok());
+  return std::string(buffer.data(), buffer.size());
+}
+
+// A red-team pass: Draco decodes every attribute of its stream, declared
+// or not, and a small file decoded 4.9 GB of undeclared ones. They are
+// counted against the budget before their values are decoded.
+TEST(CompressedGltf, DracoCountsTheAttributesItsStreamHoldsUndeclared) {
+  if (!have_tools()) return;
+  const fs::path dir = variants_folder();
+  const fs::path out = run_tool("draco_transcoder -i " + kBox.string() + " -o " + (dir / "box.glb").string(),
+                                dir / "box.glb");
+  const Glb box = split(read_file(out));
+  fs::remove_all(dir);
+  const auto with_stream = [&](int points, int extra) {
+    int position_id = 0;
+    const std::string stream = draco_stream_with_undeclared(points, extra, position_id);
+    Glb g = box;
+    json& primitive = g.json["meshes"][0]["primitives"][0];
+    json& ext = primitive["extensions"]["KHR_draco_mesh_compression"];
+    const std::size_t view = ext["bufferView"];
+    g.json["bufferViews"][view]["byteOffset"] = g.bin.size();
+    g.json["bufferViews"][view]["byteLength"] = stream.size();
+    g.bin += stream;
+    g.json["buffers"][0]["byteLength"] = g.bin.size();
+    ext["attributes"] = {{"POSITION", position_id}};
+    for (auto it = primitive["attributes"].begin(); it != primitive["attributes"].end();)
+      it = it.key() == "POSITION" ? std::next(it) : primitive["attributes"].erase(it);
+    const std::size_t positions = primitive["attributes"]["POSITION"];
+    g.json["accessors"][positions]["count"] = points;
+    g.json["accessors"][positions]["min"] = {0, 0, 0};
+    g.json["accessors"][positions]["max"] = {49, points / 50, 2};
+    g.json["accessors"][std::size_t(primitive["indices"])]["count"] = 3 * (points - 2);
+    return g;
+  };
+  LoadOptions budget;
+  budget.max_decoded_bytes = std::uint64_t(16) << 20;
+  // The positions alone decode within the budget...
+  const LoadResult plain = load_gltf(join(with_stream(2000, 0)), budget);
+  ASSERT_TRUE(plain.ok()) << plain.error;
+  EXPECT_EQ(plain.model->triangle_count(), 1998u);
+  // ... and 20 undeclared attributes of 255 bytes a point (about 10 MB
+  // decoded as bytes, twice that as integers) are refused before decoding.
+  expect_refused(with_stream(2000, 20), 422, "(its Draco stream's 21 attributes) decodes to about", budget);
 }
 
 }  // namespace

@@ -1318,6 +1318,11 @@ TEST(Http, OtherFormatsAreConvertedAndRender) {
   expect_json_error(client().Post("/api/models?format=dwg", "x", "application/octet-stream"), 400, "format");
   expect_json_error(client().Post("/api/models?format=obj&up=x", "x", "application/octet-stream"), 400, "up");
   expect_json_error(client().Post("/api/models?format=obj&colour=red", "x", "application/octet-stream"), 400, "colour");
+  // One value per parameter, and a format named (the red-team pass: the
+  // empty second `format` won and the answer was a 415).
+  expect_json_error(client().Post("/api/models?format=obj&format=", "x", "application/octet-stream"), 400, "format");
+  expect_json_error(client().Post("/api/models?format=", "x", "model/gltf-binary"), 400, "format");
+  expect_json_error(client().Post("/api/models?format=obj&up=y&up=z", "x", "text/plain"), 400, "up");
   expect_json_error(client().Post("/api/models?unit=mm", read(box), "model/gltf-binary"), 400, "unit");
   auto points = client().Post("/api/models?format=obj", read("/usr/share/assimp/models/OBJ/testpoints.obj"), "text/plain");
   expect_json_error(points, 422, "");

@@ -170,12 +170,33 @@ TEST(ModelImport, AHungOrVanishingImporterIsSurvived) {
   EXPECT_EQ(waited.status, 422);
   EXPECT_NE(waited.error.find("took longer than 2 s"), std::string::npos) << waited.error;
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(30));
+  // A client that has gone: the importer is ended within about a second
+  // of its first question (a hung one here; the wall limit is a minute).
+  ImportOptions left = importer();
+  left.importer = hung.importer;
+  int asked = 0;
+  left.stop = [&asked] { return ++asked >= 2; };
+  const ImportResult stopped = import_model("solid x", stl, left);
+  EXPECT_EQ(stopped.status, 499) << stopped.error;
+  EXPECT_EQ(asked, 2);
+  EXPECT_NE(stopped.error.find("the client has gone"), std::string::npos) << stopped.error;
   ImportOptions gone = importer();
   gone.importer = script("gone", "exit 3");
   const ImportResult vanished = import_model(std::string(8 << 20, 'x'), stl, gone);
   EXPECT_EQ(vanished.status, 503);
   EXPECT_NE(vanished.error.find("failed (3)"), std::string::npos) << vanished.error;
   fs::remove_all(dir);
+}
+
+// The importer's CPU time grows with the file: a small file of huge n-gons
+// (quadratic in Assimp's ear clipping) holds a load place for seconds, not
+// the whole minute.
+TEST(ModelImport, CpuTimeGrowsWithTheFile) {
+  EXPECT_EQ(import_cpu_seconds(0), 5u);
+  EXPECT_EQ(import_cpu_seconds(std::uint64_t(1) << 20), 7u);
+  EXPECT_EQ(import_cpu_seconds(std::uint64_t(10) << 20), 25u);
+  EXPECT_EQ(import_cpu_seconds(std::uint64_t(1) << 30), 60u);
+  EXPECT_EQ(import_cpu_seconds(std::uint64_t(1) << 30, 30), 30u);
 }
 
 }  // namespace

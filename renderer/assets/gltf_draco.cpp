@@ -9,9 +9,13 @@
 // is refused before it is decoded.
 #include <cstring>
 #include <limits>
+#include <memory>
+#include <optional>
 #include <set>
 
 #include <draco/compression/decode.h>
+#include <draco/compression/mesh/mesh_edgebreaker_decoder.h>
+#include <draco/compression/mesh/mesh_sequential_decoder.h>
 #include <draco/mesh/mesh.h>
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
@@ -74,8 +78,12 @@ class HeaderReader {
 };
 
 struct DracoCounts {
+  int method = 0;              ///< 0 sequential, 1 edgebreaker
   std::uint32_t faces = 0;
   std::uint32_t vertices = 0;  ///< points (sequential) or encoded vertices (edgebreaker)
+  /// Edgebreaker: attributes with seams of their own, each a corner table
+  /// the decoder builds before any value is read.
+  std::uint32_t attribute_seams = 0;
 };
 
 DracoCounts read_header(const unsigned char* data, std::size_t size, const std::string& where) {
@@ -101,6 +109,7 @@ DracoCounts read_header(const unsigned char* data, std::size_t size, const std::
     in.metadata_element(0);
   }
   DracoCounts counts;
+  counts.method = method;
   if (method == 0) {  // sequential
     counts.faces = in.varint();
     counts.vertices = in.varint();
@@ -108,10 +117,66 @@ DracoCounts read_header(const unsigned char* data, std::size_t size, const std::
     in.byte();               // traversal type
     counts.vertices = in.varint();
     counts.faces = in.varint();
+    counts.attribute_seams = in.byte();
   } else {
     refuse_gltf(400, where + ": Draco encoder method " + std::to_string(method) + " is unknown");
   }
   return counts;
+}
+
+// A Draco decoder (`Base`: edgebreaker or sequential) that counts what its
+// attributes will hold before it decodes them: Draco decodes every
+// attribute its stream holds, declared in the glTF or not, each of up to
+// 255 components of up to 8 bytes (a red-team pass made a small file
+// decode 4.9 GB of undeclared attributes). The attributes' kinds are known
+// once the stream's attribute headers are read (DecodePointAttributes),
+// before DecodeAllAttributes allocates their values.
+template <class Base>
+class CountedDecoder : public Base {
+ public:
+  CountedDecoder(DecodeBudget& budget, std::uint64_t entries, std::string where)
+      : budget_(budget), entries_(entries), where_(std::move(where)) {}
+  /// Set when the count refused the stream (the decode then failed).
+  std::optional<GltfRefusal> refusal;
+
+ protected:
+  bool DecodeAllAttributes() override {
+    const draco::PointCloud* cloud = this->point_cloud();
+    const std::uint64_t entries = std::max<std::uint64_t>(entries_, cloud->num_points());
+    std::uint64_t bytes = 0;
+    for (int i = 0; i < cloud->num_attributes(); ++i) {
+      const draco::PointAttribute* a = cloud->attribute(i);
+      // Each value decoded as it is and once in its portable (integer) form.
+      const std::uint64_t width = std::max<std::uint64_t>(4, std::uint64_t(draco::DataTypeLength(a->data_type())));
+      bytes += entries * std::uint64_t(a->num_components()) * width * 2;
+    }
+    try {
+      budget_.spend(bytes, where_ + " (its Draco stream's " + std::to_string(cloud->num_attributes()) + " attributes)");
+    } catch (const GltfRefusal& r) {
+      refusal = r;
+      return false;
+    }
+    return Base::DecodeAllAttributes();
+  }
+
+ private:
+  DecodeBudget& budget_;
+  std::uint64_t entries_;
+  std::string where_;
+};
+
+template <class Base>
+std::unique_ptr<draco::Mesh> decode_counted(const unsigned char* stream, std::size_t size, std::uint64_t entries,
+                                            DecodeBudget& budget, const std::string& where) {
+  draco::DecoderBuffer input;
+  input.Init(reinterpret_cast<const char*>(stream), size);
+  CountedDecoder<Base> decoder(budget, entries, where);
+  auto mesh = std::make_unique<draco::Mesh>();
+  const draco::DecoderOptions options;
+  const draco::Status status = decoder.Decode(options, &input, mesh.get());
+  if (decoder.refusal) throw *decoder.refusal;
+  if (!status.ok()) refuse_gltf(400, where + ": its Draco stream does not decode: " + status.error_msg_string());
+  return mesh;
 }
 
 }  // namespace
@@ -213,18 +278,17 @@ void decode_draco(tinygltf::Model& model, const CompressedParts& parts, const st
       refuse_gltf(400, where + ": its Draco stream holds " + std::to_string(counts.vertices) +
                            " vertices, its POSITION accessor " + std::to_string(points));
     // What the decoder holds: per face its corners and their opposites,
-    // per point each attribute; then the decoded copy here.
-    const std::uint64_t attributes = std::max<std::size_t>(1, d.attributes.size());
-    budget.spend(std::uint64_t(counts.faces) * 48 + std::uint64_t(std::max<std::size_t>(points, counts.vertices)) * 16 * attributes +
+    // per attribute with seams a corner table of its own; then the decoded
+    // copy here. The attributes' values are counted by CountedDecoder once
+    // the stream has said what they are.
+    budget.spend(std::uint64_t(counts.faces) * 48 * (1 + std::uint64_t(counts.attribute_seams)) +
                      std::uint64_t(corners) * 4 + std::uint64_t(points) * 24,
                  where + " (its Draco stream)");
-
-    draco::DecoderBuffer input;
-    input.Init(reinterpret_cast<const char*>(stream), view.byteLength);
-    draco::Decoder decoder;
-    auto result = decoder.DecodeMeshFromBuffer(&input);
-    if (!result.ok()) refuse_gltf(400, where + ": its Draco stream does not decode: " + result.status().error_msg_string());
-    const std::unique_ptr<draco::Mesh> mesh = std::move(result).value();
+    const std::uint64_t entries = std::max<std::uint64_t>(points, counts.vertices);
+    const std::unique_ptr<draco::Mesh> mesh =
+        counts.method == 0
+            ? decode_counted<draco::MeshSequentialDecoder>(stream, view.byteLength, entries, budget, where)
+            : decode_counted<draco::MeshEdgebreakerDecoder>(stream, view.byteLength, entries, budget, where);
     if (std::uint64_t(mesh->num_faces()) * 3 != corners || mesh->num_points() != points)
       refuse_gltf(400, where + ": its Draco stream decodes to " + std::to_string(mesh->num_faces()) + " triangles and " +
                            std::to_string(mesh->num_points()) + " points, its accessors say " + std::to_string(corners / 3) +

@@ -138,6 +138,7 @@ ImportResult import_model(std::string_view bytes, const ImportFormat& format, co
   // Feed the file, gather the .glb and the message, until the child ends
   // or the wall-clock limit (its CPU limit, and as much again) passes.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2 * options.max_seconds + 1);
+  auto next_stop_check = std::chrono::steady_clock::now() + std::chrono::seconds(1);
   std::size_t written = 0;
   std::string message;
   bool over = false;
@@ -152,6 +153,10 @@ ImportResult import_model(std::string_view bytes, const ImportFormat& format, co
                                                   std::to_string(2 * options.max_seconds) + " s to read");
     if (poll(fds, nfds_t(n), int(std::min<long long>(left.count(), 1000))) < 0 && errno != EINTR)
       return refuse(503, "the model importer could not be watched");
+    if (options.stop && std::chrono::steady_clock::now() >= next_stop_check) {
+      next_stop_check = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+      if (options.stop()) return refuse(499, "stopped: the client has gone");
+    }
     for (int i = 0; i < n; ++i) {
       if (!fds[i].revents) continue;
       if (fds[i].fd == child.in) {
@@ -206,6 +211,11 @@ ImportResult import_model(std::string_view bytes, const ImportFormat& format, co
   if (code != 0) return refuse(503, "the model importer failed (" + std::to_string(code) + "): " + message);
   if (result.glb.empty()) return refuse(400, std::string("the ") + format.name + " file holds nothing to convert");
   return result;
+}
+
+unsigned import_cpu_seconds(std::uint64_t bytes, unsigned ceiling) {
+  const std::uint64_t seconds = 5 + 2 * (bytes >> 20);
+  return unsigned(std::min<std::uint64_t>(seconds, ceiling));
 }
 
 }  // namespace umbra

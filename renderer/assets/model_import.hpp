@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -36,11 +37,21 @@ struct ImportOptions {
   std::uint64_t max_output_bytes = std::uint64_t(256) << 20;
   unsigned max_memory_mib = 2048;       ///< the importer's address space
   unsigned max_seconds = 60;            ///< its CPU time, and the wall time waited for it
+  /// Asked about once a second while the importer runs: true ends it (the
+  /// client that sent the file has gone), answered 499 "stopped".
+  std::function<bool()> stop;
 };
+
+/// The importer's CPU seconds for a file of `bytes`: 5 s and 2 s a MiB, at
+/// most `ceiling`. Real files convert well within it (the FZK-Haus IFC,
+/// 2.5 MB: under a second); a small file of huge n-gons, which Assimp's ear
+/// clipping takes quadratic time over, no longer holds a load place for
+/// the whole minute (a red-team pass: two such OBJs blocked every upload).
+unsigned import_cpu_seconds(std::uint64_t bytes, unsigned ceiling = 60);
 
 struct ImportResult {
   std::string glb;    ///< set on success
-  int status = 0;     ///< 0, or 400 (Assimp cannot read the file), 422 (over a limit), 503 (no importer)
+  int status = 0;     ///< 0, or 400 (Assimp cannot read the file), 422 (over a limit), 499 (stopped), 503 (no importer)
   std::string error;  ///< why, naming the format
   bool ok() const { return status == 0; }
 };
