@@ -218,14 +218,13 @@ int main(int argc, char** argv) {
   aiMatrix4x4::Scaling(aiVector3D(float(scale)), scaling);
   scene->mRootNode->mTransformation = scaling * convert * scene->mRootNode->mTransformation;
 
+  // Animations are not carried over: Assimp's glTF writer fails on some
+  // (nested COLLADA ones) and writes others with key times that are not
+  // numbers (a 3DS file's), which the loader rightly refuses. A converted
+  // model is its rest pose; animated models come as glTF.
+  const_cast<aiScene*>(scene)->mNumAnimations = 0;  // (their memory goes with the process)
   Assimp::Exporter exporter;
   const aiExportDataBlob* blob = exporter.ExportToBlob(scene, "glb2");
-  if (!blob && scene->mNumAnimations > 0) {
-    // Assimp's glTF writer fails on some animations (nested COLLADA ones):
-    // the geometry is what shadows need, so it is written without them.
-    const_cast<aiScene*>(scene)->mNumAnimations = 0;
-    blob = exporter.ExportToBlob(scene, "glb2");
-  }
   if (!blob) fail(std::string("cannot write it as glTF: ") + exporter.GetErrorString());
   for (std::size_t at = 0; at < blob->size;) {
     const ssize_t n = write(1, static_cast<const char*>(blob->data) + at, blob->size - at);

@@ -11,6 +11,7 @@
 #include <limits>
 #include <map>
 #include <new>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -29,6 +30,7 @@
 #include "assets/glb_writer.hpp"
 #include "assets/gltf_compression.hpp"
 #include "assets/json_shape.hpp"
+#include "core/model_rig.hpp"
 
 namespace umbra {
 
@@ -179,6 +181,29 @@ const char* component_name(int type) {
   }
 }
 
+// Components of an accessor type (SCALAR, VEC3, VEC4, MAT4 are read).
+std::size_t type_components(int type) {
+  switch (type) {
+    case TINYGLTF_TYPE_SCALAR: return 1;
+    case TINYGLTF_TYPE_VEC2: return 2;
+    case TINYGLTF_TYPE_VEC3: return 3;
+    case TINYGLTF_TYPE_VEC4: return 4;
+    case TINYGLTF_TYPE_MAT4: return 16;
+    default: return 0;
+  }
+}
+
+const char* type_name(int type) {
+  switch (type) {
+    case TINYGLTF_TYPE_SCALAR: return "SCALAR";
+    case TINYGLTF_TYPE_VEC2: return "VEC2";
+    case TINYGLTF_TYPE_VEC3: return "VEC3";
+    case TINYGLTF_TYPE_VEC4: return "VEC4";
+    case TINYGLTF_TYPE_MAT4: return "MAT4";
+    default: return "an unread type";
+  }
+}
+
 // The bytes of an accessor's elements: element i starts at base + i * stride;
 // no base: the accessor has no buffer view, and its elements are zeros.
 struct ElementView {
@@ -301,6 +326,10 @@ class Loader {
   void apply_sparse(int index, const std::string& where, int type,
                     const std::function<void(std::size_t, const unsigned char*)>& set) const;
   std::vector<glm::vec3> read_vec3(int index, const std::string& where) const;
+  /// Every component of every element, as numbers (normalized integers
+  /// mapped as glTF says), finite, sparse substitutions applied.
+  std::vector<float> read_floats(int index, const std::string& where, int type,
+                                 std::initializer_list<int> component_types) const;
   std::vector<std::uint32_t> read_indices(int index, const std::string& where, std::size_t vertex_count) const;
   glm::dmat4 local_matrix(std::size_t node) const;
   std::vector<Instance> instances() const;
@@ -312,12 +341,24 @@ class Loader {
   Size check_primitives(const std::vector<Instance>& instances) const;
   glm::vec3 base_color(int material, const std::string& where) const;
   void add_primitive(const Instance& instance, std::size_t p, TriangleModel& out, std::map<std::array<float, 3>, std::size_t>& parts) const;
+  // Animation (core/model_rig.hpp): only for a file that has animations.
+  /// What the rig of these instances will hold at most, in bytes; refuses
+  /// morph targets or keyframes over their limits.
+  std::uint64_t rig_bytes_bound(const std::vector<Instance>& instances) const;
+  /// The primitive's mesh-space geometry, joints, weights and morph
+  /// targets, for the vertices it keeps (`used`), added to rig_.
+  void add_rig_primitive(const Instance& instance, std::size_t p, std::size_t part,
+                         const std::vector<glm::vec3>& positions, const std::vector<glm::vec3>& normals,
+                         const std::vector<std::uint32_t>& used, const std::vector<std::uint32_t>& triangles) const;
+  /// Nodes, skins and animations, checked; rig_ done.
+  void finish_rig(const TriangleModel& model);
 
   tinygltf::Model& gltf_;  // decoding fills its compressed buffers
   const LoadOptions& options_;
   const CompressedParts& compressed_;
   std::uint64_t input_bytes_;  // the document's (the buffers' are counted once loaded)
   std::uint64_t bytes_bound_ = 0;
+  std::unique_ptr<ModelRig> rig_;  // set while a file with animations is built
 };
 
 const tinygltf::Accessor& Loader::accessor(int index, const std::string& where) const {
@@ -360,8 +401,7 @@ ElementView Loader::view(int index, const std::string& where, int type, std::ini
   const tinygltf::Accessor& a = accessor(index, where);
   const std::string name = where + " (" + index_of("accessors", std::size_t(index)) + ")";
   if (a.type != type)
-    refuse(400, name + ": type " + std::to_string(a.type) + " where " +
-                    (type == TINYGLTF_TYPE_SCALAR ? "SCALAR" : "VEC3") + " is required");
+    refuse(400, name + ": type " + std::to_string(a.type) + " where " + type_name(type) + " is required");
   if (std::find(component_types.begin(), component_types.end(), a.componentType) == component_types.end()) {
     std::string allowed;
     for (int t : component_types) allowed += (allowed.empty() ? "" : ", ") + std::string(component_name(t));
@@ -375,7 +415,7 @@ ElementView Loader::view(int index, const std::string& where, int type, std::ini
   // Without a buffer view the elements are zeros (glTF 2.0 §3.6.2.1),
   // sparse substitutions aside.
   if (a.count == 0 || a.bufferView < 0) return v;
-  const std::size_t components = type == TINYGLTF_TYPE_SCALAR ? 1 : 3;
+  const std::size_t components = type_components(type);
   v.base = elements(a.bufferView, a.byteOffset, a.count, components * component_bytes(a.componentType), true, name,
                     v.stride);
   return v;
@@ -399,7 +439,7 @@ void Loader::apply_sparse(int index, const std::string& where, int type,
     refuse(400, name + ": a byteOffset is negative");
   std::size_t index_stride = 0, value_stride = 0;
   const std::size_t index_bytes = component_bytes(index_type);
-  const std::size_t value_bytes = (type == TINYGLTF_TYPE_SCALAR ? 1 : 3) * component_bytes(a.componentType);
+  const std::size_t value_bytes = type_components(type) * component_bytes(a.componentType);
   const unsigned char* indices = elements(a.sparse.indices.bufferView, std::size_t(a.sparse.indices.byteOffset), count,
                                           index_bytes, false, name + ".indices", index_stride);
   const unsigned char* values = elements(a.sparse.values.bufferView, std::size_t(a.sparse.values.byteOffset), count,
@@ -438,6 +478,25 @@ std::vector<glm::vec3> Loader::read_vec3(int index, const std::string& where) co
     if (!std::isfinite(out[i].x) || !std::isfinite(out[i].y) || !std::isfinite(out[i].z))
       refuse(400, where + " (" + index_of("accessors", std::size_t(index)) + "): element " + std::to_string(i) +
                       " is not finite (NaN or infinity)");
+  return out;
+}
+
+std::vector<float> Loader::read_floats(int index, const std::string& where, int type,
+                                       std::initializer_list<int> component_types) const {
+  const ElementView v = view(index, where, type, component_types);
+  const std::size_t components = type_components(type), size = component_bytes(v.component_type);
+  std::vector<float> out(v.count * components, 0.0f);
+  const auto element = [&](std::size_t i, const unsigned char* at) {
+    for (std::size_t c = 0; c < components; ++c)
+      out[i * components + c] = float(component_at(at + c * size, v.component_type, v.normalized));
+  };
+  if (v.base)
+    for (std::size_t i = 0; i < v.count; ++i) element(i, v.base + i * v.stride);
+  apply_sparse(index, where, type, element);
+  for (std::size_t i = 0; i < out.size(); ++i)
+    if (!std::isfinite(out[i]))
+      refuse(400, where + " (" + index_of("accessors", std::size_t(index)) + "): element " +
+                      std::to_string(i / components) + " is not finite (NaN or infinity)");
   return out;
 }
 
@@ -722,6 +781,14 @@ void Loader::add_primitive(const Instance& instance, std::size_t p, TriangleMode
     i = remap[i];
   }
 
+  const glm::vec3 color = base_color(primitive.material, name);
+  const auto found = parts.emplace(std::array<float, 3>{color.r, color.g, color.b}, out.parts.size());
+  if (found.second) {
+    out.parts.emplace_back();
+    out.parts.back().base_color = color;
+  }
+  if (rig_) add_rig_primitive(instance, p, found.first->second, positions, normals, used, triangles);
+
   const glm::dmat4& world = instance.world;
   const glm::dmat3 linear(world);
   const double determinant = glm::determinant(linear);
@@ -753,12 +820,6 @@ void Loader::add_primitive(const Instance& instance, std::size_t p, TriangleMode
   }
   if (world_normals.empty()) world_normals = area_weighted_normals(world_positions, triangles);
 
-  const glm::vec3 color = base_color(primitive.material, name);
-  const auto found = parts.emplace(std::array<float, 3>{color.r, color.g, color.b}, out.parts.size());
-  if (found.second) {
-    out.parts.emplace_back();
-    out.parts.back().base_color = color;
-  }
   ModelPart& part = out.parts[found.first->second];
   const std::uint32_t base = std::uint32_t(part.positions.size());
   part.positions.insert(part.positions.end(), world_positions.begin(), world_positions.end());
@@ -771,6 +832,271 @@ void Loader::add_primitive(const Instance& instance, std::size_t p, TriangleMode
   for (std::size_t k = first; k < part.indices.size(); ++k) part.indices[k] += base;
 }
 
+// --- Animation: the rig (core/model_rig.hpp) --------------------------------
+
+const std::initializer_list<int> kFloatOrNormalized = {
+    TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+    TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT};
+
+std::uint64_t Loader::rig_bytes_bound(const std::vector<Instance>& instances) const {
+  // Keyframes: every sampler's times and values, bounded before any is read
+  // (an accessor without a buffer view reads as zeros, whatever its count).
+  std::uint64_t floats = 0;
+  for (std::size_t a = 0; a < gltf_.animations.size(); ++a)
+    for (std::size_t k = 0; k < gltf_.animations[a].samplers.size(); ++k) {
+      const tinygltf::AnimationSampler& sampler = gltf_.animations[a].samplers[k];
+      const std::string where = index_of("animations", a) + ".samplers[" + std::to_string(k) + "]";
+      const tinygltf::Accessor& input = accessor(sampler.input, where + ".input");
+      const tinygltf::Accessor& output = accessor(sampler.output, where + ".output");
+      floats += std::uint64_t(input.count) + std::uint64_t(output.count) * std::max<std::size_t>(1, type_components(output.type));
+      if (floats > kMaxAnimationFloats)
+        refuse(422, "the model's animations hold more than " + std::to_string(kMaxAnimationFloats) +
+                        " keyframe numbers, the most one model may (at " + where + ")");
+    }
+  std::uint64_t bytes = floats * sizeof(float) + gltf_.nodes.size() * (sizeof(RigNode) + 16);
+  for (const tinygltf::Skin& skin : gltf_.skins) bytes += skin.joints.size() * (sizeof(std::size_t) + sizeof(glm::dmat4));
+  // Each instanced primitive's kept vertices (at most one a corner and at
+  // most its accessor's count): position, normal, joints and weights, and
+  // an offset of each for every morph target.
+  for (const Instance& instance : instances)
+    for (std::size_t p = 0; p < gltf_.meshes[instance.mesh].primitives.size(); ++p) {
+      const tinygltf::Primitive& primitive = gltf_.meshes[instance.mesh].primitives[p];
+      if (!is_triangles(primitive.mode)) continue;
+      const std::string name = primitive_name(instance.mesh, p);
+      if (primitive.targets.size() > kMaxMorphTargets)
+        refuse(422, name + ": " + std::to_string(primitive.targets.size()) + " morph targets; at most " +
+                        std::to_string(kMaxMorphTargets) + " are taken");
+      const std::uint64_t vertices = accessor(primitive.attributes.at("POSITION"), name + ".attributes.POSITION").count;
+      const std::uint64_t corners =
+          primitive.indices >= 0 ? accessor(primitive.indices, name + ".indices").count : vertices;
+      const std::uint64_t kept = std::min(vertices, corners);
+      bytes += sizeof(RigPrimitive) + kept * (2 * sizeof(glm::vec3) + 8 + sizeof(glm::vec4)) + corners * 4 +
+               kept * primitive.targets.size() * 2 * sizeof(glm::vec3);
+    }
+  return bytes;
+}
+
+void Loader::add_rig_primitive(const Instance& instance, std::size_t p, std::size_t part,
+                               const std::vector<glm::vec3>& positions, const std::vector<glm::vec3>& normals,
+                               const std::vector<std::uint32_t>& used, const std::vector<std::uint32_t>& triangles) const {
+  const tinygltf::Primitive& primitive = gltf_.meshes[instance.mesh].primitives[p];
+  const std::string name = primitive_name(instance.mesh, p);
+  RigPrimitive r;
+  r.node = instance.node;
+  r.part = part;
+  r.indices = triangles;
+  r.positions.reserve(used.size());
+  for (const std::uint32_t v : used) r.positions.push_back(positions[v]);
+  if (!normals.empty()) {
+    r.normals.reserve(used.size());
+    for (const std::uint32_t v : used) r.normals.push_back(normals[v]);
+  }
+  // Skinned: the node names a skin and the primitive has its joints and
+  // weights (glTF 2.0 §3.7.3: JOINTS_0 and WEIGHTS_0).
+  const int skin = gltf_.nodes[instance.node].skin;
+  const auto joints = primitive.attributes.find("JOINTS_0"), weights = primitive.attributes.find("WEIGHTS_0");
+  if (skin >= 0 && joints != primitive.attributes.end() && weights != primitive.attributes.end()) {
+    if (std::size_t(skin) >= gltf_.skins.size())
+      refuse(400, index_of("nodes", instance.node) + ".skin: " + std::to_string(skin) + " is out of range (" +
+                      std::to_string(gltf_.skins.size()) + " skins)");
+    const std::size_t joint_count = gltf_.skins[std::size_t(skin)].joints.size();
+    const std::vector<float> j = read_floats(joints->second, name + ".attributes.JOINTS_0", TINYGLTF_TYPE_VEC4,
+                                             {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT});
+    const std::vector<float> w = read_floats(weights->second, name + ".attributes.WEIGHTS_0", TINYGLTF_TYPE_VEC4,
+                                             {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                              TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT});
+    if (j.size() != positions.size() * 4 || w.size() != positions.size() * 4)
+      refuse(400, name + ": JOINTS_0 and WEIGHTS_0 must have one element per position (" +
+                      std::to_string(positions.size()) + ")");
+    r.skin = skin;
+    r.joints.reserve(used.size());
+    r.weights.reserve(used.size());
+    for (const std::uint32_t v : used) {
+      std::array<std::uint16_t, 4> joint{};
+      for (int k = 0; k < 4; ++k) {
+        const float index = j[std::size_t(v) * 4 + std::size_t(k)], weight = w[std::size_t(v) * 4 + std::size_t(k)];
+        if (weight != 0.0f && index >= float(joint_count))
+          refuse(400, name + ".attributes.JOINTS_0: joint " + std::to_string(std::uint32_t(index)) +
+                          " is out of range (its skin has " + std::to_string(joint_count) + " joints)");
+        joint[std::size_t(k)] = weight != 0.0f ? std::uint16_t(index) : 0;
+      }
+      r.joints.push_back(joint);
+      r.weights.emplace_back(w[std::size_t(v) * 4], w[std::size_t(v) * 4 + 1], w[std::size_t(v) * 4 + 2],
+                             w[std::size_t(v) * 4 + 3]);
+    }
+  }
+  // Morph targets: offsets of positions and normals (tangents are not read).
+  for (std::size_t t = 0; t < primitive.targets.size(); ++t) {
+    std::vector<glm::vec3> kept_positions, kept_normals;
+    for (const auto& [attribute, index] : primitive.targets[t]) {
+      if (attribute != "POSITION" && attribute != "NORMAL") continue;
+      const std::string where = name + ".targets[" + std::to_string(t) + "]." + attribute;
+      const std::vector<glm::vec3> offsets = read_vec3(index, where);
+      if (offsets.size() != positions.size())
+        refuse(400, where + ": " + std::to_string(offsets.size()) + " elements for " + std::to_string(positions.size()) +
+                        " positions");
+      std::vector<glm::vec3>& kept = attribute == "POSITION" ? kept_positions : kept_normals;
+      kept.reserve(used.size());
+      for (const std::uint32_t v : used) kept.push_back(offsets[v]);
+    }
+    r.target_positions.push_back(std::move(kept_positions));
+    r.target_normals.push_back(std::move(kept_normals));
+  }
+  rig_->primitives.push_back(std::move(r));
+}
+
+void Loader::finish_rig(const TriangleModel& model) {
+  ModelRig& rig = *rig_;
+  for (const ModelPart& part : model.parts) rig.part_colors.push_back(part.base_color);
+  // Nodes: their rest transforms (checked by local_matrix), parents, and
+  // morph weights (node.weights, else its mesh's, else zeros).
+  const std::size_t node_count = gltf_.nodes.size();
+  rig.nodes.resize(node_count);
+  for (std::size_t n = 0; n < node_count; ++n) {
+    const tinygltf::Node& node = gltf_.nodes[n];
+    RigNode& r = rig.nodes[n];
+    local_matrix(n);  // refuses what is not a transform
+    if (!node.matrix.empty()) {
+      glm::dmat4 m;
+      for (int c = 0; c < 4; ++c)
+        for (int row = 0; row < 4; ++row) m[c][row] = node.matrix[std::size_t(c * 4 + row)];
+      r.matrix = m;
+    }
+    if (!node.translation.empty()) r.translation = {node.translation[0], node.translation[1], node.translation[2]};
+    if (!node.rotation.empty())
+      r.rotation = glm::normalize(glm::dquat(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]));
+    if (!node.scale.empty()) r.scale = {node.scale[0], node.scale[1], node.scale[2]};
+    for (const int c : node.children) rig.nodes[std::size_t(c)].parent = int(n);  // checked by instances()
+    if (node.mesh >= 0 && std::size_t(node.mesh) < gltf_.meshes.size()) {
+      const tinygltf::Mesh& mesh = gltf_.meshes[std::size_t(node.mesh)];
+      std::size_t targets = 0;
+      for (const tinygltf::Primitive& primitive : mesh.primitives) targets = std::max(targets, primitive.targets.size());
+      const std::vector<double>& given = !node.weights.empty() ? node.weights : mesh.weights;
+      r.weights.assign(targets, 0.0f);
+      for (std::size_t k = 0; k < std::min(targets, given.size()); ++k) {
+        if (!std::isfinite(given[k])) refuse(400, index_of("nodes", n) + ": a morph weight is not finite");
+        r.weights[k] = float(given[k]);
+      }
+    }
+  }
+  // Parents before children: from every node without a parent, depth first
+  // (a cycle has no such node and is never reached: its nodes are not posed).
+  std::vector<std::size_t> stack;
+  for (std::size_t n = node_count; n-- > 0;)
+    if (rig.nodes[n].parent < 0) stack.push_back(n);
+  std::vector<bool> reached(node_count, false);
+  while (!stack.empty()) {
+    const std::size_t n = stack.back();
+    stack.pop_back();
+    if (reached[n]) continue;
+    reached[n] = true;
+    rig.order.push_back(n);
+    const auto& children = gltf_.nodes[n].children;
+    for (auto c = children.rbegin(); c != children.rend(); ++c) stack.push_back(std::size_t(*c));
+  }
+  // Skins: joints among the posed nodes, one inverse bind matrix each.
+  for (std::size_t s = 0; s < gltf_.skins.size(); ++s) {
+    const tinygltf::Skin& skin = gltf_.skins[s];
+    const std::string where = index_of("skins", s);
+    RigSkin r;
+    for (std::size_t k = 0; k < skin.joints.size(); ++k) {
+      const int j = skin.joints[k];
+      if (j < 0 || std::size_t(j) >= node_count || !reached[std::size_t(j)])
+        refuse(400, where + ".joints[" + std::to_string(k) + "]: node " + std::to_string(j) +
+                        " is out of range or in a cycle of nodes");
+      r.joints.push_back(std::size_t(j));
+    }
+    r.inverse_bind.assign(skin.joints.size(), glm::dmat4(1.0));
+    if (skin.inverseBindMatrices >= 0) {
+      const std::vector<float> m = read_floats(skin.inverseBindMatrices, where + ".inverseBindMatrices",
+                                               TINYGLTF_TYPE_MAT4, {TINYGLTF_COMPONENT_TYPE_FLOAT});
+      if (m.size() < skin.joints.size() * 16)
+        refuse(400, where + ".inverseBindMatrices: " + std::to_string(m.size() / 16) + " matrices for " +
+                        std::to_string(skin.joints.size()) + " joints");
+      for (std::size_t k = 0; k < skin.joints.size(); ++k)
+        for (int c = 0; c < 4; ++c)
+          for (int row = 0; row < 4; ++row) r.inverse_bind[k][c][row] = m[k * 16 + std::size_t(c * 4 + row)];
+    }
+    rig.skins.push_back(std::move(r));
+  }
+  // Animations: samplers (times increasing), channels onto nodes' TRS or
+  // morph weights.
+  for (std::size_t a = 0; a < gltf_.animations.size(); ++a) {
+    const tinygltf::Animation& animation = gltf_.animations[a];
+    const std::string where = index_of("animations", a);
+    RigAnimation r;
+    r.name = animation.name;
+    // Each sampler's width is known from the channel that reads it.
+    std::vector<std::size_t> width(animation.samplers.size(), 0);
+    for (std::size_t c = 0; c < animation.channels.size(); ++c) {
+      const tinygltf::AnimationChannel& channel = animation.channels[c];
+      const std::string name = where + ".channels[" + std::to_string(c) + "]";
+      if (channel.sampler < 0 || std::size_t(channel.sampler) >= animation.samplers.size())
+        refuse(400, name + ".sampler: " + std::to_string(channel.sampler) + " is out of range");
+      if (channel.target_node < 0) continue;  // no node: glTF says to ignore it
+      if (std::size_t(channel.target_node) >= node_count)
+        refuse(400, name + ".target.node: " + std::to_string(channel.target_node) + " is out of range");
+      const std::size_t node = std::size_t(channel.target_node);
+      RigChannel out{node, RigPath::Translation, std::size_t(channel.sampler)};
+      std::size_t w = 3;
+      if (channel.target_path == "translation") {
+        out.path = RigPath::Translation;
+      } else if (channel.target_path == "rotation") {
+        out.path = RigPath::Rotation, w = 4;
+      } else if (channel.target_path == "scale") {
+        out.path = RigPath::Scale;
+      } else if (channel.target_path == "weights") {
+        out.path = RigPath::Weights, w = rig.nodes[node].weights.size();
+        if (w == 0) refuse(400, name + ": animates the morph weights of " + index_of("nodes", node) + ", which has no morph targets");
+      } else {
+        continue;  // "pointer" and other extensions' paths: not read (nothing Umbra draws moves by them)
+      }
+      if (rig.nodes[node].matrix)
+        refuse(400, name + ": animates " + index_of("nodes", node) + ", which has a matrix (glTF: only TRS nodes are animated)");
+      if (width[std::size_t(channel.sampler)] != 0 && width[std::size_t(channel.sampler)] != w)
+        refuse(400, name + ": its sampler is read by channels of different widths");
+      width[std::size_t(channel.sampler)] = w;
+      r.channels.push_back(out);
+    }
+    for (std::size_t k = 0; k < animation.samplers.size(); ++k) {
+      const tinygltf::AnimationSampler& sampler = animation.samplers[k];
+      const std::string name = where + ".samplers[" + std::to_string(k) + "]";
+      RigSampler out;
+      out.width = width[k];
+      if (sampler.interpolation == "STEP")
+        out.interpolation = RigInterpolation::Step;
+      else if (sampler.interpolation == "CUBICSPLINE")
+        out.interpolation = RigInterpolation::CubicSpline;
+      else if (sampler.interpolation.empty() || sampler.interpolation == "LINEAR")
+        out.interpolation = RigInterpolation::Linear;
+      else
+        refuse(400, name + ".interpolation: must be LINEAR, STEP or CUBICSPLINE");
+      if (out.width == 0) {  // read by no channel
+        r.samplers.push_back(std::move(out));
+        continue;
+      }
+      out.times = read_floats(sampler.input, name + ".input", TINYGLTF_TYPE_SCALAR, {TINYGLTF_COMPONENT_TYPE_FLOAT});
+      if (out.times.empty()) refuse(400, name + ".input: no keyframes");
+      for (std::size_t i = 1; i < out.times.size(); ++i)
+        if (!(out.times[i] > out.times[i - 1]))
+          refuse(400, name + ".input: key times must increase (element " + std::to_string(i) + ")");
+      const tinygltf::Accessor& output = accessor(sampler.output, name + ".output");
+      const int type = output.type;
+      if (type != TINYGLTF_TYPE_SCALAR && type != TINYGLTF_TYPE_VEC3 && type != TINYGLTF_TYPE_VEC4)
+        refuse(400, name + ".output: type " + std::to_string(type) + " is not SCALAR, VEC3 or VEC4");
+      out.values = read_floats(sampler.output, name + ".output", type, kFloatOrNormalized);
+      const std::size_t per_key = out.width * (out.interpolation == RigInterpolation::CubicSpline ? 3 : 1);
+      if (out.values.size() != out.times.size() * per_key)
+        refuse(400, name + ".output: " + std::to_string(out.values.size()) + " numbers for " +
+                        std::to_string(out.times.size()) + " keys of " + std::to_string(per_key));
+      r.duration_s = std::max(r.duration_s, double(out.times.back()));
+      r.samplers.push_back(std::move(out));
+    }
+    rig.animations.push_back(std::move(r));
+  }
+  rig.order.shrink_to_fit();
+}
+
 std::shared_ptr<TriangleModel> Loader::build() {
   for (const std::string& extension : gltf_.extensionsRequired)
     if (!read_extension(extension))
@@ -779,9 +1105,20 @@ std::shared_ptr<TriangleModel> Loader::build() {
   const std::vector<Instance> all = instances();
   const Size size = check_primitives(all);
   bytes_bound_ = size.bytes;
+  // A rig for a file that moves (animations), or whose rest pose needs one
+  // (skins, morph targets): glTF places a skinned mesh by its joints, not
+  // by its node. Kept with the model only when it has animations.
+  bool deformable = !gltf_.skins.empty();
+  for (const Instance& instance : all)
+    for (const tinygltf::Primitive& primitive : gltf_.meshes[instance.mesh].primitives)
+      deformable = deformable || !primitive.targets.empty();
+  if (!gltf_.animations.empty() || deformable) {
+    bytes_bound_ += rig_bytes_bound(all);
+    rig_ = std::make_unique<ModelRig>();
+  }
   if (options_.admit) {
     std::string why;
-    if (const int status = options_.admit(size.bytes, size.triangles, why)) refuse(status, why);
+    if (const int status = options_.admit(bytes_bound_, size.triangles, why)) refuse(status, why);
   }
   // Compressed data is decoded only now, the model's size known and
   // admitted; every decoded size counted against the budget first.
@@ -811,6 +1148,18 @@ std::shared_ptr<TriangleModel> Loader::build() {
                                         " primitives of points or lines were left out, as they cast no shadow"
                                   : std::string()));
   finish_model(*model);
+  if (rig_) {
+    finish_rig(*model);
+    if (rig_deforms(*rig_)) {
+      try {
+        *model = pose_rest(*rig_);
+      } catch (const std::domain_error& e) {
+        refuse(400, std::string("its rest pose: ") + e.what());
+      }
+      model->skipped_primitives = size.skipped;
+    }
+    if (!rig_->animations.empty()) model->rig = std::move(rig_);
+  }
   return model;
 }
 

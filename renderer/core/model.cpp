@@ -1,4 +1,5 @@
 #include "core/model.hpp"
+#include "core/model_rig.hpp"
 
 #include <algorithm>
 #include <array>
@@ -22,7 +23,8 @@ std::size_t TriangleModel::bytes() const {
   for (const ModelPart& part : parts)
     n += (part.positions.capacity() + part.normals.capacity()) * sizeof(glm::vec3) +
          part.indices.capacity() * sizeof(std::uint32_t);
-  return n + area_vectors.capacity() * sizeof(glm::dvec3) + edge_lengths.capacity() * sizeof(EdgeLengthBin);
+  return n + area_vectors.capacity() * sizeof(glm::dvec3) + edge_lengths.capacity() * sizeof(EdgeLengthBin) +
+         (rig ? rig->bytes() : 0);
 }
 
 std::uint64_t model_bytes_bound(std::uint64_t triangles, std::uint64_t vertices, std::uint64_t parts) {

@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -38,6 +39,8 @@ struct EdgeLengthBin {
 
 /// A whole model: its parts (one per distinct base colour), bounds, and
 /// whether it is closed, which decides front-face culling in the shadow pass.
+struct ModelRig;  // model_rig.hpp
+
 struct TriangleModel {
   std::vector<ModelPart> parts;
   Aabb bounds;          ///< of every position; empty for a model without triangles
@@ -57,10 +60,13 @@ struct TriangleModel {
   /// Primitives of points or lines the file held (once per node that
   /// instances them), left out: they cast no shadow.
   std::size_t skipped_primitives = 0;
+  /// What moves, for a file with animations (model_rig.hpp): these parts
+  /// are its rest pose, and pose_model() makes the others. Null otherwise.
+  std::shared_ptr<const ModelRig> rig;
 
   std::size_t triangle_count() const;
-  /// What the model holds in memory (its vectors' capacities and itself):
-  /// what the ModelStore's budget counts.
+  /// What the model holds in memory (its vectors' capacities, its rig and
+  /// itself): what the ModelStore's budget counts.
   std::size_t bytes() const;
 };
 

@@ -1,0 +1,352 @@
+// Animated glTF models (core/model_rig.hpp, the loader's rig): samplers,
+// node channels through a hierarchy, skins and morph targets, checked
+// against positions worked out by hand, and real files written by others
+// (Debian's assimp-testmodels: the glTF tutorial's simple_skin, Khronos'
+// AnimatedMorphCube).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <glm/geometric.hpp>
+
+#include "assets/gltf_loader.hpp"
+#include "core/model.hpp"
+#include "core/model_rig.hpp"
+#include "gltf_builder.hpp"
+
+namespace umbra {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using test::GltfBuilder;
+
+const fs::path kSamples = "/usr/share/assimp/models/glTF2";
+
+std::string read_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+RigSampler sampler(std::vector<float> times, std::vector<float> values, std::size_t width,
+                   RigInterpolation interpolation = RigInterpolation::Linear) {
+  RigSampler s;
+  s.times = std::move(times);
+  s.values = std::move(values);
+  s.width = width;
+  s.interpolation = interpolation;
+  return s;
+}
+
+TEST(ModelRig, SamplersInterpolateAsGltfSays) {
+  const RigSampler linear = sampler({0, 2}, {0, 0, 0, 4, 2, 0}, 3);
+  EXPECT_EQ(sample(linear, 1.0, false), (std::vector<double>{2, 1, 0}));
+  EXPECT_EQ(sample(linear, -5.0, false), (std::vector<double>{0, 0, 0}));  // held before the first key
+  EXPECT_EQ(sample(linear, 9.0, false), (std::vector<double>{4, 2, 0}));   // and after the last
+  const RigSampler step = sampler({0, 1, 2}, {1, 2, 3}, 1, RigInterpolation::Step);
+  EXPECT_EQ(sample(step, 0.99, false)[0], 1.0);
+  EXPECT_EQ(sample(step, 1.0, false)[0], 2.0);
+  // Cubic spline (in-tangent, value, out-tangent a key): with zero tangents
+  // the Hermite curve is smoothstep between the values.
+  const RigSampler cubic = sampler({0, 1}, {0, 0, 0, 0, 10, 0}, 1, RigInterpolation::CubicSpline);
+  EXPECT_NEAR(sample(cubic, 0.5, false)[0], 5.0, 1e-12);
+  EXPECT_NEAR(sample(cubic, 0.25, false)[0], 10.0 * (3 * 0.0625 - 2 * 0.015625), 1e-12);
+  // A rotation: spherical, the shorter way, normalized. From identity to a
+  // half turn about Y given as -q (the same rotation): a quarter turn at 0.5.
+  const double h = std::sqrt(0.5);
+  const RigSampler rotation = sampler({0, 1}, {0, 0, 0, 1, 0, -1, 0, 0}, 4);
+  const std::vector<double> q = sample(rotation, 0.5, true);
+  EXPECT_NEAR(q[0], 0.0, 1e-12);
+  EXPECT_NEAR(std::abs(q[1]), h, 1e-12);
+  EXPECT_NEAR(q[3], h, 1e-12);
+}
+
+TEST(ModelRig, AnimationTimeLoopsOrHolds) {
+  EXPECT_DOUBLE_EQ(animation_time(2.0, 5.0, 1.0, true), 1.0);
+  EXPECT_DOUBLE_EQ(animation_time(2.0, 5.0, 1.0, false), 2.0);
+  EXPECT_DOUBLE_EQ(animation_time(2.0, -0.5, 1.0, true), 1.5);
+  EXPECT_DOUBLE_EQ(animation_time(2.0, 3.0, 0.5, true), 1.5);
+  EXPECT_DOUBLE_EQ(animation_time(2.0, 1.0, -1.0, false), 0.0);
+  EXPECT_DOUBLE_EQ(animation_time(0.0, 7.0, 1.0, true), 0.0);
+}
+
+// A unit cube under a parent node; the parent slides +X by 4 over 2 s and
+// the child turns a quarter about Y over the same time.
+std::string sliding_cube(const std::string& interpolation = "LINEAR") {
+  GltfBuilder b;
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  test::unit_cube(positions, indices);
+  const int mesh = b.mesh(b.vec3s(positions), b.indices_u32(indices));
+  const int child = b.node({{"mesh", mesh}, {"translation", {1, 0, 0}}});
+  const int parent = b.node({{"children", {child}}});
+  b.scene({parent});
+  const float h = float(std::sqrt(0.5));
+  const int times = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 2})), GltfBuilder::kFloat, 2, "SCALAR");
+  const int moves = b.vec3s({{0, 0, 0}, {4, 0, 0}});
+  const int turns = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 0, 0, 1, 0, h, 0, h})),
+                               GltfBuilder::kFloat, 2, "VEC4");
+  b.doc["animations"] = json::array(
+      {{{"name", "slide"},
+        {"samplers", {{{"input", times}, {"output", moves}, {"interpolation", interpolation}},
+                      {{"input", times}, {"output", turns}, {"interpolation", interpolation}}}},
+        {"channels", {{{"sampler", 0}, {"target", {{"node", parent}, {"path", "translation"}}}},
+                      {{"sampler", 1}, {"target", {{"node", child}, {"path", "rotation"}}}}}}}});
+  return b.glb();
+}
+
+TEST(ModelRig, NodeChannelsMoveTheHierarchy) {
+  const LoadResult r = load_gltf(sliding_cube(), {});
+  ASSERT_TRUE(r.ok()) << r.error;
+  ASSERT_TRUE(r.model->rig);
+  const ModelRig& rig = *r.model->rig;
+  ASSERT_EQ(rig.animations.size(), 1u);
+  EXPECT_EQ(rig.animations[0].name, "slide");
+  EXPECT_DOUBLE_EQ(rig.animations[0].duration_s, 2.0);
+  EXPECT_EQ(find_animation(rig, "slide"), std::optional<std::size_t>(0));
+  EXPECT_FALSE(find_animation(rig, "walk"));
+  // The rest model is where the nodes put it: the child's +1 only.
+  EXPECT_NEAR(r.model->bounds.min.x, 0.5, 1e-6);
+  EXPECT_NEAR(r.model->bounds.max.x, 1.5, 1e-6);
+  // At 1 s the parent has slid 2 and the child turned 45 degrees about its
+  // own centre (1 + 2 = 3): the cube's corners reach sqrt(0.5) from it.
+  const TriangleModel mid = pose_model(rig, 0, 1.0);
+  EXPECT_EQ(mid.triangle_count(), r.model->triangle_count());
+  EXPECT_NEAR(mid.bounds.min.x, 3.0 - std::sqrt(0.5), 1e-6);
+  EXPECT_NEAR(mid.bounds.max.x, 3.0 + std::sqrt(0.5), 1e-6);
+  EXPECT_NEAR(mid.bounds.max.z, std::sqrt(0.5), 1e-6);
+  EXPECT_TRUE(mid.closed);
+  // Normals turn with the faces: every one still unit length and facing
+  // out of the cube's centre.
+  for (const ModelPart& part : mid.parts)
+    for (std::size_t v = 0; v < part.positions.size(); ++v)
+      EXPECT_GT(glm::dot(part.normals[v], part.positions[v] - glm::vec3(3, 0, 0)), 0.0f);
+  // At the end: slid 4, a quarter turn (a cube looks the same).
+  const TriangleModel end = pose_model(rig, 0, 2.0);
+  EXPECT_NEAR(end.bounds.min.x, 4.5, 1e-6);
+  EXPECT_NEAR(end.bounds.max.x, 5.5, 1e-6);
+  // STEP holds the first key until the second.
+  const LoadResult stepped = load_gltf(sliding_cube("STEP"), {});
+  ASSERT_TRUE(stepped.ok()) << stepped.error;
+  EXPECT_NEAR(pose_model(*stepped.model->rig, 0, 1.9).bounds.min.x, 0.5, 1e-6);
+  // The rig is counted with the model.
+  EXPECT_GT(r.model->bytes(), rig.bytes());
+}
+
+// Two joints along +Y: the root at the origin, the second at y = 1; a
+// vertical strip of quads from y = 0 to 2, its lower half weighted to the
+// root and its upper half to the second joint (the middle row half each).
+std::string bending_strip(float turn_z) {
+  GltfBuilder b;
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  std::vector<std::uint16_t> joints;
+  std::vector<float> weights;
+  for (int row = 0; row <= 2; ++row)
+    for (int col = 0; col <= 1; ++col) {
+      positions.push_back({float(col) - 0.5f, float(row), 0.0f});
+      joints.insert(joints.end(), {0, 1, 0, 0});
+      const float upper = row == 0 ? 0.0f : row == 1 ? 0.5f : 1.0f;
+      weights.insert(weights.end(), {1.0f - upper, upper, 0.0f, 0.0f});
+    }
+  for (std::uint32_t row = 0; row < 2; ++row) {
+    const std::uint32_t a = row * 2, c = a + 2;
+    indices.insert(indices.end(), {a, a + 1, c + 1, a, c + 1, c});
+  }
+  const int position_accessor = b.vec3s(positions);
+  const int joint_accessor = b.accessor(b.view(GltfBuilder::bytes_of(joints)), GltfBuilder::kShort, 6, "VEC4");
+  const int weight_accessor = b.accessor(b.view(GltfBuilder::bytes_of(weights)), GltfBuilder::kFloat, 6, "VEC4");
+  b.doc["meshes"] = json::array({{{"primitives",
+                                   {{{"attributes",
+                                      {{"POSITION", position_accessor}, {"JOINTS_0", joint_accessor}, {"WEIGHTS_0", weight_accessor}}},
+                                     {"indices", b.indices_u32(indices)}}}}}});
+  const int upper = b.node({{"translation", {0, 1, 0}}});
+  const int root = b.node({{"children", {upper}}});
+  // The skinned node is placed far away: glTF ignores its transform.
+  const int skinned = b.node({{"mesh", 0}, {"skin", 0}, {"translation", {100, 0, 0}}});
+  std::vector<float> inverse_binds(32, 0.0f);
+  for (int m = 0; m < 2; ++m)
+    for (int d = 0; d < 4; ++d) inverse_binds[std::size_t(m * 16 + d * 5)] = 1.0f;
+  inverse_binds[16 + 13] = -1.0f;  // the second joint's bind: y = 1
+  b.doc["skins"] = json::array(
+      {{{"joints", {root, upper}},
+        {"inverseBindMatrices", b.accessor(b.view(GltfBuilder::bytes_of(inverse_binds)), GltfBuilder::kFloat, 2, "MAT4")}}});
+  b.scene({root, skinned});
+  const float s = std::sin(turn_z / 2), c = std::cos(turn_z / 2);
+  const int times = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 1})), GltfBuilder::kFloat, 2, "SCALAR");
+  const int turns = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 0, 0, 1, 0, 0, s, c})),
+                               GltfBuilder::kFloat, 2, "VEC4");
+  b.doc["animations"] = json::array({{{"samplers", {{{"input", times}, {"output", turns}}}},
+                                      {"channels", {{{"sampler", 0}, {"target", {{"node", upper}, {"path", "rotation"}}}}}}}});
+  return b.glb();
+}
+
+TEST(ModelRig, SkinsBendByTheirJoints) {
+  const double pi = std::acos(-1.0);
+  const LoadResult r = load_gltf(bending_strip(float(pi / 2)), {});
+  ASSERT_TRUE(r.ok()) << r.error;
+  // At rest the strip is where its joints put it, not at its node's x = 100.
+  EXPECT_NEAR(r.model->bounds.min.x, -0.5, 1e-6);
+  EXPECT_NEAR(r.model->bounds.max.x, 0.5, 1e-6);
+  EXPECT_NEAR(r.model->bounds.max.y, 2.0, 1e-6);
+  // A quarter turn about Z at the upper joint: the top row, wholly on it,
+  // turns about (0, 1, 0) to x = -1, y = 1 +- 0.5; the middle row, half on
+  // each joint, lies halfway between its rest place and its turned one.
+  const TriangleModel bent = pose_model(*r.model->rig, 0, 1.0);
+  std::vector<glm::vec3> all;
+  for (const ModelPart& part : bent.parts) all.insert(all.end(), part.positions.begin(), part.positions.end());
+  const auto has = [&](glm::vec3 p) {
+    for (const glm::vec3& q : all)
+      if (glm::length(q - p) < 1e-5f) return true;
+    return false;
+  };
+  EXPECT_TRUE(has({-1.0f, 0.5f, 0.0f}));   // top row, x = -0.5 before
+  EXPECT_TRUE(has({-1.0f, 1.5f, 0.0f}));   // top row, x = +0.5 before
+  EXPECT_TRUE(has({-0.5f, 0.0f, 0.0f}));   // bottom row: on the root, still
+  // Middle (x = -0.5, y = 1): turned it is (0, 0.5); halfway (-0.25, 0.75).
+  EXPECT_TRUE(has({-0.25f, 0.75f, 0.0f}));
+  EXPECT_NEAR(bent.bounds.max.y, 1.5, 1e-5);
+}
+
+// A quad whose target lifts one corner by 2; the weight runs 0 -> 1.
+TEST(ModelRig, MorphTargetsAreWeighed) {
+  GltfBuilder b;
+  const int positions = b.vec3s({{0, 0, 0}, {1, 0, 0}, {1, 0, -1}, {0, 0, -1}});
+  const int lift = b.vec3s({{0, 0, 0}, {0, 0, 0}, {0, 2, 0}, {0, 0, 0}});
+  b.doc["meshes"] = json::array({{{"primitives", {{{"attributes", {{"POSITION", positions}}},
+                                                    {"indices", b.indices_u32({0, 1, 2, 0, 2, 3})},
+                                                    {"targets", {{{"POSITION", lift}}}}}}},
+                                  {"weights", {0.25}}}});
+  const int node = b.node({{"mesh", 0}});
+  b.scene({node});
+  const int times = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 1})), GltfBuilder::kFloat, 2, "SCALAR");
+  const int weights = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 1})), GltfBuilder::kFloat, 2, "SCALAR");
+  b.doc["animations"] = json::array({{{"name", "lift"},
+                                      {"samplers", {{{"input", times}, {"output", weights}}}},
+                                      {"channels", {{{"sampler", 0}, {"target", {{"node", node}, {"path", "weights"}}}}}}}});
+  const LoadResult r = load_gltf(b.glb(), {});
+  ASSERT_TRUE(r.ok()) << r.error;
+  // At rest the mesh's default weight 0.25 applies.
+  EXPECT_NEAR(r.model->bounds.max.y, 0.5, 1e-6);
+  EXPECT_NEAR(pose_model(*r.model->rig, 0, 0.5).bounds.max.y, 1.0, 1e-6);
+  EXPECT_NEAR(pose_model(*r.model->rig, 0, 1.0).bounds.max.y, 2.0, 1e-6);
+}
+
+TEST(ModelRig, HostileAnimationsAreRefused) {
+  const json base = [] {
+    const std::string glb = sliding_cube();
+    const std::uint32_t length = *reinterpret_cast<const std::uint32_t*>(glb.data() + 12);
+    return json::parse(glb.substr(20, length));
+  }();
+  const std::string glb = sliding_cube();
+  const std::uint32_t json_length = *reinterpret_cast<const std::uint32_t*>(glb.data() + 12);
+  const std::string bin = glb.substr(20 + json_length + 8);
+  const auto with = [&](const std::function<void(json&)>& change) {
+    GltfBuilder b;
+    b.doc = base;
+    b.doc.erase("buffers");
+    b.bin = bin;
+    change(b.doc);
+    return load_gltf(b.glb(), {});
+  };
+  const auto expect = [](const LoadResult& r, int status, const std::string& text) {
+    ASSERT_FALSE(r.ok()) << "loaded, expected " << text;
+    EXPECT_EQ(r.status, status) << r.error;
+    EXPECT_NE(r.error.find(text), std::string::npos) << r.error;
+  };
+  ASSERT_TRUE(with([](json&) {}).ok());
+  expect(with([](json& d) { d["animations"][0]["samplers"][0]["interpolation"] = "BOUNCY"; }), 400,
+         "animations[0].samplers[0].interpolation: must be LINEAR, STEP or CUBICSPLINE");
+  expect(with([](json& d) { d["animations"][0]["channels"][0]["sampler"] = 7; }), 400, "channels[0].sampler: 7 is out of range");
+  expect(with([](json& d) { d["animations"][0]["channels"][0]["target"]["node"] = 99; }), 400, "target.node: 99 is out of range");
+  expect(with([](json& d) { d["animations"][0]["channels"][0]["target"]["path"] = "weights"; }), 400, "which has no morph targets");
+  expect(with([](json& d) {
+           d["nodes"][1]["matrix"] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+         }),
+         400, "which has a matrix");
+  // Key times that do not increase.
+  expect(with([](json& d) {
+           d["accessors"].push_back({{"componentType", 5126}, {"count", 2}, {"type", "SCALAR"}});  // zeros
+           d["animations"][0]["samplers"][0]["input"] = d["accessors"].size() - 1;
+         }),
+         400, "key times must increase");
+  // A keyframe count over the limit, in an accessor with no data: refused
+  // before anything is read.
+  expect(with([](json& d) {
+           d["accessors"].push_back({{"componentType", 5126}, {"count", 3000000000u}, {"type", "VEC4"}});
+           d["animations"][0]["samplers"][1]["output"] = d["accessors"].size() - 1;
+         }),
+         422, "keyframe numbers");
+  // Output of the wrong length for its keys.
+  expect(with([](json& d) { d["animations"][0]["samplers"][0]["output"] = d["animations"][0]["samplers"][1]["output"]; }),
+         400, "samplers[0].output: 8 numbers for 2 keys of 3");
+  // One sampler read as a translation and as a rotation.
+  expect(with([](json& d) { d["animations"][0]["channels"][1]["sampler"] = 0; }), 400,
+         "its sampler is read by channels of different widths");
+}
+
+// The glTF tutorial's skin (assimp-testmodels): its upper joint swings a
+// quarter turn either way over 5.5 s.
+TEST(ModelRig, TheTutorialsSimpleSkinBends) {
+  const fs::path path = kSamples / "simple_skin/simple_skin.gltf";
+  ASSERT_TRUE(fs::exists(path)) << "needs Debian's assimp-testmodels";
+  LoadOptions options;
+  options.external_folder = path.parent_path().string();
+  const LoadResult r = load_gltf(read_file(path), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  ASSERT_TRUE(r.model->rig);
+  // Rest: the joints' binds put the strip at x in [-0.5, 0.5] (as three.js
+  // and Blender show it), not where its vertices say (x in [0, 1]).
+  EXPECT_NEAR(r.model->bounds.min.x, -0.5, 1e-6);
+  EXPECT_NEAR(r.model->bounds.max.x, 0.5, 1e-6);
+  EXPECT_NEAR(r.model->bounds.max.y, 2.0, 1e-6);
+  EXPECT_NEAR(r.model->rig->animations[0].duration_s, 5.5, 1e-6);
+  // At 1 s the upper joint has turned +90 degrees about Z (0.707): the top
+  // of the strip leans over to -X, lower than it stood.
+  const TriangleModel bent = pose_model(*r.model->rig, 0, 1.0);
+  EXPECT_LT(bent.bounds.max.y, 1.75);
+  EXPECT_LT(bent.bounds.min.x, -0.9);
+  // At 4 s, -90 degrees: to +X.
+  const TriangleModel other = pose_model(*r.model->rig, 0, 4.0);
+  EXPECT_GT(other.bounds.max.x, 0.9);
+  // At 2.75 s it stands straight again (its keys are 0 at 2.5 and 3.0 s).
+  const TriangleModel straight = pose_model(*r.model->rig, 0, 2.75);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(straight.bounds.min[k], r.model->bounds.min[k], 1e-5);
+    EXPECT_NEAR(straight.bounds.max[k], r.model->bounds.max[k], 1e-5);
+  }
+}
+
+// Khronos' AnimatedMorphCube: two morph targets weighed by its "Square"
+// animation; its buffer is a file beside it.
+TEST(ModelRig, KhronosAnimatedMorphCubeMorphs) {
+  const fs::path path = kSamples / "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf";
+  ASSERT_TRUE(fs::exists(path)) << "needs Debian's assimp-testmodels";
+  LoadOptions options;
+  options.external_folder = path.parent_path().string();
+  const LoadResult r = load_gltf(read_file(path), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  ASSERT_TRUE(r.model->rig);
+  const ModelRig& rig = *r.model->rig;
+  ASSERT_EQ(find_animation(rig, "Square"), std::optional<std::size_t>(0));
+  const double duration = rig.animations[0].duration_s;
+  ASSERT_GT(duration, 0.0);
+  // Some instant of the animation moves the cube's bounds away from rest.
+  double moved = 0.0;
+  for (int k = 0; k <= 20; ++k) {
+    const TriangleModel posed = pose_model(rig, 0, duration * k / 20.0);
+    EXPECT_EQ(posed.triangle_count(), r.model->triangle_count());
+    for (int c = 0; c < 3; ++c)
+      moved = std::max({moved, double(std::abs(posed.bounds.max[c] - r.model->bounds.max[c])),
+                        double(std::abs(posed.bounds.min[c] - r.model->bounds.min[c]))});
+  }
+  EXPECT_GT(moved, 0.1 * double(r.model->bounds.max.x - r.model->bounds.min.x));
+}
+
+}  // namespace
+}  // namespace umbra
