@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client_socket.hpp"
+#include "core/model_rig.hpp"
 #include "assets/folder_file.hpp"
 #include "assets/gltf_loader.hpp"
 #include "assets/model_import.hpp"
@@ -57,6 +58,16 @@ json model_json(const HeldModel& held) {
             {"closed", model.closed},
             {"skipped_primitives", model.skipped_primitives},
             {"bytes", held.bytes}};
+  // What a mesh object's "animation" may name (in the file's order).
+  j["animations"] = json::array();
+  if (model.rig)
+    for (std::size_t a = 0; a < model.rig->animations.size(); ++a) {
+      const RigAnimation& animation = model.rig->animations[a];
+      j["animations"].push_back({{"index", a},
+                                 {"name", animation.name},
+                                 {"duration_s", animation.duration_s},
+                                 {"channels", animation.channels.size()}});
+    }
   if (!held.name.empty()) j["name"] = held.name;
   j["pinned"] = held.pinned;
   return j;
@@ -514,6 +525,7 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
   record.output = to_string(request.output);
+  if (!pose_animations(request.scene, request.time, res)) return;
   const std::string sun = sun_header(request);
   const auto queued = Clock::now();
   // Asked just before the job's turn: a client that has gone costs no render.
@@ -607,6 +619,8 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   }
   plan = ModelPlan{};
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
+  // Animated models stand as they are at the request's `time` all period.
+  if (!pose_animations(parsed.request->view.scene, parsed.request->view.time, res)) return;
   // The picture's fields serve image/png; a grid serves JSON and CSV.
   parsed.request->picture = *format == SunHoursFormat::Png;
   if (!parsed.request->picture && !parsed.grid_given)
@@ -830,6 +844,29 @@ void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
                           "' is held; upload it with POST /api/models (GET /api/models lists those held)",
                       "");
   res.set_content(model_json(*held).dump(), "application/json");
+}
+
+bool HttpApi::pose_animations(Scene& scene, double time, HttpResponse& res) {
+  if (std::none_of(scene.objects.begin(), scene.objects.end(), [](const SceneObject& o) { return o.animation.has_value(); }))
+    return true;
+  std::optional<PoseRefused> refused;
+  const bool ran = in_load_place([&] {
+    try {
+      poses_.pose_scene(scene, time);
+    } catch (const PoseRefused& e) {
+      refused = e;
+    }
+  });
+  if (!ran) {
+    send_models_busy(res);
+    return false;
+  }
+  if (refused) {
+    if (refused->status == 503) res.set_header("Retry-After", "1");
+    send_error(res, refused->status, refused->what(), refused->field);
+    return false;
+  }
+  return true;
 }
 
 bool HttpApi::in_load_place(const std::function<void()>& work) {

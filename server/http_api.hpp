@@ -12,6 +12,7 @@
 
 #include "assets/model_archive.hpp"
 #include "assets/model_store.hpp"
+#include "assets/pose_cache.hpp"
 #include "service/render_service.hpp"
 
 #include "access.hpp"
@@ -166,6 +167,9 @@ class HttpApi {
   /// would have to load one with no place free, ModelsRefused if it holds
   /// more than its record said and no room is left for the rest.
   std::shared_ptr<const HeldModel> find_model(ModelPlan& plan, const std::string& id_or_name);
+  /// Poses the scene's mesh objects that name an animation at `time`
+  /// (PoseCache), in a load place. False: it could not, and `res` says why.
+  bool pose_animations(Scene& scene, double time, HttpResponse& res);
   /// find_model as the request parsers take it (a ModelLookup over `plan`).
   ModelLookup model_lookup(ModelPlan& plan);
   /// load_gltf in one of kMaxConcurrentModelLoads places (a load holds a
@@ -212,6 +216,7 @@ class HttpApi {
   int model_loads_ = 0;  // uploads being loaded now
   std::atomic<std::uint64_t> models_loaded_{0};  // glTF bodies built into models
   std::unique_ptr<ModelArchive> archive_;  // --model-store, or null
+  PoseCache poses_;  // animated mesh objects' poses
   Metrics metrics_;
   // Before http_: gone after the connections, cancelling what still runs.
   std::unique_ptr<SunHoursJobs> jobs_;

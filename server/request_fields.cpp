@@ -382,6 +382,21 @@ std::vector<ShapeFields> make_shape_fields() {
               return true;
             })
             .required("is required: a model's id or name; "),
+        // Read by the parser after "model" (it names one of that model's animations).
+        OR("animation", FieldType::Animation, nullptr,
+           "One of the model's animations, played at the request's `time`: its name or index, or "
+           "`{\"name\" | \"index\", \"speed\", \"loop\"}`")
+            .written_by([](const O& o, V& v) {
+              if (!o.animation) return false;
+              v.object = json::object();
+              if (!o.animation->name.empty())
+                v.object["name"] = o.animation->name;
+              else
+                v.object["index"] = o.animation->index;
+              v.object["speed"] = o.animation->speed;
+              v.object["loop"] = o.animation->loop;
+              return true;
+            }),
         OR("position", FieldType::Vec3, [](O& o, const V& v) { o.center = v.vec; }, "Where the model-space origin goes.")
             .written_by(vector_of<&O::center>)
             .in(-L::kMaxCoordinate, L::kMaxCoordinate)
@@ -477,6 +492,7 @@ json write_value(const ObjectField& row, const FieldValue& v) {
     case FieldType::Color:
     case FieldType::NumberOrVec3: return json::array({v.vec.x, v.vec.y, v.vec.z});
     case FieldType::Text: return v.text;
+    case FieldType::Animation: return v.object;
     case FieldType::Object:
     case FieldType::Scene:
     case FieldType::ObjectList: break;

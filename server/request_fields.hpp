@@ -33,6 +33,7 @@ enum class FieldType {
   Color,          ///< [r, g, b] each in [0, 1], or "#rrggbb"
   NumberOrVec3,   ///< a number n (stored (n, n, n)) or [x, y, z], each in `range`
   Text,           ///< a string the parser interprets itself (light.sun.utc, a mesh's model)
+  Animation,      ///< a mesh's animation: a name, an index, or {name | index, speed, loop}
   Object,         ///< the rows below this path; or the row's `word` ("auto")
   Scene,          ///< a built-in scene's name, or an object of the rows below (the parser's)
   ObjectList,     ///< an array of scene objects, each read by its type's group (shape_fields)
@@ -54,6 +55,7 @@ struct FieldValue {
   std::size_t choice = 0;  ///< Choice: the position in the row's `choices`
   bool word = false;       ///< the row's `word` was given instead of a value
   std::string text;        ///< Text, as written (a row's getter: a mesh's model id)
+  nlohmann::json object;   ///< Animation, as the parser reads it back (a row's getter)
 };
 
 /// What decides whether a field can change the output asked for: the rows'

@@ -12,6 +12,8 @@
 #include <nlohmann/json.hpp>
 
 #include "core/builtin_models.hpp"
+#include "core/model.hpp"
+#include "core/model_rig.hpp"
 #include "core/scene.hpp"
 #include "core/sun_position.hpp"
 #include "request_fields.hpp"
@@ -308,6 +310,7 @@ FieldValue read_value(const json& j, const std::string& path, const FieldRow<Tar
         reject(path, std::string("must be a number or an array of 3 numbers, not ") + type_name(j));
       break;
     case FieldType::Text:
+    case FieldType::Animation:
     case FieldType::Object:
     case FieldType::Scene:
     case FieldType::ObjectList:
@@ -504,6 +507,62 @@ void read_model(const json* model, const ObjectField& row, const std::string& pa
   o.model_id = std::move(found->id);
 }
 
+// A mesh object's "animation": a name, an index, or an object naming one
+// and how it plays. The model (read before) must have it.
+void read_animation(const json& j, const std::string& path, SceneObject& o) {
+  const ModelRig* rig = o.model ? o.model->rig.get() : nullptr;
+  if (rig == nullptr)
+    reject(path, "model " + quote_text(o.model_id) + " has no animations (a glTF file's \"animations\" are what play)");
+  const auto names = [&] {
+    std::string list;
+    for (std::size_t a = 0; a < rig->animations.size() && a < 20; ++a)
+      list += (a ? ", " : "") + std::to_string(a) +
+              (rig->animations[a].name.empty() ? std::string() : " " + quote_text(rig->animations[a].name));
+    return list + (rig->animations.size() > 20 ? ", ..." : "");
+  };
+  SceneObject::Animation animation;
+  const auto by_name = [&](const json& name, const std::string& where) {
+    const std::string& text = name.get_ref<const std::string&>();
+    const std::optional<std::size_t> found = find_animation(*rig, text);
+    if (!found) reject(where, "the model has no animation named " + quote_text(text) + " (it has " + names() + ")");
+    animation.index = *found;
+    animation.name = text;
+  };
+  const auto by_index = [&](const json& index, const std::string& where) {
+    const double i = read_number(index, where, 0.0, double(rig->animations.size()) - 1.0);
+    if (i != std::floor(i)) reject(where, "must be a whole number");
+    animation.index = std::size_t(i);
+  };
+  if (j.is_string()) {
+    by_name(j, path);
+  } else if (j.is_number()) {
+    by_index(j, path);
+  } else if (j.is_object()) {
+    for (const auto& item : j.items())
+      if (item.key() != "name" && item.key() != "index" && item.key() != "speed" && item.key() != "loop")
+        reject(join(path, item.key()), "is not a field of an animation (name, index, speed, loop)");
+    const auto name = j.find("name"), index = j.find("index");
+    if ((name == j.end()) == (index == j.end())) reject(path, "needs one of \"name\" or \"index\"");
+    if (name != j.end()) {
+      if (!name->is_string()) reject(join(path, "name"), std::string("must be a string, not ") + type_name(*name));
+      by_name(*name, join(path, "name"));
+    } else {
+      by_index(*index, join(path, "index"));
+    }
+    if (const auto speed = j.find("speed"); speed != j.end())
+      animation.speed = read_number(*speed, join(path, "speed"), -RequestLimits::kMaxAnimationSpeed,
+                                    RequestLimits::kMaxAnimationSpeed);
+    if (const auto loop = j.find("loop"); loop != j.end()) {
+      if (!loop->is_boolean()) reject(join(path, "loop"), std::string("must be true or false, not ") + type_name(*loop));
+      animation.loop = loop->get<bool>();
+    }
+  } else {
+    reject(path, std::string("must be an animation's name or index, or an object {\"name\" or \"index\", "
+                             "\"speed\", \"loop\"}, not ") + type_name(j));
+  }
+  o.animation = animation;
+}
+
 // The placed model must stay where float precision holds, like any position.
 void check_mesh_reach(const SceneObject& o, const std::string& path) {
   const Aabb bounds = object_bounds(o);  // a mesh's: mesh_bounds
@@ -540,6 +599,10 @@ SceneObject read_object(const json& j, const std::string& path, std::set<std::st
       const json* v = r.get(row.key());
       if (row.type == FieldType::Text) {
         read_model(v, row, r.path(row.key()), find_model, o);  // a mesh's "model", the objects' one Text row
+        continue;
+      }
+      if (row.type == FieldType::Animation) {
+        if (v) read_animation(*v, r.path(row.key()), o);
         continue;
       }
       if (v == nullptr) {

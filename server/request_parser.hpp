@@ -46,6 +46,7 @@ struct RequestLimits {
   static constexpr double kMaxCoordinate = 1e6;     ///< |x|, |y|, |z| of any position
   static constexpr double kMinExtent = 1e-6;        ///< smallest size / radius
   static constexpr double kMaxExtent = 1e6;         ///< largest size / radius
+  static constexpr double kMaxAnimationSpeed = 1000;  ///< |speed| of a mesh's animation
   static constexpr double kMaxTime = 1e9;           ///< |time|, seconds
   static constexpr double kMaxOrbitSpeed = 1e6;     ///< |orbit_deg_per_s|
   static constexpr double kMaxLightAngularSize = 90.0;

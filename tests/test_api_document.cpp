@@ -22,7 +22,10 @@
 #include "request_fields.hpp"
 #include "request_parser.hpp"
 #include "sun_hours_parser.hpp"
+#include "assets/gltf_loader.hpp"
+#include "core/model.hpp"
 #include "core/scene.hpp"
+#include "gltf_builder.hpp"
 
 namespace umbra {
 namespace {
@@ -61,8 +64,36 @@ std::map<std::string, json> document_defaults() {
   return defaults;
 }
 
+// A model with one animation (a cube sliding along +X over 2 s), found by
+// the name "animated": the document's animation fields need a model that
+// has one, and no built-in model does.
+const ModelLookup& test_models() {
+  static const std::shared_ptr<const TriangleModel> model = [] {
+    test::GltfBuilder b;
+    std::vector<glm::vec3> positions;
+    std::vector<std::uint32_t> indices;
+    test::unit_cube(positions, indices);
+    const int node = b.node({{"mesh", b.mesh(b.vec3s(positions), b.indices_u32(indices))}});
+    b.scene({node});
+    const int times = b.accessor(b.view(test::GltfBuilder::bytes_of(std::vector<float>{0, 2})),
+                                 test::GltfBuilder::kFloat, 2, "SCALAR");
+    b.doc["animations"] = json::array(
+        {{{"name", "slide"},
+          {"samplers", {{{"input", times}, {"output", b.vec3s({{0, 0, 0}, {4, 0, 0}})}}}},
+          {"channels", {{{"sampler", 0}, {"target", {{"node", node}, {"path", "translation"}}}}}}}});
+    const LoadResult r = load_gltf(b.glb(), {});
+    EXPECT_TRUE(r.ok()) << r.error;
+    return std::shared_ptr<const TriangleModel>(r.model);
+  }();
+  static const ModelLookup lookup = [](const std::string& key) -> std::optional<FoundModel> {
+    if (key == "animated") return FoundModel{"sha256:animated", model};
+    return std::nullopt;
+  };
+  return lookup;
+}
+
 RenderRequest parse_ok(const std::string& body) {
-  const ParsedRequest p = parse_render_request(body);
+  const ParsedRequest p = parse_render_request(body, Route::Render, test_models());
   EXPECT_TRUE(p.ok()) << body << ": " << p.error.field << ": " << p.error.message;
   return p.ok() ? *p.request : RenderRequest{};
 }
@@ -156,6 +187,12 @@ std::map<std::string, json> parser_defaults() {
     if (shape.kind == SceneObject::Type::Mesh) o["model"] = "teapot";  // built in: found without a store
     const RenderRequest parsed = parse_ok(json{{"scene", {{"objects", json::array({o})}}}}.dump());
     const json written = write_object(parsed.scene.objects.at(0));
+    if (shape.kind == SceneObject::Type::Mesh) {
+      // An animation named by index alone: how it plays, by default.
+      const json animated = {{"type", "mesh"}, {"model", "animated"}, {"animation", 0}};
+      const json played = write_object(parse_ok(json{{"scene", {{"objects", {animated}}}}}.dump()).scene.objects.at(0));
+      for (const char* key : {"speed", "loop"}) defaults[shape.schema + ".animation." + key] = played["animation"][key];
+    }
     for (const ObjectField& row : shape.rows) {
       if (row.default_value.is_null() || !written.contains(row.key())) continue;
       json value = written[row.key()];
@@ -296,6 +333,12 @@ std::optional<RangeCase> range_case(const std::string& component, const std::str
     const std::string& type = shape.type;
     json o = {{"type", type}, {property, value}};
     if (type == "mesh") o["model"] = "teapot";  // built in: found without a store
+    if (type == "mesh" && property == "animation") {
+      // Its one ranged number: the speed of an animation of a model that has one.
+      o["model"] = "animated";
+      o["animation"] = {{"index", 0}, {"speed", value}};
+      return RangeCase{{{"scene", {{"objects", json::array({o})}}}}, "scene.objects[0].animation.speed"};
+    }
     return RangeCase{{{"scene", {{"objects", json::array({o})}}}}, "scene.objects[0]." + property};
   }
   return std::nullopt;
@@ -319,7 +362,7 @@ Verdict parse_case(const RangeCase& c) {
     const ParsedSunHours p = parse_sun_hours_request(c.body.dump());
     return {p.ok(), p.error.field, p.error.message};
   }
-  const ParsedRequest p = parse_render_request(c.body.dump());
+  const ParsedRequest p = parse_render_request(c.body.dump(), Route::Render, test_models());
   return {p.ok(), p.error.field, p.error.message};
 }
 
@@ -524,6 +567,13 @@ void expect_row_in_document(const FieldRow<Target>& row, const std::string& comp
     case FieldType::Text:
       EXPECT_EQ(p.value("type", ""), "string") << where;
       break;
+    case FieldType::Animation: {
+      // A name, an index, or an object naming one of them.
+      json types = json::array();
+      for (const json& alternative : p.value("oneOf", json::array())) types.push_back(alternative.value("type", ""));
+      EXPECT_EQ(types, json({"string", "integer", "object"})) << where;
+      break;
+    }
     case FieldType::Object:
     case FieldType::Scene:
       EXPECT_TRUE(refers_to(p, row.schema)) << where << ": not a $ref to " << row.schema;

@@ -13,6 +13,7 @@
 #include <glm/geometric.hpp>
 
 #include "assets/gltf_loader.hpp"
+#include "assets/pose_cache.hpp"
 #include "core/model.hpp"
 #include "core/model_rig.hpp"
 #include "gltf_builder.hpp"
@@ -346,6 +347,60 @@ TEST(ModelRig, KhronosAnimatedMorphCubeMorphs) {
                         double(std::abs(posed.bounds.min[c] - r.model->bounds.min[c]))});
   }
   EXPECT_GT(moved, 0.1 * double(r.model->bounds.max.x - r.model->bounds.min.x));
+}
+
+// Poses are shared, and poses kept or drawn stay within the cache's bytes.
+TEST(PoseCache, SharesPosesAndStaysWithinItsBytes) {
+  const LoadResult r = load_gltf(sliding_cube(), {});
+  ASSERT_TRUE(r.ok()) << r.error;
+  const std::shared_ptr<const TriangleModel> model = r.model;
+  const std::uint64_t one = model->bytes() - model->rig->bytes();
+  PoseCache cache(3 * one + one / 2);
+  auto a = cache.posed(model, 0, 1.0);
+  EXPECT_EQ(cache.posed(model, 0, 1.0), a);  // the same pose, shared
+  auto b = cache.posed(model, 0, 1.5);
+  auto c = cache.posed(model, 0, 0.5);
+  EXPECT_NE(a, b);
+  EXPECT_NEAR(b->bounds.min.x, pose_model(*model->rig, 0, 1.5).bounds.min.x, 0.0);
+  // A fourth while renders hold all three: refused, retry later.
+  try {
+    cache.posed(model, 0, 0.25);
+    ADD_FAILURE() << "a fourth pose was made past the bound";
+  } catch (const PoseRefused& e) {
+    EXPECT_EQ(e.status, 503) << e.what();
+  }
+  // Let go: the least recently used kept pose makes room.
+  a.reset(), b.reset(), c.reset();
+  EXPECT_NO_THROW(cache.posed(model, 0, 0.25));
+  EXPECT_LE(cache.bytes(), 3 * one + one / 2);
+  // A pose larger than the whole bound: never.
+  PoseCache tiny(16);
+  try {
+    tiny.posed(model, 0, 1.0);
+    ADD_FAILURE() << "a pose larger than the bound was made";
+  } catch (const PoseRefused& e) {
+    EXPECT_EQ(e.status, 422) << e.what();
+  }
+}
+
+// A scene's animated objects are posed at the request's time, named.
+TEST(PoseCache, PosesAScenesAnimatedObjects) {
+  const LoadResult r = load_gltf(sliding_cube(), {});
+  ASSERT_TRUE(r.ok()) << r.error;
+  Scene scene;
+  SceneObject still;
+  still.type = SceneObject::Type::Mesh;
+  still.model = r.model;
+  SceneObject moving = still;
+  moving.animation = SceneObject::Animation{0, "slide", 2.0, true};
+  scene.objects = {still, moving};
+  PoseCache cache;
+  cache.pose_scene(scene, 1.5);  // the animation's 3 s, wrapped to 1 s
+  EXPECT_EQ(scene.objects[0].model, r.model);
+  EXPECT_EQ(scene.objects[0].pose, "");
+  EXPECT_EQ(scene.objects[1].pose, "animation 0 at 1 s");
+  EXPECT_NEAR(scene.objects[1].model->bounds.min.x, pose_model(*r.model->rig, 0, 1.0).bounds.min.x, 0.0);
+  EXPECT_FALSE(scene.objects[1].model->rig);
 }
 
 }  // namespace

@@ -52,6 +52,18 @@ struct SceneObject {
   /// Each component > 0.
   glm::dvec3 mesh_scale{1.0};
   bool mesh_color_override = false;
+  /// Which of the model's animations poses it at the request's `time`
+  /// (model_rig.hpp), as the request named it; none: its rest pose.
+  struct Animation {
+    std::size_t index = 0;  ///< in the model's rig, resolved from a name or index
+    std::string name;       ///< as sent, if by name
+    double speed = 1.0;     ///< animation seconds per request second; negative plays backwards
+    bool loop = true;       ///< wrap past the end; else hold the last (or first) pose
+  };
+  std::optional<Animation> animation;
+  /// "" for the rest pose; else which pose `model` is ("animation 0 at
+  /// 1.25 s"): with model_id, what identifies the geometry drawn.
+  std::string pose;
 };
 
 struct Scene {

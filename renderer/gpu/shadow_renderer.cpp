@@ -39,6 +39,9 @@ std::string scene_key(const Scene& scene) {
       key += o.model_id;
       for (int i = 0; i < 3; ++i) put(o.rotation_deg[i]), put(o.mesh_scale[i]);
       put(o.mesh_color_override ? 1.0 : 0.0);
+      // The pose of an animated model ("" at rest), its length first too.
+      put(double(o.pose.size()));
+      key += o.pose;
     }
   }
   return key;

@@ -1,0 +1,124 @@
+#include "assets/pose_cache.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include "core/mesh_instance.hpp"
+#include "core/model_rig.hpp"
+
+namespace umbra {
+
+namespace {
+
+std::string mib(std::uint64_t bytes) { return std::to_string((bytes + (1 << 20) - 1) >> 20) + " MiB"; }
+
+// The time as its bits (every distinct double a distinct pose) and as a
+// reader sees it.
+std::string time_text(double t) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.17g", t);
+  return text;
+}
+
+}  // namespace
+
+std::uint64_t PoseCache::live_bytes_locked() {
+  std::uint64_t live = making_;
+  for (auto it = entries_.begin(); it != entries_.end();) {
+    if (!it->kept && it->drawn.expired()) {
+      it = entries_.erase(it);
+      continue;
+    }
+    live += it->bytes;
+    ++it;
+  }
+  return live;
+}
+
+std::uint64_t PoseCache::bytes() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return live_bytes_locked();
+}
+
+std::shared_ptr<const TriangleModel> PoseCache::posed(const std::shared_ptr<const TriangleModel>& model,
+                                                      std::size_t animation, double t) {
+  const ModelRig& rig = *model->rig;
+  char address[32];
+  std::snprintf(address, sizeof address, "%p", static_cast<const void*>(model.get()));
+  std::uint64_t bits = 0;
+  std::memcpy(&bits, &t, sizeof bits);
+  const std::string key = std::string(address) + "/" + std::to_string(animation) + "/" + std::to_string(bits);
+  // What the pose will hold: the rest model's triangles and vertices, less
+  // its rig (a pose has none).
+  const std::uint64_t estimate = model->bytes() - rig.bytes();
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto it = entries_.begin(); it != entries_.end(); ++it) {
+      if (it->key != key || it->source.lock() != model) continue;
+      std::shared_ptr<const TriangleModel> found = it->kept ? it->kept : it->drawn.lock();
+      if (!found) break;
+      it->kept = found;
+      entries_.splice(entries_.begin(), entries_, it);
+      return found;
+    }
+    if (estimate > max_bytes_)
+      throw PoseRefused(422, "posed, the model would hold about " + mib(estimate) + ", more than the " + mib(max_bytes_) +
+                                 " this server gives poses");
+    // Room: drop reused poses, least recently used first (those still drawn
+    // stay counted until their renders end).
+    std::uint64_t live = live_bytes_locked();
+    while (live + estimate > max_bytes_) {
+      const auto victim =
+          std::find_if(entries_.rbegin(), entries_.rend(), [](const Entry& e) { return e.kept != nullptr; });
+      if (victim == entries_.rend()) break;
+      victim->kept.reset();
+      live = live_bytes_locked();
+    }
+    if (live + estimate > max_bytes_)
+      throw PoseRefused(503, "poses of animated models fill this server's " + mib(max_bytes_) +
+                                 " now (other renders draw them); retry");
+    making_ += estimate;
+  }
+  std::shared_ptr<TriangleModel> made;
+  std::string failure;
+  try {
+    made = std::make_shared<TriangleModel>(pose_model(rig, animation, t));
+    made->skipped_primitives = model->skipped_primitives;
+  } catch (const std::domain_error& e) {
+    failure = e.what();
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  making_ -= estimate;
+  if (!made) throw PoseRefused(422, "its pose at " + time_text(t) + " s: " + failure);
+  entries_.push_front(Entry{key, model, made, made, made->bytes()});
+  return made;
+}
+
+void PoseCache::pose_scene(Scene& scene, double time) {
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    SceneObject& o = scene.objects[i];
+    if (o.type != SceneObject::Type::Mesh || !o.animation || !o.model || !o.model->rig) continue;
+    const RigAnimation& animation = o.model->rig->animations.at(o.animation->index);
+    const double t = animation_time(animation.duration_s, time, o.animation->speed, o.animation->loop);
+    try {
+      o.model = posed(o.model, o.animation->index, t);
+    } catch (const PoseRefused& e) {
+      throw PoseRefused(e.status, e.what(), "scene.objects[" + std::to_string(i) + "].animation");
+    }
+    o.pose = "animation " + std::to_string(o.animation->index) + " at " + time_text(t) + " s";
+    // The posed model, placed, must stay where float precision holds, as
+    // the parser asks of its rest pose.
+    const Aabb bounds = mesh_bounds(o);
+    const glm::dvec3 far_corner = glm::max(glm::abs(bounds.min), glm::abs(bounds.max));
+    const double reach = std::max({far_corner.x, far_corner.y, far_corner.z});
+    if (!bounds.empty() && reach > kMaxPosedCoordinate)
+      throw PoseRefused(422,
+                        "posed at " + time_text(t) + " s and placed, the model reaches coordinate " + time_text(reach) +
+                            ", beyond " + time_text(kMaxPosedCoordinate),
+                        "scene.objects[" + std::to_string(i) + "].animation");
+  }
+}
+
+}  // namespace umbra
