@@ -9,7 +9,10 @@
 #include <cstdlib>
 #include <string_view>
 
+#include <stdexcept>
+
 #include "assets/gltf_loader.hpp"
+#include "core/model_rig.hpp"
 #include "model_invariants.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -26,5 +29,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   const umbra::TriangleModel& model = *result.model;
   if (!umbra::model_keeps_its_promises(model, options.max_triangles)) std::abort();
+  // An animated model, posed at a few instants of each animation: the same
+  // promises, or a refusal that it is not finite there.
+  if (model.rig)
+    for (std::size_t a = 0; a < model.rig->animations.size() && a < 4; ++a)
+      for (const double f : {0.0, 0.37, 1.0}) {
+        try {
+          const umbra::TriangleModel posed = umbra::pose_model(*model.rig, a, f * model.rig->animations[a].duration_s);
+          if (posed.triangle_count() != model.triangle_count() ||
+              !umbra::model_keeps_its_promises(posed, options.max_triangles))
+            std::abort();
+        } catch (const std::domain_error&) {
+        }
+      }
   return 0;
 }

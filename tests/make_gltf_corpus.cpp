@@ -102,6 +102,10 @@ int main(int argc, char** argv) {
     write("cycle.glb", b.glb());
   }
   write("external-uri.gltf", cube().gltf_external("../outside.bin"));
+  // Animated: node channels (LINEAR, STEP), a skin, a morph target.
+  write("animated-cube.glb", umbra::test::sliding_cube());
+  write("animated-cube-step.glb", umbra::test::sliding_cube("STEP"));
+  write("skinned-strip.glb", umbra::test::bending_strip(1.5707964f));
   {
     const std::string glb = cube().glb();
     write("truncated.glb", glb.substr(0, glb.size() / 2));

@@ -69,19 +69,7 @@ std::map<std::string, json> document_defaults() {
 // has one, and no built-in model does.
 const ModelLookup& test_models() {
   static const std::shared_ptr<const TriangleModel> model = [] {
-    test::GltfBuilder b;
-    std::vector<glm::vec3> positions;
-    std::vector<std::uint32_t> indices;
-    test::unit_cube(positions, indices);
-    const int node = b.node({{"mesh", b.mesh(b.vec3s(positions), b.indices_u32(indices))}});
-    b.scene({node});
-    const int times = b.accessor(b.view(test::GltfBuilder::bytes_of(std::vector<float>{0, 2})),
-                                 test::GltfBuilder::kFloat, 2, "SCALAR");
-    b.doc["animations"] = json::array(
-        {{{"name", "slide"},
-          {"samplers", {{{"input", times}, {"output", b.vec3s({{0, 0, 0}, {4, 0, 0}})}}}},
-          {"channels", {{{"sampler", 0}, {"target", {{"node", node}, {"path", "translation"}}}}}}}});
-    const LoadResult r = load_gltf(b.glb(), {});
+    const LoadResult r = load_gltf(test::sliding_cube(), {});
     EXPECT_TRUE(r.ok()) << r.error;
     return std::shared_ptr<const TriangleModel>(r.model);
   }();

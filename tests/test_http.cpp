@@ -1499,24 +1499,6 @@ TEST(Http, AMeshObjectRendersAnUploadedModelByIdAndAFolderModelByName) {
   }
 }
 
-// A cube that slides from x = -2 to x = +2 over 4 s ("slide"), its node
-// at rest where the first key puts it.
-std::string sliding_cube_glb() {
-  test::GltfBuilder b;
-  std::vector<glm::vec3> positions;
-  std::vector<std::uint32_t> indices;
-  test::unit_cube(positions, indices, 0.5f);
-  const int node = b.node({{"mesh", b.mesh(b.vec3s(positions), b.indices_u32(indices))}, {"translation", {-2, 0, 0}}});
-  b.scene({node});
-  const int times = b.accessor(b.view(test::GltfBuilder::bytes_of(std::vector<float>{0, 4})), test::GltfBuilder::kFloat,
-                               2, "SCALAR");
-  b.doc["animations"] = json::array(
-      {{{"name", "slide"},
-        {"samplers", {{{"input", times}, {"output", b.vec3s({{-2, 0, 0}, {2, 0, 0}})}}}},
-        {"channels", {{{"sampler", 0}, {"target", {{"node", node}, {"path", "translation"}}}}}}}});
-  return b.glb();
-}
-
 std::string animated_body(const std::string& model, double time, const json& animation, const char* output = "shadow",
                           const char* filter = "pcf") {
   json cube = {{"type", "mesh"}, {"model", model}, {"position", {0, 0.5, 0}}};
@@ -1540,15 +1522,15 @@ TEST(Http, AnAnimatedModelIsPosedAtTheRequestsTime) {
   ModelStore store(std::uint64_t(64) << 20);
   OwnServer server(ServerOptions{}, store);
   httplib::Client c("127.0.0.1", server.api.port());
-  auto uploaded = c.Post("/api/models", sliding_cube_glb(), "model/gltf-binary");
+  auto uploaded = c.Post("/api/models", test::sliding_cube(), "model/gltf-binary");
   ASSERT_TRUE(uploaded);
   ASSERT_EQ(uploaded->status, 201) << uploaded->body;
   const json model = json::parse(uploaded->body);
   const std::string id = model["id"];
   ASSERT_EQ(model["animations"].size(), 1u) << uploaded->body;
   EXPECT_EQ(model["animations"][0]["name"], "slide");
-  EXPECT_EQ(model["animations"][0]["duration_s"], 4.0);
-  EXPECT_EQ(model["animations"][0]["channels"], 1);
+  EXPECT_EQ(model["animations"][0]["duration_s"], 2.0);
+  EXPECT_EQ(model["animations"][0]["channels"], 2);
   const auto render = [&](const std::string& body) {
     auto res = c.Post("/api/render", body, "application/json");
     EXPECT_TRUE(res);
@@ -1561,23 +1543,24 @@ TEST(Http, AnAnimatedModelIsPosedAtTheRequestsTime) {
   EXPECT_EQ(render(animated_body(id, 0.0, "slide")), rest);
   // Later it has moved: another frame (shadow and all).
   const std::string at1 = render(animated_body(id, 1.0, "slide"));
-  const std::string at2 = render(animated_body(id, 2.0, "slide"));
+  const std::string at15 = render(animated_body(id, 1.5, "slide"));
   EXPECT_NE(at1, rest);
-  EXPECT_NE(at2, at1);
-  // By index; at half speed time 2 is the animation's 1 s; looping, time 5
-  // is its 1 s too (and time 4 its start again); held, time 9 is its end.
+  EXPECT_NE(at15, at1);
+  // By index; at half speed time 2 is the animation's 1 s; looping (2 s
+  // long), time 5 is its 1 s too and time 4 its start again; held, time 9
+  // is its end, as time 2 is.
   EXPECT_EQ(render(animated_body(id, 1.0, 0)), at1);
   EXPECT_EQ(render(animated_body(id, 2.0, {{"name", "slide"}, {"speed", 0.5}})), at1);
   EXPECT_EQ(render(animated_body(id, 5.0, {{"index", 0}, {"loop", true}})), at1);
   EXPECT_EQ(render(animated_body(id, 4.0, "slide")), rest);
-  const std::string end = render(animated_body(id, 4.0, {{"index", 0}, {"loop", false}}));
+  const std::string end = render(animated_body(id, 2.0, {{"index", 0}, {"loop", false}}));
   EXPECT_NE(end, rest);
   EXPECT_EQ(render(animated_body(id, 9.0, {{"index", 0}, {"loop", false}})), end);
-  // Backwards: time 1 at speed -1 is the animation's 3 s (looping).
-  EXPECT_EQ(render(animated_body(id, 1.0, {{"index", 0}, {"speed", -1}})), render(animated_body(id, 3.0, "slide")));
+  // Backwards: time 0.5 at speed -1 is the animation's 1.5 s (looping).
+  EXPECT_EQ(render(animated_body(id, 0.5, {{"index", 0}, {"speed", -1}})), render(animated_body(id, 1.5, "slide")));
   // The certified filter's shadow term equals the exact reference's, byte
   // for byte, in the pose: both ray cast the posed cube.
-  EXPECT_EQ(render(animated_body(id, 2.0, "slide", "shadow", "exact")), render(animated_body(id, 2.0, "slide", "exact")));
+  EXPECT_EQ(render(animated_body(id, 1.5, "slide", "shadow", "exact")), render(animated_body(id, 1.5, "slide", "exact")));
   // A model without animations, a name or index it has not, bad fields.
   auto cube = c.Post("/api/models", cube_model(1.0f).glb(), "model/gltf-binary");
   ASSERT_TRUE(cube);

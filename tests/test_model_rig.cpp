@@ -76,33 +76,8 @@ TEST(ModelRig, AnimationTimeLoopsOrHolds) {
   EXPECT_DOUBLE_EQ(animation_time(0.0, 7.0, 1.0, true), 0.0);
 }
 
-// A unit cube under a parent node; the parent slides +X by 4 over 2 s and
-// the child turns a quarter about Y over the same time.
-std::string sliding_cube(const std::string& interpolation = "LINEAR") {
-  GltfBuilder b;
-  std::vector<glm::vec3> positions;
-  std::vector<std::uint32_t> indices;
-  test::unit_cube(positions, indices);
-  const int mesh = b.mesh(b.vec3s(positions), b.indices_u32(indices));
-  const int child = b.node({{"mesh", mesh}, {"translation", {1, 0, 0}}});
-  const int parent = b.node({{"children", {child}}});
-  b.scene({parent});
-  const float h = float(std::sqrt(0.5));
-  const int times = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 2})), GltfBuilder::kFloat, 2, "SCALAR");
-  const int moves = b.vec3s({{0, 0, 0}, {4, 0, 0}});
-  const int turns = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 0, 0, 1, 0, h, 0, h})),
-                               GltfBuilder::kFloat, 2, "VEC4");
-  b.doc["animations"] = json::array(
-      {{{"name", "slide"},
-        {"samplers", {{{"input", times}, {"output", moves}, {"interpolation", interpolation}},
-                      {{"input", times}, {"output", turns}, {"interpolation", interpolation}}}},
-        {"channels", {{{"sampler", 0}, {"target", {{"node", parent}, {"path", "translation"}}}},
-                      {{"sampler", 1}, {"target", {{"node", child}, {"path", "rotation"}}}}}}}});
-  return b.glb();
-}
-
 TEST(ModelRig, NodeChannelsMoveTheHierarchy) {
-  const LoadResult r = load_gltf(sliding_cube(), {});
+  const LoadResult r = load_gltf(test::sliding_cube(), {});
   ASSERT_TRUE(r.ok()) << r.error;
   ASSERT_TRUE(r.model->rig);
   const ModelRig& rig = *r.model->rig;
@@ -132,64 +107,16 @@ TEST(ModelRig, NodeChannelsMoveTheHierarchy) {
   EXPECT_NEAR(end.bounds.min.x, 4.5, 1e-6);
   EXPECT_NEAR(end.bounds.max.x, 5.5, 1e-6);
   // STEP holds the first key until the second.
-  const LoadResult stepped = load_gltf(sliding_cube("STEP"), {});
+  const LoadResult stepped = load_gltf(test::sliding_cube("STEP"), {});
   ASSERT_TRUE(stepped.ok()) << stepped.error;
   EXPECT_NEAR(pose_model(*stepped.model->rig, 0, 1.9).bounds.min.x, 0.5, 1e-6);
   // The rig is counted with the model.
   EXPECT_GT(r.model->bytes(), rig.bytes());
 }
 
-// Two joints along +Y: the root at the origin, the second at y = 1; a
-// vertical strip of quads from y = 0 to 2, its lower half weighted to the
-// root and its upper half to the second joint (the middle row half each).
-std::string bending_strip(float turn_z) {
-  GltfBuilder b;
-  std::vector<glm::vec3> positions;
-  std::vector<std::uint32_t> indices;
-  std::vector<std::uint16_t> joints;
-  std::vector<float> weights;
-  for (int row = 0; row <= 2; ++row)
-    for (int col = 0; col <= 1; ++col) {
-      positions.push_back({float(col) - 0.5f, float(row), 0.0f});
-      joints.insert(joints.end(), {0, 1, 0, 0});
-      const float upper = row == 0 ? 0.0f : row == 1 ? 0.5f : 1.0f;
-      weights.insert(weights.end(), {1.0f - upper, upper, 0.0f, 0.0f});
-    }
-  for (std::uint32_t row = 0; row < 2; ++row) {
-    const std::uint32_t a = row * 2, c = a + 2;
-    indices.insert(indices.end(), {a, a + 1, c + 1, a, c + 1, c});
-  }
-  const int position_accessor = b.vec3s(positions);
-  const int joint_accessor = b.accessor(b.view(GltfBuilder::bytes_of(joints)), GltfBuilder::kShort, 6, "VEC4");
-  const int weight_accessor = b.accessor(b.view(GltfBuilder::bytes_of(weights)), GltfBuilder::kFloat, 6, "VEC4");
-  b.doc["meshes"] = json::array({{{"primitives",
-                                   {{{"attributes",
-                                      {{"POSITION", position_accessor}, {"JOINTS_0", joint_accessor}, {"WEIGHTS_0", weight_accessor}}},
-                                     {"indices", b.indices_u32(indices)}}}}}});
-  const int upper = b.node({{"translation", {0, 1, 0}}});
-  const int root = b.node({{"children", {upper}}});
-  // The skinned node is placed far away: glTF ignores its transform.
-  const int skinned = b.node({{"mesh", 0}, {"skin", 0}, {"translation", {100, 0, 0}}});
-  std::vector<float> inverse_binds(32, 0.0f);
-  for (int m = 0; m < 2; ++m)
-    for (int d = 0; d < 4; ++d) inverse_binds[std::size_t(m * 16 + d * 5)] = 1.0f;
-  inverse_binds[16 + 13] = -1.0f;  // the second joint's bind: y = 1
-  b.doc["skins"] = json::array(
-      {{{"joints", {root, upper}},
-        {"inverseBindMatrices", b.accessor(b.view(GltfBuilder::bytes_of(inverse_binds)), GltfBuilder::kFloat, 2, "MAT4")}}});
-  b.scene({root, skinned});
-  const float s = std::sin(turn_z / 2), c = std::cos(turn_z / 2);
-  const int times = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 1})), GltfBuilder::kFloat, 2, "SCALAR");
-  const int turns = b.accessor(b.view(GltfBuilder::bytes_of(std::vector<float>{0, 0, 0, 1, 0, 0, s, c})),
-                               GltfBuilder::kFloat, 2, "VEC4");
-  b.doc["animations"] = json::array({{{"samplers", {{{"input", times}, {"output", turns}}}},
-                                      {"channels", {{{"sampler", 0}, {"target", {{"node", upper}, {"path", "rotation"}}}}}}}});
-  return b.glb();
-}
-
 TEST(ModelRig, SkinsBendByTheirJoints) {
   const double pi = std::acos(-1.0);
-  const LoadResult r = load_gltf(bending_strip(float(pi / 2)), {});
+  const LoadResult r = load_gltf(test::bending_strip(float(pi / 2)), {});
   ASSERT_TRUE(r.ok()) << r.error;
   // At rest the strip is where its joints put it, not at its node's x = 100.
   EXPECT_NEAR(r.model->bounds.min.x, -0.5, 1e-6);
@@ -240,11 +167,11 @@ TEST(ModelRig, MorphTargetsAreWeighed) {
 
 TEST(ModelRig, HostileAnimationsAreRefused) {
   const json base = [] {
-    const std::string glb = sliding_cube();
+    const std::string glb = test::sliding_cube();
     const std::uint32_t length = *reinterpret_cast<const std::uint32_t*>(glb.data() + 12);
     return json::parse(glb.substr(20, length));
   }();
-  const std::string glb = sliding_cube();
+  const std::string glb = test::sliding_cube();
   const std::uint32_t json_length = *reinterpret_cast<const std::uint32_t*>(glb.data() + 12);
   const std::string bin = glb.substr(20 + json_length + 8);
   const auto with = [&](const std::function<void(json&)>& change) {
@@ -351,7 +278,7 @@ TEST(ModelRig, KhronosAnimatedMorphCubeMorphs) {
 
 // Poses are shared, and poses kept or drawn stay within the cache's bytes.
 TEST(PoseCache, SharesPosesAndStaysWithinItsBytes) {
-  const LoadResult r = load_gltf(sliding_cube(), {});
+  const LoadResult r = load_gltf(test::sliding_cube(), {});
   ASSERT_TRUE(r.ok()) << r.error;
   const std::shared_ptr<const TriangleModel> model = r.model;
   const std::uint64_t one = model->bytes() - model->rig->bytes();
@@ -385,7 +312,7 @@ TEST(PoseCache, SharesPosesAndStaysWithinItsBytes) {
 
 // A scene's animated objects are posed at the request's time, named.
 TEST(PoseCache, PosesAScenesAnimatedObjects) {
-  const LoadResult r = load_gltf(sliding_cube(), {});
+  const LoadResult r = load_gltf(test::sliding_cube(), {});
   ASSERT_TRUE(r.ok()) << r.error;
   Scene scene;
   SceneObject still;

@@ -993,6 +993,7 @@ function loadFromUrl() {
     // A model the server does not list is chosen all the same: the render
     // then shows the server's own message (upload it first), not a blank.
     $("scene").value = modelChoice(model) || addUnlistedModel(model);
+    syncAnimations();  // its animations, before the address chooses one
     if (params.has("scene")) skipped.push("scene");
   } else if (model !== null) {
     skipped.push("model");
@@ -1245,11 +1246,37 @@ function modelView(model) {
     scene: {
       objects: [
         { type: "plane", center: [0, 0, 0], size: [FLOOR_SIZE, FLOOR_SIZE] },
-        { type: "mesh", model: model.key, position: position.map(round), scale: round(scale) },
+        { type: "mesh", model: model.key, position: position.map(round), scale: round(scale), ...chosenAnimation(model) },
       ],
     },
     camera: { position: target.map((t, i) => round(t + CAMERA_DIRECTION[i] * distance)), target: target.map(round) },
   };
+}
+
+// --- Animated models ---------------------------------------------------------------
+// A glTF model's animations (GET /api/models lists them) are offered in the
+// Animation list; the one chosen plays at the request's time, so Time and
+// Play move the model as they move the light (the server poses it).
+
+// { animation: index } for the mesh object, or nothing (the rest pose).
+function chosenAnimation(model) {
+  const value = $("animation").value;
+  const listed = Array.isArray(model.animations) ? model.animations : [];
+  return value !== "" && listed.some((a) => String(a.index) === value) ? { animation: Number(value) } : {};
+}
+
+// The Animation list follows the chosen model: its animations, the choice
+// kept where the model has it; hidden for a model without any.
+function syncAnimations() {
+  const model = chosenModel();
+  const listed = model && Array.isArray(model.animations) ? model.animations : [];
+  const select = $("animation");
+  const kept = select.value;
+  for (const option of Array.from(select.options)) if (option.value !== "") option.remove();
+  for (const a of listed)
+    select.add(new Option(`${a.name || `animation ${a.index}`} (${round(a.duration_s)} s)`, String(a.index)));
+  select.value = listed.some((a) => String(a.index) === kept) ? kept : "";
+  $("animation-row").hidden = listed.length === 0;
 }
 
 // Uploads have no name on the server: this browser remembers the file
@@ -1353,9 +1380,13 @@ async function uploadModel(file) {
     $("scene").value = addModel(model, file.name);
     state.camera = null;
     showCamera();
+    syncAnimations();
     sunHoursSceneChanged();
+    const animations = Array.isArray(model.animations) ? model.animations.length : 0;
     status.textContent = `${file.name}: ${model.triangles.toLocaleString("en")} triangles, ` +
-      (model.closed ? "closed" : "open (drawn two-sided in the shadow pass)") + (answer.status === 200 ? ", already held." : ".");
+      (model.closed ? "closed" : "open (drawn two-sided in the shadow pass)") +
+      (animations ? `, ${animations} animation${animations > 1 ? "s" : ""} (choose one under Animation)` : "") +
+      (answer.status === 200 ? ", already held." : ".");
     requestFrame();
   } catch (e) {
     status.textContent = `${file.name}: not loaded.`;
@@ -2399,6 +2430,7 @@ $("controls").addEventListener("input", (e) => {
     if (state.custom) leaveCustomScene();
     state.camera = null;
     showCamera();
+    syncAnimations();
     sunHoursSceneChanged();
   }
   if ([...LIGHT_FIELDS, ...LIGHT_TARGET_FIELDS, "orbit"].includes(e.target.id)) lightFieldsEdited();

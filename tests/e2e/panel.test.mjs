@@ -1185,6 +1185,48 @@ try {
     await waitForNewImages(page, before);
   });
 
+  await step(page, "an-animated-model-plays", async () => {
+    // The glTF tutorial's skin (Debian's assimp-testmodels): one animation,
+    // its upper joint swinging a quarter turn either way over 5.5 s.
+    const time0 = await page.$eval("#time", (i) => i.value);
+    const skin = fs.readFileSync("/usr/share/assimp/models/glTF2/simple_skin/simple_skin.gltf");
+    await chooseFile(page, "simple_skin.gltf", skin);
+    await page.waitForFunction(() => /simple_skin\.gltf: .*1 animation/.test(document.getElementById("model-status").textContent),
+                               null, { timeout: 60000 });
+    assert.ok(!(await page.$eval("#animation-row", (d) => d.hidden)), "the Animation list is shown");
+    assert.deepEqual(await page.$$eval("#animation option", (os) => os.map((o) => o.textContent)),
+                     ["none: the rest pose", "animation 0 (5.5 s)"]);
+    // At time 1 the joint has turned +90 degrees: the frame with the
+    // animation is not the rest pose's.
+    let before = await currentSources(page);
+    await page.fill("#time", "1");
+    await page.dispatchEvent("#time", "input");
+    await waitForNewImages(page, before);
+    const rest = await imageStats(page, "frame");
+    before = await currentSources(page);
+    await page.selectOption("#animation", "0");
+    await waitForNewImages(page, before);
+    const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
+    assert.equal(body.scene.objects[1].animation, 0);
+    assert.equal(body.time, 1);
+    assert.equal(new URL(page.url()).searchParams.get("animation"), "0");
+    assert.notEqual((await imageStats(page, "frame")).digest, rest.digest, "the model is posed");
+    assert.ok(await page.$eval("#error", (e) => e.hidden), "no error shown");
+    // Play runs the time on: frames keep the animation.
+    await page.click("#play");
+    await page.waitForFunction(() => Number(document.getElementById("time").value) > 1.2, null, { timeout: 60000 });
+    await page.click("#play");
+    assert.equal(JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).scene.objects[1].animation, 0);
+    // Back to the box (no animations: the list hides) at the time before.
+    before = await currentSources(page);
+    await page.selectOption("#scene", `model:${boxId}`);
+    await page.fill("#time", time0);
+    await page.dispatchEvent("#time", "input");
+    await waitForNewImages(page, before);
+    assert.ok(await page.$eval("#animation-row", (d) => d.hidden), "the Animation list is hidden for the box");
+    assert.ok(!("animation" in JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody)).scene.objects[1]));
+  });
+
   await step(page, "model-link-chooses-the-model", async () => {
     const body = JSON.parse(await page.evaluate(() => window.__umbra.lastRenderBody));
     const other = await page.context().newPage();
