@@ -54,6 +54,8 @@
 
 #include "machine.hpp"
 #include "assets/gltf_loader.hpp"
+#include "core/model.hpp"
+#include "core/model_rig.hpp"
 #include "gltf_builder.hpp"
 
 using umbra::bench::cpu_model_and_threads;
@@ -99,9 +101,16 @@ glm::vec3 knot_centre(double t) {
   return glm::vec3(glm::dvec3(r * std::cos(2.0 * t), kWind * std::sin(3.0 * t), r * std::sin(2.0 * t)));
 }
 
+// How the knot moves, for the posing section: not at all (the load
+// variants), as one rigid node turning (a node channel), or skinned to two
+// joints (a root and one that turns about Y, each vertex weighted between
+// them by its height: as a character's limb or a hinged part is rigged).
+enum class KnotMotion { None, Rigid, Skinned };
+
 // The plain .glb: POSITION, NORMAL (the tube's own, exact) and 32-bit
-// indices, one mesh, one node.
-std::string torus_knot_glb(KnotSize size) {
+// indices, one mesh, one node; with a motion, its animation ("turn", a
+// half turn over 2 s, LINEAR).
+std::string torus_knot_glb(KnotSize size, KnotMotion motion = KnotMotion::None) {
   constexpr double kTube = 0.35, kTwoPi = 6.283185307179586;
   std::vector<glm::vec3> positions, normals;
   positions.reserve(std::size_t(size.along) * std::size_t(size.around));
@@ -134,7 +143,46 @@ std::string torus_knot_glb(KnotSize size) {
     }
   umbra::test::GltfBuilder builder;
   const int mesh = builder.mesh(builder.vec3s(positions), builder.indices_u32(indices), builder.vec3s(normals));
-  builder.scene({builder.node({{"mesh", mesh}})});
+  if (motion == KnotMotion::None) {
+    builder.scene({builder.node({{"mesh", mesh}})});
+    return builder.glb();
+  }
+  const int times = builder.accessor(builder.view(umbra::test::GltfBuilder::bytes_of(std::vector<float>{0, 1, 2})),
+                                     umbra::test::GltfBuilder::kFloat, 3, "SCALAR");
+  const float h = float(std::sqrt(0.5));
+  const int turns = builder.accessor(
+      builder.view(umbra::test::GltfBuilder::bytes_of(std::vector<float>{0, 0, 0, 1, 0, h, 0, h, 0, 1, 0, 0})),
+      umbra::test::GltfBuilder::kFloat, 3, "VEC4");
+  int turned = 0;
+  if (motion == KnotMotion::Rigid) {
+    turned = builder.node({{"mesh", mesh}});
+    builder.scene({turned});
+  } else {
+    std::vector<std::uint16_t> joints;
+    std::vector<float> weights;
+    joints.reserve(positions.size() * 4);
+    weights.reserve(positions.size() * 4);
+    for (const glm::vec3& p : positions) {
+      const float upper = std::clamp((p.y + 1.35f) / 2.7f, 0.0f, 1.0f);
+      joints.insert(joints.end(), {0, 1, 0, 0});
+      weights.insert(weights.end(), {1.0f - upper, upper, 0.0f, 0.0f});
+    }
+    const int joint_accessor = builder.accessor(builder.view(umbra::test::GltfBuilder::bytes_of(joints)),
+                                                umbra::test::GltfBuilder::kShort, positions.size(), "VEC4");
+    const int weight_accessor = builder.accessor(builder.view(umbra::test::GltfBuilder::bytes_of(weights)),
+                                                 umbra::test::GltfBuilder::kFloat, positions.size(), "VEC4");
+    builder.doc["meshes"][std::size_t(mesh)]["primitives"][0]["attributes"]["JOINTS_0"] = joint_accessor;
+    builder.doc["meshes"][std::size_t(mesh)]["primitives"][0]["attributes"]["WEIGHTS_0"] = weight_accessor;
+    turned = builder.node(json::object());
+    const int root = builder.node({{"children", {turned}}});
+    const int skinned = builder.node({{"mesh", mesh}, {"skin", 0}});
+    builder.doc["skins"] = json::array({{{"joints", {root, turned}}}});  // inverse binds: identity
+    builder.scene({root, skinned});
+  }
+  builder.doc["animations"] = json::array(
+      {{{"name", "turn"},
+        {"samplers", {{{"input", times}, {"output", turns}}}},
+        {"channels", {{{"sampler", 0}, {"target", {{"node", turned}, {"path", "rotation"}}}}}}}});
   return builder.glb();
 }
 
@@ -469,6 +517,84 @@ fs::path json_path_for(const fs::path& md_path) { return fs::path(md_path).repla
 
 }  // namespace
 
+// ------------------------------------------------------------------ posing
+
+// What a request naming an animation costs before it is drawn: the pose
+// (core/model_rig.hpp's pose_model, what PoseCache runs once per distinct
+// pose), measured in this process on the knot animated two ways.
+struct PoseRow {
+  std::string name;
+  std::size_t triangles = 0;
+  double load_ms = NAN;             // load_gltf, the rig included
+  std::vector<double> pose_ms;      // one pose per instant
+  double model_mib = NAN, rig_mib = NAN, pose_mib = NAN;
+};
+
+std::vector<PoseRow> measure_posing(KnotSize size, int runs) {
+  std::vector<PoseRow> rows;
+  for (const auto& [name, motion] : {std::pair{"rigid (a node channel)", KnotMotion::Rigid},
+                                     std::pair{"skinned (two joints)", KnotMotion::Skinned}}) {
+    std::fprintf(stderr, "posing: %s ...\n", name);
+    PoseRow row;
+    row.name = name;
+    const std::string glb = torus_knot_glb(size, motion);
+    auto start = Clock::now();
+    const umbra::LoadResult r = umbra::load_gltf(glb, umbra::LoadOptions{});
+    row.load_ms = 1000.0 * seconds_since(start);
+    if (!r.ok() || !r.model->rig) {
+      std::fprintf(stderr, "posing: %s did not load: %s\n", name, r.error.c_str());
+      rows.push_back(row);
+      continue;
+    }
+    row.triangles = r.model->triangle_count();
+    row.rig_mib = double(r.model->rig->bytes()) / (1 << 20);
+    row.model_mib = double(r.model->bytes()) / (1 << 20);
+    for (int k = 0; k < std::max(runs, 3); ++k) {
+      const double t = 2.0 * (k + 0.5) / std::max(runs, 3);
+      start = Clock::now();
+      const umbra::TriangleModel posed = umbra::pose_model(*r.model->rig, 0, t);
+      row.pose_ms.push_back(1000.0 * seconds_since(start));
+      row.pose_mib = double(posed.bytes()) / (1 << 20);
+    }
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+std::string posing_markdown(const std::vector<PoseRow>& rows, KnotSize size) {
+  std::ostringstream md;
+  md << "\n## Posing\n\nThe knot above (" << size.triangles()
+     << " triangles), animated: its one node turning a half turn over 2 s (a rotation channel), and skinned to two "
+        "joints (a root and a joint turning about Y the same way, each vertex weighted between them by its height). "
+        "**load ms**: `load_gltf` with the rig (one run, in this process); **pose ms**: `pose_model` at instants "
+        "spread over the animation, each a pose a request's `animation` asks for the first time (`PoseCache` then "
+        "shares it): morph and skin, transform, normals, and `finish_model` (bounds, closedness, the cost model's "
+        "bins); **model MiB** counts the rig, **pose MiB** is one posed model.\n\n"
+     << "| motion | triangles | load ms | pose ms (median) | pose ms (min) | poses | model MiB | rig MiB | pose MiB |\n"
+     << "|---|---|---|---|---|---|---|---|---|\n";
+  for (const PoseRow& r : rows)
+    md << "| " << r.name << " | " << r.triangles << " | " << fmt("%.1f", r.load_ms) << " | "
+       << fmt("%.1f", median(r.pose_ms)) << " | " << fmt("%.1f", min_of(r.pose_ms)) << " | " << r.pose_ms.size()
+       << " | " << fmt("%.1f", r.model_mib) << " | " << fmt("%.1f", r.rig_mib) << " | " << fmt("%.1f", r.pose_mib)
+       << " |\n";
+  return md.str();
+}
+
+json posing_json(const std::vector<PoseRow>& rows) {
+  json list = json::array();
+  const auto number = [](double x) { return std::isfinite(x) ? json(x) : json(nullptr); };
+  for (const PoseRow& r : rows)
+    list.push_back({{"motion", r.name},
+                    {"triangles", r.triangles},
+                    {"load_ms", number(r.load_ms)},
+                    {"pose_ms", r.pose_ms},
+                    {"pose_ms_median", number(median(r.pose_ms))},
+                    {"model_mib", number(r.model_mib)},
+                    {"rig_mib", number(r.rig_mib)},
+                    {"pose_mib", number(r.pose_mib)}});
+  return list;
+}
+
 int main(int argc, char** argv) {
   bool quick = false;
   int runs = 9;
@@ -523,6 +649,9 @@ int main(int argc, char** argv) {
 
   for (Model& m : models) measure(m, runs);
   fs::remove_all(dir);
+  // After the loads: their processes start from this one's memory.
+  const std::vector<PoseRow> posing = measure_posing(size, runs);
+  for (const PoseRow& r : posing) failed |= r.pose_ms.empty();
   for (const Model& m : models)
     for (const Variant& v : m.variants) failed |= v.status != 0;
 
@@ -531,6 +660,8 @@ int main(int argc, char** argv) {
   fs::create_directories(fs::absolute(out).parent_path());
   const double run_s = seconds_since(run_start);
   write_markdown(out, models, runs, provenance, command, run_s);
+  std::ofstream(out, std::ios::app) << posing_markdown(posing, size);
+  std::printf("%s\n", posing_markdown(posing, size).c_str());
   json list = json::array();
   for (const Model& m : models) list.push_back(model_json(m));
   const json doc = {{"generator", "umbra-model-load-bench"},
@@ -542,7 +673,8 @@ int main(int argc, char** argv) {
                     {"quick", quick},
                     {"runs", runs},
                     {"run_seconds", run_s},
-                    {"models", list}};
+                    {"models", list},
+                    {"posing", posing_json(posing)}};
   std::ofstream(json_path_for(out)) << doc.dump(1) << "\n";
   std::printf("wrote %s and %s\n", out.c_str(), json_path_for(out).c_str());
   return failed ? 1 : 0;
