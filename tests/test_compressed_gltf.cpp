@@ -301,13 +301,19 @@ std::string draco_header(std::uint32_t vertices, std::uint32_t faces, int major 
   return s + std::string(16, char(0x5a));
 }
 
-TEST(CompressedGltf, DracoBombsAndBrokenStreamsAreRefusedBeforeDecoding) {
-  if (!have_tools()) return;
+// The box as draco_transcoder writes it.
+Glb draco_box() {
   const fs::path dir = variants_folder();
   const fs::path out = run_tool("draco_transcoder -i " + kBox.string() + " -o " + (dir / "box.glb").string(),
                                 dir / "box.glb");
-  const Glb box = split(read_file(out));
+  Glb box = split(read_file(out));
   fs::remove_all(dir);
+  return box;
+}
+
+TEST(CompressedGltf, DracoBombsAndBrokenStreamsAreRefusedBeforeDecoding) {
+  if (!have_tools()) return;
+  const Glb box = draco_box();
   ASSERT_TRUE(load_gltf(join(box), {}).ok());
   const nlohmann::json& ext = box.json["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"];
   const std::size_t view = ext["bufferView"];
@@ -391,11 +397,7 @@ std::string draco_stream_with_undeclared(int points, int extra, int& position_id
 // counted against the budget before their values are decoded.
 TEST(CompressedGltf, DracoCountsTheAttributesItsStreamHoldsUndeclared) {
   if (!have_tools()) return;
-  const fs::path dir = variants_folder();
-  const fs::path out = run_tool("draco_transcoder -i " + kBox.string() + " -o " + (dir / "box.glb").string(),
-                                dir / "box.glb");
-  const Glb box = split(read_file(out));
-  fs::remove_all(dir);
+  const Glb box = draco_box();
   const auto with_stream = [&](int points, int extra) {
     int position_id = 0;
     const std::string stream = draco_stream_with_undeclared(points, extra, position_id);

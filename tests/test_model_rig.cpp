@@ -34,6 +34,15 @@ std::string read_file(const fs::path& path) {
   return s.str();
 }
 
+// A file of Debian's assimp-testmodels, its buffers read from beside it.
+LoadResult load_sample(const std::string& name) {
+  const fs::path path = kSamples / name;
+  EXPECT_TRUE(fs::exists(path)) << "needs Debian's assimp-testmodels: " << path;
+  LoadOptions options;
+  options.external_folder = path.parent_path().string();
+  return load_gltf(read_file(path), options);
+}
+
 RigSampler sampler(std::vector<float> times, std::vector<float> values, std::size_t width,
                    RigInterpolation interpolation = RigInterpolation::Linear) {
   RigSampler s;
@@ -221,11 +230,7 @@ TEST(ModelRig, HostileAnimationsAreRefused) {
 // The glTF tutorial's skin (assimp-testmodels): its upper joint swings a
 // quarter turn either way over 5.5 s.
 TEST(ModelRig, TheTutorialsSimpleSkinBends) {
-  const fs::path path = kSamples / "simple_skin/simple_skin.gltf";
-  ASSERT_TRUE(fs::exists(path)) << "needs Debian's assimp-testmodels";
-  LoadOptions options;
-  options.external_folder = path.parent_path().string();
-  const LoadResult r = load_gltf(read_file(path), options);
+  const LoadResult r = load_sample("simple_skin/simple_skin.gltf");
   ASSERT_TRUE(r.ok()) << r.error;
   ASSERT_TRUE(r.model->rig);
   // Rest: the joints' binds put the strip at x in [-0.5, 0.5] (as three.js
@@ -253,11 +258,7 @@ TEST(ModelRig, TheTutorialsSimpleSkinBends) {
 // Khronos' AnimatedMorphCube: two morph targets weighed by its "Square"
 // animation; its buffer is a file beside it.
 TEST(ModelRig, KhronosAnimatedMorphCubeMorphs) {
-  const fs::path path = kSamples / "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf";
-  ASSERT_TRUE(fs::exists(path)) << "needs Debian's assimp-testmodels";
-  LoadOptions options;
-  options.external_folder = path.parent_path().string();
-  const LoadResult r = load_gltf(read_file(path), options);
+  const LoadResult r = load_sample("glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf");
   ASSERT_TRUE(r.ok()) << r.error;
   ASSERT_TRUE(r.model->rig);
   const ModelRig& rig = *r.model->rig;
