@@ -86,18 +86,29 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
   // the hull of the eight.
   Point2 corners[8], hull[9];
   int n = 0;
+  // The largest magnitude any step below works with: a corner's
+  // coordinates, its slide, the grid's origin.
+  double extent = std::max({1.0, std::abs(grid.origin().x), std::abs(grid.origin().z)});
   for (int i = 0; i < 8; ++i) {
     const glm::dvec3 c{i & 1 ? bounds.max.x : bounds.min.x, i & 2 ? bounds.max.y : bounds.min.y,
                        i & 4 ? bounds.max.z : bounds.min.z};
     const double t = (c.y - grid.center.y) / direction.y;
     corners[n++] = {c.x - t * direction.x, c.z - t * direction.z};
+    extent = std::max({extent, std::abs(c.x), std::abs(c.z), std::abs(t * direction.x), std::abs(t * direction.z)});
   }
   const int m = convex_hull(corners, n, hull);
   double z_low = hull[0].z, z_high = hull[0].z;
   for (int i = 1; i < m; ++i) z_low = std::min(z_low, hull[i].z), z_high = std::max(z_high, hull[i].z);
   const glm::dvec3 origin = grid.origin();
   const double s = grid.spacing;
-  const double row_low = std::ceil((z_low - origin.z) / s) - 1.0, row_high = std::floor((z_high - origin.z) / s) + 1.0;
+  // Every point within `slack` of the hull is taken: each step's rounding
+  // (a corner's slide, a row's crossing, a point's own coordinates) is a
+  // few 1e-16 of `extent`, a millionth of the slack. (One spare cell each
+  // side stood for it before: beside poles thinner than a cell it was most
+  // of the footprint, every pair of it a ray cast.)
+  const double slack = 1e-9 * extent;
+  const double row_low = std::ceil((z_low - slack - origin.z) / s),
+               row_high = std::floor((z_high + slack - origin.z) / s);
   // Clamped in double before any int: a footprint far from a fine grid
   // lies billions of rows away.
   const double rows_from = std::max<double>(first_row, row_low), rows_to = std::min<double>(last_row - 1, row_high);
@@ -105,22 +116,29 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
   const int r1 = int(rows_to);
   const int r0 = int(std::ceil(rows_from / row_step)) * row_step;
   for (int r = r0; r <= r1; r += row_step) {
-    // The row's line z = const meets the hull in one interval; rows just
-    // beside it (the spare ones) take the nearest vertex's x.
-    const double z = std::clamp(origin.z + r * s, z_low, z_high);
+    // The hull within the band of z a slack either side of the row: each
+    // edge that reaches into it, from where it enters the band to where it
+    // leaves (or ends). An edge nearly along the row is taken over the
+    // band's width, which its crossing's rounding (large for such an edge)
+    // stays well inside; any other edge's is far below the slack.
+    const double z = origin.z + r * s, band_low = z - slack, band_high = z + slack;
     double x_low = 1e300, x_high = -1e300;
     for (int i = 0; i < m; ++i) {
       const Point2& a = hull[i];
       const Point2& b = hull[(i + 1) % m];
-      if ((z < std::min(a.z, b.z)) || (z > std::max(a.z, b.z))) continue;
-      const double x = a.z == b.z ? a.x : a.x + (z - a.z) / (b.z - a.z) * (b.x - a.x);
-      x_low = std::min({x_low, x, a.z == b.z ? b.x : x});
-      x_high = std::max({x_high, x, a.z == b.z ? b.x : x});
+      const double edge_low = std::min(a.z, b.z), edge_high = std::max(a.z, b.z);
+      if (edge_high < band_low || edge_low > band_high) continue;
+      for (const double at : {std::max(band_low, edge_low), std::min(band_high, edge_high)}) {
+        const double x = a.z == b.z ? a.x : a.x + (at - a.z) / (b.z - a.z) * (b.x - a.x);
+        x_low = std::min(x_low, x);
+        x_high = std::max(x_high, x);
+      }
+      if (a.z == b.z) x_low = std::min(x_low, b.x), x_high = std::max(x_high, b.x);
     }
     if (m == 1) x_low = x_high = hull[0].x;
     if (x_low > x_high) continue;
-    const double c0 = std::max(0.0, std::ceil((x_low - origin.x) / s) - 1.0);
-    const double c1 = std::min(double(grid.columns - 1), std::floor((x_high - origin.x) / s) + 1.0);
+    const double c0 = std::max(0.0, std::ceil((x_low - slack - origin.x) / s));
+    const double c1 = std::min(double(grid.columns - 1), std::floor((x_high + slack - origin.x) / s));
     if (c0 <= c1) row_span(r, int(c0), int(c1));
   }
 }

@@ -37,8 +37,8 @@ Aabb reachable_bounds(const Aabb& bounds, double plane_y, double grid_reach);
 
 /// Calls row_span(row, first_column, last_column) for each grid row that
 /// the footprint of `bounds` (reachable_bounds) along the unit sun
-/// direction (direction.y > 0) crosses, with the columns it covers, one
-/// spare column and row each side for the rounding of this computation,
+/// direction (direction.y > 0) crosses, with the columns it covers (and
+/// those within a slack far above the rounding of this computation),
 /// clamped to the grid and to rows [first_row, last_row); with `row_step`,
 /// only the rows that are multiples of it.
 void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
