@@ -73,6 +73,17 @@ json model_json(const HeldModel& held) {
   return j;
 }
 
+// What formatting a sun-hours answer reads of its request: all but the
+// scene, whose models (and poses of animated ones) a finished job would
+// otherwise hold for as long as its result is kept (a red-team pass: five
+// finished jobs' poses filled the pose bound for ten minutes).
+SunHoursRequest answer_part(const SunHoursRequest& request) {
+  SunHoursRequest part = request;
+  part.view.scene.objects.clear();
+  part.view.scene.objects.shrink_to_fit();
+  return part;
+}
+
 std::string content_type_for(const std::string& path) {
   const auto ends_with = [&](const char* suffix) {
     const std::string s(suffix);
@@ -525,7 +536,17 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
   record.output = to_string(request.output);
-  if (!pose_animations(request.scene, request.time, res)) return;
+  if (std::any_of(request.scene.objects.begin(), request.scene.objects.end(),
+                  [](const SceneObject& o) { return o.animation.has_value(); })) {
+    // Priced on the rest pose before any pose is made (the posed scene is
+    // priced again when it is submitted).
+    try {
+      renderer_.check_cost(request);
+    } catch (...) {
+      return send_service_error(res, std::current_exception());
+    }
+    if (!pose_animations(request.scene, request.time, req, res)) return;
+  }
   const std::string sun = sun_header(request);
   const auto queued = Clock::now();
   // Asked just before the job's turn: a client that has gone costs no render.
@@ -620,7 +641,7 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   plan = ModelPlan{};
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   // Animated models stand as they are at the request's `time` all period.
-  if (!pose_animations(parsed.request->view.scene, parsed.request->view.time, res)) return;
+  if (!pose_animations(parsed.request->view.scene, parsed.request->view.time, req, res)) return;
   // The picture's fields serve image/png; a grid serves JSON and CSV.
   parsed.request->picture = *format == SunHoursFormat::Png;
   if (!parsed.request->picture && !parsed.grid_given)
@@ -648,7 +669,7 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   const SunHoursPlan estimate = renderer_.plan_sun_hours(*parsed.request);
   if (estimate.estimate.cost.total_ms > double(renderer_.limits().max_request_cost.count()))
     return start_sun_hours_job(res, std::move(*parsed.request), estimate);
-  const SunHoursRequest request = *parsed.request;
+  const SunHoursRequest request = answer_part(*parsed.request);
   const auto queued = Clock::now();
   const int socket = req.socket;
   SunHoursResult result;
@@ -723,7 +744,7 @@ void HttpApi::send_service_error(HttpResponse& res, std::exception_ptr error) co
 void HttpApi::start_sun_hours_job(HttpResponse& res, SunHoursRequest request, const SunHoursPlan& plan) {
   auto job = std::make_shared<SunHoursJob>();
   job->id = jobs_->new_id();
-  job->request = request;
+  job->request = answer_part(request);
   job->progress = std::make_shared<SunHoursProgress>();
   job->created = Clock::now();
   job->estimate_ms = plan.estimate.cost.total_ms;
@@ -846,20 +867,39 @@ void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
   res.set_content(model_json(*held).dump(), "application/json");
 }
 
-bool HttpApi::pose_animations(Scene& scene, double time, HttpResponse& res) {
+// Requests posing animated models at once: each is up to a few seconds of
+// one core, in places of their own so that uploads and loads from the
+// store keep theirs.
+constexpr int kMaxConcurrentPoses = 2;
+
+bool HttpApi::pose_animations(Scene& scene, double time, const HttpRequest& req, HttpResponse& res) {
   if (std::none_of(scene.objects.begin(), scene.objects.end(), [](const SceneObject& o) { return o.animation.has_value(); }))
     return true;
-  std::optional<PoseRefused> refused;
-  const bool ran = in_load_place([&] {
-    try {
-      poses_.pose_scene(scene, time);
-    } catch (const PoseRefused& e) {
-      refused = e;
+  {
+    std::lock_guard<std::mutex> lock(model_loads_mutex_);
+    if (poses_making_ >= kMaxConcurrentPoses) {
+      res.set_header("Retry-After", "1");
+      send_error(res, 503,
+                 "already posing animated models for " + std::to_string(kMaxConcurrentPoses) +
+                     " requests; retry (a pose asked before is shared at once)",
+                 "");
+      return false;
     }
-  });
-  if (!ran) {
-    send_models_busy(res);
-    return false;
+    ++poses_making_;
+  }
+  struct Release {
+    HttpApi& api;
+    ~Release() {
+      std::lock_guard<std::mutex> lock(api.model_loads_mutex_);
+      --api.poses_making_;
+    }
+  } release{*this};
+  std::optional<PoseRefused> refused;
+  const int socket = req.socket;
+  try {
+    poses_.pose_scene(scene, time, [socket] { return socket >= 0 && peer_closed(socket); });
+  } catch (const PoseRefused& e) {
+    refused = e;
   }
   if (refused) {
     if (refused->status == 503) res.set_header("Retry-After", "1");

@@ -168,8 +168,9 @@ class HttpApi {
   /// more than its record said and no room is left for the rest.
   std::shared_ptr<const HeldModel> find_model(ModelPlan& plan, const std::string& id_or_name);
   /// Poses the scene's mesh objects that name an animation at `time`
-  /// (PoseCache), in a load place. False: it could not, and `res` says why.
-  bool pose_animations(Scene& scene, double time, HttpResponse& res);
+  /// (PoseCache), in a place of its own (kMaxConcurrentPoses), stopped if
+  /// the client goes. False: it could not, and `res` says why.
+  bool pose_animations(Scene& scene, double time, const HttpRequest& req, HttpResponse& res);
   /// find_model as the request parsers take it (a ModelLookup over `plan`).
   ModelLookup model_lookup(ModelPlan& plan);
   /// load_gltf in one of kMaxConcurrentModelLoads places (a load holds a
@@ -217,6 +218,7 @@ class HttpApi {
   std::atomic<std::uint64_t> models_loaded_{0};  // glTF bodies built into models
   std::unique_ptr<ModelArchive> archive_;  // --model-store, or null
   PoseCache poses_;  // animated mesh objects' poses
+  int poses_making_ = 0;  // requests posing now (under model_loads_mutex_)
   Metrics metrics_;
   // Before http_: gone after the connections, cancelling what still runs.
   std::unique_ptr<SunHoursJobs> jobs_;

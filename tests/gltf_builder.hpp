@@ -226,7 +226,9 @@ inline std::string sliding_cube(const std::string& interpolation = "LINEAR") {
 // Two joints along +Y: the root at the origin, the second at y = 1; a
 // vertical strip of quads from y = 0 to 2, its lower half weighted to the
 // root and its upper half to the second joint (the middle row half each).
-inline std::string bending_strip(float turn_z) {
+// `weight_sum`: every vertex's weights scaled to sum to it (glTF asks 1;
+// the loader makes them so).
+inline std::string bending_strip(float turn_z, float weight_sum = 1.0f) {
   GltfBuilder b;
   std::vector<glm::vec3> positions;
   std::vector<std::uint32_t> indices;
@@ -237,7 +239,7 @@ inline std::string bending_strip(float turn_z) {
       positions.push_back({float(col) - 0.5f, float(row), 0.0f});
       joints.insert(joints.end(), {0, 1, 0, 0});
       const float upper = row == 0 ? 0.0f : row == 1 ? 0.5f : 1.0f;
-      weights.insert(weights.end(), {1.0f - upper, upper, 0.0f, 0.0f});
+      weights.insert(weights.end(), {weight_sum * (1.0f - upper), weight_sum * upper, 0.0f, 0.0f});
     }
   for (std::uint32_t row = 0; row < 2; ++row) {
     const std::uint32_t a = row * 2, c = a + 2;

@@ -123,6 +123,52 @@ TEST(ModelRig, NodeChannelsMoveTheHierarchy) {
   EXPECT_GT(r.model->bytes(), rig.bytes());
 }
 
+// A glb's JSON changed by `change` (its binary chunk kept).
+std::string edited(const std::string& glb, const std::function<void(json&)>& change) {
+  const std::uint32_t length = *reinterpret_cast<const std::uint32_t*>(glb.data() + 12);
+  test::GltfBuilder b;
+  b.doc = json::parse(glb.substr(20, length));
+  b.doc.erase("buffers");
+  b.bin = glb.substr(20 + length + 8);
+  change(b.doc);
+  return b.glb();
+}
+
+TEST(ModelRig, SkinWeightsAreCheckedAndMadeToSumToOne) {
+  const double pi = std::acos(-1.0);
+  const LoadResult one = load_gltf(test::bending_strip(float(pi / 2)), {});
+  const LoadResult two = load_gltf(test::bending_strip(float(pi / 2), 2.0f), {});
+  ASSERT_TRUE(one.ok() && two.ok()) << one.error << two.error;
+  // Weights summing to 2 would double every vertex; made to sum to 1,
+  // the model is the same, at rest and posed.
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(two.model->bounds.max[k], one.model->bounds.max[k], 1e-6);
+    EXPECT_NEAR(pose_model(*two.model->rig, 0, 1.0).bounds.min[k], pose_model(*one.model->rig, 0, 1.0).bounds.min[k],
+                1e-6);
+  }
+  const std::string glb = test::bending_strip(float(pi / 2));
+  const auto refused = [](const LoadResult& r, const std::string& text) {
+    ASSERT_FALSE(r.ok()) << "loaded, expected " << text;
+    EXPECT_EQ(r.status, 400) << r.error;
+    EXPECT_NE(r.error.find(text), std::string::npos) << r.error;
+  };
+  const auto attribute = [](json& d, const char* name) -> json& {
+    return d["accessors"][std::size_t(d["meshes"][0]["primitives"][0]["attributes"][name])];
+  };
+  refused(load_gltf(edited(glb, [&](json& d) { attribute(d, "JOINTS_0")["normalized"] = true; }), {}),
+          "JOINTS_0: joint indices must not be normalized");
+  // The weights read as unsigned shorts (the bytes of floats: whatever
+  // they hold, they must say they are normalized).
+  refused(load_gltf(edited(glb,
+                           [&](json& d) {
+                             json& w = attribute(d, "WEIGHTS_0");
+                             w["componentType"] = 5123;
+                             w["count"] = 6;
+                           }),
+                    {}),
+          "WEIGHTS_0: integer weights must be normalized");
+}
+
 TEST(ModelRig, SkinsBendByTheirJoints) {
   const double pi = std::acos(-1.0);
   const LoadResult r = load_gltf(test::bending_strip(float(pi / 2)), {});
@@ -221,7 +267,28 @@ TEST(ModelRig, HostileAnimationsAreRefused) {
          422, "keyframe numbers");
   // Output of the wrong length for its keys.
   expect(with([](json& d) { d["animations"][0]["samplers"][0]["output"] = d["animations"][0]["samplers"][1]["output"]; }),
-         400, "samplers[0].output: 8 numbers for 2 keys of 3");
+         400, "samplers[0].output: type VEC4 where its channel needs VEC3");
+  // Key times before 0 (a cube sliding from time -1).
+  {
+    test::GltfBuilder b;
+    std::vector<glm::vec3> positions;
+    std::vector<std::uint32_t> indices;
+    test::unit_cube(positions, indices);
+    const int node = b.node({{"mesh", b.mesh(b.vec3s(positions), b.indices_u32(indices))}});
+    b.scene({node});
+    const int times = b.accessor(b.view(test::GltfBuilder::bytes_of(std::vector<float>{-1, 1})),
+                                 test::GltfBuilder::kFloat, 2, "SCALAR");
+    b.doc["animations"] = json::array(
+        {{{"samplers", {{{"input", times}, {"output", b.vec3s({{0, 0, 0}, {1, 0, 0}})}}}},
+          {"channels", {{{"sampler", 0}, {"target", {{"node", node}, {"path", "translation"}}}}}}}});
+    expect(load_gltf(b.glb(), {}), 400, "samplers[0].input: key times must not be negative");
+  }
+  // A rotation read from VEC3 values.
+  expect(with([](json& d) {
+           const std::size_t output = d["animations"][0]["samplers"][1]["output"];
+           d["accessors"][output]["type"] = "VEC3";
+         }),
+         400, "samplers[1].output: type VEC3 where its channel needs VEC4");
   // One sampler read as a translation and as a rotation.
   expect(with([](json& d) { d["animations"][0]["channels"][1]["sampler"] = 0; }), 400,
          "its sampler is read by channels of different widths");
@@ -329,6 +396,71 @@ TEST(PoseCache, PosesAScenesAnimatedObjects) {
   EXPECT_EQ(scene.objects[1].pose, "animation 0 at 1 s");
   EXPECT_NEAR(scene.objects[1].model->bounds.min.x, pose_model(*r.model->rig, 0, 1.0).bounds.min.x, 0.0);
   EXPECT_FALSE(scene.objects[1].model->rig);
+}
+
+// A scene whose distinct poses could never fit together is refused before
+// any is made; a pose whose client has gone is stopped.
+TEST(PoseCache, RefusesWhatCouldNeverFitAndStopsForAGoneClient) {
+  const LoadResult r = load_gltf(test::sliding_cube(), {});
+  ASSERT_TRUE(r.ok()) << r.error;
+  const std::uint64_t one = r.model->bytes() - r.model->rig->bytes();
+  Scene scene;
+  for (int i = 0; i < 4; ++i) {
+    SceneObject o;
+    o.type = SceneObject::Type::Mesh;
+    o.model = r.model;
+    o.animation = SceneObject::Animation{0, "", 1.0 + 0.1 * i, true};  // four distinct times
+    scene.objects.push_back(o);
+  }
+  PoseCache cache(3 * one + one / 2);
+  try {
+    Scene copy = scene;
+    cache.pose_scene(copy, 1.0);
+    ADD_FAILURE() << "four poses were made past a bound of three and a half";
+  } catch (const PoseRefused& e) {
+    EXPECT_EQ(e.status, 422) << e.what();
+    EXPECT_EQ(e.field, "scene.objects[3].animation");
+    EXPECT_NE(std::string(e.what()).find("4 poses"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(cache.bytes(), 0u);  // none was made
+  // The same pose four times is one pose: it fits.
+  for (SceneObject& o : scene.objects) o.animation->speed = 1.0;
+  Scene same = scene;
+  EXPECT_NO_THROW(cache.pose_scene(same, 1.0));
+  EXPECT_EQ(same.objects[0].model, same.objects[3].model);
+  // A client gone: a pose of 160,000 vertices is stopped (499), and the
+  // bytes it had reserved are given back.
+  test::GltfBuilder b;
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  constexpr std::uint32_t n = 400;
+  for (std::uint32_t z = 0; z < n; ++z)
+    for (std::uint32_t x = 0; x < n; ++x) positions.push_back({float(x), 0.0f, -float(z)});
+  for (std::uint32_t z = 0; z + 1 < n; ++z)
+    for (std::uint32_t x = 0; x + 1 < n; ++x) {
+      const std::uint32_t a = z * n + x, c = a + n;
+      indices.insert(indices.end(), {a, a + 1, c + 1, a, c + 1, c});
+    }
+  const int node = b.node({{"mesh", b.mesh(b.vec3s(positions), b.indices_u32(indices))}});
+  b.scene({node});
+  const int times = b.accessor(b.view(test::GltfBuilder::bytes_of(std::vector<float>{0, 1})), test::GltfBuilder::kFloat,
+                               2, "SCALAR");
+  b.doc["animations"] = json::array(
+      {{{"samplers", {{{"input", times}, {"output", b.vec3s({{0, 0, 0}, {0, 1, 0}})}}}},
+        {"channels", {{{"sampler", 0}, {"target", {{"node", node}, {"path", "translation"}}}}}}}});
+  const LoadResult grid = load_gltf(b.glb(), {});
+  ASSERT_TRUE(grid.ok()) << grid.error;
+  PoseCache stopping;
+  int asked = 0;
+  try {
+    stopping.posed(grid.model, 0, 0.5, [&asked] { return ++asked >= 1; });
+    ADD_FAILURE() << "a pose of 160,000 vertices never asked whether to stop";
+  } catch (const PoseRefused& e) {
+    EXPECT_EQ(e.status, 499) << e.what();
+  }
+  EXPECT_EQ(asked, 1);
+  EXPECT_EQ(stopping.bytes(), 0u);
+  EXPECT_NO_THROW(stopping.posed(grid.model, 0, 0.5, [] { return false; }));
 }
 
 }  // namespace

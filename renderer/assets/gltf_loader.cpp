@@ -854,6 +854,11 @@ std::uint64_t Loader::rig_bytes_bound(const std::vector<Instance>& instances) co
                         " keyframe numbers, the most one model may (at " + where + ")");
     }
   std::uint64_t bytes = floats * sizeof(float) + gltf_.nodes.size() * (sizeof(RigNode) + 16);
+  // The animations', samplers' and channels' own records (80,000 empty
+  // animations are 20 MB of them).
+  for (const tinygltf::Animation& animation : gltf_.animations)
+    bytes += sizeof(RigAnimation) + animation.name.size() + animation.samplers.size() * sizeof(RigSampler) +
+             animation.channels.size() * sizeof(RigChannel);
   for (const tinygltf::Skin& skin : gltf_.skins) bytes += skin.joints.size() * (sizeof(std::size_t) + sizeof(glm::dmat4));
   // Each instanced primitive's kept vertices (at most one a corner and at
   // most its accessor's count): position, normal, joints and weights, and
@@ -900,6 +905,13 @@ void Loader::add_rig_primitive(const Instance& instance, std::size_t p, std::siz
       refuse(400, index_of("nodes", instance.node) + ".skin: " + std::to_string(skin) + " is out of range (" +
                       std::to_string(gltf_.skins.size()) + " skins)");
     const std::size_t joint_count = gltf_.skins[std::size_t(skin)].joints.size();
+    // glTF 2.0 §3.7.3.3: joint indices are plain integers, weights floats
+    // or normalized integers (255 taken as 255, a cube was 255 m across).
+    if (accessor(joints->second, name + ".attributes.JOINTS_0").normalized)
+      refuse(400, name + ".attributes.JOINTS_0: joint indices must not be normalized");
+    const tinygltf::Accessor& weight_accessor = accessor(weights->second, name + ".attributes.WEIGHTS_0");
+    if (weight_accessor.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !weight_accessor.normalized)
+      refuse(400, name + ".attributes.WEIGHTS_0: integer weights must be normalized (\"normalized\": true)");
     const std::vector<float> j = read_floats(joints->second, name + ".attributes.JOINTS_0", TINYGLTF_TYPE_VEC4,
                                              {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT});
     const std::vector<float> w = read_floats(weights->second, name + ".attributes.WEIGHTS_0", TINYGLTF_TYPE_VEC4,
@@ -921,8 +933,15 @@ void Loader::add_rig_primitive(const Instance& instance, std::size_t p, std::siz
         joint[std::size_t(k)] = weight != 0.0f ? std::uint16_t(index) : 0;
       }
       r.joints.push_back(joint);
-      r.weights.emplace_back(w[std::size_t(v) * 4], w[std::size_t(v) * 4 + 1], w[std::size_t(v) * 4 + 2],
-                             w[std::size_t(v) * 4 + 3]);
+      glm::vec4 weight(w[std::size_t(v) * 4], w[std::size_t(v) * 4 + 1], w[std::size_t(v) * 4 + 2],
+                       w[std::size_t(v) * 4 + 3]);
+      if (weight.x < 0.0f || weight.y < 0.0f || weight.z < 0.0f || weight.w < 0.0f)
+        refuse(400, name + ".attributes.WEIGHTS_0: element " + std::to_string(v) + " has a negative weight");
+      // Their sum must be 1 (glTF); exporters round, so it is made so
+      // rather than letting a sum of 1.02 grow the model by 2 %.
+      const float sum = weight.x + weight.y + weight.z + weight.w;
+      if (sum > 0.0f) weight /= sum;
+      r.weights.push_back(weight);
     }
   }
   // Morph targets: offsets of positions and normals (tangents are not read).
@@ -1028,6 +1047,7 @@ void Loader::finish_rig(const TriangleModel& model) {
     r.name = animation.name;
     // Each sampler's width is known from the channel that reads it.
     std::vector<std::size_t> width(animation.samplers.size(), 0);
+    std::vector<RigPath> kind(animation.samplers.size(), RigPath::Translation);
     for (std::size_t c = 0; c < animation.channels.size(); ++c) {
       const tinygltf::AnimationChannel& channel = animation.channels[c];
       const std::string name = where + ".channels[" + std::to_string(c) + "]";
@@ -1056,6 +1076,7 @@ void Loader::finish_rig(const TriangleModel& model) {
       if (width[std::size_t(channel.sampler)] != 0 && width[std::size_t(channel.sampler)] != w)
         refuse(400, name + ": its sampler is read by channels of different widths");
       width[std::size_t(channel.sampler)] = w;
+      kind[std::size_t(channel.sampler)] = out.path;
       r.channels.push_back(out);
     }
     for (std::size_t k = 0; k < animation.samplers.size(); ++k) {
@@ -1077,13 +1098,20 @@ void Loader::finish_rig(const TriangleModel& model) {
       }
       out.times = read_floats(sampler.input, name + ".input", TINYGLTF_TYPE_SCALAR, {TINYGLTF_COMPONENT_TYPE_FLOAT});
       if (out.times.empty()) refuse(400, name + ".input: no keyframes");
+      if (out.times.front() < 0.0f) refuse(400, name + ".input: key times must not be negative");
       for (std::size_t i = 1; i < out.times.size(); ++i)
         if (!(out.times[i] > out.times[i - 1]))
           refuse(400, name + ".input: key times must increase (element " + std::to_string(i) + ")");
       const tinygltf::Accessor& output = accessor(sampler.output, name + ".output");
       const int type = output.type;
-      if (type != TINYGLTF_TYPE_SCALAR && type != TINYGLTF_TYPE_VEC3 && type != TINYGLTF_TYPE_VEC4)
-        refuse(400, name + ".output: type " + std::to_string(type) + " is not SCALAR, VEC3 or VEC4");
+      // What its channels move says what each key holds: a translation or
+      // scale VEC3, a rotation VEC4, morph weights SCALAR.
+      const int expected = kind[k] == RigPath::Rotation  ? TINYGLTF_TYPE_VEC4
+                           : kind[k] == RigPath::Weights ? TINYGLTF_TYPE_SCALAR
+                                                         : TINYGLTF_TYPE_VEC3;
+      if (type != expected)
+        refuse(400, name + ".output: type " + std::string(type_name(type)) + " where its channel needs " +
+                        type_name(expected));
       out.values = read_floats(sampler.output, name + ".output", type, kFloatOrNormalized);
       const std::size_t per_key = out.width * (out.interpolation == RigInterpolation::CubicSpline ? 3 : 1);
       if (out.values.size() != out.times.size() * per_key)

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <new>
+#include <set>
 
 #include "core/mesh_instance.hpp"
 #include "core/model_rig.hpp"
@@ -21,6 +23,21 @@ std::string time_text(double t) {
   std::snprintf(text, sizeof text, "%.17g", t);
   return text;
 }
+
+// A pose's identity: the model (by address, checked against the entry's
+// source), the animation and the time's bits (every distinct double a
+// distinct pose).
+std::string pose_key(const std::shared_ptr<const TriangleModel>& model, std::size_t animation, double t) {
+  char address[32];
+  std::snprintf(address, sizeof address, "%p", static_cast<const void*>(model.get()));
+  std::uint64_t bits = 0;
+  std::memcpy(&bits, &t, sizeof bits);
+  return std::string(address) + "/" + std::to_string(animation) + "/" + std::to_string(bits);
+}
+
+// What a pose will hold: the rest model's triangles and vertices, less its
+// rig (a pose has none).
+std::uint64_t pose_bytes(const TriangleModel& model) { return model.bytes() - model.rig->bytes(); }
 
 }  // namespace
 
@@ -42,17 +59,18 @@ std::uint64_t PoseCache::bytes() {
   return live_bytes_locked();
 }
 
+void PoseCache::forget(const std::shared_ptr<const TriangleModel>& pose) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (Entry& e : entries_)
+    if (e.kept == pose) e.kept.reset();
+}
+
 std::shared_ptr<const TriangleModel> PoseCache::posed(const std::shared_ptr<const TriangleModel>& model,
-                                                      std::size_t animation, double t) {
+                                                      std::size_t animation, double t,
+                                                      const std::function<bool()>& stop) {
   const ModelRig& rig = *model->rig;
-  char address[32];
-  std::snprintf(address, sizeof address, "%p", static_cast<const void*>(model.get()));
-  std::uint64_t bits = 0;
-  std::memcpy(&bits, &t, sizeof bits);
-  const std::string key = std::string(address) + "/" + std::to_string(animation) + "/" + std::to_string(bits);
-  // What the pose will hold: the rest model's triangles and vertices, less
-  // its rig (a pose has none).
-  const std::uint64_t estimate = model->bytes() - rig.bytes();
+  const std::string key = pose_key(model, animation, t);
+  const std::uint64_t estimate = pose_bytes(*model);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     for (auto it = entries_.begin(); it != entries_.end(); ++it) {
@@ -81,29 +99,63 @@ std::shared_ptr<const TriangleModel> PoseCache::posed(const std::shared_ptr<cons
                                  " now (other renders draw them); retry");
     making_ += estimate;
   }
+  // The reservation goes back however the pose ends.
+  struct Made {
+    PoseCache& cache;
+    std::uint64_t bytes;
+    ~Made() {
+      std::lock_guard<std::mutex> lock(cache.mutex_);
+      cache.making_ -= bytes;
+    }
+  } reserved{*this, estimate};
   std::shared_ptr<TriangleModel> made;
-  std::string failure;
   try {
-    made = std::make_shared<TriangleModel>(pose_model(rig, animation, t));
-    made->skipped_primitives = model->skipped_primitives;
+    made = std::make_shared<TriangleModel>(pose_model(rig, animation, t, stop));
   } catch (const std::domain_error& e) {
-    failure = e.what();
+    throw PoseRefused(422, "its pose at " + time_text(t) + " s: " + e.what());
+  } catch (const PoseStopped&) {
+    throw PoseRefused(499, "stopped: the client has gone");
+  } catch (const std::bad_alloc&) {
+    throw PoseRefused(503, "the server is short of memory for the pose now; retry");
   }
+  made->skipped_primitives = model->skipped_primitives;
   std::lock_guard<std::mutex> lock(mutex_);
-  making_ -= estimate;
-  if (!made) throw PoseRefused(422, "its pose at " + time_text(t) + " s: " + failure);
   entries_.push_front(Entry{key, model, made, made, made->bytes()});
   return made;
 }
 
-void PoseCache::pose_scene(Scene& scene, double time) {
+void PoseCache::pose_scene(Scene& scene, double time, const std::function<bool()>& stop) {
+  const auto animated = [](const SceneObject& o) {
+    return o.type == SceneObject::Type::Mesh && o.animation && o.model && o.model->rig;
+  };
+  const auto time_of = [&](const SceneObject& o) {
+    const RigAnimation& animation = o.model->rig->animations.at(o.animation->index);
+    return animation_time(animation.duration_s, time, o.animation->speed, o.animation->loop);
+  };
+  // The distinct poses asked for, together: what could never fit is
+  // refused before any is made (a red-team pass: 8 poses of a 4M-triangle
+  // model took 6 s of CPU, then a 503 asking to retry).
+  std::set<std::string> keys;
+  std::uint64_t together = 0;
+  std::size_t last = 0;
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const SceneObject& o = scene.objects[i];
+    if (!animated(o)) continue;
+    if (keys.insert(pose_key(o.model, o.animation->index, time_of(o))).second) together += pose_bytes(*o.model);
+    last = i;
+  }
+  if (together > max_bytes_)
+    throw PoseRefused(422,
+                      "the scene's " + std::to_string(keys.size()) + " poses of animated models would hold about " +
+                          mib(together) + " together, more than the " + mib(max_bytes_) +
+                          " this server gives poses: fewer distinct animations or times",
+                      "scene.objects[" + std::to_string(last) + "].animation");
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     SceneObject& o = scene.objects[i];
-    if (o.type != SceneObject::Type::Mesh || !o.animation || !o.model || !o.model->rig) continue;
-    const RigAnimation& animation = o.model->rig->animations.at(o.animation->index);
-    const double t = animation_time(animation.duration_s, time, o.animation->speed, o.animation->loop);
+    if (!animated(o)) continue;
+    const double t = time_of(o);
     try {
-      o.model = posed(o.model, o.animation->index, t);
+      o.model = posed(o.model, o.animation->index, t, stop);
     } catch (const PoseRefused& e) {
       throw PoseRefused(e.status, e.what(), "scene.objects[" + std::to_string(i) + "].animation");
     }
@@ -113,11 +165,13 @@ void PoseCache::pose_scene(Scene& scene, double time) {
     const Aabb bounds = mesh_bounds(o);
     const glm::dvec3 far_corner = glm::max(glm::abs(bounds.min), glm::abs(bounds.max));
     const double reach = std::max({far_corner.x, far_corner.y, far_corner.z});
-    if (!bounds.empty() && reach > kMaxPosedCoordinate)
+    if (!bounds.empty() && reach > kMaxPosedCoordinate) {
+      forget(o.model);
       throw PoseRefused(422,
                         "posed at " + time_text(t) + " s and placed, the model reaches coordinate " + time_text(reach) +
                             ", beyond " + time_text(kMaxPosedCoordinate),
                         "scene.objects[" + std::to_string(i) + "].animation");
+    }
   }
 }
 

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <list>
 #include <memory>
 #include <mutex>
@@ -45,13 +46,17 @@ class PoseCache {
   /// `model` (which has a rig) posed by its animation `animation` at that
   /// animation's own time `t` seconds: shared with earlier askers of the
   /// same pose. Throws PoseRefused.
+  /// `stop`, if given, is asked while the pose is made: true ends it
+  /// (PoseRefused 499).
   std::shared_ptr<const TriangleModel> posed(const std::shared_ptr<const TriangleModel>& model, std::size_t animation,
-                                             double t);
+                                             double t, const std::function<bool()>& stop = nullptr);
 
   /// Poses every mesh object of `scene` that names an animation at request
   /// time `time`: its `model` becomes the posed one and its `pose` names it.
-  /// Throws PoseRefused (its message names the object).
-  void pose_scene(Scene& scene, double time);
+  /// The distinct poses the scene asks for must fit the bound together
+  /// (else 422 at once, before any is made: retrying would not help).
+  /// Throws PoseRefused (its field names the object).
+  void pose_scene(Scene& scene, double time, const std::function<bool()>& stop = nullptr);
 
   /// Bytes of poses held or still drawn, and poses being made.
   std::uint64_t bytes();
@@ -65,6 +70,8 @@ class PoseCache {
     std::uint64_t bytes = 0;
   };
   std::uint64_t live_bytes_locked();
+  /// No longer keeps `pose` for reuse (a pose its request refused).
+  void forget(const std::shared_ptr<const TriangleModel>& pose);
 
   std::mutex mutex_;
   std::list<Entry> entries_;  ///< most recently used first

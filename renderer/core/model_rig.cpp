@@ -115,8 +115,16 @@ std::vector<double> sample(const RigSampler& s, double t, bool rotation) {
 
 namespace {
 
-TriangleModel pose(const ModelRig& rig, const RigAnimation* anim, double t) {
+TriangleModel pose(const ModelRig& rig, const RigAnimation* anim, double t, const std::function<bool()>& stop) {
   const std::size_t n = rig.nodes.size();
+  // Asked between primitives and every 64k vertices of a large one.
+  std::size_t since_asked = 0;
+  const auto ask = [&](std::size_t work) {
+    since_asked += work;
+    if (!stop || since_asked < 65536) return;
+    since_asked = 0;
+    if (stop()) throw PoseStopped{};
+  };
 
   // 1. Each node's local transform: its channels' values, else its own.
   std::vector<glm::dvec3> translation(n), scale(n);
@@ -164,6 +172,7 @@ TriangleModel pose(const ModelRig& rig, const RigAnimation* anim, double t) {
   for (std::size_t p = 0; p < model.parts.size(); ++p) model.parts[p].base_color = rig.part_colors[p];
   for (const RigPrimitive& prim : rig.primitives) {
     const std::size_t vertices = prim.positions.size();
+    ask(vertices / 2);
     std::vector<glm::dvec3> positions(vertices), normals;
     for (std::size_t v = 0; v < vertices; ++v) positions[v] = prim.positions[v];
     if (!prim.normals.empty()) {
@@ -198,6 +207,7 @@ TriangleModel pose(const ModelRig& rig, const RigAnimation* anim, double t) {
       const std::vector<glm::dmat4>& joints = joint_matrices[std::size_t(prim.skin)];
       std::vector<bool> mirrored(vertices, false);
       for (std::size_t v = 0; v < vertices; ++v) {
+        if ((v & 0xffff) == 0xffff) ask(65536);
         glm::dmat4 m(0.0);
         double total = 0.0;
         for (int k = 0; k < 4; ++k) {
@@ -237,11 +247,11 @@ TriangleModel pose(const ModelRig& rig, const RigAnimation* anim, double t) {
 
 }  // namespace
 
-TriangleModel pose_model(const ModelRig& rig, std::size_t animation, double t) {
-  return pose(rig, &rig.animations.at(animation), t);
+TriangleModel pose_model(const ModelRig& rig, std::size_t animation, double t, const std::function<bool()>& stop) {
+  return pose(rig, &rig.animations.at(animation), t, stop);
 }
 
-TriangleModel pose_rest(const ModelRig& rig) { return pose(rig, nullptr, 0.0); }
+TriangleModel pose_rest(const ModelRig& rig) { return pose(rig, nullptr, 0.0, nullptr); }
 
 bool rig_deforms(const ModelRig& rig) {
   for (const RigPrimitive& p : rig.primitives) {

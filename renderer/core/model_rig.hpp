@@ -17,6 +17,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -119,11 +120,17 @@ double animation_time(double duration_s, double time, double speed, bool loop);
 /// spherically interpolated the shorter way.
 std::vector<double> sample(const RigSampler& sampler, double t, bool rotation);
 
+/// Thrown by pose_model when its `stop` answered true.
+struct PoseStopped {};
+
 /// The model as animation `animation` poses it at its own time `t`
 /// (seconds): every primitive's triangles moved, normals turned with them,
 /// parts as the rest model's, finished (bounds, closedness...). Throws
-/// std::out_of_range for an animation the rig does not have.
-TriangleModel pose_model(const ModelRig& rig, std::size_t animation, double t);
+/// std::out_of_range for an animation the rig does not have,
+/// std::domain_error for a pose that is not finite, and PoseStopped once
+/// `stop` (if given; asked about every 64k vertices) answers true.
+TriangleModel pose_model(const ModelRig& rig, std::size_t animation, double t,
+                         const std::function<bool()>& stop = nullptr);
 
 /// The model at rest: every node as the file places it, skins and morph
 /// targets applied (their default weights). What a skinned or morphed

@@ -398,6 +398,8 @@ RenderService::~RenderService() {
   while (impl_->in_flight.load() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
+void RenderService::check_cost(const RenderRequest& request) { impl_->check_budget(estimate_cost(request)); }
+
 std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGoneCheck client_gone) {
   // Before anything is queued: a GL frame cannot be stopped once it is
   // drawing, so refusing what would take too long is what bounds the time

@@ -155,6 +155,11 @@ class RenderService {
   /// job's turn; if it answers true the job is dropped with ClientGone.
   using ClientGoneCheck = std::function<bool()>;
   std::future<RenderResult> submit(RenderRequest request, ClientGoneCheck client_gone = {});
+  /// Throws RequestTooCostly as submit() would for `request`, queueing
+  /// nothing: asked of a scene's rest pose before its animated models are
+  /// posed (posing a large model is seconds of work a refusal should not
+  /// cost).
+  void check_cost(const RenderRequest& request);
 
   /// Queues a sun-hours analysis (core/sun_hours.hpp): refused at once as
   /// submit() refuses (RequestTooCostly by estimate_sun_hours_cost,
