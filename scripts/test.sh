@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Sets up everything, builds, and runs every test (CTest + GoogleTest, and
 # the web panel in chromium); then the same tests under AddressSanitizer +
-# UBSan; then 30 s of fuzzing the request parser, the sun-hours parser, the HTTP reader and the
-# glTF loader. Any failure, sanitizer report or fuzzer crash fails it.
+# UBSan; then 30 s of fuzzing the request parser, the sun-hours parser, the HTTP reader, the
+# glTF loader, the CityJSON reader and the conversion of other formats. Any failure, sanitizer
+# report or fuzzer crash fails it.
 # Each phase prints how long it took (CI has about 15 minutes on 2 cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
