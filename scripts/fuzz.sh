@@ -41,9 +41,10 @@ mkdir -p build-asan/corpus-gltf
 build-asan/fuzz/fuzz_gltf_loader build-asan/corpus-gltf fuzz/corpus-gltf \
   -dict=fuzz/gltf.dict -max_total_time="$share" -max_len=16384 -timeout=5 -rss_limit_mb=2048 \
   -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
-# The CityJSON reader: city files up to 16 KiB.
+# The CityJSON reader: city files up to 16 KiB; seeds also the conformance
+# corpus of others (tests/data/cityjson-corpus).
 mkdir -p build-asan/corpus-cityjson
-build-asan/fuzz/fuzz_cityjson_loader build-asan/corpus-cityjson fuzz/corpus-cityjson \
+build-asan/fuzz/fuzz_cityjson_loader build-asan/corpus-cityjson fuzz/corpus-cityjson tests/data/cityjson-corpus \
   -max_total_time="$share" -max_len=16384 -timeout=5 -rss_limit_mb=2048 \
   -artifact_prefix=fuzz/crashes/ -print_final_stats=1 2>&1 | tail -n 25
 # Other formats: a process per input (umbra-model-import), so few inputs;

@@ -3,6 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
 #include <random>
 
 #include <glm/geometric.hpp>
@@ -258,6 +262,45 @@ TEST(CityJson, BrokenFilesAreRefusedNamingThePlace) {
   r = load_cityjson(city().dump(), few);
   EXPECT_EQ(r.status, 422);
   EXPECT_NE(r.error.find("more than 10 triangles"), std::string::npos) << r.error;
+}
+
+// The CityJSON conformance corpus of 3DGI (tests/data/cityjson-corpus,
+// CC BY 4.0): 33 valid files written by others, each a feature of the
+// specification. Every one with surfaces loads; every other is a 422 that
+// says why; none is called invalid (400).
+TEST(CityJson, TheConformanceCorpusOfOthers) {
+  const std::filesystem::path folder = UMBRA_CITYJSON_CORPUS;
+  std::map<std::string, std::string> outcome;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+    if (entry.path().extension() != ".json") continue;
+    std::ifstream in(entry.path(), std::ios::binary);
+    std::stringstream bytes;
+    bytes << in.rdbuf();
+    const CityJsonResult r = load_cityjson(bytes.str(), {});
+    const std::string name = entry.path().filename().string();
+    if (r.ok()) {
+      outcome[name] = "loaded";
+      EXPECT_GT(r.model->triangle_count(), 0u) << name;
+      continue;
+    }
+    EXPECT_EQ(r.status, 422) << name << ": " << r.error;
+    const bool why = r.error.find("has no surfaces") != std::string::npos ||
+                     r.error.find("surfaces have no area") != std::string::npos;
+    EXPECT_TRUE(why) << name << ": " << r.error;
+    outcome[name] = "refused";
+  }
+  ASSERT_EQ(outcome.size(), 33u);
+  // Those whose geometry is a surface of area: a unit cube (solid,
+  // multisolid, multisurface, with materials, semantics or textures' faces)
+  // or the corpus's 'complete' files.
+  for (const char* loads : {"appearance_complete.city.json", "cityjson_fake_complete.city.json",
+                            "geometry_material_multisolid.city.json", "geometry_material_multisurface.city.json",
+                            "geometry_material_solid.city.json", "geometry_semantics_multisolid.city.json",
+                            "geometry_semantics_solid.city.json"})
+    EXPECT_EQ(outcome[loads], "loaded") << loads;
+  // A template that is a MultiPoint; a MultiSurface of collinear points.
+  EXPECT_EQ(outcome["geometry_instance.city.json"], "refused");
+  EXPECT_EQ(outcome["semantic_complete.city.json"], "refused");
 }
 
 }  // namespace
