@@ -640,12 +640,13 @@ void HttpApi::sun_hours(const HttpRequest& req, HttpResponse& res) {
   }
   plan = ModelPlan{};
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
-  // Animated models stand as they are at the request's `time` all period.
-  if (!pose_animations(parsed.request->view.scene, parsed.request->view.time, req, res)) return;
   // The picture's fields serve image/png; a grid serves JSON and CSV.
   parsed.request->picture = *format == SunHoursFormat::Png;
   if (!parsed.request->picture && !parsed.grid_given)
     return send_error(res, 400, "is required for a JSON or CSV answer (an image/png answer needs none)", "grid");
+  // Animated models stand as they are at the start of their animation
+  // (the route has no `time`) all period: posed once the body is known good.
+  if (!pose_animations(parsed.request->view.scene, parsed.request->view.time, req, res)) return;
   // Fields that cannot change this answer are named, never dropped in
   // silence: the picture's for JSON and CSV, and "exact": false (every
   // path is exact: there is no step to skip).
@@ -900,6 +901,8 @@ bool HttpApi::pose_animations(Scene& scene, double time, const HttpRequest& req,
     poses_.pose_scene(scene, time, [socket] { return socket >= 0 && peer_closed(socket); });
   } catch (const PoseRefused& e) {
     refused = e;
+  } catch (const std::bad_alloc&) {
+    refused = PoseRefused(503, "the server is short of memory for the poses now; retry");
   }
   if (refused) {
     if (refused->status == 503) res.set_header("Retry-After", "1");

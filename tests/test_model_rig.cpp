@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 
 #include "assets/gltf_loader.hpp"
 #include "assets/pose_cache.hpp"
@@ -66,14 +67,20 @@ TEST(ModelRig, SamplersInterpolateAsGltfSays) {
   const RigSampler cubic = sampler({0, 1}, {0, 0, 0, 0, 10, 0}, 1, RigInterpolation::CubicSpline);
   EXPECT_NEAR(sample(cubic, 0.5, false)[0], 5.0, 1e-12);
   EXPECT_NEAR(sample(cubic, 0.25, false)[0], 10.0 * (3 * 0.0625 - 2 * 0.015625), 1e-12);
+  // With tangents and 2 s between the keys (in-tangent, value, out-tangent
+  // each): p(1) = (p0 + p1) / 2 + dt / 8 (out0 - in1) = 2 + (4 + 2) / 4. A
+  // tangent not scaled by dt gives 2.75, in and out swapped 1.5.
+  const RigSampler tangents = sampler({0, 2}, {7, 1, 4, -2, 3, 9}, 1, RigInterpolation::CubicSpline);
+  EXPECT_NEAR(sample(tangents, 1.0, false)[0], 3.5, 1e-12);
   // A rotation: spherical, the shorter way, normalized. From identity to a
-  // half turn about Y given as -q (the same rotation): a quarter turn at 0.5.
+  // quarter turn about Y given as -q (the same rotation, the far way round
+  // as quaternions): an eighth of a turn, the same way, at 0.5.
   const double h = std::sqrt(0.5);
-  const RigSampler rotation = sampler({0, 1}, {0, 0, 0, 1, 0, -1, 0, 0}, 4);
+  const RigSampler rotation = sampler({0, 1}, {0, 0, 0, 1, 0, float(-h), 0, float(-h)}, 4);
   const std::vector<double> q = sample(rotation, 0.5, true);
-  EXPECT_NEAR(q[0], 0.0, 1e-12);
-  EXPECT_NEAR(std::abs(q[1]), h, 1e-12);
-  EXPECT_NEAR(q[3], h, 1e-12);
+  EXPECT_NEAR(q[0], 0.0, 1e-7);
+  EXPECT_NEAR(q[1], std::sin(glm::radians(22.5)), 1e-7);
+  EXPECT_NEAR(q[3], std::cos(glm::radians(22.5)), 1e-7);
 }
 
 TEST(ModelRig, AnimationTimeLoopsOrHolds) {
@@ -349,7 +356,13 @@ TEST(PoseCache, SharesPosesAndStaysWithinItsBytes) {
   const LoadResult r = load_gltf(test::sliding_cube(), {});
   ASSERT_TRUE(r.ok()) << r.error;
   const std::shared_ptr<const TriangleModel> model = r.model;
-  const std::uint64_t one = model->bytes() - model->rig->bytes();
+  // What one pose holds here, its record included.
+  std::uint64_t one = 0;
+  {
+    PoseCache probe;
+    const auto pose = probe.posed(model, 0, 1.0);
+    one = probe.bytes();
+  }
   PoseCache cache(3 * one + one / 2);
   auto a = cache.posed(model, 0, 1.0);
   EXPECT_EQ(cache.posed(model, 0, 1.0), a);  // the same pose, shared
@@ -367,6 +380,10 @@ TEST(PoseCache, SharesPosesAndStaysWithinItsBytes) {
   // Let go: the least recently used kept pose makes room.
   a.reset(), b.reset(), c.reset();
   EXPECT_NO_THROW(cache.posed(model, 0, 0.25));
+  EXPECT_LE(cache.bytes(), 3 * one + one / 2);
+  // Many distinct poses none holds: the least recently used go, the
+  // entries stay within their count and the bytes within the bound.
+  for (int k = 0; k < 5000; ++k) EXPECT_NO_THROW(cache.posed(model, 0, 1e-4 * k));
   EXPECT_LE(cache.bytes(), 3 * one + one / 2);
   // A pose larger than the whole bound: never.
   PoseCache tiny(16);

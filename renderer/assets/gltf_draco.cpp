@@ -282,7 +282,7 @@ void decode_draco(tinygltf::Model& model, const CompressedParts& parts, const st
     // copy here. The attributes' values are counted by CountedDecoder once
     // the stream has said what they are.
     budget.spend(std::uint64_t(counts.faces) * 48 * (1 + std::uint64_t(counts.attribute_seams)) +
-                     std::uint64_t(corners) * 4 + std::uint64_t(points) * 24,
+                     std::uint64_t(corners) * 4 + std::uint64_t(points) * 48,
                  where + " (its Draco stream)");
     const std::uint64_t entries = std::max<std::uint64_t>(points, counts.vertices);
     const std::unique_ptr<draco::Mesh> mesh =
@@ -324,23 +324,49 @@ void decode_draco(tinygltf::Model& model, const CompressedParts& parts, const st
       }
     const int index_view = add_view(0, corners * 4);
     point_accessor(primitive.indices, index_view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
-    for (const char* name : {"POSITION", "NORMAL"}) {
+    // The attributes the loader reads: positions and normals, and a skin's
+    // joints and weights (a skinned model compressed would else pose as if
+    // unskinned: its accessors have no data of their own).
+    struct Read {
+      const char* name;
+      int components;
+      bool joints;  // written as UNSIGNED_SHORT, else FLOAT
+    };
+    for (const Read& read : {Read{"POSITION", 3, false}, Read{"NORMAL", 3, false}, Read{"JOINTS_0", 4, true},
+                             Read{"WEIGHTS_0", 4, false}}) {
+      const char* name = read.name;
       const auto attribute = primitive.attributes.find(name);
       const auto id = d.attributes.find(name);
       if (attribute == primitive.attributes.end() || id == d.attributes.end()) continue;
       const draco::PointAttribute* source = mesh->GetAttributeByUniqueId(id->second);
       if (!source) refuse_gltf(400, where + ": its Draco stream has no attribute " + std::to_string(id->second) + " for " + name);
-      if (source->num_components() != 3) refuse_gltf(400, where + ": its Draco " + name + " has " + std::to_string(source->num_components()) + " components, not 3");
+      if (source->num_components() != read.components)
+        refuse_gltf(400, where + ": its Draco " + name + " has " + std::to_string(source->num_components()) +
+                             " components, not " + std::to_string(read.components));
+      const std::size_t element = std::size_t(read.components) * (read.joints ? 2 : 4);
       const std::size_t offset = out.data.size();
-      out.data.resize(offset + points * 12);
+      out.data.resize(offset + points * element);
       for (draco::PointIndex i(0); i < mesh->num_points(); ++i) {
-        float value[3];
+        float value[4] = {0, 0, 0, 0};
         const draco::AttributeValueIndex at = source->mapped_index(i);
-        if (at.value() >= source->size() || !source->ConvertValue<float, 3>(at, value))
+        const bool converted = read.components == 3 ? source->ConvertValue<float, 3>(at, value)
+                                                    : source->ConvertValue<float, 4>(at, value);
+        if (at.value() >= source->size() || !converted)
           refuse_gltf(400, where + ": its Draco " + name + " does not convert to numbers");
-        std::memcpy(out.data.data() + offset + std::size_t(i.value()) * 12, value, 12);
+        unsigned char* to = out.data.data() + offset + std::size_t(i.value()) * element;
+        if (read.joints) {
+          for (int c = 0; c < 4; ++c) {
+            if (!(value[c] >= 0.0f && value[c] <= 65535.0f))
+              refuse_gltf(400, where + ": its Draco " + name + " holds a joint index that is not one");
+            const std::uint16_t joint = std::uint16_t(value[c]);
+            std::memcpy(to + 2 * c, &joint, 2);
+          }
+        } else {
+          std::memcpy(to, value, element);
+        }
       }
-      point_accessor(attribute->second, add_view(offset, points * 12), TINYGLTF_COMPONENT_TYPE_FLOAT);
+      point_accessor(attribute->second, add_view(offset, points * element),
+                     read.joints ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_FLOAT);
     }
     model.buffers.push_back(std::move(out));
   }

@@ -841,6 +841,9 @@ const std::initializer_list<int> kFloatOrNormalized = {
 std::uint64_t Loader::rig_bytes_bound(const std::vector<Instance>& instances) const {
   // Keyframes: every sampler's times and values, bounded before any is read
   // (an accessor without a buffer view reads as zeros, whatever its count).
+  if (gltf_.animations.size() > kMaxAnimations)
+    refuse(422, "the model has " + std::to_string(gltf_.animations.size()) + " animations; at most " +
+                    std::to_string(kMaxAnimations) + " are taken");
   std::uint64_t floats = 0;
   for (std::size_t a = 0; a < gltf_.animations.size(); ++a)
     for (std::size_t k = 0; k < gltf_.animations[a].samplers.size(); ++k) {
@@ -853,7 +856,7 @@ std::uint64_t Loader::rig_bytes_bound(const std::vector<Instance>& instances) co
         refuse(422, "the model's animations hold more than " + std::to_string(kMaxAnimationFloats) +
                         " keyframe numbers, the most one model may (at " + where + ")");
     }
-  std::uint64_t bytes = floats * sizeof(float) + gltf_.nodes.size() * (sizeof(RigNode) + 16);
+  std::uint64_t bytes = floats * sizeof(float) + gltf_.nodes.size() * (sizeof(RigNode) + 16 + kMaxMorphTargets * sizeof(float));
   // The animations', samplers' and channels' own records (80,000 empty
   // animations are 20 MB of them).
   for (const tinygltf::Animation& animation : gltf_.animations)
@@ -1043,6 +1046,9 @@ void Loader::finish_rig(const TriangleModel& model) {
   for (std::size_t a = 0; a < gltf_.animations.size(); ++a) {
     const tinygltf::Animation& animation = gltf_.animations[a];
     const std::string where = index_of("animations", a);
+    // glTF 2.0: an animation has at least one channel and one sampler.
+    if (animation.channels.empty() || animation.samplers.empty())
+      refuse(400, where + ": an animation needs at least one channel and one sampler");
     RigAnimation r;
     r.name = animation.name;
     // Each sampler's width is known from the channel that reads it.

@@ -41,11 +41,17 @@ std::uint64_t pose_bytes(const TriangleModel& model) { return model.bytes() - mo
 
 }  // namespace
 
+void PoseCache::erase(std::list<Entry>::iterator it) {
+  index_.erase(it->key);
+  entries_.erase(it);
+}
+
 std::uint64_t PoseCache::live_bytes_locked() {
   std::uint64_t live = making_;
   for (auto it = entries_.begin(); it != entries_.end();) {
     if (!it->kept && it->drawn.expired()) {
-      it = entries_.erase(it);
+      const auto dead = it++;
+      erase(dead);
       continue;
     }
     live += it->bytes;
@@ -73,30 +79,36 @@ std::shared_ptr<const TriangleModel> PoseCache::posed(const std::shared_ptr<cons
   const std::uint64_t estimate = pose_bytes(*model);
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    for (auto it = entries_.begin(); it != entries_.end(); ++it) {
-      if (it->key != key || it->source.lock() != model) continue;
+    const auto found_at = index_.find(key);
+    if (found_at != index_.end()) {
+      const auto it = found_at->second;
       std::shared_ptr<const TriangleModel> found = it->kept ? it->kept : it->drawn.lock();
-      if (!found) break;
-      it->kept = found;
-      entries_.splice(entries_.begin(), entries_, it);
-      return found;
+      if (found && it->source.lock() == model) {
+        it->kept = found;
+        entries_.splice(entries_.begin(), entries_, it);
+        return found;
+      }
+      erase(it);  // its pose is gone, or its model is another at the same address
     }
     if (estimate > max_bytes_)
       throw PoseRefused(422, "posed, the model would hold about " + mib(estimate) + ", more than the " + mib(max_bytes_) +
                                  " this server gives poses");
     // Room: drop reused poses, least recently used first (those still drawn
-    // stay counted until their renders end).
+    // stay counted until their renders end), one scan and one pass.
     std::uint64_t live = live_bytes_locked();
-    while (live + estimate > max_bytes_) {
-      const auto victim =
-          std::find_if(entries_.rbegin(), entries_.rend(), [](const Entry& e) { return e.kept != nullptr; });
-      if (victim == entries_.rend()) break;
-      victim->kept.reset();
-      live = live_bytes_locked();
+    for (auto it = entries_.end(); it != entries_.begin() && (live + estimate > max_bytes_ || entries_.size() >= kMaxEntries);) {
+      --it;
+      if (!it->kept) continue;
+      it->kept.reset();
+      if (it->drawn.expired()) {
+        live -= it->bytes;
+        const auto dropped = it++;
+        erase(dropped);
+      }
     }
-    if (live + estimate > max_bytes_)
-      throw PoseRefused(503, "poses of animated models fill this server's " + mib(max_bytes_) +
-                                 " now (other renders draw them); retry");
+    if (live + estimate > max_bytes_ || entries_.size() >= kMaxEntries)
+      throw PoseRefused(503, "poses of animated models fill this server's " + mib(max_bytes_) + " (or its " +
+                                 std::to_string(kMaxEntries) + " poses) now, other renders drawing them; retry");
     making_ += estimate;
   }
   // The reservation goes back however the pose ends.
@@ -120,7 +132,12 @@ std::shared_ptr<const TriangleModel> PoseCache::posed(const std::shared_ptr<cons
   }
   made->skipped_primitives = model->skipped_primitives;
   std::lock_guard<std::mutex> lock(mutex_);
-  entries_.push_front(Entry{key, model, made, made, made->bytes()});
+  const auto again = index_.find(key);  // made meanwhile by another request too
+  if (again != index_.end()) erase(again->second);
+  // The pose, and its record here (the entry, its key, the index's node).
+  const std::uint64_t bytes = made->bytes() + sizeof(Entry) + 2 * key.capacity() + 64;
+  entries_.push_front(Entry{key, model, made, made, bytes});
+  index_[key] = entries_.begin();
   return made;
 }
 

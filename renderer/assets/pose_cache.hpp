@@ -19,6 +19,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 #include <utility>
 
 #include "core/model.hpp"
@@ -73,8 +74,16 @@ class PoseCache {
   /// No longer keeps `pose` for reuse (a pose its request refused).
   void forget(const std::shared_ptr<const TriangleModel>& pose);
 
+  /// Entries held at most (kept or drawn): a client stepping `time` over a
+  /// tiny model makes a pose each step; the bound keeps each call's scan
+  /// short and the records' own memory (counted in their bytes) small.
+  static constexpr std::size_t kMaxEntries = 4096;
+  /// Erases `it` from the list and the index.
+  void erase(std::list<Entry>::iterator it);
+
   std::mutex mutex_;
   std::list<Entry> entries_;  ///< most recently used first
+  std::unordered_map<std::string, std::list<Entry>::iterator> index_;  ///< by key
   std::uint64_t making_ = 0;  ///< bytes of poses being made now
   std::uint64_t max_bytes_;
 };

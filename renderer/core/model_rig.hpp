@@ -33,6 +33,8 @@ struct TriangleModel;  // model.hpp
 
 /// Morph targets one primitive may have (the loader refuses more, 422).
 constexpr std::size_t kMaxMorphTargets = 64;
+/// Animations one model may have (each is listed by GET /api/models).
+constexpr std::size_t kMaxAnimations = 1024;
 /// Keyframe numbers (times and values, floats) one model's animations may
 /// hold in all: 16 MiB of them.
 constexpr std::size_t kMaxAnimationFloats = std::size_t(4) << 20;
