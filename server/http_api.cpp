@@ -11,7 +11,6 @@
 #include <nlohmann/json.hpp>
 
 #include "client_socket.hpp"
-#include "core/model_rig.hpp"
 #include "assets/folder_file.hpp"
 #include "assets/gltf_loader.hpp"
 #include "assets/model_import.hpp"
@@ -60,14 +59,11 @@ json model_json(const HeldModel& held) {
             {"bytes", held.bytes}};
   // What a mesh object's "animation" may name (in the file's order).
   j["animations"] = json::array();
-  if (model.rig)
-    for (std::size_t a = 0; a < model.rig->animations.size(); ++a) {
-      const RigAnimation& animation = model.rig->animations[a];
-      j["animations"].push_back({{"index", a},
-                                 {"name", animation.name},
-                                 {"duration_s", animation.duration_s},
-                                 {"channels", animation.channels.size()}});
-    }
+  for (const ModelAnimation& animation : model_animations(model))
+    j["animations"].push_back({{"index", animation.index},
+                               {"name", animation.name},
+                               {"duration_s", animation.duration_s},
+                               {"channels", animation.channels}});
   if (!held.name.empty()) j["name"] = held.name;
   j["pinned"] = held.pinned;
   return j;

@@ -12,8 +12,6 @@
 #include <nlohmann/json.hpp>
 
 #include "core/builtin_models.hpp"
-#include "core/model.hpp"
-#include "core/model_rig.hpp"
 #include "core/scene.hpp"
 #include "core/sun_position.hpp"
 #include "request_fields.hpp"
@@ -510,26 +508,28 @@ void read_model(const json* model, const ObjectField& row, const std::string& pa
 // A mesh object's "animation": a name, an index, or an object naming one
 // and how it plays. The model (read before) must have it.
 void read_animation(const json& j, const std::string& path, SceneObject& o) {
-  const ModelRig* rig = o.model ? o.model->rig.get() : nullptr;
-  if (rig == nullptr)
+  const std::vector<ModelAnimation> animations = o.model ? model_animations(*o.model) : std::vector<ModelAnimation>{};
+  if (animations.empty())
     reject(path, "model " + quote_text(o.model_id) + " has no animations (a glTF file's \"animations\" are what play)");
   const auto names = [&] {
     std::string list;
-    for (std::size_t a = 0; a < rig->animations.size() && a < 20; ++a)
+    for (std::size_t a = 0; a < animations.size() && a < 20; ++a)
       list += (a ? ", " : "") + std::to_string(a) +
-              (rig->animations[a].name.empty() ? std::string() : " " + quote_text(rig->animations[a].name));
-    return list + (rig->animations.size() > 20 ? ", ..." : "");
+              (animations[a].name.empty() ? std::string() : " " + quote_text(animations[a].name));
+    return list + (animations.size() > 20 ? ", ..." : "");
   };
   SceneObject::Animation animation;
   const auto by_name = [&](const json& name, const std::string& where) {
     const std::string& text = name.get_ref<const std::string&>();
-    const std::optional<std::size_t> found = find_animation(*rig, text);
-    if (!found) reject(where, "the model has no animation named " + quote_text(text) + " (it has " + names() + ")");
-    animation.index = *found;
+    const auto found = std::find_if(animations.begin(), animations.end(),
+                                    [&](const ModelAnimation& a) { return a.name == text; });
+    if (found == animations.end())
+      reject(where, "the model has no animation named " + quote_text(text) + " (it has " + names() + ")");
+    animation.index = found->index;
     animation.name = text;
   };
   const auto by_index = [&](const json& index, const std::string& where) {
-    const double i = read_number(index, where, 0.0, double(rig->animations.size()) - 1.0);
+    const double i = read_number(index, where, 0.0, double(animations.size()) - 1.0);
     if (i != std::floor(i)) reject(where, "must be a whole number");
     animation.index = std::size_t(i);
   };

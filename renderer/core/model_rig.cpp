@@ -9,6 +9,7 @@
 #include <glm/mat3x3.hpp>
 
 #include "core/model.hpp"
+#include "core/request.hpp"
 
 namespace umbra {
 
@@ -40,6 +41,16 @@ std::size_t ModelRig::bytes() const {
     for (const RigSampler& s : a.samplers) total += capacity_bytes(s.times) + capacity_bytes(s.values);
   }
   return total;
+}
+
+std::vector<ModelAnimation> model_animations(const TriangleModel& model) {
+  std::vector<ModelAnimation> list;
+  if (!model.rig) return list;
+  for (std::size_t a = 0; a < model.rig->animations.size(); ++a) {
+    const RigAnimation& animation = model.rig->animations[a];
+    list.push_back({a, animation.name, animation.duration_s, animation.channels.size()});
+  }
+  return list;
 }
 
 std::optional<std::size_t> find_animation(const ModelRig& rig, const std::string& name) {

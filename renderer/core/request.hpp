@@ -66,6 +66,18 @@ struct SceneObject {
   std::string pose;
 };
 
+/// One of a model's animations, as a mesh object's `"animation"` names it
+/// and GET /api/models lists it.
+struct ModelAnimation {
+  std::size_t index = 0;
+  std::string name;  ///< as the file names it; may be empty
+  double duration_s = 0.0;
+  std::size_t channels = 0;
+};
+/// The model's animations in the file's order (none for a model without
+/// them): what a request may name, from core/model_rig.cpp.
+std::vector<ModelAnimation> model_animations(const TriangleModel& model);
+
 struct Scene {
   /// The built-in scene's name, or empty for a custom scene.
   std::string name;
