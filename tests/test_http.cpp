@@ -964,7 +964,14 @@ TEST(Http, WaitingSunHoursJobsLeaveTheQueueToOthers) {
   ASSERT_NO_THROW(beside = renderer.submit_sun_hours(*small.request));
   EXPECT_EQ(beside.get().tally.size(), small.request->grid.points());
   for (auto& p : progress) p->cancel = true;
-  for (auto& j : jobs) EXPECT_THROW(j.get(), ClientGone);
+  // The running job is cancelled if it still runs (on a busy machine it
+  // may have finished: once, beside a build on the same cores, it had);
+  // those waiting never ran.
+  try {
+    EXPECT_EQ(jobs[0].get().tally.size(), long_job.request->grid.points());
+  } catch (const ClientGone&) {
+  }
+  for (std::size_t j = 1; j < jobs.size(); ++j) EXPECT_THROW(jobs[j].get(), ClientGone) << "job " << j;
   EXPECT_EQ(renderer.queue_depth(), 0u);
 }
 
