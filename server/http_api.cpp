@@ -80,6 +80,12 @@ SunHoursRequest answer_part(const SunHoursRequest& request) {
   return part;
 }
 
+// Whether any mesh object names an animation (then it is posed first).
+bool has_animations(const Scene& scene) {
+  return std::any_of(scene.objects.begin(), scene.objects.end(),
+                     [](const SceneObject& o) { return o.animation.has_value(); });
+}
+
 std::string content_type_for(const std::string& path) {
   const auto ends_with = [&](const char* suffix) {
     const std::string s(suffix);
@@ -532,8 +538,7 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   if (!parsed.ok()) return send_error(res, 400, parsed.error.message, parsed.error.field);
   RenderRequest request = std::move(*parsed.request);
   record.output = to_string(request.output);
-  if (std::any_of(request.scene.objects.begin(), request.scene.objects.end(),
-                  [](const SceneObject& o) { return o.animation.has_value(); })) {
+  if (has_animations(request.scene)) {
     // Priced on the rest pose before any pose is made (the posed scene is
     // priced again when it is submitted).
     try {
@@ -870,35 +875,25 @@ void HttpApi::get_model(const HttpRequest& req, HttpResponse& res) {
 constexpr int kMaxConcurrentPoses = 2;
 
 bool HttpApi::pose_animations(Scene& scene, double time, const HttpRequest& req, HttpResponse& res) {
-  if (std::none_of(scene.objects.begin(), scene.objects.end(), [](const SceneObject& o) { return o.animation.has_value(); }))
-    return true;
-  {
-    std::lock_guard<std::mutex> lock(model_loads_mutex_);
-    if (poses_making_ >= kMaxConcurrentPoses) {
-      res.set_header("Retry-After", "1");
-      send_error(res, 503,
-                 "already posing animated models for " + std::to_string(kMaxConcurrentPoses) +
-                     " requests; retry (a pose asked before is shared at once)",
-                 "");
-      return false;
-    }
-    ++poses_making_;
-  }
-  struct Release {
-    HttpApi& api;
-    ~Release() {
-      std::lock_guard<std::mutex> lock(api.model_loads_mutex_);
-      --api.poses_making_;
-    }
-  } release{*this};
+  if (!has_animations(scene)) return true;
   std::optional<PoseRefused> refused;
   const int socket = req.socket;
-  try {
-    poses_.pose_scene(scene, time, [socket] { return socket >= 0 && peer_closed(socket); });
-  } catch (const PoseRefused& e) {
-    refused = e;
-  } catch (const std::bad_alloc&) {
-    refused = PoseRefused(503, "the server is short of memory for the poses now; retry");
+  const bool ran = in_place(poses_making_, kMaxConcurrentPoses, [&] {
+    try {
+      poses_.pose_scene(scene, time, [socket] { return socket >= 0 && peer_closed(socket); });
+    } catch (const PoseRefused& e) {
+      refused = e;
+    } catch (const std::bad_alloc&) {
+      refused = PoseRefused(503, "the server is short of memory for the poses now; retry");
+    }
+  });
+  if (!ran) {
+    res.set_header("Retry-After", "1");
+    send_error(res, 503,
+               "already posing animated models for " + std::to_string(kMaxConcurrentPoses) +
+                   " requests; retry (a pose asked before is shared at once)",
+               "");
+    return false;
   }
   if (refused) {
     if (refused->status == 503) res.set_header("Retry-After", "1");
@@ -908,21 +903,26 @@ bool HttpApi::pose_animations(Scene& scene, double time, const HttpRequest& req,
   return true;
 }
 
-bool HttpApi::in_load_place(const std::function<void()>& work) {
+bool HttpApi::in_place(int& busy, int most, const std::function<void()>& work) {
   {
     std::lock_guard<std::mutex> lock(model_loads_mutex_);
-    if (model_loads_ >= kMaxConcurrentModelLoads) return false;
-    ++model_loads_;
+    if (busy >= most) return false;
+    ++busy;
   }
   struct Release {
     HttpApi& api;
+    int& busy;
     ~Release() {
       std::lock_guard<std::mutex> lock(api.model_loads_mutex_);
-      --api.model_loads_;
+      --busy;
     }
-  } release{*this};
+  } release{*this, busy};
   work();
   return true;
+}
+
+bool HttpApi::in_load_place(const std::function<void()>& work) {
+  return in_place(model_loads_, kMaxConcurrentModelLoads, work);
 }
 
 std::optional<LoadResult> HttpApi::load_model(const std::string& body, const LoadOptions& options) {

@@ -179,6 +179,9 @@ class HttpApi {
   /// Runs `work` (a load, or a conversion to a .glb) in one of the
   /// kMaxConcurrentModelLoads places; false when none is free.
   bool in_load_place(const std::function<void()>& work);
+  /// Runs `work` while `busy` (one of the counters under
+  /// model_loads_mutex_) is below `most`, counted in it; false when full.
+  bool in_place(int& busy, int most, const std::function<void()>& work);
   /// 503 with Retry-After: every model-load place is taken.
   void send_models_busy(HttpResponse& res) const;
   struct ModelLoadsBusy {};

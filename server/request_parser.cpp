@@ -567,8 +567,7 @@ void read_animation(const json& j, const std::string& path, SceneObject& o) {
 void check_mesh_reach(const SceneObject& o, const std::string& path) {
   const Aabb bounds = object_bounds(o);  // a mesh's: mesh_bounds
   if (bounds.empty()) return;
-  const glm::dvec3 far_corner = glm::max(glm::abs(bounds.min), glm::abs(bounds.max));
-  const double reach = std::max({far_corner.x, far_corner.y, far_corner.z});
+  const double reach = bounds.reach();
   if (reach > RequestLimits::kMaxCoordinate)
     reject(path, "the model placed with this position, rotation_deg and scale reaches coordinate " +
                      format_number(reach) + ", beyond the limit " + format_number(RequestLimits::kMaxCoordinate));

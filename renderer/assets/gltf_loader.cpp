@@ -21,6 +21,7 @@
 #include <glm/gtc/matrix_inverse.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 #include <sys/stat.h>
@@ -820,16 +821,7 @@ void Loader::add_primitive(const Instance& instance, std::size_t p, TriangleMode
   }
   if (world_normals.empty()) world_normals = area_weighted_normals(world_positions, triangles);
 
-  ModelPart& part = out.parts[found.first->second];
-  const std::uint32_t base = std::uint32_t(part.positions.size());
-  part.positions.insert(part.positions.end(), world_positions.begin(), world_positions.end());
-  part.normals.insert(part.normals.end(), world_normals.begin(), world_normals.end());
-  // No reserve(size + n) here: with many instances of one mesh that would
-  // reallocate (and copy) the whole index array once per instance, which
-  // made 10,000 node instances take minutes. insert grows geometrically.
-  const std::size_t first = part.indices.size();
-  part.indices.insert(part.indices.end(), triangles.begin(), triangles.end());
-  for (std::size_t k = first; k < part.indices.size(); ++k) part.indices[k] += base;
+  out.parts[found.first->second].append(world_positions, world_normals, triangles);
 }
 
 // --- Animation: the rig (core/model_rig.hpp) --------------------------------
@@ -977,13 +969,8 @@ void Loader::finish_rig(const TriangleModel& model) {
   for (std::size_t n = 0; n < node_count; ++n) {
     const tinygltf::Node& node = gltf_.nodes[n];
     RigNode& r = rig.nodes[n];
-    local_matrix(n);  // refuses what is not a transform
-    if (!node.matrix.empty()) {
-      glm::dmat4 m;
-      for (int c = 0; c < 4; ++c)
-        for (int row = 0; row < 4; ++row) m[c][row] = node.matrix[std::size_t(c * 4 + row)];
-      r.matrix = m;
-    }
+    const glm::dmat4 local = local_matrix(n);  // refuses what is not a transform
+    if (!node.matrix.empty()) r.matrix = local;
     if (!node.translation.empty()) r.translation = {node.translation[0], node.translation[1], node.translation[2]};
     if (!node.rotation.empty())
       r.rotation = glm::normalize(glm::dquat(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]));
@@ -1035,9 +1022,7 @@ void Loader::finish_rig(const TriangleModel& model) {
       if (m.size() < skin.joints.size() * 16)
         refuse(400, where + ".inverseBindMatrices: " + std::to_string(m.size() / 16) + " matrices for " +
                         std::to_string(skin.joints.size()) + " joints");
-      for (std::size_t k = 0; k < skin.joints.size(); ++k)
-        for (int c = 0; c < 4; ++c)
-          for (int row = 0; row < 4; ++row) r.inverse_bind[k][c][row] = m[k * 16 + std::size_t(c * 4 + row)];
+      for (std::size_t k = 0; k < skin.joints.size(); ++k) r.inverse_bind[k] = glm::dmat4(glm::make_mat4(&m[k * 16]));
     }
     rig.skins.push_back(std::move(r));
   }

@@ -180,8 +180,7 @@ void PoseCache::pose_scene(Scene& scene, double time, const std::function<bool()
     // The posed model, placed, must stay where float precision holds, as
     // the parser asks of its rest pose.
     const Aabb bounds = mesh_bounds(o);
-    const glm::dvec3 far_corner = glm::max(glm::abs(bounds.min), glm::abs(bounds.max));
-    const double reach = std::max({far_corner.x, far_corner.y, far_corner.z});
+    const double reach = bounds.reach();
     if (!bounds.empty() && reach > kMaxPosedCoordinate) {
       forget(o.model);
       throw PoseRefused(422,

@@ -26,6 +26,10 @@ struct ModelPart {
   glm::vec3 base_color{1.0f};           ///< linear RGB in [0, 1] (baseColorFactor)
 
   std::size_t triangle_count() const { return indices.size() / 3; }
+  /// Adds a primitive's vertices and its triangles (indices into those
+  /// vertices), moved past the vertices the part holds already.
+  void append(const std::vector<glm::vec3>& more_positions, const std::vector<glm::vec3>& more_normals,
+              const std::vector<std::uint32_t>& more_indices);
 };
 
 /// Triangles whose longest edge is about one length (within a factor of 2):

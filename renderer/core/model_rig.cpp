@@ -244,13 +244,7 @@ TriangleModel pose(const ModelRig& rig, const RigAnimation* anim, double t, cons
       if (!finite(p)) throw std::domain_error("a posed position is not finite (too large for 32-bit floats)");
     if (!normals_ok) out_normals = area_weighted_normals(out_positions, indices);
 
-    ModelPart& part = model.parts.at(prim.part);
-    const std::uint32_t base = std::uint32_t(part.positions.size());
-    part.positions.insert(part.positions.end(), out_positions.begin(), out_positions.end());
-    part.normals.insert(part.normals.end(), out_normals.begin(), out_normals.end());
-    const std::size_t first = part.indices.size();
-    part.indices.insert(part.indices.end(), indices.begin(), indices.end());
-    for (std::size_t k = first; k < part.indices.size(); ++k) part.indices[k] += base;
+    model.parts.at(prim.part).append(out_positions, out_normals, indices);
   }
   finish_model(model);
   return model;

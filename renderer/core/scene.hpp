@@ -2,11 +2,13 @@
 // Pure CPU code, no GL: unit tested directly.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include <glm/common.hpp>
 #include <glm/vec3.hpp>
 
 #include "core/request.hpp"
@@ -23,6 +25,12 @@ struct Aabb {
   void extend(const Aabb& other);
   glm::dvec3 center() const { return 0.5 * (min + max); }
   glm::dvec3 extent() const { return max - min; }
+  /// The largest |coordinate| of its corners: how far from the origin it
+  /// reaches along any axis.
+  double reach() const {
+    const glm::dvec3 far = glm::max(glm::abs(min), glm::abs(max));
+    return std::max({far.x, far.y, far.z});
+  }
   /// The 8 corners (for an empty box, unspecified).
   std::vector<glm::dvec3> corners() const;
 };
