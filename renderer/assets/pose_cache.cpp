@@ -41,6 +41,21 @@ std::uint64_t pose_bytes(const TriangleModel& model) { return model.bytes() - mo
 
 }  // namespace
 
+std::shared_ptr<const TriangleModel> PoseCache::held_locked(const std::string& key,
+                                                            const std::shared_ptr<const TriangleModel>& model) {
+  const auto found_at = index_.find(key);
+  if (found_at == index_.end()) return nullptr;
+  const auto it = found_at->second;
+  std::shared_ptr<const TriangleModel> found = it->kept ? it->kept : it->drawn.lock();
+  if (!found || it->source.lock() != model) {
+    erase(it);  // its pose is gone, or its model is another at the same address
+    return nullptr;
+  }
+  it->kept = found;
+  entries_.splice(entries_.begin(), entries_, it);
+  return found;
+}
+
 void PoseCache::erase(std::list<Entry>::iterator it) {
   index_.erase(it->key);
   entries_.erase(it);
@@ -79,17 +94,7 @@ std::shared_ptr<const TriangleModel> PoseCache::posed(const std::shared_ptr<cons
   const std::uint64_t estimate = pose_bytes(*model);
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    const auto found_at = index_.find(key);
-    if (found_at != index_.end()) {
-      const auto it = found_at->second;
-      std::shared_ptr<const TriangleModel> found = it->kept ? it->kept : it->drawn.lock();
-      if (found && it->source.lock() == model) {
-        it->kept = found;
-        entries_.splice(entries_.begin(), entries_, it);
-        return found;
-      }
-      erase(it);  // its pose is gone, or its model is another at the same address
-    }
+    if (auto found = held_locked(key, model)) return found;
     if (estimate > max_bytes_)
       throw PoseRefused(422, "posed, the model would hold about " + mib(estimate) + ", more than the " + mib(max_bytes_) +
                                  " this server gives poses");
@@ -132,8 +137,9 @@ std::shared_ptr<const TriangleModel> PoseCache::posed(const std::shared_ptr<cons
   }
   made->skipped_primitives = model->skipped_primitives;
   std::lock_guard<std::mutex> lock(mutex_);
-  const auto again = index_.find(key);  // made meanwhile by another request too
-  if (again != index_.end()) erase(again->second);
+  // Made meanwhile by another request too: that one is shared (its entry
+  // stays, so the pose it draws stays counted); this copy goes.
+  if (auto found = held_locked(key, model)) return found;
   // The pose, and its record here (the entry, its key, the index's node).
   const std::uint64_t bytes = made->bytes() + sizeof(Entry) + 2 * key.capacity() + 64;
   entries_.push_front(Entry{key, model, made, made, bytes});

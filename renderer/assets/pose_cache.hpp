@@ -79,6 +79,10 @@ class PoseCache {
   /// tiny model makes a pose each step; the bound keeps each call's scan
   /// short and the records' own memory (counted in their bytes) small.
   static constexpr std::size_t kMaxEntries = 4096;
+  /// The pose held under `key` for `model`, kept for reuse and made the
+  /// most recently used; null (a stale entry erased) if none.
+  std::shared_ptr<const TriangleModel> held_locked(const std::string& key,
+                                                   const std::shared_ptr<const TriangleModel>& model);
   /// Erases `it` from the list and the index.
   void erase(std::list<Entry>::iterator it);
 
