@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
@@ -14,8 +16,24 @@
 namespace umbra {
 
 glm::dvec3 rotate_y(const glm::dvec3& v, double degrees) {
-  const double a = glm::radians(degrees);
-  const double c = std::cos(a), s = std::sin(a);
+  // The ray casts turn each ray into every turned box's frame it meets:
+  // the scene's few angles, millions of times, where sin and cos were a
+  // third of a sun-hours walk. Each thread keeps the last angles' values
+  // (by their bits, so -0 and 0 stay apart): the same numbers, computed
+  // once.
+  struct Turn {
+    std::uint64_t bits = ~std::uint64_t(0);  // no double's bits are a NaN's all ones
+    double c = 0.0, s = 0.0;
+  };
+  thread_local Turn turns[64];
+  std::uint64_t bits;
+  std::memcpy(&bits, &degrees, sizeof bits);
+  Turn& turn = turns[(bits * 0x9E3779B97F4A7C15ull) >> 58];
+  if (turn.bits != bits) {
+    const double a = glm::radians(degrees);
+    turn = {bits, std::cos(a), std::sin(a)};
+  }
+  const double c = turn.c, s = turn.s;
   return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
 }
 

@@ -4,7 +4,9 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "core/shapes/shape.hpp"
@@ -78,54 +80,78 @@ Aabb reachable_bounds(const Aabb& bounds, double plane_y, double reach) {
   return grown;
 }
 
-void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
-                     int last_row, const std::function<void(int, int, int)>& row_span, int row_step) {
-  if (bounds.empty() || !(direction.y > 0.0)) return;
-  // Each corner slides down the sun's direction to the plane: the points
-  // whose rays pass through it. The bounds are convex, so the footprint is
-  // the hull of the eight.
-  Point2 corners[8], hull[9];
-  int n = 0;
-  // The largest magnitude any step below works with: a corner's
-  // coordinates, its slide, the grid's origin.
-  double extent = std::max({1.0, std::abs(grid.origin().x), std::abs(grid.origin().z)});
-  for (int i = 0; i < 8; ++i) {
-    const glm::dvec3 c{i & 1 ? bounds.max.x : bounds.min.x, i & 2 ? bounds.max.y : bounds.min.y,
-                       i & 4 ? bounds.max.z : bounds.min.z};
-    const double t = (c.y - grid.center.y) / direction.y;
-    corners[n++] = {c.x - t * direction.x, c.z - t * direction.z};
-    extent = std::max({extent, std::abs(c.x), std::abs(c.z), std::abs(t * direction.x), std::abs(t * direction.z)});
+namespace {
+
+constexpr int kMaxShadowPoints = 128;
+// A footprint of fewer cells than this is walked with a proof per point:
+// its core's hull (up to a hundred points sorted) would cost more.
+constexpr double kCoreCells = 64.0;
+// A core's shadow narrower than this (cells per row, on average) spares
+// fewer proofs than its rows' crossings cost (a pole thinner than a cell).
+constexpr double kCoreCellsPerRow = 4.0;
+
+// The shadow on the grid's plane of the convex hull of some points: each
+// point slid down the sun's direction to the plane, and the hull of those.
+// Rows and columns are found as SunGrid::point places them (origin + index
+// x spacing), with a slack far above every step's rounding.
+class PlaneShadow {
+ public:
+  // n <= kMaxShadowPoints; direction.y > 0.
+  PlaneShadow(const glm::dvec3* points, int n, const glm::dvec3& direction, const SunGrid& grid)
+      : origin_(grid.origin()), spacing_(grid.spacing), columns_(grid.columns) {
+    Point2 slid[kMaxShadowPoints];
+    // The largest magnitude any step below works with: a point's
+    // coordinates, its slide, the grid's origin.
+    extent_ = std::max({1.0, std::abs(origin_.x), std::abs(origin_.z)});
+    for (int i = 0; i < n; ++i) {
+      const glm::dvec3& c = points[i];
+      const double t = (c.y - grid.center.y) / direction.y;
+      slid[i] = {c.x - t * direction.x, c.z - t * direction.z};
+      extent_ = std::max({extent_, std::abs(c.x), std::abs(c.z), std::abs(t * direction.x), std::abs(t * direction.z)});
+    }
+    m_ = convex_hull(slid, n, hull_);
+    for (int i = 0; i < m_; ++i) {
+      const Point2& a = hull_[i];
+      const Point2& b = hull_[(i + 1) % m_];
+      length_[i] = std::hypot(b.x - a.x, b.z - a.z);
+    }
+    z_low_ = z_high_ = hull_[0].z;
+    for (int i = 1; i < m_; ++i) z_low_ = std::min(z_low_, hull_[i].z), z_high_ = std::max(z_high_, hull_[i].z);
+    // Every point within `slack` of the hull is taken by the outer spans
+    // and every point taken by the inner spans lies that far inside: each
+    // step's rounding (a point's slide, a row's crossing, a grid point's
+    // own coordinates) is a few 1e-16 of `extent`, a millionth of the slack.
+    // (One spare cell each side stood for it before: beside poles thinner
+    // than a cell it was most of the footprint, every pair of it a ray cast.)
+    slack_ = 1e-9 * extent_;
   }
-  const int m = convex_hull(corners, n, hull);
-  double z_low = hull[0].z, z_high = hull[0].z;
-  for (int i = 1; i < m; ++i) z_low = std::min(z_low, hull[i].z), z_high = std::max(z_high, hull[i].z);
-  const glm::dvec3 origin = grid.origin();
-  const double s = grid.spacing;
-  // Every point within `slack` of the hull is taken: each step's rounding
-  // (a corner's slide, a row's crossing, a point's own coordinates) is a
-  // few 1e-16 of `extent`, a millionth of the slack. (One spare cell each
-  // side stood for it before: beside poles thinner than a cell it was most
-  // of the footprint, every pair of it a ray cast.)
-  const double slack = 1e-9 * extent;
-  const double row_low = std::ceil((z_low - slack - origin.z) / s),
-               row_high = std::floor((z_high + slack - origin.z) / s);
-  // Clamped in double before any int: a footprint far from a fine grid
-  // lies billions of rows away.
-  const double rows_from = std::max<double>(first_row, row_low), rows_to = std::min<double>(last_row - 1, row_high);
-  if (!(rows_from <= rows_to)) return;
-  const int r1 = int(rows_to);
-  const int r0 = int(std::ceil(rows_from / row_step)) * row_step;
-  for (int r = r0; r <= r1; r += row_step) {
+
+  // Grid rows [first, last] that the shadow, grown by the slack, may cross;
+  // false if none of [first_row, last_row).
+  bool rows(int first_row, int last_row, int row_step, int& first, int& last) const {
+    const double row_low = std::ceil((z_low_ - slack_ - origin_.z) / spacing_),
+                 row_high = std::floor((z_high_ + slack_ - origin_.z) / spacing_);
+    // Clamped in double before any int: a footprint far from a fine grid
+    // lies billions of rows away.
+    const double from = std::max<double>(first_row, row_low), to = std::min<double>(last_row - 1, row_high);
+    if (!(from <= to)) return false;
+    last = int(to);
+    first = int(std::ceil(from / row_step)) * row_step;
+    return first <= last;
+  }
+
+  // The columns of row r within the slack of the shadow.
+  bool outer_columns(int r, int& c0, int& c1) const {
     // The hull within the band of z a slack either side of the row: each
     // edge that reaches into it, from where it enters the band to where it
     // leaves (or ends). An edge nearly along the row is taken over the
     // band's width, which its crossing's rounding (large for such an edge)
     // stays well inside; any other edge's is far below the slack.
-    const double z = origin.z + r * s, band_low = z - slack, band_high = z + slack;
+    const double z = row_z(r), band_low = z - slack_, band_high = z + slack_;
     double x_low = 1e300, x_high = -1e300;
-    for (int i = 0; i < m; ++i) {
-      const Point2& a = hull[i];
-      const Point2& b = hull[(i + 1) % m];
+    for (int i = 0; i < m_; ++i) {
+      const Point2& a = hull_[i];
+      const Point2& b = hull_[(i + 1) % m_];
       const double edge_low = std::min(a.z, b.z), edge_high = std::max(a.z, b.z);
       if (edge_high < band_low || edge_low > band_high) continue;
       for (const double at : {std::max(band_low, edge_low), std::min(band_high, edge_high)}) {
@@ -135,12 +161,127 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
       }
       if (a.z == b.z) x_low = std::min(x_low, b.x), x_high = std::max(x_high, b.x);
     }
-    if (m == 1) x_low = x_high = hull[0].x;
-    if (x_low > x_high) continue;
-    const double c0 = std::max(0.0, std::ceil((x_low - slack - origin.x) / s));
-    const double c1 = std::min(double(grid.columns - 1), std::floor((x_high + slack - origin.x) / s));
-    if (c0 <= c1) row_span(r, int(c0), int(c1));
+    if (m_ == 1) x_low = x_high = hull_[0].x;
+    if (x_low > x_high) return false;
+    const double first = std::max(0.0, std::ceil((x_low - slack_ - origin_.x) / spacing_));
+    const double last = std::min(double(columns_ - 1), std::floor((x_high + slack_ - origin_.x) / spacing_));
+    if (!(first <= last)) return false;
+    c0 = int(first), c1 = int(last);
+    return true;
   }
+
+  // The columns of row r whose points lie inside the shadow by the slack:
+  // a guess from the edges' crossings, kept only where its two end points
+  // pass the inside test (the points between, on the segment joining them,
+  // then lie inside too: the shadow is convex).
+  bool inner_columns(int r, int& c0, int& c1) const {
+    if (m_ < 3) return false;
+    const double z = row_z(r);
+    double low_a, high_a, low_b, high_b;
+    if (!crossing(z - slack_, low_a, high_a) || !crossing(z + slack_, low_b, high_b)) return false;
+    const double x_low = std::max(low_a, low_b) + slack_, x_high = std::min(high_a, high_b) - slack_;
+    const double first = std::max(0.0, std::ceil((x_low - origin_.x) / spacing_));
+    const double last = std::min(double(columns_ - 1), std::floor((x_high - origin_.x) / spacing_));
+    if (!(first <= last)) return false;
+    c0 = int(first), c1 = int(last);
+    return inside({origin_.x + c0 * spacing_, z}) && inside({origin_.x + c1 * spacing_, z});
+  }
+
+  // Grid cells the shadow covers (its area in cells), and per row it
+  // crosses: what its inner spans could spare against what they cost.
+  double cells() const {
+    double twice_area = 0.0;
+    for (int i = 0; i < m_; ++i) {
+      const Point2& a = hull_[i];
+      const Point2& b = hull_[(i + 1) % m_];
+      twice_area += a.x * b.z - b.x * a.z;
+    }
+    return 0.5 * std::abs(twice_area) / (spacing_ * spacing_);
+  }
+  double cells_per_row() const { return cells() / ((z_high_ - z_low_) / spacing_ + 1.0); }
+
+ private:
+  double row_z(int r) const { return origin_.z + r * spacing_; }
+
+  // Where the line at height z crosses the hull (a guess: its rounding is
+  // checked by `inside`).
+  bool crossing(double z, double& x_low, double& x_high) const {
+    if (z < z_low_ || z > z_high_) return false;
+    x_low = 1e300, x_high = -1e300;
+    for (int i = 0; i < m_; ++i) {
+      const Point2& a = hull_[i];
+      const Point2& b = hull_[(i + 1) % m_];
+      if (z < std::min(a.z, b.z) || z > std::max(a.z, b.z)) continue;
+      const double f = a.z == b.z ? 0.0 : std::clamp((z - a.z) / (b.z - a.z), 0.0, 1.0);
+      const double x = a.x + f * (b.x - a.x);
+      x_low = std::min(x_low, x);
+      x_high = std::max(x_high, x);
+    }
+    return x_low <= x_high;
+  }
+
+  // Whether p lies to the left of every edge of the (counter-clockwise)
+  // hull by more than the slack. The cross product's rounding is at most
+  // a few tens of ulps of extent^2; 64 of them are added to the bar.
+  bool inside(const Point2& p) const {
+    const double rounding = 64.0 * 2.2e-16 * extent_ * extent_;
+    for (int i = 0; i < m_; ++i) {
+      const Point2& a = hull_[i];
+      const Point2& b = hull_[(i + 1) % m_];
+      if (!(cross(a, b, p) > slack_ * length_[i] + rounding)) return false;
+    }
+    return true;
+  }
+
+  glm::dvec3 origin_;
+  double spacing_;
+  int columns_;
+  Point2 hull_[kMaxShadowPoints + 1];
+  double length_[kMaxShadowPoints + 1];  // of edge i (hull_[i] to the next)
+  int m_ = 0;
+  double z_low_ = 0.0, z_high_ = 0.0, extent_ = 1.0, slack_ = 0.0;
+};
+
+void bounds_corners(const Aabb& bounds, glm::dvec3* corners) {
+  for (int i = 0; i < 8; ++i)
+    corners[i] = {i & 1 ? bounds.max.x : bounds.min.x, i & 2 ? bounds.max.y : bounds.min.y,
+                  i & 4 ? bounds.max.z : bounds.min.z};
+}
+
+}  // namespace
+
+void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
+                     int last_row, const std::function<void(int, int, int)>& row_span, int row_step) {
+  if (bounds.empty() || !(direction.y > 0.0)) return;
+  // Each corner slides down the sun's direction to the plane: the points
+  // whose rays pass through it. The bounds are convex, so the footprint is
+  // the hull of the eight.
+  glm::dvec3 corners[8];
+  bounds_corners(bounds, corners);
+  const PlaneShadow shadow(corners, 8, direction, grid);
+  int r0, r1, c0, c1;
+  if (!shadow.rows(first_row, last_row, row_step, r0, r1)) return;
+  for (int r = r0; r <= r1; r += row_step)
+    if (shadow.outer_columns(r, c0, c1)) row_span(r, c0, c1);
+}
+
+SolidCore solid_core(const SceneObject& object, double plane_y, double margin) {
+  SolidCore core;
+  const ShapeKind& kind = shape_kind(object.type);
+  if (!kind.points_inside || !kind.surely_meets) return core;
+  core.points = kind.points_inside(object, margin, plane_y + margin, std::numeric_limits<double>::infinity());
+  if (core.points.size() < 4 || core.points.size() > std::size_t(kMaxShadowPoints)) core.points.clear();
+  return core;
+}
+
+void core_spans(const SolidCore& core, const glm::dvec3& direction, const SunGrid& grid, int first_row, int last_row,
+                const std::function<void(int, int, int)>& row_span) {
+  if (core.points.empty() || !(direction.y > 0.0)) return;
+  const PlaneShadow shadow(core.points.data(), int(core.points.size()), direction, grid);
+  int r0, r1, c0, c1;
+  if (!shadow.rows(first_row, last_row, 1, r0, r1)) return;
+  for (int r = r0; r <= r1; ++r)
+    if (shadow.inner_columns(r, c0, c1)) row_span(r, c0, c1);
 }
 
 FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions) {
@@ -152,12 +293,15 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
     const SceneObject* object;
     const ShapeKind* kind;
     double margin;
+    SolidCore core;
   };
   std::vector<Object> reachable;
   for (const SceneObject& o : scene.objects) {
     const Aabb exact = object_bounds(o);
     const Aabb b = reachable_bounds(exact, grid.center.y, reach);
-    if (!b.empty()) reachable.push_back({b, &o, &shape_kind(o.type), rounding_margin(exact, reach)});
+    if (b.empty()) continue;
+    const double margin = rounding_margin(exact, reach);
+    reachable.push_back({b, &o, &shape_kind(o.type), margin, solid_core(o, grid.center.y, margin)});
   }
   // A lattice of at most about 128 x 128 of the grid's points (every
   // stride-th row and column), judged as footprint_sun_hours judges them:
@@ -203,37 +347,51 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   std::size_t judged_directions = 0;
   for (std::size_t n = 0; n < order.size() && work < kMaxWork; ++n, ++judged_directions) {
     const glm::dvec3& d = directions[order[n]];
-    for (const Object& o : reachable)
-      footprint_spans(
-          o.bounds, d, grid, 0, grid.rows,
-          [&](int r, int c0, int c1) {
-            for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
-              const std::size_t i = cell(r, c);
-              visits += 1.0;
-              work += 1.0;
-              if (depth[i] == 0) touched.push_back(i);
-              if (depth[i] < 65535) ++depth[i];
-              if (inside[i]) continue;
-              const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
-              // At most a few proofs a point: a thousand identical boxes
-              // that none proves would be a thousand.
-              const bool ask = !dark[i] && o.kind->surely_meets && proofs[i] < 4;
-              proofs[i] += ask ? 1 : 0;
-              work += ask ? kWorkPerProof : 0.0;
-              const bool sure = ask && o.kind->surely_meets(*o.object, p, d, o.margin);
-              dark[i] |= sure;
-              // As footprint_sun_hours: the first footprint holding the
-              // point judges it, and the query settles what it cannot.
-              if (seen[i] == int(n)) continue;
-              seen[i] = int(n);
-              candidates += 1.0;
-              if (!sure) {
-                queried += 1.0;
-                left[i] = 1;
-              }
-            }
-          },
-          stride);
+    for (const Object& o : reachable) {
+      glm::dvec3 corners[8];
+      bounds_corners(o.bounds, corners);
+      if (!(d.y > 0.0)) continue;
+      const PlaneShadow footprint(corners, 8, d, grid);
+      int first_row, last_row, c0, c1;
+      if (!footprint.rows(0, grid.rows, stride, first_row, last_row)) continue;
+      // As footprint_sun_hours: the core's shadow where it pays.
+      std::optional<PlaneShadow> core;
+      if (!o.core.points.empty() && footprint.cells() >= kCoreCells) {
+        core.emplace(o.core.points.data(), int(o.core.points.size()), d, grid);
+        if (core->cells_per_row() < kCoreCellsPerRow) core.reset();
+      }
+      for (int r = first_row; r <= last_row; r += stride) {
+        if (!footprint.outer_columns(r, c0, c1)) continue;
+        int core0 = 1, core1 = 0;
+        if (core && !core->inner_columns(r, core0, core1)) core0 = 1, core1 = 0;
+        for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
+          const std::size_t i = cell(r, c);
+          visits += 1.0;
+          work += 1.0;
+          if (depth[i] == 0) touched.push_back(i);
+          if (depth[i] < 65535) ++depth[i];
+          if (inside[i]) continue;
+          const bool in_core = c >= core0 && c <= core1;
+          const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
+          // At most a few proofs a point: a thousand identical boxes
+          // that none proves would be a thousand.
+          const bool ask = !in_core && !dark[i] && o.kind->surely_meets && proofs[i] < 4;
+          proofs[i] += ask ? 1 : 0;
+          work += ask ? kWorkPerProof : 0.0;
+          const bool sure = in_core || (ask && o.kind->surely_meets(*o.object, p, d, o.margin));
+          dark[i] |= sure;
+          // As footprint_sun_hours: the first footprint holding the
+          // point judges it, and the query settles what it cannot.
+          if (seen[i] == int(n)) continue;
+          seen[i] = int(n);
+          candidates += in_core ? 0.0 : 1.0;
+          if (!sure) {
+            queried += 1.0;
+            left[i] = 1;
+          }
+        }
+      }
+    }
     // The objects a ray is tested against besides the tree's levels and
     // the one the cost model prices every ray with: none where some object
     // surely meets it (its first hit ends a shadow ray), else every other
@@ -269,17 +427,22 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   // Each object that a ray from the plane can reach: its footprint's
   // bounds, and the proof of a hit its kind offers (ShapeKind::surely_meets).
   struct Reachable {
-    Aabb bounds;
+    glm::dvec3 corners[8];  // of its reachable bounds
     const SceneObject* object;
     bool (*surely_meets)(const SceneObject&, const glm::dvec3&, const glm::dvec3&, double);
     double margin;
+    SolidCore core;
   };
   const double reach = grid_reach(grid);
   std::vector<Reachable> reachable;
   for (const SceneObject& o : scene.objects) {
     const Aabb exact = object_bounds(o);
     const Aabb b = reachable_bounds(exact, grid.center.y, reach);
-    if (!b.empty()) reachable.push_back({b, &o, shape_kind(o.type).surely_meets, rounding_margin(exact, reach)});
+    if (b.empty()) continue;
+    Reachable r{{}, &o, shape_kind(o.type).surely_meets, rounding_margin(exact, reach), {}};
+    bounds_corners(b, r.corners);
+    r.core = solid_core(o, grid.center.y, r.margin);
+    reachable.push_back(std::move(r));
   }
 
   // Points inside a closed convex solid (a box's, a sphere's) by twice
@@ -322,27 +485,47 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
       for (std::size_t k = stretch.first; k < stretch.end; ++k) {
         if (poll.ask()) return;
         const glm::dvec3& d = samples[k].direction;
+        if (!(d.y > 0.0)) continue;  // no footprint reaches the plane
         for (const Reachable& object : reachable) {
           // Asked within a sample too: one sample of a fine grid under a
           // thousand overlapping objects is minutes of work.
           if (poll.stopped()) return;
-          footprint_spans(object.bounds, d, grid, r0, r1, [&](int r, int c0, int c1) {
+          const PlaneShadow footprint(object.corners, 8, d, grid);
+          int first_row, last_row, c0, c1;
+          if (!footprint.rows(r0, r1, 1, first_row, last_row)) continue;
+          // The core's shadow only where it can spare more proofs than its
+          // hull costs.
+          std::optional<PlaneShadow> core;
+          if (!object.core.points.empty() && footprint.cells() >= kCoreCells) {
+            core.emplace(object.core.points.data(), int(object.core.points.size()), d, grid);
+            if (core->cells_per_row() < kCoreCellsPerRow) core.reset();
+          }
+          for (int r = first_row; r <= last_row; ++r) {
+            if (!footprint.outer_columns(r, c0, c1)) continue;
             if (poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
+            // Columns [core0, core1]: rays through the core, surely dark.
+            int core0 = 1, core1 = 0;
+            if (core && !core->inner_columns(r, core0, core1)) core0 = 1, core1 = 0;
             for (int c = c0; c <= c1; ++c) {
               const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
               if (inside[i] || tested[i] == std::int64_t(k)) continue;
               tested[i] = std::int64_t(k);
               // Dark for certain when the ray passes well inside the object
               // whose footprint holds the point: the pure ray cast's query
-              // would find that hit (ShapeKind::surely_meets). Else the
-              // query itself settles it.
-              const glm::dvec3 p = grid.point(i);
-              const bool surely_dark = object.surely_meets && object.surely_meets(*object.object, p, d, object.margin);
-              if (!surely_dark) {
-                ++casts;
-                const bool lit = sees_sun(rays, p, d);
-                if (poll.after(since, 16)) return;  // a query weighs about as much as 16 visits
-                if (lit) continue;
+              // would find that hit (ShapeKind::surely_meets; in the core's
+              // shadow, proved for the row at once). Else the query itself
+              // settles it.
+              const bool in_core = c >= core0 && c <= core1;
+              if (!in_core) {
+                const glm::dvec3 p = grid.point(i);
+                const bool surely_dark =
+                    object.surely_meets && object.surely_meets(*object.object, p, d, object.margin);
+                if (!surely_dark) {
+                  ++casts;
+                  const bool lit = sees_sun(rays, p, d);
+                  if (poll.after(since, 16)) return;  // a query weighs about as much as 16 visits
+                  if (lit) continue;
+                }
               }
               // Dark: the run since its last dark sample in this stretch
               // (or the stretch's start) ends here.
@@ -353,7 +536,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
               dark_stretch[i] = std::int64_t(j);
               ++t.run;  // the dark count, for now
             }
-          });
+          }
         }
         if (pairs_done) pairs_done->fetch_add(std::uint64_t(r1 - r0) * std::uint64_t(grid.columns));
       }

@@ -7,8 +7,10 @@
 // cast's at every point and sample, by construction (docs/sun-hours.md).
 //
 // Inside a footprint, a ray that passes well inside the object is dark for
-// certain (ShapeKind::surely_meets: boxes and spheres), so the query is
-// skipped: the pure ray cast's query would meet that object.
+// certain (ShapeKind::surely_meets: boxes, spheres and cylinders), so the
+// query is skipped: the pure ray cast's query would meet that object. Where
+// a footprint is large, the shadow of the solid's core (SolidCore) proves a
+// whole stretch of each row dark at once.
 //
 // Time is tallied by events: only a point's dark samples touch it, plus
 // one pass over the grid per stretch of daylight, so that a grid mostly
@@ -45,6 +47,24 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
                      int last_row, const std::function<void(int row, int first_column, int last_column)>& row_span,
                      int row_step = 1);
 
+/// The part of a solid a ray from the grid's plane surely meets: points
+/// whose hull lies inside the object shrunk by `margin` and above the plane
+/// by `margin` (ShapeKind::points_inside). A ray from the plane whose line
+/// passes through that hull meets it past t = margin, so surely_meets holds
+/// for it. Empty for a kind without a proof of dark (a model, a plane).
+struct SolidCore {
+  std::vector<glm::dvec3> points;
+};
+SolidCore solid_core(const SceneObject& object, double plane_y, double margin);
+
+/// Calls row_span(row, first_column, last_column) for each grid row of
+/// [first_row, last_row) with the columns whose points lie inside the
+/// core's shadow along the unit sun direction by a slack far above the
+/// rounding: every such point's ray surely meets the object (the walk
+/// settles them dark without a proof each).
+void core_spans(const SolidCore& core, const glm::dvec3& direction, const SunGrid& grid, int first_row,
+                int last_row, const std::function<void(int row, int first_column, int last_column)>& row_span);
+
 /// What the footprints path would meet, per (point, sample) pair, averaged
 /// over `directions` (each with y > 0), judged on a lattice of at most
 /// about 128 x 128 of the grid's points: what the cost model prices the
@@ -52,8 +72,8 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
 struct FootprintShares {
   /// Left to the query: inside a footprint and not surely dark.
   double queried = 0.0;
-  /// Inside any footprint and not inside a solid: each judged for a proof
-  /// of dark.
+  /// Inside any footprint, not inside a solid and not in a core's shadow
+  /// (SolidCore): each judged for a proof of dark.
   double candidates = 0.0;
   /// Footprints holding a pair, on average over all pairs: the footprints
   /// path's visits.
