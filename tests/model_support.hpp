@@ -43,6 +43,27 @@ inline std::shared_ptr<const TriangleModel> box_model(const glm::vec3& half, boo
   return model;
 }
 
+/// A block of `n` x `n` closed boxes in one model, as a city's buildings
+/// come in one file: box (i, j) stands on y = 0 at x = i * pitch, z = j *
+/// pitch, `width` wide and 2 + (3 i + 5 j) % 7 tall.
+inline std::shared_ptr<const TriangleModel> city_model(int n, float pitch, float width) {
+  ModelPart part;
+  const auto one = box_model({0.5f, 0.5f, 0.5f});
+  const ModelPart& cube = one->parts[0];
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const glm::vec3 size(width, float(2 + (3 * i + 5 * j) % 7), width);
+      const glm::vec3 at(float(i) * pitch, size.y / 2, float(j) * pitch);
+      std::vector<glm::vec3> positions;
+      for (const glm::vec3& p : cube.positions) positions.push_back(at + p * size);
+      part.append(positions, cube.normals, cube.indices);
+    }
+  auto model = std::make_shared<TriangleModel>();
+  model->parts.push_back(std::move(part));
+  finish_model(*model);
+  return model;
+}
+
 /// A horizontal square of edge `size` facing +Y: two triangles, open.
 inline std::shared_ptr<const TriangleModel> quad_model(float size) {
   const float h = size / 2;

@@ -814,6 +814,14 @@ TEST(Http, SunHoursRefusesBadInputNamingTheFieldOrTheCost) {
   auto res = client().Post("/api/sun-hours", body.dump(), "application/json");
   expect_json_error(res, 422, "grid.spacing");
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2.0);
+  // The roof's core proves every pair dark without a ray: what costs is
+  // the footprints' walk over four million points a sample.
+  EXPECT_NE(json::parse(res->body)["error"].get<std::string>().find("sun-hours footprints"), std::string::npos)
+      << res->body;
+  // A roof that is a plane has no core: every pair under it is a ray.
+  body["scene"] = json::parse(R"({"objects": [{"type": "plane", "center": [0, 5, 0], "size": [3000, 3000]}]})");
+  res = client().Post("/api/sun-hours", body.dump(), "application/json");
+  expect_json_error(res, 422, "grid.spacing");
   EXPECT_NE(json::parse(res->body)["error"].get<std::string>().find("sun-hours rays"), std::string::npos) << res->body;
 }
 

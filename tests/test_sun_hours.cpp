@@ -4,6 +4,7 @@
 // shadow length against the sun's elevation) and PyEphem's sun-up time.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -14,6 +15,10 @@
 #include <nlohmann/json.hpp>
 
 #include "core/light_math.hpp"
+#include "core/mesh_instance.hpp"
+#include "core/model.hpp"
+#include "core/shell_cores.hpp"
+#include "core/builtin_models.hpp"
 #include "core/shapes/shape.hpp"
 #include "core/sun_hours.hpp"
 #include "reference/ray_cast.hpp"
@@ -22,6 +27,7 @@
 #include "service/request_cost.hpp"
 #include "sun_hours_answer.hpp"
 #include "sun_hours_parser.hpp"
+#include "model_support.hpp"
 
 namespace umbra {
 namespace {
@@ -630,7 +636,9 @@ TEST(SunHoursFootprints, TheCoresShadowIsASureHitForEveryPointItTakes) {
     }
     const ShapeKind& kind = shape_kind(o.type);
     const double margin = 1e-5 * (1.0 + std::abs(far) + grid.size_x);
-    const SolidCore core = solid_core(o, grid.center.y, margin);
+    const std::vector<SolidCore> cores = solid_cores(o, grid.center.y, margin);
+    ASSERT_LE(cores.size(), 1u);
+    const SolidCore core = cores.empty() ? SolidCore{} : cores[0];
     const double elevation = glm::radians(uniform(1, 89)), azimuth = uniform(0, 2 * 3.14159265358979);
     const glm::dvec3 d{std::cos(elevation) * std::sin(azimuth), std::sin(elevation), std::cos(elevation) * std::cos(azimuth)};
     std::vector<std::uint8_t> in_core(grid.points(), 0);
@@ -651,6 +659,150 @@ TEST(SunHoursFootprints, TheCoresShadowIsASureHitForEveryPointItTakes) {
   }
   EXPECT_GT(taken, 100000u);
   EXPECT_GT(double(box_taken), 0.95 * double(box_sure));
+}
+
+// A mesh's footprints are drawn from clusters of its triangles: every
+// triangle lies inside one cluster's box, there are at most as many as
+// asked, and two buildings far apart in one model leave the street
+// between them out.
+TEST(SunHoursFootprints, AMeshsClustersHoldEveryTriangleAndLeaveTheGaps) {
+  SceneObject city;
+  city.type = SceneObject::Type::Mesh;
+  city.model = test::city_model(5, 12.0f, 6.0f);
+  city.model_id = "city";
+  city.center = {-20, 0, 7};
+  city.rotation_deg = {0, 33, 0};
+  city.mesh_scale = glm::dvec3(1.5);
+  // 25 shells (buildings) of 12 triangles: at most `most` boxes (a power
+  // of 2 below the shells), a building each, or split to `fewest`.
+  for (const auto& [fewest, most, expected] : std::vector<std::array<int, 3>>{
+           {1, 1, 1}, {1, 2, 2}, {1, 8, 8}, {1, 16, 16}, {1, 32, 25}, {32, 1024, 32}, {300, 1024, 300}, {400, 1024, 300}}) {
+    const std::vector<Aabb> boxes = mesh_cluster_bounds(city, fewest, most);
+    const int k = fewest * 10000 + most;
+    EXPECT_EQ(boxes.size(), std::size_t(expected)) << fewest << " " << most;
+    const glm::dmat4 m = mesh_transform(city);
+    const ModelPart& part = city.model->parts[0];
+    for (std::size_t t = 0; t < part.triangle_count(); ++t) {
+      bool held = false;
+      for (const Aabb& b : boxes) {
+        bool all = true;
+        for (int c = 0; c < 3; ++c) {
+          const glm::dvec3 p(m * glm::dvec4(glm::dvec3(part.positions[part.indices[3 * t + std::size_t(c)]]), 1.0));
+          all = all && p.x >= b.min.x && p.x <= b.max.x && p.y >= b.min.y && p.y <= b.max.y && p.z >= b.min.z &&
+                p.z <= b.max.z;
+        }
+        held = held || all;
+      }
+      ASSERT_TRUE(held) << "triangle " << t << " of " << k;
+    }
+  }
+  // Two buildings 100 m apart: the point between them is in no box.
+  SceneObject pair = city;
+  pair.model = test::city_model(2, 100.0f, 4.0f);
+  pair.center = {0, 0, 0};
+  pair.rotation_deg = glm::dvec3(0.0);
+  pair.mesh_scale = glm::dvec3(1.0);
+  // (One box each, and split further: still none over the street.)
+  for (const Aabb& b : mesh_cluster_bounds(pair, 32, 1024)) {
+    const glm::dvec3 street(50, 1, 50);
+    EXPECT_FALSE(street.x >= b.min.x && street.x <= b.max.x && street.z >= b.min.z && street.z <= b.max.z);
+  }
+  SceneObject empty = city;
+  empty.model = std::make_shared<TriangleModel>();
+  EXPECT_TRUE(mesh_cluster_bounds(empty, 32, 1024).empty());
+}
+
+// A closed model's shell cores are inside its shells: one per building of
+// a city in one mesh, none for an open box or the open teapot; and every
+// ray whose line passes through a core meets the model in Embree's own
+// test (the proof the footprints take it for), from outside, from inside
+// another building and from inside the core itself, turned and scaled.
+TEST(SunHoursFootprints, AClosedModelsShellCoresAreSureHits) {
+  const auto city = test::city_model(4, 10.0f, 5.0f);
+  ASSERT_TRUE(city->closed);
+  const std::vector<Aabb> cores = shell_cores(*city, 1e-3);
+  ASSERT_EQ(cores.size(), 16u);
+  for (const Aabb& core : cores) {
+    // Buildings are 5 wide: the core takes most of each.
+    EXPECT_GT(core.extent().x, 4.0);
+    EXPECT_GT(core.extent().y, 1.5);
+  }
+  EXPECT_TRUE(shell_cores(*test::box_model({1, 1, 1}, /*with_bottom=*/false), 1e-3).empty());
+  EXPECT_TRUE(shell_cores(*find_builtin_model("teapot")->model, 1e-3).empty());
+  // A pitched roof over a box: a closed house whose middle is not its
+  // bounds' middle; its core stands on its floor.
+  auto house = std::make_shared<TriangleModel>();
+  {
+    ModelPart part;
+    part.positions = {{-2, 0, -3}, {2, 0, -3}, {2, 0, 3}, {-2, 0, 3}, {-2, 3, -3}, {2, 3, -3}, {2, 3, 3}, {-2, 3, 3},
+                      {0, 6, -3}, {0, 6, 3}};
+    part.normals.assign(part.positions.size(), glm::vec3(0, 1, 0));
+    part.indices = {0, 1, 2, 0, 2, 3,  // floor (seen from below)
+                    0, 5, 1, 0, 4, 5,  // front wall (z = -3) and its gable
+                    4, 8, 5,           //
+                    3, 2, 6, 3, 6, 7,  // back wall (z = 3) and its gable
+                    7, 6, 9,           //
+                    0, 3, 7, 0, 7, 4,  // left wall
+                    1, 5, 6, 1, 6, 2,  // right wall
+                    4, 7, 9, 4, 9, 8,  // left roof
+                    5, 8, 9, 5, 9, 6};  // right roof
+    house->parts.push_back(part);
+    finish_model(*house);
+    ASSERT_TRUE(house->closed);
+    const std::vector<Aabb> house_cores = shell_cores(*house, 1e-3);
+    ASSERT_EQ(house_cores.size(), 1u);
+    EXPECT_LT(house_cores[0].max.y, 6.0);
+    EXPECT_GT(house_cores[0].extent().x * house_cores[0].extent().y * house_cores[0].extent().z, 0.25 * 4 * 3 * 6);
+  }
+  // Rays through the cores, as the footprints draw them in the world.
+  std::uint64_t seed = 77;
+  const auto uniform = [&](double lo, double hi) {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return lo + (hi - lo) * double(seed >> 11) / double(1ull << 53);
+  };
+  for (const auto& model : {std::shared_ptr<const TriangleModel>(city), std::shared_ptr<const TriangleModel>(house)}) {
+    Scene scene;
+    SceneObject mesh;
+    mesh.type = SceneObject::Type::Mesh;
+    mesh.model = model;
+    mesh.model_id = "model";
+    mesh.center = {3, -1, 2};
+    mesh.rotation_deg = {0, 27, 0};
+    mesh.mesh_scale = {1.5, 0.8, 1.2};
+    scene.objects.push_back(mesh);
+    const RayScene rays(scene);
+    const glm::dmat4 to_world = mesh_transform(mesh);
+    const std::vector<Aabb> boxes = shell_cores(*model, 1e-3);
+    for (int i = 0; i < 20000; ++i) {
+      const Aabb& core = boxes[std::size_t(i) % boxes.size()];
+      const glm::dvec3 in_core = glm::mix(core.min, core.max, glm::dvec3(uniform(0, 1), uniform(0, 1), uniform(0, 1)));
+      const glm::dvec3 through(to_world * glm::dvec4(in_core, 1.0));
+      const glm::dvec3 d = glm::normalize(glm::dvec3(uniform(-1, 1), uniform(0.02, 1), uniform(-1, 1)));
+      // From anywhere along the line before the core point: outside, in
+      // another building, or in the core itself.
+      const glm::dvec3 origin = through - uniform(0.0, 60.0) * d;
+      ASSERT_FALSE(sees_sun(rays, origin, d)) << "ray " << i;
+    }
+  }
+}
+
+// A city of 25 buildings in one mesh, as a CityJSON or glTF file brings
+// it: the footprints path equals the pure ray cast at every point, and
+// casts far fewer rays than one box around the whole city would leave to
+// the query (nearly every pair under it).
+TEST(SunHoursFootprints, ACityInOneMeshIsDrawnBuildingByBuilding) {
+  json body = json::parse(R"({"scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [200, 200]},
+      {"type": "mesh", "model": "city", "position": [-30, 0, -30], "rotation_deg": [0, 20, 0]}]},
+      "site": {"latitude": 51.5, "longitude": -0.12},
+      "period": {"start": "2026-03-20T00:00:00Z", "end": "2026-03-21T00:00:00Z", "step_minutes": 10},
+      "grid": {"center": [0, 0.5, 0], "size": [80, 80], "spacing": 0.5}})");
+  const ParsedSunHours p = parse_sun_hours_request(
+      body.dump(), test::lookup_of({{"sha256:city", test::city_model(5, 14.0f, 8.0f)}}, {{"city", "sha256:city"}}));
+  ASSERT_TRUE(p.request) << p.error.message;
+  const SunHoursRequest& q = *p.request;
+  const SunHoursResult exact = cast(q), footprints = cast_by_footprints(q);
+  expect_same_tallies(footprints, exact, "city in one mesh");
+  EXPECT_LT(double(footprints.pairs_ray_cast), 0.35 * double(footprints.pairs));
 }
 
 // A fine grid (a micrometre apart) and an object kilometres away: its

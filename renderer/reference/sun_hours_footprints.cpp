@@ -1,15 +1,22 @@
 #include "reference/sun_hours_footprints.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
+#include <map>
 #include <mutex>
-#include <optional>
 #include <thread>
 
+#include <glm/matrix.hpp>
+
+#include "core/mesh_instance.hpp"
+#include "core/model.hpp"
 #include "core/shapes/shape.hpp"
+#include "core/shell_cores.hpp"
 #include "reference/ray_cast.hpp"
 #include "reference/sun_hours_ray_cast.hpp"
 
@@ -86,6 +93,8 @@ constexpr int kMaxShadowPoints = 128;
 // A footprint of fewer cells than this is walked with a proof per point:
 // its core's hull (up to a hundred points sorted) would cost more.
 constexpr double kCoreCells = 64.0;
+// A core narrower than this many cells (across x or z) is not drawn.
+constexpr double kCoreWidthCells = 3.0;
 // A core's shadow narrower than this (cells per row, on average) spares
 // fewer proofs than its rows' crossings cost (a pole thinner than a cell).
 constexpr double kCoreCellsPerRow = 4.0;
@@ -265,13 +274,45 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
     if (shadow.outer_columns(r, c0, c1)) row_span(r, c0, c1);
 }
 
-SolidCore solid_core(const SceneObject& object, double plane_y, double margin) {
-  SolidCore core;
+std::vector<SolidCore> solid_cores(const SceneObject& object, double plane_y, double margin) {
+  std::vector<SolidCore> cores;
   const ShapeKind& kind = shape_kind(object.type);
-  if (!kind.points_inside || !kind.surely_meets) return core;
-  core.points = kind.points_inside(object, margin, plane_y + margin, std::numeric_limits<double>::infinity());
-  if (core.points.size() < 4 || core.points.size() > std::size_t(kMaxShadowPoints)) core.points.clear();
-  return core;
+  if (kind.points_inside && kind.surely_meets) {
+    SolidCore core;
+    core.points = kind.points_inside(object, margin, plane_y + margin, std::numeric_limits<double>::infinity());
+    if (core.points.size() >= 4 && core.points.size() <= std::size_t(kMaxShadowPoints)) cores.push_back(std::move(core));
+    return cores;
+  }
+  if (object.type != SceneObject::Type::Mesh || !object.model) return cores;
+  // A closed model: each shell's core (shell_cores), clear of its
+  // triangles by the margin in model space, which is at least the margin
+  // in the world.
+  const double scale = std::min({std::abs(object.mesh_scale.x), std::abs(object.mesh_scale.y), std::abs(object.mesh_scale.z)});
+  if (!(scale > 0.0)) return cores;
+  const glm::dmat4 to_world = mesh_transform(object);
+  const double cut = plane_y + margin;
+  for (const Aabb& box : shell_cores(*object.model, margin / scale)) {
+    glm::dvec3 c[8];
+    bounds_corners(box, c);
+    for (glm::dvec3& corner : c) corner = glm::dvec3(to_world * glm::dvec4(corner, 1.0));
+    // The box in the world (turned, stretched), cut to the plane's side
+    // of `cut`: its corners there, and where its edges cross it.
+    SolidCore core;
+    core.model_box = box;
+    for (int i = 0; i < 8; ++i)
+      if (c[i].y >= cut) core.points.push_back(c[i]);
+    for (int i = 0; i < 8; ++i)
+      for (const int bit : {1, 2, 4}) {
+        if (i & bit) continue;
+        const glm::dvec3 &a = c[i], &b = c[i | bit];
+        if ((a.y >= cut) == (b.y >= cut)) continue;
+        glm::dvec3 p = a + (cut - a.y) / (b.y - a.y) * (b - a);
+        p.y = cut;
+        core.points.push_back(p);
+      }
+    if (core.points.size() >= 4) cores.push_back(std::move(core));
+  }
+  return cores;
 }
 
 void core_spans(const SolidCore& core, const glm::dvec3& direction, const SunGrid& grid, int first_row, int last_row,
@@ -284,24 +325,140 @@ void core_spans(const SolidCore& core, const glm::dvec3& direction, const SunGri
     if (shadow.inner_columns(r, c0, c1)) row_span(r, c0, c1);
 }
 
+namespace {
+
+// How many boxes a mesh's footprints are drawn from (mesh_cluster_bounds):
+// each is a hull and its rows per sample, against the rays a single box
+// around a round or scattered model would leave to the query. At least 32
+// (a teapot's parts, split), a building each up to 1024.
+constexpr int kFewestMeshClusters = 32, kMostMeshClusters = 1024;
+
+// One object as the footprints see it: the boxes its footprints are drawn
+// from (its bounds; a mesh's clusters of triangles), each cut to the
+// plane's upper side, and its proofs of dark.
+struct Caster {
+  std::vector<std::array<glm::dvec3, 8>> boxes;  // corners of each
+  Aabb bounds;                                   // the object's own
+  const SceneObject* object = nullptr;
+  const ShapeKind* kind = nullptr;
+  double margin = 0.0;
+  std::vector<SolidCore> cores;
+  // A mesh's: world to model space, and the margin there.
+  glm::dmat4 to_model{1.0};
+  double model_margin = 0.0;
+};
+
+std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid) {
+  const double reach = grid_reach(grid);
+  std::vector<Caster> casters;
+  // Each model's shells, once for all its instances.
+  std::map<const TriangleModel*, std::pair<std::vector<std::uint32_t>, std::uint32_t>> shells;
+  for (const SceneObject& o : scene.objects) {
+    Caster caster;
+    caster.object = &o;
+    caster.kind = &shape_kind(o.type);
+    caster.bounds = object_bounds(o);
+    caster.margin = rounding_margin(caster.bounds, reach);
+    std::vector<Aabb> boxes{caster.bounds};
+    if (o.type == SceneObject::Type::Mesh && o.model) {
+      // Embree tests the rays in the model's own float coordinates: its
+      // rounding grows with those, however the model is placed.
+      const double scale = std::max({std::abs(o.mesh_scale.x), std::abs(o.mesh_scale.y), std::abs(o.mesh_scale.z)});
+      caster.margin = std::max(caster.margin, 1e-5 * (1.0 + o.model->bounds.reach()) * scale);
+      auto found = shells.find(o.model.get());
+      if (found == shells.end()) {
+        std::uint32_t count = 0;
+        std::vector<std::uint32_t> shell_of = triangle_shells(*o.model, count);
+        found = shells.emplace(o.model.get(), std::make_pair(std::move(shell_of), count)).first;
+      }
+      boxes = mesh_cluster_bounds(o, found->second.first, found->second.second, kFewestMeshClusters, kMostMeshClusters);
+    }
+    for (Aabb box : boxes) {
+      if (box.empty()) continue;
+      // reachable_bounds grows it by the rounding margin of its own
+      // coordinates; a mesh's own rounding may need more.
+      const double more = caster.margin - rounding_margin(box, reach);
+      if (more > 0.0) box.min -= glm::dvec3(more), box.max += glm::dvec3(more);
+      const Aabb reachable = reachable_bounds(box, grid.center.y, reach);
+      if (reachable.empty()) continue;
+      std::array<glm::dvec3, 8> corners;
+      bounds_corners(reachable, corners.data());
+      caster.boxes.push_back(corners);
+    }
+    if (caster.boxes.empty()) continue;
+    caster.cores = solid_cores(o, grid.center.y, caster.margin);
+    if (o.type == SceneObject::Type::Mesh && o.model) {
+      caster.to_model = glm::inverse(mesh_transform(o));
+      const double scale = std::min({std::abs(o.mesh_scale.x), std::abs(o.mesh_scale.y), std::abs(o.mesh_scale.z)});
+      caster.model_margin = caster.margin / scale;
+    }
+    // A core thinner than a few cells holds few points of a row: its hull
+    // each sample would cost more than the proofs it spares.
+    caster.cores.erase(std::remove_if(caster.cores.begin(), caster.cores.end(),
+                                      [&](const SolidCore& core) {
+                                        Aabb b;
+                                        for (const glm::dvec3& p : core.points) b.extend(p);
+                                        return std::min(b.extent().x, b.extent().z) < kCoreWidthCells * grid.spacing;
+                                      }),
+                       caster.cores.end());
+    casters.push_back(std::move(caster));
+  }
+  return casters;
+}
+
+const std::vector<Caster> kNoCasters;
+
+// Calls mark(row, column) for the grid points (every stride-th row and
+// column) inside a solid by twice its margin: every ray from them, in any
+// direction, surely meets it (ShapeKind::contains), so they see no sun at
+// any sample. A closed mesh's points are those inside a shell's core by
+// twice the margin (in model space): every ray from them leaves the shell.
+// The core cut does not matter here: the whole box is inside.
+void mark_inside(const std::vector<Caster>& casters, const SunGrid& grid, int stride,
+                 const std::function<void(int, int)>& mark) {
+  const glm::dvec3 origin = grid.origin();
+  const auto scan = [&](const Aabb& b, const std::function<bool(const glm::dvec3&)>& contains) {
+    if (!(grid.center.y > b.min.y && grid.center.y < b.max.y)) return;
+    // In double first: bounds far from a fine grid lie billions of cells away.
+    const double x0 = std::max(0.0, std::ceil((b.min.x - origin.x) / grid.spacing / stride) * stride);
+    const double x1 = std::min(double(grid.columns - 1), std::floor((b.max.x - origin.x) / grid.spacing));
+    const double z0 = std::max(0.0, std::ceil((b.min.z - origin.z) / grid.spacing / stride) * stride);
+    const double z1 = std::min(double(grid.rows - 1), std::floor((b.max.z - origin.z) / grid.spacing));
+    if (!(x0 <= x1 && z0 <= z1)) return;
+    for (int r = int(z0); r <= int(z1); r += stride)
+      for (int c = int(x0); c <= int(x1); c += stride)
+        if (contains(grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)))) mark(r, c);
+  };
+  for (const Caster& o : casters) {
+    if (o.kind->contains) {
+      scan(o.bounds, [&](const glm::dvec3& p) { return o.kind->contains(*o.object, p, 2.0 * o.margin); });
+      continue;
+    }
+    for (const SolidCore& core : o.cores) {
+      if (core.model_box.empty()) continue;
+      const glm::dmat4 to_world = glm::inverse(o.to_model);
+      Aabb world;
+      for (const glm::dvec3& corner : core.model_box.corners()) world.extend(glm::dvec3(to_world * glm::dvec4(corner, 1.0)));
+      const Aabb& box = core.model_box;
+      const double m = 2.0 * o.model_margin;
+      scan(world, [&](const glm::dvec3& p) {
+        const glm::dvec3 q(o.to_model * glm::dvec4(p, 1.0));
+        return q.x > box.min.x + m && q.x < box.max.x - m && q.y > box.min.y + m && q.y < box.max.y - m &&
+               q.z > box.min.z + m && q.z < box.max.z - m;
+      });
+    }
+  }
+}
+
+}  // namespace
+
 FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions) {
   FootprintShares out;
   if (directions.empty() || grid.points() == 0) return out;
-  const double reach = grid_reach(grid);
-  struct Object {
-    Aabb bounds;
-    const SceneObject* object;
-    const ShapeKind* kind;
-    double margin;
-    SolidCore core;
-  };
-  std::vector<Object> reachable;
-  for (const SceneObject& o : scene.objects) {
-    const Aabb exact = object_bounds(o);
-    const Aabb b = reachable_bounds(exact, grid.center.y, reach);
-    if (b.empty()) continue;
-    const double margin = rounding_margin(exact, reach);
-    reachable.push_back({b, &o, &shape_kind(o.type), margin, solid_core(o, grid.center.y, margin)});
+  const std::vector<Caster> casters = casters_of(scene, grid);
+  for (const Caster& o : casters) {
+    out.hulls += double(o.boxes.size() + o.cores.size());
+    if (o.object->model) out.model_triangles += double(o.object->model->triangle_count());
   }
   // A lattice of at most about 128 x 128 of the grid's points (every
   // stride-th row and column), judged as footprint_sun_hours judges them:
@@ -312,18 +469,9 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   const int lattice_columns = (grid.columns + stride - 1) / stride, lattice_rows = (grid.rows + stride - 1) / stride;
   const std::size_t lattice = std::size_t(lattice_columns) * std::size_t(lattice_rows);
   const auto cell = [&](int r, int c) { return std::size_t(r / stride) * std::size_t(lattice_columns) + std::size_t(c / stride); };
-  std::vector<int> seen(lattice, -1);
+  std::vector<int> seen(lattice, -1), cored(lattice, -1);
   std::vector<std::uint8_t> inside(lattice, 0);
-  for (const Object& o : reachable) {
-    if (!o.kind->contains) continue;
-    for (int r = 0; r < grid.rows; r += stride)
-      for (int c = 0; c < grid.columns; c += stride) {
-        const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
-        if (p.x >= o.bounds.min.x && p.x <= o.bounds.max.x && p.z >= o.bounds.min.z && p.z <= o.bounds.max.z &&
-            o.kind->contains(*o.object, p, 2.0 * o.margin))
-          inside[cell(r, c)] = 1;
-      }
-  }
+  mark_inside(casters, grid, stride, [&](int r, int c) { inside[cell(r, c)] = 1; });
   // Directions in turn until about kMaxWork: a thousand objects over the
   // whole grid are 16 M visits a direction, and the plan runs before any
   // budget. A proof (a turned box's trigonometry) weighs 16 visits.
@@ -331,6 +479,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   double work = 0.0;
   double candidates = 0.0, queried = 0.0, visits = 0.0, tests = 0.0, queried_tests = 0.0;
   std::vector<std::uint16_t> depth(lattice, 0);
+  std::vector<std::int64_t> last_visit(lattice, -1);
   std::vector<std::uint8_t> dark(lattice, 0), left(lattice, 0), proofs(lattice, 0);
   std::vector<std::size_t> touched;
   // The directions in van der Corput order (first, middle, quarters, ...):
@@ -347,31 +496,42 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   std::size_t judged_directions = 0;
   for (std::size_t n = 0; n < order.size() && work < kMaxWork; ++n, ++judged_directions) {
     const glm::dvec3& d = directions[order[n]];
-    for (const Object& o : reachable) {
-      glm::dvec3 corners[8];
-      bounds_corners(o.bounds, corners);
-      if (!(d.y > 0.0)) continue;
-      const PlaneShadow footprint(corners, 8, d, grid);
+    if (!(d.y > 0.0)) continue;
+    // As footprint_sun_hours: first the cores' shadows, dark without a
+    // proof each.
+    for (const Caster& o : casters)
+      for (const SolidCore& solid : o.cores) {
+        const PlaneShadow core(solid.points.data(), int(solid.points.size()), d, grid);
+        int first_row, last_row, c0, c1;
+        if (core.cells() < kCoreCells || core.cells_per_row() < kCoreCellsPerRow) continue;
+        if (!core.rows(0, grid.rows, stride, first_row, last_row)) continue;
+        for (int r = first_row; r <= last_row; r += stride) {
+          if (!core.inner_columns(r, c0, c1)) continue;
+          for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
+            work += 1.0;
+            cored[cell(r, c)] = int(n);
+          }
+        }
+      }
+    for (std::size_t index = 0; index < casters.size(); ++index) {
+      const Caster& o = casters[index];
+      for (const std::array<glm::dvec3, 8>& box : o.boxes) {
+      const PlaneShadow footprint(box.data(), 8, d, grid);
       int first_row, last_row, c0, c1;
       if (!footprint.rows(0, grid.rows, stride, first_row, last_row)) continue;
-      // As footprint_sun_hours: the core's shadow where it pays.
-      std::optional<PlaneShadow> core;
-      if (!o.core.points.empty() && footprint.cells() >= kCoreCells) {
-        core.emplace(o.core.points.data(), int(o.core.points.size()), d, grid);
-        if (core->cells_per_row() < kCoreCellsPerRow) core.reset();
-      }
       for (int r = first_row; r <= last_row; r += stride) {
         if (!footprint.outer_columns(r, c0, c1)) continue;
-        int core0 = 1, core1 = 0;
-        if (core && !core->inner_columns(r, core0, core1)) core0 = 1, core1 = 0;
         for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
           const std::size_t i = cell(r, c);
           visits += 1.0;
           work += 1.0;
           if (depth[i] == 0) touched.push_back(i);
-          if (depth[i] < 65535) ++depth[i];
+          // Once per object, however many of its boxes hold the point.
+          const std::int64_t visit = std::int64_t(n) * std::int64_t(casters.size()) + std::int64_t(index);
+          if (last_visit[i] != visit && depth[i] < 65535) ++depth[i];
+          last_visit[i] = visit;
           if (inside[i]) continue;
-          const bool in_core = c >= core0 && c <= core1;
+          const bool in_core = cored[i] == int(n);
           const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
           // At most a few proofs a point: a thousand identical boxes
           // that none proves would be a thousand.
@@ -390,6 +550,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
             left[i] = 1;
           }
         }
+      }
       }
     }
     // The objects a ray is tested against besides the tree's levels and
@@ -424,56 +585,33 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   result.pairs = std::uint64_t(points) * up;
   result.tally.assign(points, PointTally{});
 
-  // Each object that a ray from the plane can reach: its footprint's
-  // bounds, and the proof of a hit its kind offers (ShapeKind::surely_meets).
-  struct Reachable {
-    glm::dvec3 corners[8];  // of its reachable bounds
-    const SceneObject* object;
-    bool (*surely_meets)(const SceneObject&, const glm::dvec3&, const glm::dvec3&, double);
-    double margin;
-    SolidCore core;
+  // Each object that a ray from the plane can reach: the boxes of its
+  // footprints, and the proof of a hit its kind offers
+  // (ShapeKind::surely_meets).
+  const std::vector<Caster> casters = casters_of(scene, grid);
+
+  // Per point, in one place (the walk visits millions of points a
+  // sample, each a cache miss per array it touches): the sample it was last
+  // tested at (each is tested once a sample however many footprints hold
+  // it), its last dark sample and the stretch that was in, its dark count
+  // and its longest lit run. Samples are fewer than 2^31
+  // (SunHoursLimits::kMaxSamples).
+  struct PointState {
+    std::int32_t tested = -1;
+    std::int32_t last_dark = -1;
+    std::int32_t dark_stretch = -1;
+    std::uint32_t dark = 0;
+    std::uint32_t longest = 0;
   };
-  const double reach = grid_reach(grid);
-  std::vector<Reachable> reachable;
-  for (const SceneObject& o : scene.objects) {
-    const Aabb exact = object_bounds(o);
-    const Aabb b = reachable_bounds(exact, grid.center.y, reach);
-    if (b.empty()) continue;
-    Reachable r{{}, &o, shape_kind(o.type).surely_meets, rounding_margin(exact, reach), {}};
-    bounds_corners(b, r.corners);
-    r.core = solid_core(o, grid.center.y, r.margin);
-    reachable.push_back(std::move(r));
-  }
+  // A point inside a solid (a box's, a sphere's, a closed model's shell's
+  // core) by twice the margin sees no sun at any sample (mark_inside):
+  // settled once, for the whole period, by a `tested` past every sample,
+  // so one test (tested >= k) skips it and a point already tested.
+  constexpr std::int32_t kInside = std::numeric_limits<std::int32_t>::max();
+  static_assert(SunHoursLimits::kMaxSamples < std::size_t(kInside));
+  std::vector<PointState> state(points);
+  mark_inside(casters, grid, 1, [&](int r, int c) { state[std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)].tested = kInside; });
 
-  // Points inside a closed convex solid (a box's, a sphere's) by twice
-  // the margin see no sun at any sample: every ray from them surely meets
-  // it (ShapeKind::contains). Settled once, for the whole period.
-  std::vector<std::uint8_t> inside(points, 0);
-  const glm::dvec3 origin = grid.origin();
-  for (const Reachable& object : reachable) {
-    const ShapeKind& kind = shape_kind(object.object->type);
-    if (!kind.contains) continue;
-    const Aabb b = object_bounds(*object.object);
-    if (!(grid.center.y > b.min.y && grid.center.y < b.max.y)) continue;
-    // In double first: bounds far from a fine grid lie billions of cells away.
-    const double x0 = std::max(0.0, std::ceil((b.min.x - origin.x) / grid.spacing));
-    const double x1 = std::min(double(grid.columns - 1), std::floor((b.max.x - origin.x) / grid.spacing));
-    const double z0 = std::max(0.0, std::ceil((b.min.z - origin.z) / grid.spacing));
-    const double z1 = std::min(double(grid.rows - 1), std::floor((b.max.z - origin.z) / grid.spacing));
-    if (!(x0 <= x1 && z0 <= z1)) continue;
-    const int c0 = int(x0), c1 = int(x1), r0 = int(z0), r1 = int(z1);
-    for (int r = r0; r <= r1; ++r)
-      for (int c = c0; c <= c1; ++c) {
-        const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
-        if (!inside[i] && kind.contains(*object.object, grid.point(i), 2.0 * object.margin)) inside[i] = 1;
-      }
-  }
-
-  // Per point: the sample it was last tested at (each is tested once a
-  // sample however many footprints hold it), its last dark sample and the
-  // stretch that was in; result.tally holds its dark count in `run` until
-  // the end, and its longest lit run.
-  std::vector<std::int64_t> tested(points, -1), last_dark(points, -1), dark_stretch(points, -1);
   std::atomic<std::uint64_t> cast{0};
   StopPoll poll(stop_requested);
   const int bands = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(grid.rows))));
@@ -485,67 +623,83 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
       for (std::size_t k = stretch.first; k < stretch.end; ++k) {
         if (poll.ask()) return;
         const glm::dvec3& d = samples[k].direction;
-        if (!(d.y > 0.0)) continue;  // no footprint reaches the plane
-        for (const Reachable& object : reachable) {
-          // Asked within a sample too: one sample of a fine grid under a
-          // thousand overlapping objects is minutes of work.
-          if (poll.stopped()) return;
-          const PlaneShadow footprint(object.corners, 8, d, grid);
-          int first_row, last_row, c0, c1;
-          if (!footprint.rows(r0, r1, 1, first_row, last_row)) continue;
-          // The core's shadow only where it can spare more proofs than its
-          // hull costs.
-          std::optional<PlaneShadow> core;
-          if (!object.core.points.empty() && footprint.cells() >= kCoreCells) {
-            core.emplace(object.core.points.data(), int(object.core.points.size()), d, grid);
-            if (core->cells_per_row() < kCoreCellsPerRow) core.reset();
+        // A sun on the horizon: no footprint reaches the plane.
+        const std::vector<Caster>& drawn = d.y > 0.0 ? casters : kNoCasters;
+        // Dark: the run since the point's last dark sample in this
+        // stretch (or the stretch's start) ends here.
+        const auto dark = [&](PointState& point) {
+          const std::size_t start =
+              point.dark_stretch == std::int32_t(j) ? std::size_t(point.last_dark + 1) : stretch.first;
+          point.longest = std::max<std::uint32_t>(point.longest, std::uint32_t(k - start));
+          point.last_dark = std::int32_t(k);
+          point.dark_stretch = std::int32_t(j);
+          ++point.dark;
+        };
+        const std::int32_t now = std::int32_t(k);
+        // First the cores' shadows: a ray through a solid's core surely
+        // meets it (SolidCore), so each row's stretch there is dark,
+        // proved for the row at once.
+        for (const Caster& object : drawn)
+          for (const SolidCore& solid : object.cores) {
+            if (poll.stopped()) return;
+            const PlaneShadow core(solid.points.data(), int(solid.points.size()), d, grid);
+            int first_row, last_row, c0, c1;
+            if (core.cells() < kCoreCells || core.cells_per_row() < kCoreCellsPerRow) continue;
+            if (!core.rows(r0, r1, 1, first_row, last_row)) continue;
+            for (int r = first_row; r <= last_row; ++r) {
+              if (!core.inner_columns(r, c0, c1)) continue;
+              if (poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
+              for (int c = c0; c <= c1; ++c) {
+                PointState& point = state[std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)];
+                if (point.tested >= now) continue;
+                point.tested = now;
+                dark(point);
+              }
+            }
           }
-          for (int r = first_row; r <= last_row; ++r) {
-            if (!footprint.outer_columns(r, c0, c1)) continue;
-            if (poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
-            // Columns [core0, core1]: rays through the core, surely dark.
-            int core0 = 1, core1 = 0;
-            if (core && !core->inner_columns(r, core0, core1)) core0 = 1, core1 = 0;
-            for (int c = c0; c <= c1; ++c) {
-              const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
-              if (inside[i] || tested[i] == std::int64_t(k)) continue;
-              tested[i] = std::int64_t(k);
-              // Dark for certain when the ray passes well inside the object
-              // whose footprint holds the point: the pure ray cast's query
-              // would find that hit (ShapeKind::surely_meets; in the core's
-              // shadow, proved for the row at once). Else the query itself
-              // settles it.
-              const bool in_core = c >= core0 && c <= core1;
-              if (!in_core) {
+        // Then every footprint: its points not settled yet.
+        for (const Caster& object : drawn)
+          for (const std::array<glm::dvec3, 8>& box : object.boxes) {
+            // Asked within a sample too: one sample of a fine grid under a
+            // thousand overlapping objects is minutes of work.
+            if (poll.stopped()) return;
+            const PlaneShadow footprint(box.data(), 8, d, grid);
+            int first_row, last_row, c0, c1;
+            if (!footprint.rows(r0, r1, 1, first_row, last_row)) continue;
+            for (int r = first_row; r <= last_row; ++r) {
+              if (!footprint.outer_columns(r, c0, c1)) continue;
+              if (poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
+              for (int c = c0; c <= c1; ++c) {
+                const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+                PointState& point = state[i];
+                if (point.tested >= now) continue;
+                point.tested = now;
+                // Dark for certain when the ray passes well inside the
+                // object whose footprint holds the point: the pure ray
+                // cast's query would find that hit (ShapeKind::surely_meets).
+                // Else the query itself settles it.
                 const glm::dvec3 p = grid.point(i);
                 const bool surely_dark =
-                    object.surely_meets && object.surely_meets(*object.object, p, d, object.margin);
+                    object.kind->surely_meets && object.kind->surely_meets(*object.object, p, d, object.margin);
                 if (!surely_dark) {
                   ++casts;
                   const bool lit = sees_sun(rays, p, d);
                   if (poll.after(since, 16)) return;  // a query weighs about as much as 16 visits
                   if (lit) continue;
                 }
+                dark(point);
               }
-              // Dark: the run since its last dark sample in this stretch
-              // (or the stretch's start) ends here.
-              const std::size_t start = dark_stretch[i] == std::int64_t(j) ? std::size_t(last_dark[i] + 1) : stretch.first;
-              PointTally& t = result.tally[i];
-              t.longest = std::max<std::uint32_t>(t.longest, std::uint32_t(k - start));
-              last_dark[i] = std::int64_t(k);
-              dark_stretch[i] = std::int64_t(j);
-              ++t.run;  // the dark count, for now
             }
           }
-        }
         if (pairs_done) pairs_done->fetch_add(std::uint64_t(r1 - r0) * std::uint64_t(grid.columns));
       }
       // The stretch ends: each point's last run in it.
       for (std::size_t i = std::size_t(r0) * std::size_t(grid.columns); i < std::size_t(r1) * std::size_t(grid.columns); ++i) {
-        if (inside[i]) continue;
-        const std::size_t start = dark_stretch[i] == std::int64_t(j) ? std::size_t(last_dark[i] + 1) : stretch.first;
-        PointTally& t = result.tally[i];
-        t.longest = std::max<std::uint32_t>(t.longest, std::uint32_t(stretch.end - start));
+        PointState& point = state[i];
+        if (point.tested == kInside) continue;
+        const std::size_t start =
+            point.dark_stretch == std::int32_t(j) ? std::size_t(point.last_dark + 1) : stretch.first;
+        point.longest = std::max<std::uint32_t>(point.longest, std::uint32_t(stretch.end - start));
       }
     }
     cast.fetch_add(casts);
@@ -556,8 +710,10 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   for (auto& t : pool) t.join();
   if (poll.stopped()) throw CastStopped();
   for (std::size_t i = 0; i < points; ++i) {
+    const PointState& point = state[i];
     PointTally& t = result.tally[i];
-    t.lit = inside[i] ? 0 : std::uint32_t(up) - t.run;
+    t.lit = point.tested == kInside ? 0 : std::uint32_t(up) - point.dark;
+    t.longest = point.tested == kInside ? 0 : point.longest;
     t.run = 0;
   }
   result.pairs_ray_cast = cast.load();

@@ -9,8 +9,10 @@
 // Inside a footprint, a ray that passes well inside the object is dark for
 // certain (ShapeKind::surely_meets: boxes, spheres and cylinders), so the
 // query is skipped: the pure ray cast's query would meet that object. Where
-// a footprint is large, the shadow of the solid's core (SolidCore) proves a
-// whole stretch of each row dark at once.
+// it is wide, the shadow of a solid's core (SolidCore) proves a whole
+// stretch of each row dark at once. A model's footprints are drawn from
+// clusters of its triangles (mesh_cluster_bounds), and a closed model's
+// shells have cores too (shell_cores).
 //
 // Time is tallied by events: only a point's dark samples touch it, plus
 // one pass over the grid per stretch of daylight, so that a grid mostly
@@ -47,15 +49,22 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
                      int last_row, const std::function<void(int row, int first_column, int last_column)>& row_span,
                      int row_step = 1);
 
-/// The part of a solid a ray from the grid's plane surely meets: points
-/// whose hull lies inside the object shrunk by `margin` and above the plane
-/// by `margin` (ShapeKind::points_inside). A ray from the plane whose line
-/// passes through that hull meets it past t = margin, so surely_meets holds
-/// for it. Empty for a kind without a proof of dark (a model, a plane).
+/// A part of a solid that a ray from the grid's plane surely meets: points
+/// whose hull lies inside the solid shrunk by `margin` and above the plane
+/// by `margin`. A ray from the plane whose line passes through that hull
+/// meets the solid past it: for an analytic solid it passes through the
+/// shrunk solid past t = margin (ShapeKind::surely_meets holds); for a
+/// closed model the hull lies inside a shell (shell_cores), which the ray
+/// then crosses on its way out.
 struct SolidCore {
-  std::vector<glm::dvec3> points;
+  std::vector<glm::dvec3> points;  ///< world space, at most 128
+  Aabb model_box;                  ///< a closed model's: the shell's core in model space; else empty
 };
-SolidCore solid_core(const SceneObject& object, double plane_y, double margin);
+/// The cores of an object: one for a box, sphere or cylinder
+/// (ShapeKind::points_inside), one per shell core of a closed model
+/// (shell_cores, with `margin` / its smallest scale in model space, cut
+/// to the plane's side), none for anything else or where nothing is left.
+std::vector<SolidCore> solid_cores(const SceneObject& object, double plane_y, double margin);
 
 /// Calls row_span(row, first_column, last_column) for each grid row of
 /// [first_row, last_row) with the columns whose points lie inside the
@@ -85,6 +94,12 @@ struct FootprintShares {
   double tests = 0.0;
   /// The same, over the pairs left to the query only.
   double queried_tests = 0.0;
+  /// Hulls drawn per sample: the objects' footprints (a model's clusters
+  /// each, mesh_cluster_bounds) and the solids' cores.
+  double hulls = 0.0;
+  /// Triangles of the models whose clusters and shells are found once per
+  /// request (triangle_shells, mesh_cluster_bounds, shell_cores).
+  double model_triangles = 0.0;
 };
 /// The shares for `directions`, in turn until about 16 M units of work (a
 /// lattice point visited in a footprint, 16 for a proof of dark), so the

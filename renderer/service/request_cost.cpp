@@ -407,9 +407,13 @@ RequestCost estimate_cost(const RenderRequest& request) {
 // NREL SPA: 3.15e6 in 10.6 s on one core; priced at one core's speed, since
 // the renders on the same cores and a busy machine slow the two-core run.
 constexpr double kMsPerSunPosition = 3.5e-3;
-// The footprints: an object's hull and spans per sample, and one pass over
-// the grid per stretch of daylight.
+// The footprints: a hull and its spans per sample (an object's footprint,
+// a model's cluster's, a solid's core), and one pass over the grid per
+// stretch of daylight.
 constexpr double kMsPerFootprint = 1.0e-3;
+// A model's triangle, once per request: its shell, its cluster and its
+// shell's core (the 10 teapots' million: about 60 ms).
+constexpr double kMsPerModelTriangle = 1.0e-4;
 constexpr double kMsPerStretchPoint = 2.0e-6;
 // A pair inside a footprint, judged for a proof of dark (a turned box's
 // slab test): the city of 144 towers, 151 M of them in about 6 s.
@@ -448,7 +452,8 @@ SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t
   in_footprints.meshes_per_ray = std::min(f.meshes_per_ray, in_footprints.objects_per_ray);
   // Stretches of daylight: about one a day, at least one.
   const double days = std::max(1.0, (request.period.end_unix_s - request.period.start_unix_s) / 86400.0);
-  const double footprints_ms = samples_up * double(scene.objects.size()) * kMsPerFootprint +
+  const double footprints_ms = samples_up * std::max(shares.hulls, double(scene.objects.size())) * kMsPerFootprint +
+                               shares.model_triangles * kMsPerModelTriangle +
                                std::min(days, samples_up) * points * kMsPerStretchPoint +
                                f.shadow_rays * shares.candidates * kMsPerFootprintPoint +
                                f.shadow_rays * shares.depth * kMsPerFootprintVisit;

@@ -1,0 +1,205 @@
+#include "core/shell_cores.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <numeric>
+
+#include <glm/geometric.hpp>
+
+namespace umbra {
+
+namespace {
+
+struct Triangle {
+  glm::dvec3 a, b, c;
+  Aabb box;
+};
+
+// Whether the triangle comes within the box (centre, half sizes): no
+// separating axis among the box's three, the triangle's normal and the
+// nine crossings of their edges (Akenine-Moller). Touching counts.
+bool overlaps(const Triangle& t, const glm::dvec3& centre, const glm::dvec3& half) {
+  for (int k = 0; k < 3; ++k)
+    if (t.box.min[k] > centre[k] + half[k] || t.box.max[k] < centre[k] - half[k]) return false;
+  const glm::dvec3 v[3] = {t.a - centre, t.b - centre, t.c - centre};
+  const glm::dvec3 e[3] = {v[1] - v[0], v[2] - v[1], v[0] - v[2]};
+  const auto separates = [&](const glm::dvec3& axis) {
+    const double p0 = glm::dot(v[0], axis), p1 = glm::dot(v[1], axis), p2 = glm::dot(v[2], axis);
+    const double r = half.x * std::abs(axis.x) + half.y * std::abs(axis.y) + half.z * std::abs(axis.z);
+    return std::min({p0, p1, p2}) > r || std::max({p0, p1, p2}) < -r;
+  };
+  for (const glm::dvec3& edge : e)
+    for (int k = 0; k < 3; ++k) {
+      glm::dvec3 unit(0.0);
+      unit[k] = 1.0;
+      const glm::dvec3 axis = glm::cross(unit, edge);
+      if (axis != glm::dvec3(0.0) && separates(axis)) return false;
+    }
+  const glm::dvec3 normal = glm::cross(e[0], e[1]);
+  return !(normal != glm::dvec3(0.0) && separates(normal));
+}
+
+// Whether `p` is inside the shell: +1 inside, 0 outside, -1 unsure (the
+// ray from p passes near an edge or a corner, or along a face). The ray's
+// direction is no simple one, so that a grid of vertices is not met
+// square on.
+int parity(const std::vector<Triangle>& triangles, const glm::dvec3& p) {
+  const glm::dvec3 d = glm::normalize(glm::dvec3(0.5773502, 0.6178, 0.5340711));
+  int crossings = 0;
+  for (const Triangle& t : triangles) {
+    const glm::dvec3 e1 = t.b - t.a, e2 = t.c - t.a;
+    const glm::dvec3 q = glm::cross(d, e2);
+    const double det = glm::dot(e1, q);
+    const double scale = glm::length(e1) * glm::length(e2);
+    if (!(scale > 0.0)) continue;  // no area: crossed by no ray
+    const glm::dvec3 s = p - t.a;
+    if (std::abs(det) <= 1e-9 * scale) {
+      // Along the face's plane: unsure if the ray lies in it.
+      if (std::abs(glm::dot(s, glm::cross(e1, e2))) <= 1e-9 * scale * (glm::length(s) + 1e-300)) return -1;
+      continue;
+    }
+    const double u = glm::dot(s, q) / det;
+    const glm::dvec3 r = glm::cross(s, e1);
+    const double w = glm::dot(d, r) / det;
+    const double t_hit = glm::dot(e2, r) / det;
+    constexpr double kNear = 1e-7;
+    if (u < -kNear || w < -kNear || u + w > 1.0 + kNear) continue;
+    if (u < kNear || w < kNear || u + w > 1.0 - kNear) return -1;  // near an edge: unsure
+    if (std::abs(t_hit) <= 1e-9 * (1.0 + glm::length(s))) return -1;  // p on the face
+    if (t_hit > 0.0) ++crossings;
+  }
+  return crossings % 2;
+}
+
+// The shell's triangles' box, and whether `core` is proved inside it.
+bool fits(const std::vector<Triangle>& triangles, const Aabb& core, double margin) {
+  if (core.empty()) return false;
+  const glm::dvec3 centre = core.center(), half = 0.5 * core.extent() + glm::dvec3(margin);
+  for (const Triangle& t : triangles)
+    if (overlaps(t, centre, half)) return false;
+  return parity(triangles, centre) == 1;
+}
+
+std::uint64_t bits_of(float f) {
+  std::uint32_t b;
+  std::memcpy(&b, &f, sizeof b);
+  return b;
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint32_t& shells) {
+  // Welded corners: one id per distinct position; triangles joined
+  // through a shared one are one shell (union-find).
+  std::vector<std::pair<std::array<std::uint64_t, 2>, std::uint32_t>> keys;
+  std::vector<std::array<std::uint32_t, 3>> corners;
+  for (const ModelPart& part : model.parts) {
+    const auto base = std::uint32_t(keys.size());
+    for (std::uint32_t v = 0; v < part.positions.size(); ++v) {
+      const glm::vec3& p = part.positions[v];
+      keys.push_back({{bits_of(p.x) << 32 | bits_of(p.y), bits_of(p.z)}, base + v});
+    }
+    for (std::size_t t = 0; t < part.triangle_count(); ++t)
+      corners.push_back({base + part.indices[3 * t], base + part.indices[3 * t + 1], base + part.indices[3 * t + 2]});
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::uint32_t> welded(keys.size());
+  std::uint32_t id = 0;
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    if (i > 0 && keys[i].first != keys[i - 1].first) ++id;
+    welded[keys[i].second] = id;
+  }
+  std::vector<std::uint32_t> parent(keys.empty() ? 0 : std::size_t(id) + 1);
+  std::iota(parent.begin(), parent.end(), 0u);
+  const auto find = [&](std::uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (const auto& c : corners) {
+    const std::uint32_t r = find(welded[c[0]]);
+    parent[find(welded[c[1]])] = r;
+    parent[find(welded[c[2]])] = r;
+  }
+  // Roots numbered in order of first use.
+  std::vector<std::uint32_t> number(parent.size(), ~0u), out(corners.size());
+  shells = 0;
+  for (std::size_t t = 0; t < corners.size(); ++t) {
+    std::uint32_t& n = number[find(welded[corners[t][0]])];
+    if (n == ~0u) n = shells++;
+    out[t] = n;
+  }
+  return out;
+}
+
+std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
+  std::vector<Aabb> cores;
+  if (!model.closed) return cores;
+  std::vector<Triangle> all;
+  for (const ModelPart& part : model.parts)
+    for (std::size_t t = 0; t < part.triangle_count(); ++t) {
+      Triangle tri;
+      tri.a = glm::dvec3(part.positions[part.indices[3 * t]]);
+      tri.b = glm::dvec3(part.positions[part.indices[3 * t + 1]]);
+      tri.c = glm::dvec3(part.positions[part.indices[3 * t + 2]]);
+      tri.box.extend(tri.a), tri.box.extend(tri.b), tri.box.extend(tri.c);
+      all.push_back(tri);
+    }
+  std::uint32_t shells = 0;
+  const std::vector<std::uint32_t> shell_of = triangle_shells(model, shells);
+  // Triangles by shell.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> by_shell(all.size());
+  for (std::size_t t = 0; t < all.size(); ++t) by_shell[t] = {shell_of[t], std::uint32_t(t)};
+  std::sort(by_shell.begin(), by_shell.end());
+  std::vector<Triangle> shell;
+  for (std::size_t first = 0; first < by_shell.size();) {
+    std::size_t last = first;
+    while (last < by_shell.size() && by_shell[last].first == by_shell[first].first) ++last;
+    shell.clear();
+    Aabb bounds;
+    for (std::size_t i = first; i < last; ++i) {
+      shell.push_back(all[by_shell[i].second]);
+      bounds.extend(shell.back().box);
+    }
+    first = last;
+    if (shell.size() > kShellCoreMaxTriangles) continue;
+    // Candidates, largest first: the bounds shrunk about their centre, or
+    // about the middle of their floor, by fractions across and up.
+    static constexpr double kFractions[] = {0.98, 0.9, 0.75, 0.6, 0.45, 0.3};
+    std::vector<Aabb> candidates;
+    const glm::dvec3 centre = bounds.center(), half = 0.5 * bounds.extent();
+    for (const double across : kFractions)
+      for (const double up : kFractions)
+        for (const bool on_floor : {false, true}) {
+          Aabb box;
+          box.min = {centre.x - across * half.x, 0.0, centre.z - across * half.z};
+          box.max = {centre.x + across * half.x, 0.0, centre.z + across * half.z};
+          const double floor_gap = (1.0 - 0.98) * half.y;
+          box.min.y = on_floor ? bounds.min.y + floor_gap : centre.y - up * half.y;
+          box.max.y = on_floor ? bounds.min.y + floor_gap + up * 2.0 * half.y * 0.98 : centre.y + up * half.y;
+          if (box.min.x < box.max.x && box.min.y < box.max.y && box.min.z < box.max.z) candidates.push_back(box);
+        }
+    const auto volume = [](const Aabb& b) {
+      const glm::dvec3 e = b.extent();
+      return e.x * e.y * e.z;
+    };
+    // First of all the bounds themselves, shrunk by twice the margin: a
+    // shell that is a box (a block of a city) fills them.
+    Aabb whole = bounds;
+    whole.min += glm::dvec3(2.0 * margin);
+    whole.max -= glm::dvec3(2.0 * margin);
+    if (whole.min.x < whole.max.x && whole.min.y < whole.max.y && whole.min.z < whole.max.z) candidates.push_back(whole);
+    std::stable_sort(candidates.begin(), candidates.end(),
+                     [&](const Aabb& a, const Aabb& b) { return volume(a) > volume(b); });
+    for (const Aabb& candidate : candidates)
+      if (fits(shell, candidate, margin)) {
+        cores.push_back(candidate);
+        break;
+      }
+  }
+  return cores;
+}
+
+}  // namespace umbra
