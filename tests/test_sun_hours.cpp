@@ -17,7 +17,7 @@
 #include "core/light_math.hpp"
 #include "core/mesh_instance.hpp"
 #include "core/model.hpp"
-#include "core/shell_cores.hpp"
+#include "core/model_shells.hpp"
 #include "core/builtin_models.hpp"
 #include "core/shapes/shape.hpp"
 #include "core/sun_hours.hpp"
@@ -666,50 +666,44 @@ TEST(SunHoursFootprints, TheCoresShadowIsASureHitForEveryPointItTakes) {
 // asked, and two buildings far apart in one model leave the street
 // between them out.
 TEST(SunHoursFootprints, AMeshsClustersHoldEveryTriangleAndLeaveTheGaps) {
-  SceneObject city;
-  city.type = SceneObject::Type::Mesh;
-  city.model = test::city_model(5, 12.0f, 6.0f);
-  city.model_id = "city";
-  city.center = {-20, 0, 7};
-  city.rotation_deg = {0, 33, 0};
-  city.mesh_scale = glm::dvec3(1.5);
+  const auto city = test::city_model(5, 12.0f, 6.0f);
+  std::uint32_t shells = 0;
+  const std::vector<std::uint32_t> shell_of = triangle_shells(*city, shells);
+  EXPECT_EQ(shells, 25u);
+  ASSERT_EQ(shell_of.size(), 25u * 12u);
   // 25 shells (buildings) of 12 triangles: at most `most` boxes (a power
   // of 2 below the shells), a building each, or split to `fewest`.
   for (const auto& [fewest, most, expected] : std::vector<std::array<int, 3>>{
            {1, 1, 1}, {1, 2, 2}, {1, 8, 8}, {1, 16, 16}, {1, 32, 25}, {32, 1024, 32}, {300, 1024, 300}, {400, 1024, 300}}) {
-    const std::vector<Aabb> boxes = mesh_cluster_bounds(city, fewest, most);
-    const int k = fewest * 10000 + most;
+    const std::vector<Aabb> boxes = shell_clusters(*city, shell_of, shells, fewest, most);
     EXPECT_EQ(boxes.size(), std::size_t(expected)) << fewest << " " << most;
-    const glm::dmat4 m = mesh_transform(city);
-    const ModelPart& part = city.model->parts[0];
+    const ModelPart& part = city->parts[0];
     for (std::size_t t = 0; t < part.triangle_count(); ++t) {
       bool held = false;
       for (const Aabb& b : boxes) {
         bool all = true;
         for (int c = 0; c < 3; ++c) {
-          const glm::dvec3 p(m * glm::dvec4(glm::dvec3(part.positions[part.indices[3 * t + std::size_t(c)]]), 1.0));
+          const glm::dvec3 p(part.positions[part.indices[3 * t + std::size_t(c)]]);
           all = all && p.x >= b.min.x && p.x <= b.max.x && p.y >= b.min.y && p.y <= b.max.y && p.z >= b.min.z &&
                 p.z <= b.max.z;
         }
         held = held || all;
       }
-      ASSERT_TRUE(held) << "triangle " << t << " of " << k;
+      ASSERT_TRUE(held) << "triangle " << t << ", fewest " << fewest << ", most " << most;
     }
   }
-  // Two buildings 100 m apart: the point between them is in no box.
-  SceneObject pair = city;
-  pair.model = test::city_model(2, 100.0f, 4.0f);
-  pair.center = {0, 0, 0};
-  pair.rotation_deg = glm::dvec3(0.0);
-  pair.mesh_scale = glm::dvec3(1.0);
-  // (One box each, and split further: still none over the street.)
-  for (const Aabb& b : mesh_cluster_bounds(pair, 32, 1024)) {
+  // Two buildings 100 m apart: the point between them is in no box (one
+  // box each, and split further: still none over the street).
+  const auto pair = test::city_model(2, 100.0f, 4.0f);
+  const std::vector<std::uint32_t> pair_shells = triangle_shells(*pair, shells);
+  EXPECT_EQ(shells, 4u);
+  for (const Aabb& b : shell_clusters(*pair, pair_shells, shells, 32, 1024)) {
     const glm::dvec3 street(50, 1, 50);
     EXPECT_FALSE(street.x >= b.min.x && street.x <= b.max.x && street.z >= b.min.z && street.z <= b.max.z);
   }
-  SceneObject empty = city;
-  empty.model = std::make_shared<TriangleModel>();
-  EXPECT_TRUE(mesh_cluster_bounds(empty, 32, 1024).empty());
+  const TriangleModel empty;
+  EXPECT_TRUE(shell_clusters(empty, triangle_shells(empty, shells), shells, 32, 1024).empty());
+  EXPECT_EQ(shells, 0u);
 }
 
 // A closed model's shell cores are inside its shells: one per building of

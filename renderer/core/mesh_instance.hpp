@@ -34,23 +34,6 @@ Aabb mesh_bounds(const SceneObject& mesh);
 /// too large would make a floor a caster for nothing. O(positions).
 Aabb mesh_surface_bounds(const SceneObject& mesh);
 
-/// The world bounds of groups of the mesh's triangles, what sun hours'
-/// footprints are drawn from: far tighter than the one box around a model
-/// that is many things (a city's buildings in one file) or round (a
-/// teapot). A group is a shell (triangles joined through shared corners:
-/// a building); with more than `most` shells, the shells are halved at the
-/// median of their boxes' centres along the longest side, and the halves
-/// again (at most `most` groups, a power of 2); with fewer than `fewest`,
-/// the group of most triangles is halved at the median of their centres,
-/// until there are `fewest` (or single triangles). Every triangle lies in
-/// exactly one group, so the boxes together hold the whole surface. Empty
-/// for a model without triangles. O(triangles x log).
-std::vector<Aabb> mesh_cluster_bounds(const SceneObject& mesh, int fewest, int most);
-/// The same with the model's triangle_shells (shell_cores.hpp) given:
-/// instances of one model share them.
-std::vector<Aabb> mesh_cluster_bounds(const SceneObject& mesh, const std::vector<std::uint32_t>& shell_of,
-                                      std::uint32_t shells, int fewest, int most);
-
 /// Whether the model's surface is closed (TriangleModel::closed): only then
 /// may the shadow pass cull its faces.
 bool mesh_is_closed(const SceneObject& mesh);

@@ -16,7 +16,7 @@
 #include "core/mesh_instance.hpp"
 #include "core/model.hpp"
 #include "core/shapes/shape.hpp"
-#include "core/shell_cores.hpp"
+#include "core/model_shells.hpp"
 #include "reference/ray_cast.hpp"
 #include "reference/sun_hours_ray_cast.hpp"
 
@@ -274,6 +274,51 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
     if (shadow.outer_columns(r, c0, c1)) row_span(r, c0, c1);
 }
 
+namespace {
+
+// A box of a mesh's model space in the world (turned, stretched: a
+// parallelepiped), cut to y >= cut: its corners there, and where its edges
+// cross that height. Their hull is the cut solid.
+std::vector<glm::dvec3> world_box_above(const Aabb& box, const glm::dmat4& to_world, double cut) {
+  glm::dvec3 c[8];
+  bounds_corners(box, c);
+  for (glm::dvec3& corner : c) corner = glm::dvec3(to_world * glm::dvec4(corner, 1.0));
+  std::vector<glm::dvec3> points;
+  for (int i = 0; i < 8; ++i)
+    if (c[i].y >= cut) points.push_back(c[i]);
+  for (int i = 0; i < 8; ++i)
+    for (const int bit : {1, 2, 4}) {
+      if (i & bit) continue;
+      const glm::dvec3 &a = c[i], &b = c[i | bit];
+      if ((a.y >= cut) == (b.y >= cut)) continue;
+      glm::dvec3 p = a + (cut - a.y) / (b.y - a.y) * (b - a);
+      p.y = cut;
+      points.push_back(p);
+    }
+  return points;
+}
+
+double smallest_scale(const SceneObject& mesh) {
+  return std::min({std::abs(mesh.mesh_scale.x), std::abs(mesh.mesh_scale.y), std::abs(mesh.mesh_scale.z)});
+}
+
+// A mesh's cores from its model's shell cores (model space, clear of the
+// triangles by at least margin / smallest_scale there).
+std::vector<SolidCore> mesh_cores(const SceneObject& mesh, const std::vector<Aabb>& model_cores, double plane_y,
+                                  double margin) {
+  std::vector<SolidCore> cores;
+  const glm::dmat4 to_world = mesh_transform(mesh);
+  for (const Aabb& box : model_cores) {
+    SolidCore core;
+    core.model_box = box;
+    core.points = world_box_above(box, to_world, plane_y + margin);
+    if (core.points.size() >= 4) cores.push_back(std::move(core));
+  }
+  return cores;
+}
+
+}  // namespace
+
 std::vector<SolidCore> solid_cores(const SceneObject& object, double plane_y, double margin) {
   std::vector<SolidCore> cores;
   const ShapeKind& kind = shape_kind(object.type);
@@ -283,36 +328,11 @@ std::vector<SolidCore> solid_cores(const SceneObject& object, double plane_y, do
     if (core.points.size() >= 4 && core.points.size() <= std::size_t(kMaxShadowPoints)) cores.push_back(std::move(core));
     return cores;
   }
-  if (object.type != SceneObject::Type::Mesh || !object.model) return cores;
   // A closed model: each shell's core (shell_cores), clear of its
   // triangles by the margin in model space, which is at least the margin
   // in the world.
-  const double scale = std::min({std::abs(object.mesh_scale.x), std::abs(object.mesh_scale.y), std::abs(object.mesh_scale.z)});
-  if (!(scale > 0.0)) return cores;
-  const glm::dmat4 to_world = mesh_transform(object);
-  const double cut = plane_y + margin;
-  for (const Aabb& box : shell_cores(*object.model, margin / scale)) {
-    glm::dvec3 c[8];
-    bounds_corners(box, c);
-    for (glm::dvec3& corner : c) corner = glm::dvec3(to_world * glm::dvec4(corner, 1.0));
-    // The box in the world (turned, stretched), cut to the plane's side
-    // of `cut`: its corners there, and where its edges cross it.
-    SolidCore core;
-    core.model_box = box;
-    for (int i = 0; i < 8; ++i)
-      if (c[i].y >= cut) core.points.push_back(c[i]);
-    for (int i = 0; i < 8; ++i)
-      for (const int bit : {1, 2, 4}) {
-        if (i & bit) continue;
-        const glm::dvec3 &a = c[i], &b = c[i | bit];
-        if ((a.y >= cut) == (b.y >= cut)) continue;
-        glm::dvec3 p = a + (cut - a.y) / (b.y - a.y) * (b - a);
-        p.y = cut;
-        core.points.push_back(p);
-      }
-    if (core.points.size() >= 4) cores.push_back(std::move(core));
-  }
-  return cores;
+  if (object.type != SceneObject::Type::Mesh || !object.model || !(smallest_scale(object) > 0.0)) return cores;
+  return mesh_cores(object, shell_cores(*object.model, margin / smallest_scale(object)), plane_y, margin);
 }
 
 void core_spans(const SolidCore& core, const glm::dvec3& direction, const SunGrid& grid, int first_row, int last_row,
@@ -327,18 +347,18 @@ void core_spans(const SolidCore& core, const glm::dvec3& direction, const SunGri
 
 namespace {
 
-// How many boxes a mesh's footprints are drawn from (mesh_cluster_bounds):
+// How many boxes a mesh's footprints are drawn from (shell_clusters):
 // each is a hull and its rows per sample, against the rays a single box
 // around a round or scattered model would leave to the query. At least 32
 // (a teapot's parts, split), a building each up to 1024.
 constexpr int kFewestMeshClusters = 32, kMostMeshClusters = 1024;
 
-// One object as the footprints see it: the boxes its footprints are drawn
-// from (its bounds; a mesh's clusters of triangles), each cut to the
-// plane's upper side, and its proofs of dark.
+// One object as the footprints see it: the convex solids its footprints
+// are drawn from (its bounds; a mesh's clusters of triangles), each cut to
+// the plane's upper side, and its proofs of dark.
 struct Caster {
-  std::vector<std::array<glm::dvec3, 8>> boxes;  // corners of each
-  Aabb bounds;                                   // the object's own
+  std::vector<std::vector<glm::dvec3>> hulls;  // each the points of one
+  Aabb bounds;                                 // the object's own
   const SceneObject* object = nullptr;
   const ShapeKind* kind = nullptr;
   double margin = 0.0;
@@ -348,50 +368,71 @@ struct Caster {
   double model_margin = 0.0;
 };
 
-std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid) {
+// What a model's instances share, found once per request: its clusters,
+// and its shells' cores clear by the largest margin any instance needs.
+struct ModelFacts {
+  std::vector<Aabb> clusters;
+  std::vector<Aabb> cores;
+  double core_margin = 0.0;
+};
+
+std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* model_triangles = nullptr) {
   const double reach = grid_reach(grid);
+  const auto margin_of = [&](const SceneObject& o, const Aabb& bounds) {
+    double margin = rounding_margin(bounds, reach);
+    if (o.type == SceneObject::Type::Mesh && o.model) {
+      // Embree tests the rays in the model's own float coordinates: its
+      // rounding grows with those, however the model is placed.
+      const double scale = std::max({std::abs(o.mesh_scale.x), std::abs(o.mesh_scale.y), std::abs(o.mesh_scale.z)});
+      margin = std::max(margin, 1e-5 * (1.0 + o.model->bounds.reach()) * scale);
+    }
+    return margin;
+  };
+  // Each model once, however many instances: the margin its cores need.
+  std::map<const TriangleModel*, ModelFacts> models;
+  for (const SceneObject& o : scene.objects)
+    if (o.type == SceneObject::Type::Mesh && o.model && smallest_scale(o) > 0.0) {
+      ModelFacts& facts = models[o.model.get()];
+      facts.core_margin = std::max(facts.core_margin, margin_of(o, object_bounds(o)) / smallest_scale(o));
+    }
+  for (auto& [model, facts] : models) {
+    std::uint32_t shells = 0;
+    const std::vector<std::uint32_t> shell_of = triangle_shells(*model, shells);
+    facts.clusters = shell_clusters(*model, shell_of, shells, kFewestMeshClusters, kMostMeshClusters);
+    facts.cores = shell_cores(*model, facts.core_margin);
+    if (model_triangles) *model_triangles += double(model->triangle_count());
+  }
   std::vector<Caster> casters;
-  // Each model's shells, once for all its instances.
-  std::map<const TriangleModel*, std::pair<std::vector<std::uint32_t>, std::uint32_t>> shells;
   for (const SceneObject& o : scene.objects) {
     Caster caster;
     caster.object = &o;
     caster.kind = &shape_kind(o.type);
     caster.bounds = object_bounds(o);
-    caster.margin = rounding_margin(caster.bounds, reach);
-    std::vector<Aabb> boxes{caster.bounds};
-    if (o.type == SceneObject::Type::Mesh && o.model) {
-      // Embree tests the rays in the model's own float coordinates: its
-      // rounding grows with those, however the model is placed.
-      const double scale = std::max({std::abs(o.mesh_scale.x), std::abs(o.mesh_scale.y), std::abs(o.mesh_scale.z)});
-      caster.margin = std::max(caster.margin, 1e-5 * (1.0 + o.model->bounds.reach()) * scale);
-      auto found = shells.find(o.model.get());
-      if (found == shells.end()) {
-        std::uint32_t count = 0;
-        std::vector<std::uint32_t> shell_of = triangle_shells(*o.model, count);
-        found = shells.emplace(o.model.get(), std::make_pair(std::move(shell_of), count)).first;
-      }
-      boxes = mesh_cluster_bounds(o, found->second.first, found->second.second, kFewestMeshClusters, kMostMeshClusters);
-    }
-    for (Aabb box : boxes) {
-      if (box.empty()) continue;
-      // reachable_bounds grows it by the rounding margin of its own
-      // coordinates; a mesh's own rounding may need more.
-      const double more = caster.margin - rounding_margin(box, reach);
-      if (more > 0.0) box.min -= glm::dvec3(more), box.max += glm::dvec3(more);
-      const Aabb reachable = reachable_bounds(box, grid.center.y, reach);
-      if (reachable.empty()) continue;
-      std::array<glm::dvec3, 8> corners;
-      bounds_corners(reachable, corners.data());
-      caster.boxes.push_back(corners);
-    }
-    if (caster.boxes.empty()) continue;
-    caster.cores = solid_cores(o, grid.center.y, caster.margin);
-    if (o.type == SceneObject::Type::Mesh && o.model) {
+    caster.margin = margin_of(o, caster.bounds);
+    const auto facts = o.model ? models.find(o.model.get()) : models.end();
+    if (o.type == SceneObject::Type::Mesh && facts != models.end()) {
+      // Each cluster's box grown by the margin in model space (at least
+      // the margin in the world), in the world, cut to the plane's side.
       caster.to_model = glm::inverse(mesh_transform(o));
-      const double scale = std::min({std::abs(o.mesh_scale.x), std::abs(o.mesh_scale.y), std::abs(o.mesh_scale.z)});
-      caster.model_margin = caster.margin / scale;
+      caster.model_margin = caster.margin / smallest_scale(o);
+      const glm::dmat4 to_world = mesh_transform(o);
+      for (Aabb box : facts->second.clusters) {
+        box.min -= glm::dvec3(caster.model_margin);
+        box.max += glm::dvec3(caster.model_margin);
+        std::vector<glm::dvec3> points = world_box_above(box, to_world, grid.center.y);
+        if (points.size() >= 4) caster.hulls.push_back(std::move(points));
+      }
+      caster.cores = mesh_cores(o, facts->second.cores, grid.center.y, caster.margin);
+    } else {
+      const Aabb reachable = reachable_bounds(caster.bounds, grid.center.y, reach);
+      if (!reachable.empty()) {
+        std::vector<glm::dvec3> corners(8);
+        bounds_corners(reachable, corners.data());
+        caster.hulls.push_back(std::move(corners));
+      }
+      caster.cores = solid_cores(o, grid.center.y, caster.margin);
     }
+    if (caster.hulls.empty()) continue;
     // A core thinner than a few cells holds few points of a row: its hull
     // each sample would cost more than the proofs it spares.
     caster.cores.erase(std::remove_if(caster.cores.begin(), caster.cores.end(),
@@ -455,11 +496,8 @@ void mark_inside(const std::vector<Caster>& casters, const SunGrid& grid, int st
 FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions) {
   FootprintShares out;
   if (directions.empty() || grid.points() == 0) return out;
-  const std::vector<Caster> casters = casters_of(scene, grid);
-  for (const Caster& o : casters) {
-    out.hulls += double(o.boxes.size() + o.cores.size());
-    if (o.object->model) out.model_triangles += double(o.object->model->triangle_count());
-  }
+  const std::vector<Caster> casters = casters_of(scene, grid, &out.model_triangles);
+  for (const Caster& o : casters) out.hulls += double(o.hulls.size() + o.cores.size());
   // A lattice of at most about 128 x 128 of the grid's points (every
   // stride-th row and column), judged as footprint_sun_hours judges them:
   // inside a footprint, and then settled by a proof of dark or left to the
@@ -515,8 +553,8 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
       }
     for (std::size_t index = 0; index < casters.size(); ++index) {
       const Caster& o = casters[index];
-      for (const std::array<glm::dvec3, 8>& box : o.boxes) {
-      const PlaneShadow footprint(box.data(), 8, d, grid);
+      for (const std::vector<glm::dvec3>& hull : o.hulls) {
+      const PlaneShadow footprint(hull.data(), int(hull.size()), d, grid);
       int first_row, last_row, c0, c1;
       if (!footprint.rows(0, grid.rows, stride, first_row, last_row)) continue;
       for (int r = first_row; r <= last_row; r += stride) {
@@ -585,7 +623,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   result.pairs = std::uint64_t(points) * up;
   result.tally.assign(points, PointTally{});
 
-  // Each object that a ray from the plane can reach: the boxes of its
+  // Each object that a ray from the plane can reach: the solids of its
   // footprints, and the proof of a hit its kind offers
   // (ShapeKind::surely_meets).
   const std::vector<Caster> casters = casters_of(scene, grid);
@@ -659,11 +697,11 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           }
         // Then every footprint: its points not settled yet.
         for (const Caster& object : drawn)
-          for (const std::array<glm::dvec3, 8>& box : object.boxes) {
+          for (const std::vector<glm::dvec3>& hull : object.hulls) {
             // Asked within a sample too: one sample of a fine grid under a
             // thousand overlapping objects is minutes of work.
             if (poll.stopped()) return;
-            const PlaneShadow footprint(box.data(), 8, d, grid);
+            const PlaneShadow footprint(hull.data(), int(hull.size()), d, grid);
             int first_row, last_row, c0, c1;
             if (!footprint.rows(r0, r1, 1, first_row, last_row)) continue;
             for (int r = first_row; r <= last_row; ++r) {

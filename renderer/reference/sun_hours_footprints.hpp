@@ -11,7 +11,7 @@
 // query is skipped: the pure ray cast's query would meet that object. Where
 // it is wide, the shadow of a solid's core (SolidCore) proves a whole
 // stretch of each row dark at once. A model's footprints are drawn from
-// clusters of its triangles (mesh_cluster_bounds), and a closed model's
+// clusters of its triangles (shell_clusters), and a closed model's
 // shells have cores too (shell_cores).
 //
 // Time is tallied by events: only a point's dark samples touch it, plus
@@ -95,10 +95,10 @@ struct FootprintShares {
   /// The same, over the pairs left to the query only.
   double queried_tests = 0.0;
   /// Hulls drawn per sample: the objects' footprints (a model's clusters
-  /// each, mesh_cluster_bounds) and the solids' cores.
+  /// each, shell_clusters) and the solids' cores.
   double hulls = 0.0;
   /// Triangles of the models whose clusters and shells are found once per
-  /// request (triangle_shells, mesh_cluster_bounds, shell_cores).
+  /// request (triangle_shells, shell_clusters, shell_cores).
   double model_triangles = 0.0;
 };
 /// The shares for `directions`, in turn until about 16 M units of work (a

@@ -1,4 +1,4 @@
-#include "core/shell_cores.hpp"
+#include "core/model_shells.hpp"
 
 #include <algorithm>
 #include <array>
@@ -7,6 +7,7 @@
 #include <cstring>
 #include <numeric>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
 namespace umbra {
@@ -75,11 +76,15 @@ int parity(const std::vector<Triangle>& triangles, const glm::dvec3& p) {
 }
 
 // The shell's triangles' box, and whether `core` is proved inside it.
-bool fits(const std::vector<Triangle>& triangles, const Aabb& core, double margin) {
+// `work` counts the triangles looked at.
+bool fits(const std::vector<Triangle>& triangles, const Aabb& core, double margin, std::uint64_t& work) {
   if (core.empty()) return false;
   const glm::dvec3 centre = core.center(), half = 0.5 * core.extent() + glm::dvec3(margin);
-  for (const Triangle& t : triangles)
+  for (const Triangle& t : triangles) {
+    ++work;
     if (overlaps(t, centre, half)) return false;
+  }
+  work += triangles.size();
   return parity(triangles, centre) == 1;
 }
 
@@ -149,6 +154,10 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
     }
   std::uint32_t shells = 0;
   const std::vector<std::uint32_t> shell_of = triangle_shells(model, shells);
+  // Candidates that fail late could cost 70 passes over a shell: the
+  // looking stops at kShellCoreWork passes over the whole model.
+  std::uint64_t work = 0;
+  const std::uint64_t budget = std::uint64_t(kShellCoreWork) * all.size() + 65536;
   // Triangles by shell.
   std::vector<std::pair<std::uint32_t, std::uint32_t>> by_shell(all.size());
   for (std::size_t t = 0; t < all.size(); ++t) by_shell[t] = {shell_of[t], std::uint32_t(t)};
@@ -194,12 +203,106 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
     std::stable_sort(candidates.begin(), candidates.end(),
                      [&](const Aabb& a, const Aabb& b) { return volume(a) > volume(b); });
     for (const Aabb& candidate : candidates)
-      if (fits(shell, candidate, margin)) {
+      if (work < budget && fits(shell, candidate, margin, work)) {
         cores.push_back(candidate);
         break;
       }
   }
   return cores;
+}
+
+std::vector<Aabb> shell_clusters(const TriangleModel& model, const std::vector<std::uint32_t>& shell_of,
+                                 std::uint32_t shell_count, int fewest, int most) {
+  std::vector<Aabb> out;
+  if (shell_of.empty()) return out;
+  struct Triangle {
+    glm::dvec3 centre;
+    Aabb box;
+  };
+  // The triangles, in order of shell (a counting sort).
+  std::vector<std::size_t> start(std::size_t(shell_count) + 1, 0);
+  for (const std::uint32_t s : shell_of) ++start[s + 1];
+  for (std::size_t s = 0; s < shell_count; ++s) start[s + 1] += start[s];
+  std::vector<std::size_t> next(start.begin(), start.end() - 1);
+  std::vector<Triangle> triangles(shell_of.size());
+  std::size_t index = 0;
+  for (const ModelPart& part : model.parts) {
+    for (std::size_t t = 0; t < part.triangle_count(); ++t, ++index) {
+      const glm::dvec3 a(part.positions[part.indices[3 * t]]), b(part.positions[part.indices[3 * t + 1]]),
+          c(part.positions[part.indices[3 * t + 2]]);
+      Triangle& tri = triangles[next[shell_of[index]]++];
+      tri.box.min = glm::min(glm::min(a, b), c);
+      tri.box.max = glm::max(glm::max(a, b), c);
+      tri.centre = 0.5 * (tri.box.min + tri.box.max);
+    }
+  }
+  // A cluster: triangles [first, last) and their box.
+  struct Cluster {
+    std::size_t first, last;
+    Aabb box;
+  };
+  const auto cluster_of = [&](std::size_t first, std::size_t last) {
+    Cluster c{first, last, {}};
+    for (std::size_t i = first; i < last; ++i)
+      c.box.min = glm::min(c.box.min, triangles[i].box.min), c.box.max = glm::max(c.box.max, triangles[i].box.max);
+    return c;
+  };
+  const auto longest_axis = [](const Aabb& b) {
+    const glm::dvec3 e = b.extent();
+    return e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
+  };
+  std::vector<Cluster> clusters;
+  // The shells, each a run of the sorted triangles.
+  for (std::size_t s = 0; s < shell_count; ++s)
+    if (start[s] < start[s + 1]) clusters.push_back(cluster_of(start[s], start[s + 1]));
+  if (int(clusters.size()) > most) {
+    // More shells than boxes: the shells halved at the median of their
+    // boxes' centres along the longest side, and the halves again.
+    std::vector<Cluster> shells = std::move(clusters);
+    clusters.clear();
+    int depth = 0;
+    while (depth < 30 && (2 << depth) <= most) ++depth;
+    const auto split = [&](auto&& self, std::size_t first, std::size_t last, int levels) -> void {
+      if (levels == 0 || last - first < 2) {
+        Cluster c{0, 0, {}};
+        for (std::size_t i = first; i < last; ++i) c.box.extend(shells[i].box);
+        clusters.push_back(c);
+        return;
+      }
+      Aabb centres;
+      for (std::size_t i = first; i < last; ++i) centres.extend(shells[i].box.center());
+      const int axis = longest_axis(centres);
+      const std::size_t middle = first + (last - first) / 2;
+      std::nth_element(shells.begin() + std::ptrdiff_t(first), shells.begin() + std::ptrdiff_t(middle),
+                       shells.begin() + std::ptrdiff_t(last), [axis](const Cluster& a, const Cluster& b) {
+                         return a.box.center()[axis] < b.box.center()[axis];
+                       });
+      self(self, first, middle, levels - 1);
+      self(self, middle, last, levels - 1);
+    };
+    split(split, 0, shells.size(), depth);
+  } else {
+    // Fewer: the cluster of most triangles halved at the median of their
+    // centres along the longest side of those, until there are `fewest`.
+    while (int(clusters.size()) < fewest) {
+      const auto biggest = std::max_element(clusters.begin(), clusters.end(), [](const Cluster& a, const Cluster& b) {
+        return a.last - a.first < b.last - b.first;
+      });
+      if (biggest->last - biggest->first < 2) break;
+      const std::size_t first = biggest->first, last = biggest->last, middle = first + (last - first) / 2;
+      Aabb centres;
+      for (std::size_t i = first; i < last; ++i)
+        centres.min = glm::min(centres.min, triangles[i].centre), centres.max = glm::max(centres.max, triangles[i].centre);
+      const int axis = longest_axis(centres);
+      std::nth_element(triangles.begin() + std::ptrdiff_t(first), triangles.begin() + std::ptrdiff_t(middle),
+                       triangles.begin() + std::ptrdiff_t(last),
+                       [axis](const Triangle& a, const Triangle& b) { return a.centre[axis] < b.centre[axis]; });
+      *biggest = cluster_of(first, middle);
+      clusters.push_back(cluster_of(middle, last));
+    }
+  }
+  for (const Cluster& c : clusters) out.push_back(c.box);
+  return out;
 }
 
 }  // namespace umbra

@@ -1,0 +1,61 @@
+// A model's shells (triangles joined through shared corners), boxes
+// around groups of them, and the cores of a closed model's shells: boxes
+// that lie inside the volume a shell encloses, clear of its every triangle
+// by a margin. A line through such a box crosses the shell on both sides
+// of it, so a ray that passes through the box meets the surface past it,
+// whatever else is there: sun hours' footprints and proofs of dark for
+// models (reference/sun_hours_footprints.hpp), as an object's bounds and
+// ShapeKind::points_inside are for the analytic solids. Model space, pure
+// CPU code, no GL.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/model.hpp"
+#include "core/scene.hpp"
+
+namespace umbra {
+
+/// Which shell each triangle of the model is in (parts in order, each's
+/// triangles in order): triangles that share a corner (welded by exact
+/// position) are in one; numbered from 0 in order of first triangle, and
+/// `shells` is set to how many.
+std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint32_t& shells);
+
+/// Boxes of model space around groups of the model's triangles, what sun
+/// hours' footprints are drawn from: far tighter than the one box around
+/// a model that is many things (a city's buildings in one file) or round
+/// (a teapot). A group is a shell (`shell_of`, triangle_shells: a
+/// building); with more than `most` shells, the shells are halved at the
+/// median of their boxes' centres along the longest side, and the halves
+/// again (at most `most` groups, a power of 2); with fewer than `fewest`,
+/// the group of most triangles is halved at the median of its triangles'
+/// centres, until there are `fewest` (or single triangles). Every triangle
+/// lies in exactly one group, so the boxes together hold the whole
+/// surface. Empty for a model without triangles. O(triangles x log).
+std::vector<Aabb> shell_clusters(const TriangleModel& model, const std::vector<std::uint32_t>& shell_of,
+                                 std::uint32_t shells, int fewest, int most);
+
+/// Per shell of a closed model (TriangleModel::closed; triangles joined
+/// through shared corners, welded by exact position), at most one box of
+/// model space that lies inside the volume the shell encloses with every
+/// point at least `margin` from each of the shell's triangles. A box is
+/// proved, not guessed: no triangle of the shell comes within `margin` of
+/// it (separating axes, in double) and its centre is inside (an odd number
+/// of crossings along a ray, none of them near an edge or grazing).
+/// Candidates are the shell's bounds shrunk by twice the margin (a box
+/// fills them), then shrunk about their centre and about the middle of
+/// their floor (a pitched roof over walls), largest first;
+/// a shell none of them fits has none. None for an open model.
+/// Time at most about kShellCoreWork passes over the triangles (the
+/// candidates not yet tried then are left out, as are shells above
+/// kShellCoreMaxTriangles: their cost, not their shape).
+std::vector<Aabb> shell_cores(const TriangleModel& model, double margin);
+
+/// The largest shell shell_cores looks into, and how many passes over the
+/// model's triangles it spends at most.
+inline constexpr std::size_t kShellCoreMaxTriangles = 200000;
+inline constexpr int kShellCoreWork = 16;
+
+}  // namespace umbra
