@@ -4,11 +4,13 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <limits>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include <glm/matrix.hpp>
@@ -70,6 +72,30 @@ std::vector<Stretch> daylight_stretches(const std::vector<SunSample>& samples) {
   return stretches;
 }
 
+// Threads wait here until all have come (std::barrier is C++20).
+class Barrier {
+ public:
+  explicit Barrier(int count) : count_(count) {}
+  void wait() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    const std::uint64_t generation = generation_;
+    if (++arrived_ == count_) {
+      arrived_ = 0;
+      ++generation_;
+      all_came_.notify_all();
+      return;
+    }
+    all_came_.wait(lock, [&] { return generation_ != generation; });
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable all_came_;
+  const int count_;
+  int arrived_ = 0;
+  std::uint64_t generation_ = 0;
+};
+
 }  // namespace
 
 double rounding_margin(const Aabb& bounds, double reach) {
@@ -118,7 +144,10 @@ class PlaneShadow {
       slid[i] = {c.x - t * direction.x, c.z - t * direction.z};
       extent_ = std::max({extent_, std::abs(c.x), std::abs(c.z), std::abs(t * direction.x), std::abs(t * direction.z)});
     }
-    m_ = convex_hull(slid, n, hull_);
+    Point2 hull[kMaxShadowPoints + 1];
+    m_ = convex_hull(slid, n, hull);
+    hull_.assign(hull, hull + m_);
+    length_.resize(std::size_t(m_));
     for (int i = 0; i < m_; ++i) {
       const Point2& a = hull_[i];
       const Point2& b = hull_[(i + 1) % m_];
@@ -245,8 +274,8 @@ class PlaneShadow {
   glm::dvec3 origin_;
   double spacing_;
   int columns_;
-  Point2 hull_[kMaxShadowPoints + 1];
-  double length_[kMaxShadowPoints + 1];  // of edge i (hull_[i] to the next)
+  std::vector<Point2> hull_;
+  std::vector<double> length_;  // of edge i (hull_[i] to the next)
   int m_ = 0;
   double z_low_ = 0.0, z_high_ = 0.0, extent_ = 1.0, slack_ = 0.0;
 };
@@ -446,8 +475,6 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
   }
   return casters;
 }
-
-const std::vector<Caster> kNoCasters;
 
 // Calls mark(row, column) for the grid points (every stride-th row and
 // column) inside a solid by twice its margin: every ray from them, in any
@@ -650,19 +677,74 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   std::vector<PointState> state(points);
   mark_inside(casters, grid, 1, [&](int r, int c) { state[std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)].tested = kInside; });
 
+  // The samples with the sun up, in order, each with its stretch.
+  struct Up {
+    std::size_t k, stretch;
+    bool last;  // of its stretch
+  };
+  std::vector<Up> ups;
+  for (std::size_t j = 0; j < stretches.size(); ++j)
+    for (std::size_t k = stretches[j].first; k < stretches[j].end; ++k) ups.push_back({k, j, k + 1 == stretches[j].end});
+  // What each sample draws, in order: every core's shadow (dark), then
+  // every footprint.
+  struct Drawn {
+    const Caster* caster;
+    const std::vector<glm::dvec3>* points;
+    bool core;
+  };
+  std::vector<Drawn> drawn;
+  for (const Caster& o : casters)
+    for (const SolidCore& core : o.cores) drawn.push_back({&o, &core.points, true});
+  for (const Caster& o : casters)
+    for (const std::vector<glm::dvec3>& hull : o.hulls) drawn.push_back({&o, &hull, false});
+  // Samples go in blocks: first all threads draw the block's shadows (each
+  // once, however many threads walk it), then each walks its own rows
+  // through the block's samples in order. Rows are dealt in stripes of
+  // kStripe, in turn, so that a scene whose shadows gather in one part of
+  // the grid keeps every thread busy.
+  constexpr int kStripe = 4;
+  const int threads = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
+                                                          unsigned((grid.rows + kStripe - 1) / kStripe))));
+  const std::size_t block = std::clamp<std::size_t>(16384 / std::max<std::size_t>(1, drawn.size()), 1, 32);
+  std::vector<std::optional<PlaneShadow>> shadows(block * drawn.size());
+  const auto owned_rows = [&](int t, int first, int last, const auto& visit) {
+    // The first row of t's stripes at or after `first`.
+    int stripe = first / kStripe;
+    stripe += ((t - stripe % threads) % threads + threads) % threads;
+    for (int r = std::max(first, stripe * kStripe); r <= last;) {
+      visit(r);
+      ++r;
+      if (r % kStripe == 0) r += (threads - 1) * kStripe;
+    }
+  };
+  Barrier barrier(threads);
   std::atomic<std::uint64_t> cast{0};
   StopPoll poll(stop_requested);
-  const int bands = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), unsigned(grid.rows))));
-  const auto band = [&](int b) {
-    const int r0 = int(std::int64_t(grid.rows) * b / bands), r1 = int(std::int64_t(grid.rows) * (b + 1) / bands);
+  const auto worker = [&](int t) {
     std::uint64_t casts = 0, since = 0;
-    for (std::size_t j = 0; j < stretches.size(); ++j) {
-      const Stretch& stretch = stretches[j];
-      for (std::size_t k = stretch.first; k < stretch.end; ++k) {
-        if (poll.ask()) return;
+    for (std::size_t first = 0; first < ups.size(); first += block) {
+      const std::size_t count = std::min(block, ups.size() - first);
+      // The block's shadows, dealt among the threads. A sun on the horizon
+      // draws none: no footprint reaches the plane.
+      if (!poll.ask())
+        for (std::size_t i = std::size_t(t); i < count * drawn.size(); i += std::size_t(threads)) {
+          std::optional<PlaneShadow>& shadow = shadows[i];
+          shadow.reset();
+          const glm::dvec3& d = samples[ups[first + i / drawn.size()].k].direction;
+          const Drawn& w = drawn[i % drawn.size()];
+          if (!(d.y > 0.0)) continue;
+          shadow.emplace(w.points->data(), int(w.points->size()), d, grid);
+          // A core's shadow only where it spares more proofs than its
+          // rows' crossings cost.
+          if (w.core && (shadow->cells() < kCoreCells || shadow->cells_per_row() < kCoreCellsPerRow)) shadow.reset();
+        }
+      barrier.wait();
+      for (std::size_t e = 0; e < count && !poll.stopped(); ++e) {
+        const Up& up = ups[first + e];
+        const std::size_t k = up.k, j = up.stretch;
+        const Stretch& stretch = stretches[j];
         const glm::dvec3& d = samples[k].direction;
-        // A sun on the horizon: no footprint reaches the plane.
-        const std::vector<Caster>& drawn = d.y > 0.0 ? casters : kNoCasters;
+        const std::int32_t now = std::int32_t(k);
         // Dark: the run since the point's last dark sample in this
         // stretch (or the stretch's start) ends here.
         const auto dark = [&](PointState& point) {
@@ -673,79 +755,74 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           point.dark_stretch = std::int32_t(j);
           ++point.dark;
         };
-        const std::int32_t now = std::int32_t(k);
-        // First the cores' shadows: a ray through a solid's core surely
-        // meets it (SolidCore), so each row's stretch there is dark,
-        // proved for the row at once.
-        for (const Caster& object : drawn)
-          for (const SolidCore& solid : object.cores) {
-            if (poll.stopped()) return;
-            const PlaneShadow core(solid.points.data(), int(solid.points.size()), d, grid);
-            int first_row, last_row, c0, c1;
-            if (core.cells() < kCoreCells || core.cells_per_row() < kCoreCellsPerRow) continue;
-            if (!core.rows(r0, r1, 1, first_row, last_row)) continue;
-            for (int r = first_row; r <= last_row; ++r) {
-              if (!core.inner_columns(r, c0, c1)) continue;
-              if (poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
+        for (std::size_t w = 0; w < drawn.size() && !poll.stopped(); ++w) {
+          const std::optional<PlaneShadow>& shadow = shadows[e * drawn.size() + w];
+          if (!shadow) continue;
+          int first_row, last_row;
+          if (!shadow->rows(0, grid.rows, 1, first_row, last_row)) continue;
+          const Caster& object = *drawn[w].caster;
+          if (drawn[w].core) {
+            // A ray through a solid's core surely meets it (SolidCore):
+            // each row's stretch there is dark, proved for the row at once.
+            owned_rows(t, first_row, last_row, [&](int r) {
+              int c0, c1;
+              if (!shadow->inner_columns(r, c0, c1) || poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
               for (int c = c0; c <= c1; ++c) {
                 PointState& point = state[std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)];
                 if (point.tested >= now) continue;
                 point.tested = now;
                 dark(point);
               }
-            }
+            });
+            continue;
           }
-        // Then every footprint: its points not settled yet.
-        for (const Caster& object : drawn)
-          for (const std::vector<glm::dvec3>& hull : object.hulls) {
-            // Asked within a sample too: one sample of a fine grid under a
-            // thousand overlapping objects is minutes of work.
-            if (poll.stopped()) return;
-            const PlaneShadow footprint(hull.data(), int(hull.size()), d, grid);
-            int first_row, last_row, c0, c1;
-            if (!footprint.rows(r0, r1, 1, first_row, last_row)) continue;
-            for (int r = first_row; r <= last_row; ++r) {
-              if (!footprint.outer_columns(r, c0, c1)) continue;
-              if (poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
-              for (int c = c0; c <= c1; ++c) {
-                const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
-                PointState& point = state[i];
-                if (point.tested >= now) continue;
-                point.tested = now;
-                // Dark for certain when the ray passes well inside the
-                // object whose footprint holds the point: the pure ray
-                // cast's query would find that hit (ShapeKind::surely_meets).
-                // Else the query itself settles it.
-                const glm::dvec3 p = grid.point(i);
-                const bool surely_dark =
-                    object.kind->surely_meets && object.kind->surely_meets(*object.object, p, d, object.margin);
-                if (!surely_dark) {
-                  ++casts;
-                  const bool lit = sees_sun(rays, p, d);
-                  if (poll.after(since, 16)) return;  // a query weighs about as much as 16 visits
-                  if (lit) continue;
-                }
-                dark(point);
+          // A footprint: its points not settled yet.
+          owned_rows(t, first_row, last_row, [&](int r) {
+            int c0, c1;
+            if (!shadow->outer_columns(r, c0, c1) || poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
+            for (int c = c0; c <= c1; ++c) {
+              const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+              PointState& point = state[i];
+              if (point.tested >= now) continue;
+              point.tested = now;
+              // Dark for certain when the ray passes well inside the
+              // object whose footprint holds the point: the pure ray
+              // cast's query would find that hit (ShapeKind::surely_meets).
+              // Else the query itself settles it.
+              const glm::dvec3 p = grid.point(i);
+              const bool surely_dark =
+                  object.kind->surely_meets && object.kind->surely_meets(*object.object, p, d, object.margin);
+              if (!surely_dark) {
+                ++casts;
+                const bool lit = sees_sun(rays, p, d);
+                if (poll.after(since, 16)) return;  // a query weighs about as much as 16 visits
+                if (lit) continue;
               }
+              dark(point);
             }
+          });
+        }
+        if (!up.last || poll.stopped()) continue;
+        // The stretch ends: each point's last run in it.
+        owned_rows(t, 0, grid.rows - 1, [&](int r) {
+          for (int c = 0; c < grid.columns; ++c) {
+            PointState& point = state[std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)];
+            if (point.tested == kInside) continue;
+            const std::size_t start =
+                point.dark_stretch == std::int32_t(j) ? std::size_t(point.last_dark + 1) : stretch.first;
+            point.longest = std::max<std::uint32_t>(point.longest, std::uint32_t(stretch.end - start));
           }
-        if (pairs_done) pairs_done->fetch_add(std::uint64_t(r1 - r0) * std::uint64_t(grid.columns));
+        });
       }
-      // The stretch ends: each point's last run in it.
-      for (std::size_t i = std::size_t(r0) * std::size_t(grid.columns); i < std::size_t(r1) * std::size_t(grid.columns); ++i) {
-        PointState& point = state[i];
-        if (point.tested == kInside) continue;
-        const std::size_t start =
-            point.dark_stretch == std::int32_t(j) ? std::size_t(point.last_dark + 1) : stretch.first;
-        point.longest = std::max<std::uint32_t>(point.longest, std::uint32_t(stretch.end - start));
-      }
+      barrier.wait();
+      if (t == 0 && pairs_done && !poll.stopped()) pairs_done->fetch_add(std::uint64_t(count) * std::uint64_t(points));
     }
     cast.fetch_add(casts);
   };
   std::vector<std::thread> pool;
-  for (int b = 1; b < bands; ++b) pool.emplace_back(band, b);
-  band(0);
-  for (auto& t : pool) t.join();
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker, t);
+  worker(0);
+  for (auto& thread : pool) thread.join();
   if (poll.stopped()) throw CastStopped();
   for (std::size_t i = 0; i < points; ++i) {
     const PointState& point = state[i];
