@@ -148,10 +148,18 @@ class PlaneShadow {
     m_ = convex_hull(slid, n, hull);
     hull_.assign(hull, hull + m_);
     length_.resize(std::size_t(m_));
+    slope_.resize(std::size_t(m_));
+    flat_.resize(std::size_t(m_));
     for (int i = 0; i < m_; ++i) {
       const Point2& a = hull_[i];
       const Point2& b = hull_[(i + 1) % m_];
       length_[i] = std::hypot(b.x - a.x, b.z - a.z);
+      // Once here, not per row: a division per edge and row was most of a
+      // row's cost.
+      slope_[i] = a.z == b.z ? 0.0 : (b.x - a.x) / (b.z - a.z);
+      // An edge so near a row that its slope overflows is taken as along
+      // it (both its ends, for the outer spans).
+      flat_[i] = a.z == b.z || !std::isfinite(slope_[i]);
     }
     z_low_ = z_high_ = hull_[0].z;
     for (int i = 1; i < m_; ++i) z_low_ = std::min(z_low_, hull_[i].z), z_high_ = std::max(z_high_, hull_[i].z);
@@ -193,11 +201,11 @@ class PlaneShadow {
       const double edge_low = std::min(a.z, b.z), edge_high = std::max(a.z, b.z);
       if (edge_high < band_low || edge_low > band_high) continue;
       for (const double at : {std::max(band_low, edge_low), std::min(band_high, edge_high)}) {
-        const double x = a.z == b.z ? a.x : a.x + (at - a.z) / (b.z - a.z) * (b.x - a.x);
+        const double x = flat_[i] ? a.x : a.x + (at - a.z) * slope_[i];
         x_low = std::min(x_low, x);
         x_high = std::max(x_high, x);
       }
-      if (a.z == b.z) x_low = std::min(x_low, b.x), x_high = std::max(x_high, b.x);
+      if (flat_[i]) x_low = std::min(x_low, b.x), x_high = std::max(x_high, b.x);
     }
     if (m_ == 1) x_low = x_high = hull_[0].x;
     if (x_low > x_high) return false;
@@ -250,8 +258,8 @@ class PlaneShadow {
       const Point2& a = hull_[i];
       const Point2& b = hull_[(i + 1) % m_];
       if (z < std::min(a.z, b.z) || z > std::max(a.z, b.z)) continue;
-      const double f = a.z == b.z ? 0.0 : std::clamp((z - a.z) / (b.z - a.z), 0.0, 1.0);
-      const double x = a.x + f * (b.x - a.x);
+      const double x =
+          flat_[i] ? a.x : std::clamp(a.x + (z - a.z) * slope_[i], std::min(a.x, b.x), std::max(a.x, b.x));
       x_low = std::min(x_low, x);
       x_high = std::max(x_high, x);
     }
@@ -276,6 +284,8 @@ class PlaneShadow {
   int columns_;
   std::vector<Point2> hull_;
   std::vector<double> length_;  // of edge i (hull_[i] to the next)
+  std::vector<double> slope_;   // of edge i: dx / dz (0 along a row)
+  std::vector<char> flat_;      // edge i runs along a row
   int m_ = 0;
   double z_low_ = 0.0, z_high_ = 0.0, extent_ = 1.0, slack_ = 0.0;
 };
