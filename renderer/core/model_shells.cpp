@@ -49,27 +49,32 @@ bool overlaps(const Triangle& t, const glm::dvec3& centre, const glm::dvec3& hal
 // square on.
 int parity(const std::vector<Triangle>& triangles, const glm::dvec3& p) {
   const glm::dvec3 d = glm::normalize(glm::dvec3(0.5773502, 0.6178, 0.5340711));
+  constexpr double kEpsilon = 2.2e-16;
   int crossings = 0;
   for (const Triangle& t : triangles) {
     const glm::dvec3 e1 = t.b - t.a, e2 = t.c - t.a;
+    const glm::dvec3 normal = glm::cross(e1, e2);
+    if (normal == glm::dvec3(0.0)) continue;  // no area (two corners equal, or in a line): crossed by no ray
+    const double scale = glm::length(e1) * glm::length(e2);
     const glm::dvec3 q = glm::cross(d, e2);
     const double det = glm::dot(e1, q);
-    const double scale = glm::length(e1) * glm::length(e2);
-    if (!(scale > 0.0)) continue;  // no area: crossed by no ray
     const glm::dvec3 s = p - t.a;
+    const double reach = glm::length(s);
     if (std::abs(det) <= 1e-9 * scale) {
       // Along the face's plane: unsure if the ray lies in it.
-      if (std::abs(glm::dot(s, glm::cross(e1, e2))) <= 1e-9 * scale * (glm::length(s) + 1e-300)) return -1;
+      if (std::abs(glm::dot(s, normal)) <= 1e-9 * glm::length(normal) * (reach + 1e-300)) return -1;
       continue;
     }
     const double u = glm::dot(s, q) / det;
     const glm::dvec3 r = glm::cross(s, e1);
     const double w = glm::dot(d, r) / det;
     const double t_hit = glm::dot(e2, r) / det;
-    constexpr double kNear = 1e-7;
-    if (u < -kNear || w < -kNear || u + w > 1.0 + kNear) continue;
-    if (u < kNear || w < kNear || u + w > 1.0 - kNear) return -1;  // near an edge: unsure
-    if (std::abs(t_hit) <= 1e-9 * (1.0 + glm::length(s))) return -1;  // p on the face
+    // How far rounding can move the barycentrics: the products' errors
+    // (a few ulps of |s| |e| and of |e1| |e2|) over |det|, sixteen times.
+    const double near = 16.0 * kEpsilon * (reach * (glm::length(e1) + glm::length(e2)) + scale) / std::abs(det) + 1e-9;
+    if (u < -near || w < -near || u + w > 1.0 + near) continue;
+    if (u < near || w < near || u + w > 1.0 - near) return -1;  // near an edge: unsure
+    if (std::abs(t_hit) <= 1e-9 * (1.0 + reach)) return -1;     // p on the face
     if (t_hit > 0.0) ++crossings;
   }
   return crossings % 2;
@@ -88,17 +93,18 @@ bool fits(const std::vector<Triangle>& triangles, const Aabb& core, double margi
   return parity(triangles, centre) == 1;
 }
 
+// A coordinate's bits, -0 as 0: positions equal as numbers weld (as
+// is_closed welds them), whatever bits an exporter wrote.
 std::uint64_t bits_of(float f) {
+  if (f == 0.0f) f = 0.0f;
   std::uint32_t b;
   std::memcpy(&b, &f, sizeof b);
   return b;
 }
 
-}  // namespace
-
-std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint32_t& shells) {
-  // Welded corners: one id per distinct position; triangles joined
-  // through a shared one are one shell (union-find).
+// Per triangle (parts in order) its corners' welded ids: one per distinct
+// position. `ids` is set to how many.
+std::vector<std::array<std::uint32_t, 3>> welded_corners(const TriangleModel& model, std::uint32_t& ids) {
   std::vector<std::pair<std::array<std::uint64_t, 2>, std::uint32_t>> keys;
   std::vector<std::array<std::uint32_t, 3>> corners;
   for (const ModelPart& part : model.parts) {
@@ -112,27 +118,54 @@ std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint
   }
   std::sort(keys.begin(), keys.end());
   std::vector<std::uint32_t> welded(keys.size());
-  std::uint32_t id = 0;
+  ids = keys.empty() ? 0 : 1;
   for (std::size_t i = 0; i < keys.size(); ++i) {
-    if (i > 0 && keys[i].first != keys[i - 1].first) ++id;
-    welded[keys[i].second] = id;
+    if (i > 0 && keys[i].first != keys[i - 1].first) ++ids;
+    welded[keys[i].second] = ids - 1;
   }
-  std::vector<std::uint32_t> parent(keys.empty() ? 0 : std::size_t(id) + 1);
+  for (auto& c : corners) c = {welded[c[0]], welded[c[1]], welded[c[2]]};
+  return corners;
+}
+
+// Whether the triangles (welded corners) close up: every directed edge's
+// reverse is among them, and no directed edge twice. Triangles with two
+// equal corners are left out (as is_closed leaves them).
+bool closes(const std::vector<std::array<std::uint32_t, 3>>& triangles) {
+  std::vector<std::uint64_t> edges;
+  for (const auto& c : triangles) {
+    if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) continue;
+    for (int k = 0; k < 3; ++k) edges.push_back(std::uint64_t(c[k]) << 32 | c[(k + 1) % 3]);
+  }
+  if (edges.empty()) return false;
+  std::sort(edges.begin(), edges.end());
+  if (std::adjacent_find(edges.begin(), edges.end()) != edges.end()) return false;
+  for (const std::uint64_t e : edges)
+    if (!std::binary_search(edges.begin(), edges.end(), (e << 32) | (e >> 32))) return false;
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint32_t& shells) {
+  std::uint32_t ids = 0;
+  const std::vector<std::array<std::uint32_t, 3>> corners = welded_corners(model, ids);
+  // Triangles joined through a shared corner are one shell (union-find).
+  std::vector<std::uint32_t> parent(ids);
   std::iota(parent.begin(), parent.end(), 0u);
   const auto find = [&](std::uint32_t x) {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
     return x;
   };
   for (const auto& c : corners) {
-    const std::uint32_t r = find(welded[c[0]]);
-    parent[find(welded[c[1]])] = r;
-    parent[find(welded[c[2]])] = r;
+    const std::uint32_t r = find(c[0]);
+    parent[find(c[1])] = r;
+    parent[find(c[2])] = r;
   }
   // Roots numbered in order of first use.
   std::vector<std::uint32_t> number(parent.size(), ~0u), out(corners.size());
   shells = 0;
   for (std::size_t t = 0; t < corners.size(); ++t) {
-    std::uint32_t& n = number[find(welded[corners[t][0]])];
+    std::uint32_t& n = number[find(corners[t][0])];
     if (n == ~0u) n = shells++;
     out[t] = n;
   }
@@ -152,8 +185,10 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
       tri.box.extend(tri.a), tri.box.extend(tri.b), tri.box.extend(tri.c);
       all.push_back(tri);
     }
-  std::uint32_t shells = 0;
+  std::uint32_t shells = 0, ids = 0;
   const std::vector<std::uint32_t> shell_of = triangle_shells(model, shells);
+  const std::vector<std::array<std::uint32_t, 3>> corners = welded_corners(model, ids);
+  std::vector<std::array<std::uint32_t, 3>> shell_corners;
   // Candidates that fail late could cost 70 passes over a shell: the
   // looking stops at kShellCoreWork passes over the whole model.
   std::uint64_t work = 0;
@@ -167,13 +202,18 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
     std::size_t last = first;
     while (last < by_shell.size() && by_shell[last].first == by_shell[first].first) ++last;
     shell.clear();
+    shell_corners.clear();
     Aabb bounds;
     for (std::size_t i = first; i < last; ++i) {
       shell.push_back(all[by_shell[i].second]);
+      shell_corners.push_back(corners[by_shell[i].second]);
       bounds.extend(shell.back().box);
     }
     first = last;
     if (shell.size() > kShellCoreMaxTriangles) continue;
+    // The whole model closes up; each shell must on its own, or the
+    // parity below would count the crossings of an open piece.
+    if (!closes(shell_corners)) continue;
     // Candidates, largest first: the bounds shrunk about their centre, or
     // about the middle of their floor, by fractions across and up.
     static constexpr double kFractions[] = {0.98, 0.9, 0.75, 0.6, 0.45, 0.3};

@@ -22,8 +22,8 @@ glm::dvec3 rotate_y(const glm::dvec3& v, double degrees) {
   // (by their bits, so -0 and 0 stay apart): the same numbers, computed
   // once.
   struct Turn {
-    std::uint64_t bits = ~std::uint64_t(0);  // no double's bits are a NaN's all ones
-    double c = 0.0, s = 0.0;
+    std::uint64_t bits = 0;  // the angle +0, whose cos and sin these are
+    double c = 1.0, s = 0.0;
   };
   thread_local Turn turns[64];
   std::uint64_t bits;

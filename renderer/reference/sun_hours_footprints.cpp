@@ -393,6 +393,8 @@ namespace {
 // around a round or scattered model would leave to the query. At least 32
 // (a teapot's parts, split), a building each up to 1024.
 constexpr int kFewestMeshClusters = 32, kMostMeshClusters = 1024;
+// The most footprints and cores a request's objects draw each sample.
+constexpr int kMostDrawn = 65536;
 
 // One object as the footprints see it: the convex solids its footprints
 // are drawn from (its bounds; a mesh's clusters of triangles), each cut to
@@ -443,6 +445,20 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
     facts.cores = shell_cores(*model, facts.core_margin);
     if (model_triangles) *model_triangles += double(model->triangle_count());
   }
+  // Every instance draws its model's clusters and cores each sample: past
+  // kMostDrawn in all (a thousand instances of a model of thousands of
+  // buildings), each model is one box again, without cores, so that the
+  // plan and the walk stay bounded (and exact: only slower).
+  double drawn = 0.0;
+  for (const SceneObject& o : scene.objects) {
+    const auto facts = o.model ? models.find(o.model.get()) : models.end();
+    drawn += facts == models.end() ? 2.0 : double(facts->second.clusters.size() + facts->second.cores.size());
+  }
+  if (drawn > double(kMostDrawn))
+    for (auto& [model, facts] : models) {
+      facts.clusters = {model->bounds};
+      facts.cores.clear();
+    }
   std::vector<Caster> casters;
   for (const SceneObject& o : scene.objects) {
     Caster caster;
@@ -552,7 +568,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   // Directions in turn until about kMaxWork: a thousand objects over the
   // whole grid are 16 M visits a direction, and the plan runs before any
   // budget. A proof (a turned box's trigonometry) weighs 16 visits.
-  constexpr double kMaxWork = 16.0e6, kWorkPerProof = 16.0;
+  constexpr double kMaxWork = 16.0e6, kWorkPerProof = 16.0, kWorkPerHull = 64.0;
   double work = 0.0;
   double candidates = 0.0, queried = 0.0, visits = 0.0, tests = 0.0, queried_tests = 0.0;
   std::vector<std::uint16_t> depth(lattice, 0);
@@ -574,6 +590,8 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   for (std::size_t n = 0; n < order.size() && work < kMaxWork; ++n, ++judged_directions) {
     const glm::dvec3& d = directions[order[n]];
     if (!(d.y > 0.0)) continue;
+    // A hull (its points slid and sorted) weighs about kWorkPerHull visits.
+    work += kWorkPerHull * out.hulls;
     // As footprint_sun_hours: first the cores' shadows, dark without a
     // proof each.
     for (const Caster& o : casters)
