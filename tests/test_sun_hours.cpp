@@ -872,15 +872,15 @@ TEST(SunHoursFootprints, ManyInstancesOfManyShellsDrawABoundedNumber) {
       footprint_shares(p.request->view.scene, p.request->grid, {glm::normalize(glm::dvec3(0.3, 0.5, 0.2))});
   EXPECT_EQ(shares.hulls, 1000.0);  // one box an instance
   EXPECT_EQ(shares.model_triangles, 70.0 * 70.0 * 12.0);  // the model's triangles once
-  // A few instances keep their buildings (1024 clusters of 4900 each; the
-  // buildings' cores, 4 cells wide, are not drawn).
+  // A few instances keep their buildings (1024 clusters of 4900 each, and
+  // the buildings' cores).
   json few = body;
   few["scene"]["objects"] = json::array({objects[0], objects[1]});
   const ParsedSunHours q =
       parse_sun_hours_request(few.dump(), test::lookup_of({{"sha256:city", city}}, {{"city", "sha256:city"}}));
   ASSERT_TRUE(q.request);
   EXPECT_EQ(footprint_shares(q.request->view.scene, q.request->grid, {glm::normalize(glm::dvec3(0.3, 0.5, 0.2))}).hulls,
-            2.0 * 1024);
+            2.0 * (1024 + 4900));
 }
 
 // A city of 25 buildings in one mesh, as a CityJSON or glTF file brings

@@ -406,6 +406,7 @@ struct Caster {
   const ShapeKind* kind = nullptr;
   double margin = 0.0;
   std::vector<SolidCore> cores;
+  std::vector<std::size_t> drawn_cores;  // those wide enough to draw each sample
   // A mesh's: world to model space, and the margin there.
   glm::dmat4 to_model{1.0};
   double model_margin = 0.0;
@@ -491,14 +492,16 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
     }
     if (caster.hulls.empty()) continue;
     // A core thinner than a few cells holds few points of a row: its hull
-    // each sample would cost more than the proofs it spares.
-    caster.cores.erase(std::remove_if(caster.cores.begin(), caster.cores.end(),
-                                      [&](const SolidCore& core) {
-                                        Aabb b;
-                                        for (const glm::dvec3& p : core.points) b.extend(p);
-                                        return std::min(b.extent().x, b.extent().z) < kCoreWidthCells * grid.spacing;
-                                      }),
-                       caster.cores.end());
+    // each sample would cost more than the proofs of an analytic solid it
+    // spares (a model's cores are always drawn: without them its pairs
+    // are rays). A core not drawn still settles the points inside it
+    // (mark_inside).
+    for (std::size_t i = 0; i < caster.cores.size(); ++i) {
+      Aabb b;
+      for (const glm::dvec3& p : caster.cores[i].points) b.extend(p);
+      if (!caster.kind->surely_meets || std::min(b.extent().x, b.extent().z) >= kCoreWidthCells * grid.spacing)
+        caster.drawn_cores.push_back(i);
+    }
     casters.push_back(std::move(caster));
   }
   return casters;
@@ -552,7 +555,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   FootprintShares out;
   if (directions.empty() || grid.points() == 0) return out;
   const std::vector<Caster> casters = casters_of(scene, grid, &out.model_triangles);
-  for (const Caster& o : casters) out.hulls += double(o.hulls.size() + o.cores.size());
+  for (const Caster& o : casters) out.hulls += double(o.hulls.size() + o.drawn_cores.size());
   // A lattice of at most about 128 x 128 of the grid's points (every
   // stride-th row and column), judged as footprint_sun_hours judges them:
   // inside a footprint, and then settled by a proof of dark or left to the
@@ -595,10 +598,11 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
     // As footprint_sun_hours: first the cores' shadows, dark without a
     // proof each.
     for (const Caster& o : casters)
-      for (const SolidCore& solid : o.cores) {
+      for (const std::size_t c : o.drawn_cores) {
+        const SolidCore& solid = o.cores[c];
         const PlaneShadow core(solid.points.data(), int(solid.points.size()), d, grid);
         int first_row, last_row, c0, c1;
-        if (core.cells() < kCoreCells || core.cells_per_row() < kCoreCellsPerRow) continue;
+        if (o.kind->surely_meets && (core.cells() < kCoreCells || core.cells_per_row() < kCoreCellsPerRow)) continue;
         if (!core.rows(0, grid.rows, stride, first_row, last_row)) continue;
         for (int r = first_row; r <= last_row; r += stride) {
           if (!core.inner_columns(r, c0, c1)) continue;
@@ -724,7 +728,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   };
   std::vector<Drawn> drawn;
   for (const Caster& o : casters)
-    for (const SolidCore& core : o.cores) drawn.push_back({&o, &core.points, true});
+    for (const std::size_t c : o.drawn_cores) drawn.push_back({&o, &o.cores[c].points, true});
   for (const Caster& o : casters)
     for (const std::vector<glm::dvec3>& hull : o.hulls) drawn.push_back({&o, &hull, false});
   // Samples go in blocks: first all threads draw the block's shadows (each
@@ -764,9 +768,11 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           const Drawn& w = drawn[i % drawn.size()];
           if (!(d.y > 0.0)) continue;
           shadow.emplace(w.points->data(), int(w.points->size()), d, grid);
-          // A core's shadow only where it spares more proofs than its
-          // rows' crossings cost.
-          if (w.core && (shadow->cells() < kCoreCells || shadow->cells_per_row() < kCoreCellsPerRow)) shadow.reset();
+          // An analytic solid's core's shadow only where it spares more
+          // proofs than its rows' crossings cost (a model's spares rays).
+          if (w.core && w.caster->kind->surely_meets &&
+              (shadow->cells() < kCoreCells || shadow->cells_per_row() < kCoreCellsPerRow))
+            shadow.reset();
         }
       barrier.wait();
       for (std::size_t e = 0; e < count && !poll.stopped(); ++e) {
