@@ -174,7 +174,6 @@ std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint
 
 std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
   std::vector<Aabb> cores;
-  if (!model.closed) return cores;
   std::vector<Triangle> all;
   for (const ModelPart& part : model.parts)
     for (std::size_t t = 0; t < part.triangle_count(); ++t) {

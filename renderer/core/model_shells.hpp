@@ -37,20 +37,23 @@ std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint
 std::vector<Aabb> shell_clusters(const TriangleModel& model, const std::vector<std::uint32_t>& shell_of,
                                  std::uint32_t shells, int fewest, int most);
 
-/// Per shell of a closed model (TriangleModel::closed; triangles joined
-/// through shared corners, welded by exact position), at most one box of
-/// model space that lies inside the volume the shell encloses with every
-/// point at least `margin` from each of the shell's triangles. A box is
-/// proved, not guessed: no triangle of the shell comes within `margin` of
-/// it (separating axes, in double) and its centre is inside (an odd number
-/// of crossings along a ray, none of them near an edge or grazing).
+/// Per shell of the model that closes up (triangles joined through shared
+/// corners, welded by value; every edge of the shell run both ways by its
+/// triangles, once each, those with two equal corners left out), at most
+/// one box of model space that lies inside the volume the shell encloses
+/// with every point at least `margin` from each of the shell's triangles.
+/// The rest of the model may be open (a city file with one building not
+/// watertight): a line through the box crosses this shell whatever else
+/// is there. A box is proved, not guessed: no triangle of the shell comes
+/// within `margin` of it (separating axes, in double) and its centre is
+/// inside (an odd number of crossings along a ray, none of them near an
+/// edge or grazing, by a band that follows the crossing's own rounding).
 /// Candidates are the shell's bounds shrunk by twice the margin (a box
 /// fills them), then shrunk about their centre and about the middle of
-/// their floor (a pitched roof over walls), largest first;
-/// a shell none of them fits has none. None for an open model.
-/// Time at most about kShellCoreWork passes over the triangles (the
-/// candidates not yet tried then are left out, as are shells above
-/// kShellCoreMaxTriangles: their cost, not their shape).
+/// their floor (a pitched roof over walls), largest first; a shell none of
+/// them fits has none. Time at most about kShellCoreWork passes over the
+/// triangles (the candidates not yet tried then are left out, as are
+/// shells above kShellCoreMaxTriangles: their cost, not their shape).
 std::vector<Aabb> shell_cores(const TriangleModel& model, double margin);
 
 /// The largest shell shell_cores looks into, and how many passes over the
