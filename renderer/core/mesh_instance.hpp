@@ -7,8 +7,6 @@
 
 #include <cstdint>
 
-#include <vector>
-
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 

@@ -144,11 +144,9 @@ bool closes(const std::vector<std::array<std::uint32_t, 3>>& triangles) {
   return true;
 }
 
-}  // namespace
-
-std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint32_t& shells) {
-  std::uint32_t ids = 0;
-  const std::vector<std::array<std::uint32_t, 3>> corners = welded_corners(model, ids);
+// Which shell each triangle (its welded corners, `ids` distinct) is in.
+std::vector<std::uint32_t> shells_of(const std::vector<std::array<std::uint32_t, 3>>& corners, std::uint32_t ids,
+                                     std::uint32_t& shells) {
   // Triangles joined through a shared corner are one shell (union-find).
   std::vector<std::uint32_t> parent(ids);
   std::iota(parent.begin(), parent.end(), 0u);
@@ -172,6 +170,14 @@ std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint
   return out;
 }
 
+}  // namespace
+
+std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint32_t& shells) {
+  std::uint32_t ids = 0;
+  const std::vector<std::array<std::uint32_t, 3>> corners = welded_corners(model, ids);
+  return shells_of(corners, ids, shells);
+}
+
 std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
   std::vector<Aabb> cores;
   std::vector<Triangle> all;
@@ -185,8 +191,8 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
       all.push_back(tri);
     }
   std::uint32_t shells = 0, ids = 0;
-  const std::vector<std::uint32_t> shell_of = triangle_shells(model, shells);
   const std::vector<std::array<std::uint32_t, 3>> corners = welded_corners(model, ids);
+  const std::vector<std::uint32_t> shell_of = shells_of(corners, ids, shells);
   std::vector<std::array<std::uint32_t, 3>> shell_corners;
   // Candidates that fail late could cost 70 passes over a shell: the
   // looking stops at kShellCoreWork passes over the whole model.

@@ -31,7 +31,9 @@ struct Aabb {
     const glm::dvec3 far = glm::max(glm::abs(min), glm::abs(max));
     return std::max({far.x, far.y, far.z});
   }
-  /// The 8 corners (for an empty box, unspecified).
+  /// The 8 corners (for an empty box, unspecified): corner i takes max.x
+  /// where bit 0 of i is set, max.y bit 1, max.z bit 2 (so corners i and
+  /// i | bit share an edge).
   std::vector<glm::dvec3> corners() const;
 };
 

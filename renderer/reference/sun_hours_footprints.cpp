@@ -292,12 +292,6 @@ class PlaneShadow {
   double z_low_ = 0.0, z_high_ = 0.0, extent_ = 1.0, slack_ = 0.0;
 };
 
-void bounds_corners(const Aabb& bounds, glm::dvec3* corners) {
-  for (int i = 0; i < 8; ++i)
-    corners[i] = {i & 1 ? bounds.max.x : bounds.min.x, i & 2 ? bounds.max.y : bounds.min.y,
-                  i & 4 ? bounds.max.z : bounds.min.z};
-}
-
 }  // namespace
 
 void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
@@ -306,9 +300,8 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
   // Each corner slides down the sun's direction to the plane: the points
   // whose rays pass through it. The bounds are convex, so the footprint is
   // the hull of the eight.
-  glm::dvec3 corners[8];
-  bounds_corners(bounds, corners);
-  const PlaneShadow shadow(corners, 8, direction, grid);
+  const std::vector<glm::dvec3> corners = bounds.corners();
+  const PlaneShadow shadow(corners.data(), 8, direction, grid);
   int r0, r1, c0, c1;
   if (!shadow.rows(first_row, last_row, row_step, r0, r1)) return;
   for (int r = r0; r <= r1; r += row_step)
@@ -321,8 +314,7 @@ namespace {
 // parallelepiped), cut to y >= cut: its corners there, and where its edges
 // cross that height. Their hull is the cut solid.
 std::vector<glm::dvec3> world_box_above(const Aabb& box, const glm::dmat4& to_world, double cut) {
-  glm::dvec3 c[8];
-  bounds_corners(box, c);
+  std::vector<glm::dvec3> c = box.corners();  // corners i and i | bit share an edge
   for (glm::dvec3& corner : c) corner = glm::dvec3(to_world * glm::dvec4(corner, 1.0));
   std::vector<glm::dvec3> points;
   for (int i = 0; i < 8; ++i)
@@ -369,7 +361,7 @@ std::vector<SolidCore> solid_cores(const SceneObject& object, double plane_y, do
     if (core.points.size() >= 4 && core.points.size() <= std::size_t(kMaxShadowPoints)) cores.push_back(std::move(core));
     return cores;
   }
-  // A closed model: each shell's core (shell_cores), clear of its
+  // A model: each shell that closes up's core (shell_cores), clear of its
   // triangles by the margin in model space, which is at least the margin
   // in the world.
   if (object.type != SceneObject::Type::Mesh || !object.model || !(smallest_scale(object) > 0.0)) return cores;
@@ -483,11 +475,7 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
       caster.cores = mesh_cores(o, facts->second.cores, grid.center.y, caster.margin);
     } else {
       const Aabb reachable = reachable_bounds(caster.bounds, grid.center.y, reach);
-      if (!reachable.empty()) {
-        std::vector<glm::dvec3> corners(8);
-        bounds_corners(reachable, corners.data());
-        caster.hulls.push_back(std::move(corners));
-      }
+      if (!reachable.empty()) caster.hulls.push_back(reachable.corners());
       caster.cores = solid_cores(o, grid.center.y, caster.margin);
     }
     if (caster.hulls.empty()) continue;
@@ -505,6 +493,13 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
     casters.push_back(std::move(caster));
   }
   return casters;
+}
+
+// Whether a core's shadow spares more than its rows' crossings cost: an
+// analytic solid's spares proofs, so only a shadow wide enough (a model's
+// spares rays, always).
+bool pays(const Caster& caster, const PlaneShadow& core) {
+  return !caster.kind->surely_meets || (core.cells() >= kCoreCells && core.cells_per_row() >= kCoreCellsPerRow);
 }
 
 // Calls mark(row, column) for the grid points (every stride-th row and
@@ -533,9 +528,9 @@ void mark_inside(const std::vector<Caster>& casters, const SunGrid& grid, int st
       scan(o.bounds, [&](const glm::dvec3& p) { return o.kind->contains(*o.object, p, 2.0 * o.margin); });
       continue;
     }
+    const glm::dmat4 to_world = mesh_transform(*o.object);
     for (const SolidCore& core : o.cores) {
       if (core.model_box.empty()) continue;
-      const glm::dmat4 to_world = glm::inverse(o.to_model);
       Aabb world;
       for (const glm::dvec3& corner : core.model_box.corners()) world.extend(glm::dvec3(to_world * glm::dvec4(corner, 1.0)));
       const Aabb& box = core.model_box;
@@ -602,7 +597,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
         const SolidCore& solid = o.cores[c];
         const PlaneShadow core(solid.points.data(), int(solid.points.size()), d, grid);
         int first_row, last_row, c0, c1;
-        if (o.kind->surely_meets && (core.cells() < kCoreCells || core.cells_per_row() < kCoreCellsPerRow)) continue;
+        if (!pays(o, core)) continue;
         if (!core.rows(0, grid.rows, stride, first_row, last_row)) continue;
         for (int r = first_row; r <= last_row; r += stride) {
           if (!core.inner_columns(r, c0, c1)) continue;
@@ -702,7 +697,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
     std::uint32_t dark = 0;
     std::uint32_t longest = 0;
   };
-  // A point inside a solid (a box's, a sphere's, a closed model's shell's
+  // A point inside a solid (a box's, a sphere's, a model's closed shell's
   // core) by twice the margin sees no sun at any sample (mark_inside):
   // settled once, for the whole period, by a `tested` past every sample,
   // so one test (tested >= k) skips it and a point already tested.
@@ -770,9 +765,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           shadow.emplace(w.points->data(), int(w.points->size()), d, grid);
           // An analytic solid's core's shadow only where it spares more
           // proofs than its rows' crossings cost (a model's spares rays).
-          if (w.core && w.caster->kind->surely_meets &&
-              (shadow->cells() < kCoreCells || shadow->cells_per_row() < kCoreCellsPerRow))
-            shadow.reset();
+          if (w.core && !pays(*w.caster, *shadow)) shadow.reset();
         }
       barrier.wait();
       for (std::size_t e = 0; e < count && !poll.stopped(); ++e) {

@@ -11,8 +11,8 @@
 // query is skipped: the pure ray cast's query would meet that object. Where
 // it is wide, the shadow of a solid's core (SolidCore) proves a whole
 // stretch of each row dark at once. A model's footprints are drawn from
-// clusters of its triangles (shell_clusters), and a closed model's
-// shells have cores too (shell_cores).
+// clusters of its triangles (shell_clusters), and its shells that close
+// up have cores too (shell_cores).
 //
 // Time is tallied by events: only a point's dark samples touch it, plus
 // one pass over the grid per stretch of daylight, so that a grid mostly
@@ -54,14 +54,14 @@ void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunG
 /// by `margin`. A ray from the plane whose line passes through that hull
 /// meets the solid past it: for an analytic solid it passes through the
 /// shrunk solid past t = margin (ShapeKind::surely_meets holds); for a
-/// closed model the hull lies inside a shell (shell_cores), which the ray
-/// then crosses on its way out.
+/// model the hull lies inside a shell that closes up (shell_cores), which
+/// the ray then crosses on its way out.
 struct SolidCore {
   std::vector<glm::dvec3> points;  ///< world space, at most 128
-  Aabb model_box;                  ///< a closed model's: the shell's core in model space; else empty
+  Aabb model_box;                  ///< a model's: the shell's core in model space; else empty
 };
 /// The cores of an object: one for a box, sphere or cylinder
-/// (ShapeKind::points_inside), one per shell core of a closed model
+/// (ShapeKind::points_inside), one per shell core of a model
 /// (shell_cores, with `margin` / its smallest scale in model space, cut
 /// to the plane's side), none for anything else or where nothing is left.
 std::vector<SolidCore> solid_cores(const SceneObject& object, double plane_y, double margin);
