@@ -9,7 +9,7 @@
 // Built once per variant (DisplayVariant in renderer/gpu/shader_interface.hpp,
 // which also declares the FrameBlock `u`): SHADOWS, DIRECT_LIGHT, OUTPUT_SHADOW,
 // LIGHT_PERSPECTIVE, LIGHT_CUBE, VIEW_COUNT, FILTER, PCF_RADIUS,
-// FILTER_REACH, FILTER_READ, BIAS_AUTO and LIGHT_SIDE are #defines, so nothing below
+// FILTER_REACH, FILTER_READ, BIAS_AUTO, LIGHT_SIDE, CERTIFICATES and PROOF are #defines, so nothing below
 // branches on a uniform and every loop has a constant trip count.
 in vec3 v_position;  // relative to the mesh origin
 in vec3 v_normal;
@@ -24,6 +24,112 @@ layout(location = FRAG_OUTPUT_COLOR) out vec4 o_color;
 layout(location = FRAG_OUTPUT_CERTIFICATE) out uint o_certificate;
 layout(location = FRAG_OUTPUT_UNLIT) out vec4 o_unlit;
 layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
+
+// What the camera sees at this pixel, and how far the exact surface along
+// the same camera ray may lie from the rasterised point.
+struct Seen {
+  vec3 p;                 // the rasterised point (relative to the mesh origin)
+  vec3 geometric_normal;  // its triangle's plane, facing the camera
+  int triangle;
+  uint object;
+  vec4 facts;             // object_facts
+  float reach;            // world units: the exact point lies within this of p
+  float n_dot_l_rate;     // |d(N.L)/dx| + |d(N.L)/dy| across the pixel
+  float cos_view;         // |cos| of the camera ray's angle to the face
+  bool clipped;           // the camera's near or far plane passes within reach
+};
+
+// The pixel's Seen: v_position on `triangle` of `object`. Called outside
+// any branch (derivatives).
+Seen seen_here(int triangle, uint object, vec3 geometric_normal, float n_dot_l) {
+  Seen seen;
+  seen.p = v_position;
+  vec3 to_eye = u.camera_position.xyz - v_position;
+  seen.geometric_normal = dot(geometric_normal, to_eye) < 0.0 ? -geometric_normal : geometric_normal;
+  seen.triangle = triangle;
+  seen.object = object;
+  seen.facts = object_facts(object);
+  seen.n_dot_l_rate = fwidth(n_dot_l);
+  // The exact surface along this pixel's camera ray: within the shape's
+  // tessellation distance of the face (further along a ray that meets the
+  // face obliquely; a curved shape seen at a grazing angle is left to the
+  // ray cast), and within rounding: 1/50 of the pixel's footprint on the
+  // surface (the rasteriser snaps vertices to 1/256 pixel) and float
+  // rounding: about 10 ulps of the coordinates involved (the object's
+  // extent, the point's and the camera's), and for a model more than the
+  // reference's offset off its surface (256 ulps of its extent,
+  // offset_off_surface).
+  seen.cos_view = abs(dot(normalize(to_eye), seen.geometric_normal));
+  float rounding = has_flag(seen.facts, OBJECT_FLAG_MODEL) ? 3e-5 : 1e-6;
+  // The reference moves a shadow ray's start off an analytic surface by
+  // 1e-9 (1 + |point|) in world units: far from the world's origin that is
+  // more than the rounding near the mesh origin.
+  float world_offset = 2e-9 * (1.0 + length(v_position + u.mesh_origin_far.xyz));
+  seen.reach = seen.facts.x / max(seen.cos_view, 0.2) + 0.02 * (length(dFdx(v_position)) + length(dFdy(v_position))) +
+               rounding * seen.facts.w + 1e-6 * (length(v_position) + length(to_eye)) + world_offset;
+  // The camera's near and far planes cut the true surface where they cut
+  // its faces only within the reach: there the reference's camera ray may
+  // start past the surface the raster shows (ray_cast.cpp starts it at the
+  // near plane), so such points are left to the ray cast.
+  float along_axis = dot(-to_eye, u.camera_axis_near.xyz);
+  seen.clipped = along_axis - u.camera_axis_near.w < 2.0 * seen.reach ||
+                 u.mesh_origin_far.w - along_axis < 2.0 * seen.reach;
+  return seen;
+}
+
+// What no map is needed for: a point seen near the camera's near or far
+// plane, or a curved shape seen at a grazing angle, is uncertain.
+bool left_to_the_ray_cast(Seen s) { return (s.facts.x > 0.0 && s.cos_view < 0.2) || s.clipped; }
+
+// The verdict of the point's facing alone: dark where it faces away from
+// the light, uncertain where it nearly grazes it, else CERTIFICATE_LIT:
+// it faces the light with margin, and what lies in front of it decides.
+// n_dot_l is the GL's (interpolated normal), which the reference computes
+// the same way for a model and exactly for a shape.
+uint verdict_by_facing(Seen s, float n_dot_l, vec3 to_light) {
+  // The shape's normal error, float rounding, and how fast N.L changes
+  // across the pixel (s.n_dot_l_rate): the rasteriser's snap moves where
+  // the interpolated normal is read by a fraction of a pixel (on a tiny
+  // triangle of a model whose normals turn fast, that flipped N.L's sign).
+  float normal_slack = sin(s.facts.y) + 1e-4 + 0.05 * s.n_dot_l_rate;
+  if (n_dot_l < -normal_slack) return CERTIFICATE_DARK;  // faces away: no direct light, here or exactly
+  if (n_dot_l <= normal_slack) return CERTIFICATE_UNCERTAIN;
+  // The own-owner rule holds where the point's plane faces the light, and
+  // for a closed shape only from outside.
+  if (dot(s.geometric_normal, to_light) <= normal_slack) return CERTIFICATE_UNCERTAIN;
+  if (has_flag(s.facts, OBJECT_FLAG_CLOSED) && !gl_FrontFacing) return CERTIFICATE_UNCERTAIN;
+  return CERTIFICATE_LIT;
+}
+
+#if PROOF != 0
+// A part of a plane that the frame plan proved lit (PROOF 1: the segment
+// to the light from every point within 2 u_proof_margin of it misses every
+// other object's bounds) or dark (PROOF -1: it crosses a box or sphere
+// at least u_proof_margin deep); docs/certified-shadows.md, "Proved plane
+// parts". The plane is its own exact surface (no tessellation, exact
+// normals) and holds no other object's triangles.
+layout(location = UNIFORM_LOCATION_PROOF_OBJECT) uniform uint u_proof_object;
+layout(location = UNIFORM_LOCATION_PROOF_MARGIN) uniform float u_proof_margin;
+// seen_here's reach but for the pixel's footprint, bounded over the whole
+// plane by the plan (ProvedPlane::rounding).
+layout(location = UNIFORM_LOCATION_PROOF_ROUNDING) uniform float u_proof_rounding;
+
+// The verdict on a pixel of a proved part: uncertain where its exact point
+// may lie beyond the margin (seen_here's reach, its footprint's lengths
+// bounded by their sums) or near the camera's near or far plane; a proved
+// umbra is dark; a part proved lit is lit where the plane faces the light
+// with margin (verdict_by_facing for a plane: its faces are its normal).
+uint verdict_by_proof(float n_dot_l) {
+  vec3 dx = abs(dFdx(v_position)), dy = abs(dFdy(v_position));
+  float reach = 0.02 * (dx.x + dx.y + dx.z + dy.x + dy.y + dy.z) + u_proof_rounding;
+  float along_axis = dot(v_position - u.camera_position.xyz, u.camera_axis_near.xyz);
+  bool clipped = along_axis - u.camera_axis_near.w < 2.0 * reach || u.mesh_origin_far.w - along_axis < 2.0 * reach;
+  float normal_slack = 1e-4 + 0.05 * fwidth(n_dot_l);
+  if (reach > u_proof_margin || clipped) return CERTIFICATE_UNCERTAIN;
+  if (PROOF < 0 || n_dot_l < -normal_slack) return CERTIFICATE_DARK;
+  return n_dot_l <= normal_slack ? CERTIFICATE_UNCERTAIN : CERTIFICATE_LIT;
+}
+#endif
 #endif
 
 #if SHADOWS
@@ -397,18 +503,6 @@ layout(binding = TEXTURE_UNIT_CERTIFY_NEAREST_OWNER) uniform usampler2DArray u_n
 layout(binding = TEXTURE_UNIT_CERTIFY_OTHERS) uniform sampler2DArray u_others;
 layout(binding = TEXTURE_UNIT_CERTIFY_CENTRE_TRIANGLE) uniform usampler2DArray u_centre_triangle;
 
-// What the camera sees at this pixel, and how far the exact surface along
-// the same camera ray may lie from the rasterised point.
-struct Seen {
-  vec3 p;                 // the rasterised point (relative to the mesh origin)
-  vec3 geometric_normal;  // its triangle's plane, facing the camera
-  int triangle;
-  uint object;
-  vec4 facts;             // object_facts
-  float reach;            // world units: the exact point lies within this of p
-  float n_dot_l_rate;     // |d(N.L)/dx| + |d(N.L)/dy| across the pixel
-};
-
 // The verdict on a point that faces the light with margin: the maps'
 // proof of light or of shadow, or none.
 uint verdict_by_maps(Seen s) {
@@ -491,21 +585,10 @@ uint verdict_by_maps(Seen s) {
   return farthest + snap_depth < z - dz ? CERTIFICATE_DARK : CERTIFICATE_UNCERTAIN;
 }
 
-// The pixel's verdict. n_dot_l is the GL's (interpolated normal), which
-// the reference computes the same way for a model and exactly for a shape.
+// The pixel's verdict: the facing rules, then the maps'.
 uint certify(Seen s, float n_dot_l, vec3 to_light) {
-  // The shape's normal error, float rounding, and how fast N.L changes
-  // across the pixel (s.n_dot_l_rate): the rasteriser's snap moves where
-  // the interpolated normal is read by a fraction of a pixel (on a tiny
-  // triangle of a model whose normals turn fast, that flipped N.L's sign).
-  float normal_slack = sin(s.facts.y) + 1e-4 + 0.05 * s.n_dot_l_rate;
-  if (n_dot_l < -normal_slack) return CERTIFICATE_DARK;  // faces away: no direct light, here or exactly
-  if (n_dot_l <= normal_slack) return CERTIFICATE_UNCERTAIN;
-  // The own-owner rule holds where the point's plane faces the light, and
-  // for a closed shape only from outside.
-  if (dot(s.geometric_normal, to_light) <= normal_slack) return CERTIFICATE_UNCERTAIN;
-  if (has_flag(s.facts, OBJECT_FLAG_CLOSED) && !gl_FrontFacing) return CERTIFICATE_UNCERTAIN;
-  return verdict_by_maps(s);
+  uint facing = verdict_by_facing(s, n_dot_l, to_light);
+  return facing == CERTIFICATE_LIT ? verdict_by_maps(s) : facing;
 }
 #else
 // Fraction of the direct light reaching point p (1 lit, 0 shadowed).
@@ -558,40 +641,9 @@ void main() {
   vec3 geometric_normal = normalize(cross(dFdx(v_position), dFdy(v_position)));
   if (dot(geometric_normal, normal) < 0.0) geometric_normal = -geometric_normal;
 #if FILTER == FILTER_EXACT
-  Seen seen;
-  seen.p = v_position;
-  vec3 to_eye = u.camera_position.xyz - v_position;
-  seen.geometric_normal = dot(geometric_normal, to_eye) < 0.0 ? -geometric_normal : geometric_normal;
-  seen.triangle = u_triangle_base + gl_PrimitiveID;
-  seen.object = object_of(seen.triangle);
-  seen.facts = object_facts(seen.object);
-  seen.n_dot_l_rate = fwidth(n_dot_l);
-  // The exact surface along this pixel's camera ray: within the shape's
-  // tessellation distance of the face (further along a ray that meets the
-  // face obliquely; a curved shape seen at a grazing angle is left to the
-  // ray cast), and within rounding: 1/50 of the pixel's footprint on the
-  // surface (the rasteriser snaps vertices to 1/256 pixel) and float
-  // rounding: about 10 ulps of the coordinates involved (the object's
-  // extent, the point's and the camera's), and for a model more than the
-  // reference's offset off its surface (256 ulps of its extent,
-  // offset_off_surface).
-  float cos_view = abs(dot(normalize(to_eye), seen.geometric_normal));
-  float rounding = has_flag(seen.facts, OBJECT_FLAG_MODEL) ? 3e-5 : 1e-6;
-  // The reference moves a shadow ray's start off an analytic surface by
-  // 1e-9 (1 + |point|) in world units: far from the world's origin that is
-  // more than the rounding near the mesh origin.
-  float world_offset = 2e-9 * (1.0 + length(v_position + u.mesh_origin_far.xyz));
-  seen.reach = seen.facts.x / max(cos_view, 0.2) + 0.02 * (length(dFdx(v_position)) + length(dFdy(v_position))) +
-               rounding * seen.facts.w + 1e-6 * (length(v_position) + length(to_eye)) + world_offset;
-  // The camera's near and far planes cut the true surface where they cut
-  // its faces only within the reach: there the reference's camera ray may
-  // start past the surface the raster shows (ray_cast.cpp starts it at the
-  // near plane), so such points are left to the ray cast.
-  float along_axis = dot(-to_eye, u.camera_axis_near.xyz);
-  bool clipped = along_axis - u.camera_axis_near.w < 2.0 * seen.reach ||
-                 u.mesh_origin_far.w - along_axis < 2.0 * seen.reach;
-  uint verdict = (seen.facts.x > 0.0 && cos_view < 0.2) || clipped ? CERTIFICATE_UNCERTAIN
-                                                                    : certify(seen, n_dot_l, to_light);
+  Seen seen = seen_here(u_triangle_base + gl_PrimitiveID, object_of(u_triangle_base + gl_PrimitiveID), geometric_normal,
+                        n_dot_l);
+  uint verdict = left_to_the_ray_cast(seen) ? CERTIFICATE_UNCERTAIN : certify(seen, n_dot_l, to_light);
   // Which side of the light the surface turns to: the reference's camera
   // ray may meet the face beside a crease instead (the CPU casts where
   // this or the object changes between pixels).
@@ -603,13 +655,20 @@ void main() {
   // Surfaces facing away from the light get no direct light at all.
   float visibility = n_dot_l > 0.0 ? shadow_visibility(v_position, geometric_normal, n_dot_l) : 0.0;
 #endif
+#elif PROOF != 0
+  // The plan proved this part of a plane lit or dark; the pixel adds what
+  // only it knows: how it faces the camera and the light, and how far its
+  // exact point may lie (within the margin the plan allowed for).
+  uint verdict = verdict_by_proof(n_dot_l);
+  o_certificate = ((u_proof_object + 1u) << 3) | (n_dot_l > 0.0 ? 4u : 0u) | verdict;
+  float visibility = verdict == CERTIFICATE_DARK ? 0.0 : 1.0;
 #elif DIRECT_LIGHT
   float visibility = n_dot_l > 0.0 ? 1.0 : 0.0;
 #else
   // A sun below the horizon: no direct light reaches any surface.
   float visibility = 0.0;
 #endif
-#if CERTIFICATES && !SHADOWS
+#if CERTIFICATES && !SHADOWS && PROOF == 0
   // Certified without a lookup: a sun below the horizon lights nothing, so
   // every surface is dark; the CPU casts only around changes of object.
   o_certificate = ((object_of(u_triangle_base + gl_PrimitiveID) + 1u) << 3) | (n_dot_l > 0.0 ? 4u : 0u) |

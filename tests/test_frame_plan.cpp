@@ -451,6 +451,73 @@ TEST(FramePlan, EachStepsProgramDerivesFromTheFramesVariant) {
 // nothing, no face culled; one main-pass step with the certificates read
 // back; nothing reused or kept. A fixed frustum: every object into every
 // layer, cleared whole.
+// Filter "exact" draws a plane the maps leave out in parts: the objects'
+// bounds' shadows marked `near` and certified there by the maps (the
+// frame's program on the plane's own triangles), the umbras proved dark,
+// the rest proved lit (the proof programs, which keep the direct light for
+// the uncertain pixels they leave).
+TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds) {
+  RenderRequest r = test::builtin_request("three-cubes");
+  r.shadow.filter = ShadowFilter::Exact;
+  const Mesh mesh = tessellate(r.scene);
+  const FramePlan plan = plan_frame(r, mesh, "scene", KeptShadowMap{});
+  const DisplayPassPlan& pass = plan.display;
+  using Kind = DisplayStep::Kind;
+  std::vector<Kind> kinds;
+  for (const DisplayStep& step : pass.steps) kinds.push_back(step.kind);
+  ASSERT_EQ(kinds, (std::vector<Kind>{Kind::Objects, Kind::BoundsMarks, Kind::DarkUmbras, Kind::CertifiedNear,
+                                      Kind::ProvedLit}));
+  const std::size_t floor = mesh.planes.at(0).object;
+  // The floor is not among the objects drawn whole.
+  std::size_t drawn = 0;
+  for (const DrawRange& draw : pass.steps[0].draws) drawn += draw.count;
+  EXPECT_EQ(drawn, mesh.closed_index_count);
+  EXPECT_EQ(pass.umbras, 3u);  // one per cube
+  EXPECT_GT(pass.proof_margin, 0.0f);
+  EXPECT_LT(pass.proof_margin, 0.1f);
+  EXPECT_FALSE(pass.cell_indices.empty());
+  for (std::size_t i = 1; i < pass.steps.size(); ++i) {
+    const DisplayStep& step = pass.steps[i];
+    SCOPED_TRACE(i);
+    EXPECT_EQ(step.object, floor);
+    EXPECT_GT(step.proof_rounding, 0.0f);
+    EXPECT_LT(step.proof_rounding, 1e-3f);
+    EXPECT_TRUE(step.stencil.enabled);
+    // The marks and umbras come from the cells' buffers; the plane's own
+    // triangles from the scene's.
+    EXPECT_EQ(step.cells, step.kind == Kind::BoundsMarks || step.kind == Kind::DarkUmbras);
+    const DisplayVariant v = program_variant(pass.variant, step.program);
+    if (step.kind == Kind::CertifiedNear) {
+      EXPECT_EQ(step.program, DisplayProgram::Frame);
+      EXPECT_EQ(v.filter, ShadowFilter::Exact);
+      EXPECT_EQ(step.stencil.test, StencilStep::Test::Equal);
+    } else {
+      EXPECT_EQ(v.proof, step.kind == Kind::ProvedLit ? 1 : -1);
+      EXPECT_TRUE(v.certificates);
+      EXPECT_TRUE(v.direct_light);  // uncertain pixels are drawn lit
+      EXPECT_FALSE(v.shadows);
+    }
+  }
+  EXPECT_TRUE(pass.steps[1].stencil.marks_only);
+  EXPECT_EQ(pass.steps[4].stencil.test, StencilStep::Test::NotEqual);
+  EXPECT_EQ(pass.steps[4].stencil.mask, 0xFE);  // neither of the plane's marks
+  // The other filters' Lit and Dark programs prove nothing.
+  RenderRequest pcf = r;
+  pcf.shadow.filter = ShadowFilter::Pcf;
+  const DisplayVariant frame = plan_frame(pcf, mesh, "scene", KeptShadowMap{}).display.variant;
+  EXPECT_EQ(program_variant(frame, DisplayProgram::Lit).proof, 0);
+  EXPECT_EQ(program_variant(frame, DisplayProgram::Dark).proof, 0);
+  EXPECT_FALSE(program_variant(frame, DisplayProgram::Dark).direct_light);
+  // A point light inside a cube's bounds: the floor's shadows cannot be
+  // bounded, and it is drawn whole, certified by the maps.
+  RenderRequest inside = r;
+  inside.light.projection = LightProjection::Perspective;
+  inside.light.position = r.scene.objects[1].center;
+  const FramePlan whole = plan_frame(inside, mesh, "scene", KeptShadowMap{});
+  ASSERT_EQ(whole.display.steps.size(), 1u);
+  EXPECT_TRUE(whole.display.cell_indices.empty());
+}
+
 TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {
   RenderRequest r = test::builtin_request("three-cubes");
   r.shadow.filter = ShadowFilter::Exact;
@@ -477,10 +544,8 @@ TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {
   EXPECT_EQ(fixed_plan.shadow.layers.size(), fixed_plan.light.views.size());
   for (const ShadowLayerDraw& layer : fixed_plan.shadow.layers) EXPECT_TRUE(layer.clear_whole);
   EXPECT_TRUE(plan.display.certificates);
-  ASSERT_EQ(plan.display.steps.size(), 1u);
+  ASSERT_FALSE(plan.display.steps.empty());
   EXPECT_EQ(plan.display.steps[0].kind, DisplayStep::Kind::Objects);
-  EXPECT_EQ(plan.display.umbras, 0u);
-  EXPECT_TRUE(plan.display.cell_indices.empty());
   EXPECT_EQ(plan.display.variant.filter, ShadowFilter::Exact);
   EXPECT_TRUE(plan.read_back.certificates);
   EXPECT_TRUE(plan.read_back.unlit);

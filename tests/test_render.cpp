@@ -21,6 +21,7 @@
 #include "scene_files.hpp"
 #include "gpu/shader_interface.hpp"
 #include "reference/shadow_error.hpp"
+#include "plan/frame_plan.hpp"
 #include "plan/umbras.hpp"
 
 namespace umbra {
@@ -156,6 +157,22 @@ TEST(GlProgram, EveryProgramHasItsInputsAtTheNumbersCxxBindsThemBy) {
     GLint binding = -1;
     glGetActiveUniformBlockiv(id, block, GL_UNIFORM_BLOCK_BINDING, &binding);
     EXPECT_EQ(binding, kUniformBufferFrameBlock);
+  }
+  // Filter "exact": the certified frame's program and a proof's.
+  DisplayVariant certified;
+  certified.filter = ShadowFilter::Exact;
+  certified.certificates = true;
+  for (const int proof : {0, 1, -1}) {
+    const DisplayVariant v = proof == 0 ? certified : program_variant(certified, proof > 0 ? DisplayProgram::Lit : DisplayProgram::Dark);
+    ASSERT_EQ(v.proof, proof);
+    SCOPED_TRACE(proof);
+    const gl::Program program = gl::build_program("scene.vert", "scene.frag", glsl_prelude(variant_defines(v)));
+    const GLuint id = program.id();
+    EXPECT_EQ(glGetFragDataLocation(id, "o_certificate"), kFragOutputCertificate);
+    EXPECT_EQ(glGetUniformLocation(id, "u_triangle_base"), proof == 0 ? kUniformLocationTriangleBase : -1);
+    EXPECT_EQ(glGetUniformLocation(id, "u_proof_object"), proof == 0 ? -1 : kUniformLocationProofObject);
+    EXPECT_EQ(glGetUniformLocation(id, "u_proof_margin"), proof == 0 ? -1 : kUniformLocationProofMargin);
+    EXPECT_EQ(glGetUniformLocation(id, "u_proof_rounding"), proof == 0 ? -1 : kUniformLocationProofRounding);
   }
   // A shader that picks its own number is refused.
   const std::string prelude = glsl_prelude("");

@@ -171,6 +171,10 @@ TEST(FramePrelude, DefinesEachSharedFactAsTheCxxConstant) {
       {"FRAG_OUTPUT_COLOR", kFragOutputColor},
       {"TEXTURE_UNIT_SHADOW_MAP", kTextureUnitShadowMap},
       {"UNIFORM_LOCATION_LAYER", kUniformLocationLayer},
+      {"UNIFORM_LOCATION_TRIANGLE_BASE", kUniformLocationTriangleBase},
+      {"UNIFORM_LOCATION_PROOF_OBJECT", kUniformLocationProofObject},
+      {"UNIFORM_LOCATION_PROOF_MARGIN", kUniformLocationProofMargin},
+      {"UNIFORM_LOCATION_PROOF_ROUNDING", kUniformLocationProofRounding},
       {"UNIFORM_BUFFER_FRAME_BLOCK", kUniformBufferFrameBlock},
   };
   for (const auto& [name, value] : facts)
@@ -257,9 +261,9 @@ TEST(ShaderFiles, NameNoNumberOfTheirOwnForALocationOrBinding) {
   // a_position twice, a_normal, a_color, o_color twice, u_layer, u_shadow_map twice; filter "exact"'s:
   // certificate.glsl's two buffer textures, certify.geom's u_layer and u_triangle_base, certify.frag's
   // u_triangle_base, o_triangle, u_layer, o_owner and u_nearest_owner, scene.frag's o_certificate,
-  // o_unlit, u_triangle_base and four maps; the sliver pass's a_position, u_triangle_base, u_certificates and
-  // o_sliver.
-  EXPECT_EQ(declarations, 29);
+  // o_unlit, u_triangle_base, u_proof_object, u_proof_margin, u_proof_rounding and four maps; the sliver
+  // pass's a_position, u_triangle_base, u_certificates and o_sliver.
+  EXPECT_EQ(declarations, 32);
 }
 
 }  // namespace

@@ -355,5 +355,95 @@ TEST(Umbras, OnlyBoxesAndSpheresHavePointsInside) {
   EXPECT_TRUE(points_inside(plane, 0.0, -10.0, 10.0).empty());
 }
 
+// Filter "exact"'s proved plane parts (frame_plan.cpp): with no texel
+// reach, umbras shrink and the shadows of the bounds grow by exactly the
+// world margin given, and no view is asked anything.
+TEST(Umbras, AWorldMarginAloneShrinksAndGrowsByExactlyThat) {
+  RenderRequest r = floor_box_ball(0.0);
+  r.scene.objects.pop_back();  // no ball
+  r.scene.objects[1].rotation_y_deg = 0.0;
+  ShadowPlan plan;
+  plan.direction = {0.0, -1.0, 0.0};
+  plan.layer_size = 1000;
+  ShadowView view;  // a view that holds nothing of the box: the texel rules would give no umbra
+  view.view = glm::lookAt(glm::dvec3(50.0, 10.0, 0.0), glm::dvec3(50.0, 0.0, 0.0), glm::dvec3(0.0, 0.0, -1.0));
+  view.projection = glm::ortho(-1.0, 1.0, -1.0, 1.0, 0.0, 20.0);
+  view.texel_size = {0.002, 0.002};
+  plan.layout = ShadowLayout::Single;
+  plan.views = {view};
+  const Aabb plane = object_bounds(r.scene.objects[0]);
+  EXPECT_TRUE(umbras_on_plane(plane, plan, r.scene.objects, 4.0).empty());
+  const double margin = 0.03;
+  const std::vector<PlanePolygon> umbras = umbras_on_plane(plane, plan, r.scene.objects, 0.0, margin);
+  ASSERT_EQ(umbras.size(), 1u);
+  const Aabb u = bounds_on_plane(umbras[0], 0.0);
+  EXPECT_NEAR(u.min.x, -0.5 + margin, 1e-12);
+  EXPECT_NEAR(u.max.z, 0.5 - margin, 1e-12);
+  const std::vector<Aabb> bounds{plane, object_bounds(r.scene.objects[1])};
+  const std::optional<std::vector<PlanePolygon>> shadows = shadow_bounds_on_plane(plane, 0, plan, bounds, 0.0, margin);
+  ASSERT_TRUE(shadows && shadows->size() == 1u);
+  const Aabb s = bounds_on_plane((*shadows)[0], 0.0);
+  EXPECT_NEAR(s.min.x, -0.5 - margin, 1e-12);
+  EXPECT_NEAR(s.max.z, 0.5 + margin, 1e-12);
+}
+
+// What the proved parts claim, against the exact reference: every point
+// within 2 margins of an umbra shrunk by 3 is dark, and every point within
+// 2 margins of one outside all the shadows of the bounds grown by 3 is
+// lit, under the sun and point lights (the margin as the frame plan takes
+// it is a texel or so; here larger, to test points well inside).
+TEST(Umbras, ProvedPartsHoldWithinTwoMarginsOfEveryPoint) {
+  int dark = 0, lit = 0;
+  for (const RenderRequest& r : lit_scenes()) {
+    const ShadowPlan plan = plan_shadow(r);
+    const Mesh mesh = tessellate(r.scene);
+    const PlaneRange& floor = mesh.planes.at(0);
+    const Aabb& plane = mesh.bounds[floor.object];
+    const glm::dvec3 light = light_at(r.light, r.time).position;
+    const std::string where = std::string(plan.perspective ? "point light" : "sun") + " t=" + std::to_string(r.time);
+    for (const double margin : {1e-3, 0.02}) {
+      // The eight ways out from a point, 2 margins long.
+      std::vector<glm::dvec2> offsets{{0.0, 0.0}};
+      for (int k = 0; k < 8; ++k)
+        offsets.push_back(2.0 * margin * glm::dvec2(std::cos(k * 0.7853981633974483), std::sin(k * 0.7853981633974483)));
+      for (const PlanePolygon& umbra : umbras_on_plane(plane, plan, r.scene.objects, 0.0, 3.0 * margin))
+        for (const glm::dvec2& q : points_over(umbra))
+          for (const glm::dvec2& d : offsets) {
+            const glm::dvec3 p(q.x + d.x, floor.height, q.y + d.y);
+            ++dark;
+            ASSERT_EQ(exact_visibility(r, light, p, {0.0, 1.0, 0.0}), 0.0) << where << ": " << p.x << ", " << p.z;
+          }
+      const std::optional<std::vector<PlanePolygon>> shadows =
+          shadow_bounds_on_plane(plane, floor.object, plan, mesh.bounds, 0.0, 3.0 * margin);
+      ASSERT_TRUE(shadows.has_value()) << where;
+      const auto outside_all = [&](const glm::dvec2& q) {
+        return std::none_of(shadows->begin(), shadows->end(), [&](const PlanePolygon& s) { return inside(s, q); });
+      };
+      // Points a hair outside each edge, moved 2 margins every way.
+      for (const PlanePolygon& s : *shadows)
+        for (std::size_t i = 0; i < s.size(); ++i) {
+          const glm::dvec2 a = s[i], b = s[(i + 1) % s.size()];
+          const glm::dvec2 outward = glm::normalize(glm::dvec2(b.y - a.y, a.x - b.x));
+          for (double f : {0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0}) {
+            const glm::dvec2 q = a + (b - a) * f + outward * 1e-9;
+            // (Not past the plane's edge, where the shadows are cut.)
+            if (!outside_all(q) || q.x <= plane.min.x || q.x >= plane.max.x || q.y <= plane.min.z || q.y >= plane.max.z)
+              continue;
+            for (const glm::dvec2& d : offsets) {
+              const glm::dvec2 moved = q + d;
+              if (moved.x <= plane.min.x || moved.x >= plane.max.x || moved.y <= plane.min.z || moved.y >= plane.max.z)
+                continue;
+              const glm::dvec3 p(moved.x, floor.height, moved.y);
+              ++lit;
+              EXPECT_EQ(exact_visibility(r, light, p, {0.0, 1.0, 0.0}), 1.0) << where << ": " << p.x << ", " << p.z;
+            }
+          }
+        }
+    }
+  }
+  EXPECT_GE(dark, 5000);
+  EXPECT_GE(lit, 1000);
+}
+
 }  // namespace
 }  // namespace umbra

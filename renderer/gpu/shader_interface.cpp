@@ -73,7 +73,8 @@ std::string variant_defines(const DisplayVariant& v) {
     << "#define FILTER_REACH " << v.filter_reach << "\n"
     << "#define FILTER_READ " << v.filter_read << "\n"
     << "#define LIGHT_SIDE " << v.light_side << "\n"
-    << "#define CERTIFICATES " << int(v.certificates) << "\n";
+    << "#define CERTIFICATES " << int(v.certificates) << "\n"
+    << "#define PROOF " << v.proof << "\n";
   return d.str();
 }
 
@@ -176,6 +177,9 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define FRAG_OUTPUT_CERTIFICATE " << kFragOutputCertificate << "\n"
     << "#define FRAG_OUTPUT_UNLIT " << kFragOutputUnlit << "\n"
     << "#define UNIFORM_LOCATION_TRIANGLE_BASE " << kUniformLocationTriangleBase << "\n"
+    << "#define UNIFORM_LOCATION_PROOF_OBJECT " << kUniformLocationProofObject << "\n"
+    << "#define UNIFORM_LOCATION_PROOF_MARGIN " << kUniformLocationProofMargin << "\n"
+    << "#define UNIFORM_LOCATION_PROOF_ROUNDING " << kUniformLocationProofRounding << "\n"
     << "#define CERTIFICATE_LIT " << PixelCertificates::kCertainlyLit << "u\n"
     << "#define CERTIFICATE_DARK " << PixelCertificates::kCertainlyDark << "u\n"
     << "#define CERTIFICATE_UNCERTAIN " << PixelCertificates::kUncertain << "u\n"

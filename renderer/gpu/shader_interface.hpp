@@ -73,6 +73,15 @@ inline constexpr int kFragOutputUnlit = 2;
 /// triangle of a draw (its first index / 3), so that first +
 /// gl_PrimitiveID names a triangle of the scene's index buffer.
 inline constexpr int kUniformLocationTriangleBase = 1;
+/// A proved plane part's program (DisplayVariant::proof): u_proof_object
+/// (UNIFORM_LOCATION_PROOF_OBJECT), the plane's scene object, and
+/// u_proof_margin (UNIFORM_LOCATION_PROOF_MARGIN), the reach in world units
+/// its proof allows for (DisplayPassPlan::proof_margin), and
+/// u_proof_rounding (UNIFORM_LOCATION_PROOF_ROUNDING), the part of a
+/// pixel's reach that the plan bounds (DisplayStep::proof_rounding).
+inline constexpr int kUniformLocationProofObject = 2;
+inline constexpr int kUniformLocationProofMargin = 3;
+inline constexpr int kUniformLocationProofRounding = 4;
 inline constexpr int kTextureUnitCertifyNearest = 1;
 inline constexpr int kTextureUnitCertifyNearestOwner = 2;
 inline constexpr int kTextureUnitCertifyOthers = 3;

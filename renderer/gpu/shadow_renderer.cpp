@@ -668,6 +668,15 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
   }
   for (const DisplayStep& step : pass.steps) {
     glUseProgram(program(step.program));
+    // A proved part's program: whose pixels, and the reach its proof allows.
+    const bool proof = program_variant(pass.variant, step.program).proof != 0;
+    if (proof) {
+      glUniform1ui(kUniformLocationProofObject, GLuint(step.object));
+      glUniform1f(kUniformLocationProofMargin, pass.proof_margin);
+      glUniform1f(kUniformLocationProofRounding, step.proof_rounding);
+    }
+    // Its triangles name no scene triangle (it has no u_triangle_base).
+    set_triangle_base_ = pass.certificates && !proof;
     step.clip_by_light_side ? glEnable(GL_CLIP_DISTANCE0) : glDisable(GL_CLIP_DISTANCE0);
     const StencilStep& stencil = step.stencil;
     if (stencil.enabled) {

@@ -1,9 +1,12 @@
 #include "plan/frame_plan.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <optional>
 #include <utility>
+
+#include <glm/geometric.hpp>
 
 #include "core/shader_facts.hpp"
 #include "plan/draw_cost.hpp"
@@ -180,6 +183,131 @@ void append_cell_steps(const std::vector<PlaneDraw>& planes, std::vector<Display
   }
 }
 
+// Filter "exact": the planes the maps leave out, in parts that geometry
+// settles (docs/certified-shadows.md, "Proved plane parts"): for each, the
+// umbras of boxes and spheres shrunk by 3 `margin` (proved dark) and the
+// shadows of every other object's bounds grown by 3 `margin` (outside
+// them, proved lit), found as the other filters' cells find theirs but
+// in world units and asking no view (umbras.hpp). A plane whose shadows
+// cannot be bounded (a point light's foot under an object, too many
+// objects) stays whole.
+CellDraws proved_planes_of(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
+                           const std::vector<bool>& planes, double margin) {
+  CellDraws draws;
+  draws.whole_planes.assign(mesh.planes.size(), true);
+  if (mesh.planes.size() > kMaxPlanesInCells || !(margin > 0.0) || !std::isfinite(margin)) return draws;
+  CellTriangles cells;
+  for (std::size_t i = 0; i < mesh.planes.size(); ++i) {
+    const PlaneRange& plane = mesh.planes[i];
+    if (planes[i]) continue;  // in the maps: a caster, certified by them
+    const Aabb& bounds = mesh.bounds[plane.object];
+    const std::optional<std::vector<PlanePolygon>> shadows =
+        shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, 0.0, 3.0 * margin);
+    if (!shadows) continue;
+    PlaneDraw draw;
+    draw.plane = i;
+    draw.dark.first = cells.dark.size();
+    draw.bounds.first = cells.bounds.size();
+    const std::vector<PlanePolygon> dark = umbras_on_plane(bounds, light, request.scene.objects, 0.0, 3.0 * margin);
+    append_dark_triangles(dark, plane.height, plane.color, mesh.origin, cells);
+    draws.umbras += dark.size();
+    append_polygon_triangles(*shadows, plane.height, plane.color, mesh.origin, cells, cells.bounds);
+    draw.dark.count = cells.dark.size() - draw.dark.first;
+    draw.bounds.count = cells.bounds.size() - draw.bounds.first;
+    draws.planes.push_back(draw);
+    draws.whole_planes[i] = false;
+  }
+  if (draws.planes.empty()) return draws;
+  // One index buffer: every plane's umbras, then the shadows of the bounds.
+  std::vector<std::uint32_t> indices = std::move(cells.dark);
+  for (PlaneDraw& draw : draws.planes) draw.bounds.first += indices.size();
+  indices.insert(indices.end(), cells.bounds.begin(), cells.bounds.end());
+  draws.vertices = std::move(cells.vertices);
+  draws.indices = std::move(indices);
+  return draws;
+}
+
+// The reach a proved part's pixel may have (world units): a texel of the
+// light's coarsest view where it meets the planes (a point light's at the
+// farthest corner of a plane left out of the maps). A pixel whose exact
+// point may lie further would be left uncertain by the maps too, whose
+// certificate takes half a texel at most.
+double proof_margin_of(const ShadowPlan& light, const Mesh& mesh, const std::vector<bool>& planes) {
+  double texel = 0.0;
+  for (const ShadowView& view : light.views) texel = std::max({texel, view.texel_size.x, view.texel_size.y});
+  if (!light.perspective) return texel;
+  double farthest = 0.0;
+  for (std::size_t i = 0; i < mesh.planes.size(); ++i)
+    if (!planes[i])
+      for (const glm::dvec3& corner : mesh.bounds[mesh.planes[i].object].corners())
+        farthest = std::max(farthest, glm::distance(corner, light.position));
+  return texel * farthest;
+}
+
+// scene.frag's seen_here reach of a point of `plane` (world bounds) but for
+// the pixel's footprint, bounded over the plane: 1e-6 of its largest
+// coordinate relative to the mesh origin, of its distances from that
+// origin and from the camera, and the reference's offset off an analytic
+// surface, 2e-9 (1 + its distance from the world's origin); twice that
+// for the shader's own rounding of the sum.
+double proof_rounding(const Aabb& plane, const glm::dvec3& origin, const glm::dvec3& camera) {
+  double extent = 0.0, from_origin = 0.0, from_camera = 0.0, from_world = 0.0;
+  for (const glm::dvec3& corner : plane.corners()) {
+    const glm::dvec3 relative = corner - origin;
+    extent = std::max({extent, std::abs(relative.x), std::abs(relative.y), std::abs(relative.z)});
+    from_origin = std::max(from_origin, glm::length(relative));
+    from_camera = std::max(from_camera, glm::distance(corner, camera));
+    from_world = std::max(from_world, glm::length(corner));
+  }
+  return 2.0 * (1e-6 * (extent + from_origin + from_camera) + 2e-9 * (1.0 + from_world));
+}
+
+// Per plane drawn in proved parts, with the stencil as append_cell_steps
+// marks it (each plane its own pair of marks):
+// 1. the shadows of the objects' bounds, marked `near` and not drawn;
+// 2. its umbras, proved dark (program Dark: the proof's), marked `dark`;
+// 3. its own triangles where marked `near`, certified by the maps (the
+//    frame's program: the triangles are the scene's, whose owner the maps
+//    know);
+// 4. the same where marked neither, proved lit (program Lit: the proof's).
+void append_proved_plane_steps(const std::vector<PlaneDraw>& planes, const Mesh& mesh, const glm::dvec3& camera,
+                               std::vector<DisplayStep>& steps) {
+  using Kind = DisplayStep::Kind;
+  using Test = StencilStep::Test;
+  int plane_marks = 0;
+  for (const PlaneDraw& draw : planes) {
+    plane_marks += 2;
+    const int dark_mark = plane_marks, near_mark = plane_marks + 1;
+    const std::size_t object = mesh.planes[draw.plane].object;
+    const float rounding = float(proof_rounding(mesh.bounds[object], mesh.origin, camera));
+    const auto with_object = [object, rounding](DisplayStep step) {
+      step.object = object;
+      step.proof_rounding = rounding;
+      return step;
+    };
+    if (draw.bounds.count > 0)
+      steps.push_back(with_object(cell_step(Kind::BoundsMarks, DisplayProgram::Dark, draw.bounds, draw.plane,
+                                            stencil(Test::Always, near_mark, 0xFF, true, true))));
+    if (draw.dark.count > 0)
+      steps.push_back(with_object(cell_step(Kind::DarkUmbras, DisplayProgram::Dark, draw.dark, draw.plane,
+                                            stencil(Test::Always, dark_mark, 0xFF, true))));
+    std::vector<bool> only(mesh.bounds.size(), false);
+    only[object] = true;
+    const auto own_triangles = [&](Kind kind, DisplayProgram program, const StencilStep& test) {
+      DisplayStep step;
+      step.kind = kind;
+      step.program = program;
+      step.draws = scene_draw_ranges(mesh, CullMode::None, only);
+      step.stencil = test;
+      step.plane = draw.plane;
+      return with_object(std::move(step));
+    };
+    if (draw.bounds.count > 0)
+      steps.push_back(own_triangles(Kind::CertifiedNear, DisplayProgram::Frame, stencil(Test::Equal, near_mark, 0xFF, false)));
+    steps.push_back(own_triangles(Kind::ProvedLit, DisplayProgram::Lit, stencil(Test::NotEqual, dark_mark, 0xFE, false)));
+  }
+}
+
 // Per scene object, its draw's estimated ms in the light's views (the
 // most over them), by which a shadow pass chunks long draws.
 std::vector<double> shadow_object_draw_ms(const RenderRequest& request, const ShadowPlan& light) {
@@ -328,9 +456,18 @@ CullMode closed_cull_of(const RenderRequest& request, const Mesh& mesh) {
                                                                                                        : CullMode::None;
 }
 
-DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh) {
+DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
+                                            const std::vector<bool>& planes) {
   DisplayPassPlan pass = display_pass_of(request, light);
   pass.certificates = true;
+  CellDraws proved;
+  if (pass.variant.shadows) {
+    pass.proof_margin = float(proof_margin_of(light, mesh, planes));
+    proved = proved_planes_of(request, light, mesh, planes, double(pass.proof_margin));
+  }
+  pass.umbras = proved.umbras;
+  pass.cell_vertices = std::move(proved.vertices);
+  pass.cell_indices = std::move(proved.indices);
   // Back faces culled only where the camera sees every closed mesh from
   // outside, as in any frame: then no back face is the nearest surface of
   // a camera ray, for the raster or for the reference.
@@ -338,8 +475,9 @@ DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const 
   DisplayStep all;
   all.kind = DisplayStep::Kind::Objects;
   all.program = DisplayProgram::Frame;
-  all.draws = scene_draw_ranges(mesh, closed_cull, {});
+  all.draws = scene_draw_ranges(mesh, closed_cull, drawn_objects(mesh, proved.whole_planes));
   pass.steps.push_back(std::move(all));
+  append_proved_plane_steps(proved.planes, mesh, request.camera.position, pass.steps);
   pass.sliver_draws = scene_draw_ranges(mesh, CullMode::None, {});
   return pass;
 }
@@ -426,6 +564,12 @@ std::string preview_tiles_parameters(const ShadowPlan& plan) {
 
 DisplayVariant program_variant(const DisplayVariant& frame, DisplayProgram which) {
   DisplayVariant v = which == DisplayProgram::Frame || which == DisplayProgram::LightFacing ? frame : without_shadows(frame);
+  if (frame.certificates && frame.shadows && (which == DisplayProgram::Lit || which == DisplayProgram::Dark)) {
+    // A proof's program keeps the direct light: an uncertain pixel is drawn
+    // lit for the CPU to pick from.
+    v.proof = which == DisplayProgram::Lit ? 1 : -1;
+    return v;
+  }
   if (which == DisplayProgram::Dark) v.direct_light = false;
   if (which == DisplayProgram::LightFacing) v.light_side = 1;
   if (which == DisplayProgram::LightAway) v.light_side = -1;
@@ -563,7 +707,7 @@ FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::
       plan.shadow = plan_certified_shadow_pass(request, plan.light, mesh, plan.casting_planes, plan.casters);
       plan.shadow_views = describe_views(plan.light);
     }
-    plan.display = plan_certified_display_pass(request, plan.light, mesh);
+    plan.display = plan_certified_display_pass(request, plan.light, mesh, plan.casting_planes);
     plan.read_back = {false, request.width, request.height, request.output == Output::Shadow ? 1 : 3, 8};
     plan.read_back.certificates = true;
     plan.read_back.unlit = request.output != Output::Shadow;

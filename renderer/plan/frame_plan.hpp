@@ -120,8 +120,8 @@ struct ShadowPassPlan {
 /// (DisplayPassPlan::variant) or one derived from it (program_variant).
 enum class DisplayProgram {
   Frame,        ///< the frame's variant: with the shadow lookup when it has one
-  Lit,          ///< without_shadows(frame): no lookup
-  Dark,         ///< without_shadows(frame) with no direct light: an umbra
+  Lit,          ///< without_shadows(frame): no lookup; filter "exact": a part proved lit (proof 1)
+  Dark,         ///< without_shadows(frame) with no direct light: an umbra; filter "exact": proved dark (proof -1)
   LightFacing,  ///< the frame's, LIGHT_SIDE 1: closed meshes' part that may face the light
   LightAway,    ///< without_shadows(frame), LIGHT_SIDE -1: the part that cannot
 };
@@ -153,6 +153,8 @@ struct DisplayStep {
     ShadowableLookup,   ///< a plane's shadowable cells, with the lookup
     ShadowableLit,      ///< the same cells, lit where marked neither
     UnshadowableCells,  ///< a plane's other cells, lit where not dark
+    CertifiedNear,      ///< filter "exact": a plane's own triangles, certified by the maps where marked `near`
+    ProvedLit,          ///< filter "exact": the same, proved lit where marked neither
   } kind = Kind::Objects;
   DisplayProgram program = DisplayProgram::Frame;
   bool cells = false;  ///< draws from the cells' buffers (DisplayPassPlan), else the scene's
@@ -161,14 +163,26 @@ struct DisplayStep {
   bool clip_by_light_side = false;
   StencilStep stencil;
   std::size_t plane = 0;  ///< cell steps: the plane's index in Mesh::planes
+  /// Proved parts (program Lit or Dark in a certified frame): the plane's
+  /// scene object, whose certificate its pixels carry (u_proof_object).
+  std::size_t object = 0;
+  /// ... and the part of its pixels' reach that is not their footprint:
+  /// float rounding, bounded over the plane (u_proof_rounding).
+  float proof_rounding = 0.0f;
 };
 
 struct DisplayPassPlan {
   int width = 0, height = 0;
   /// Filter "exact": the main pass also writes each pixel's certificate
-  /// and its unlit colour (PixelCertificates); no cells, umbras or light
-  /// side split, whose shortcuts prove nothing.
+  /// and its unlit colour (PixelCertificates). No cells or light side
+  /// split, whose shortcuts prove nothing; but the planes the maps leave
+  /// out are drawn in parts that geometry proves lit or dark (umbras and
+  /// the shadows of objects' bounds grown by 3 proof_margin), certified by
+  /// the maps only near those shadows (plan_proved_planes).
   bool certificates = false;
+  /// ... the reach (world units) a proved part's pixel may have: past it,
+  /// the pixel is uncertain (u_proof_margin).
+  float proof_margin = 0.0f;
   /// ... and then draws every triangle's edges (the sliver pass: sliver.geom),
   /// no face culled.
   std::vector<DrawRange> sliver_draws;

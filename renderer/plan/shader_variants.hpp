@@ -41,6 +41,9 @@ struct DisplayVariant {
   /// (PixelCertificates), with the lookup (FILTER_EXACT) or, under a sun
   /// below the horizon, without one (everything dark).
   bool certificates = false;
+  /// PROOF: with certificates and no lookup, a plane's part that the frame
+  /// plan proved lit (1) or dark (-1) by geometry alone; 0 none.
+  int proof = 0;
 };
 
 /// The main pass's variant for `request` drawn with the light's views in

@@ -177,7 +177,8 @@ std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, 
 }
 
 std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& light,
-                                          const std::vector<SceneObject>& objects, double reach_texels) {
+                                          const std::vector<SceneObject>& objects, double reach_texels,
+                                          double world_margin) {
   std::vector<PlanePolygon> umbras;
   const double y = plane.min.y;
   if (plane.empty() || light.views.empty() || !lights_plane_from_above(light, y)) return umbras;
@@ -190,10 +191,13 @@ std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& l
     if (umbras.size() >= kMaxUmbras) break;
     const std::vector<glm::dvec3> whole = points_inside(object, 0.0, y, high);
     if (whole.size() < 2) continue;
-    const std::optional<double> texel =
-        texel_size_for(light, whole, object_bounds(object), shadow_of(light, whole, y), y, reach_texels);
-    if (!texel) continue;
-    const double margin = reach_texels * kDiagonal * *texel;
+    double margin = world_margin;
+    if (reach_texels > 0.0) {
+      const std::optional<double> texel =
+          texel_size_for(light, whole, object_bounds(object), shadow_of(light, whole, y), y, reach_texels);
+      if (!texel) continue;
+      margin = std::max(margin, reach_texels * kDiagonal * *texel);
+    }
     if (!(margin > 0.0)) continue;
     PlanePolygon umbra =
         clipped(shadow_of(light, points_inside(object, margin, y, high), y), inner_low, inner_high);
@@ -204,7 +208,7 @@ std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& l
 
 std::optional<std::vector<PlanePolygon>> shadow_bounds_on_plane(const Aabb& plane, std::size_t plane_object,
                                                                 const ShadowPlan& light, const std::vector<Aabb>& bounds,
-                                                                double reach_texels) {
+                                                                double reach_texels, double world_margin) {
   const double y = plane.min.y;
   if (plane.empty() || light.views.empty() || !lights_plane_from_above(light, y) ||
       bounds.size() > kMaxShadowBoundsObjects + 1)
@@ -231,7 +235,7 @@ std::optional<std::vector<PlanePolygon>> shadow_bounds_on_plane(const Aabb& plan
     // The object's bounds grown by `texel` texels' reach, cast onto the
     // plane and cut to it; empty if nothing of it is above the plane.
     const auto shadow_with = [&](double texel) {
-      const double margin = reach_texels * kDiagonal * texel * farthest;
+      const double margin = std::max(world_margin, reach_texels * kDiagonal * texel * farthest);
       Aabb grown = bounds[i];
       grown.min -= margin;
       grown.max += margin;

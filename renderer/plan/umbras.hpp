@@ -70,8 +70,14 @@ std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, 
 /// - Under a point light, an object reaching up past 3/4 of the light's
 ///   height above the plane is cut there: its shadow reaches 4 times the
 ///   light's height out, not to infinity.
+///
+/// With `world_margin` > 0 the object is shrunk by at least that many world
+/// units; with `reach_texels` 0 by exactly that, and no view is asked
+/// anything (filter "exact" proves umbras dark by geometry alone, whatever
+/// the maps hold: frame_plan.cpp's proved plane parts).
 std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& light,
-                                          const std::vector<SceneObject>& objects, double reach_texels);
+                                          const std::vector<SceneObject>& objects, double reach_texels,
+                                          double world_margin = 0.0);
 
 /// Where on the plane object `plane_object`, whose world bounds are
 /// `plane`, the lookup can find anything: for every other object, the
@@ -87,6 +93,8 @@ std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& l
 ///   it. The shadow of what lies just below it reaches ever further out:
 ///   the bounds are cut where theirs would fall four times further from
 ///   the light's foot than any of the plane.
+/// - The bounds grow by at least `world_margin` world units (filter
+///   "exact": with `reach_texels` 0, by exactly that).
 /// - None (leave the plane to plane_cells) when the light is not above the
 ///   plane (or grazes it by less than a microradian), when a point light's
 ///   foot is inside an object's grown bounds (its shadow surrounds the
@@ -94,6 +102,6 @@ std::vector<PlanePolygon> umbras_on_plane(const Aabb& plane, const ShadowPlan& l
 ///   can shadow the plane.
 std::optional<std::vector<PlanePolygon>> shadow_bounds_on_plane(const Aabb& plane, std::size_t plane_object,
                                                                 const ShadowPlan& light, const std::vector<Aabb>& bounds,
-                                                                double reach_texels);
+                                                                double reach_texels, double world_margin = 0.0);
 
 }  // namespace umbra
