@@ -19,7 +19,9 @@ vec4 object_facts(uint object) { return texelFetch(u_object_facts, int(object));
 
 bool has_flag(vec4 facts, int flag) { return (int(facts.z) & flag) != 0; }
 
-uint owner_of(int triangle) {
-  uint object = object_of(triangle);
-  return has_flag(object_facts(object), OBJECT_FLAG_MODEL) ? (uint(triangle) | 0x80000000u) : object;
+// `facts`: the triangle's object's.
+uint owner_of(int triangle, vec4 facts) {
+  return has_flag(facts, OBJECT_FLAG_MODEL) ? (uint(triangle) | 0x80000000u) : object_of(triangle);
 }
+
+uint owner_of(int triangle) { return owner_of(triangle, object_facts(object_of(triangle))); }

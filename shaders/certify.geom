@@ -90,6 +90,22 @@ void main() {
     area += a.x * b.y - b.x * a.y;
   }
   float extent = max(max(abs(lo.x), abs(lo.y)), max(abs(hi.x), abs(hi.y)));
+  int triangle = u_triangle_base + gl_PrimitiveIDIn;
+  vec4 facts = object_facts(object_of(triangle));
+#if CULL_CLOSED_BACK
+  // A face of a closed shape (box, sphere, cylinder: convex) that turns
+  // from the light: whatever of the shape lies on a point's ray to the
+  // light, the ray leaves the shape last through a face turned to it, which
+  // lies nearer the light in the same texel (the light is outside every
+  // closed object: ShadowPassPlan::cull_closed_back). Only a face clearly
+  // clockwise on the layer, by more than the rounding of its corners'
+  // texel coordinates (1e-7 of the extent each) can turn its sign.
+  float perimeter = 0.0;
+  for (int i = 0; i < n; ++i) perimeter += length(p[(i + 1) % n].xy - p[i].xy);
+  if (has_flag(facts, OBJECT_FLAG_CLOSED) && !has_flag(facts, OBJECT_FLAG_MODEL) &&
+      area < -(1e-5 * max(1.0, extent) * perimeter + 1e-4 * max(1.0, extent)))
+    return;
+#endif
   // Below this the polygon is a sliver whose edge normals rounding can
   // turn around: only its box is trusted.
   bool has_area = abs(area) > 1e-4 * max(1.0, extent);
@@ -123,14 +139,13 @@ void main() {
   }
   g_origin = a.xy;
   g_min_depth = min_depth;
-  int triangle = u_triangle_base + gl_PrimitiveIDIn;
-  g_owner = owner_of(triangle);
+  g_owner = owner_of(triangle, facts);
   // A curved shape's faces are chords: its true surface, which the
   // reference casts against, reaches up to its tessellation distance
   // beyond them (ShapeKind::tessellation_error). Measured where that is
   // most: a texel of this map at the polygon's nearest depth, window depth
   // where it changes fastest, and a point light's off-axis projection.
-  float swell_world = object_facts(object_of(triangle)).x;
+  float swell_world = facts.x;
   vec4 view = u.view_depth_texel[u_layer];
   float coarse_texels = u.map_size / u.certified_map_size;
 #if LIGHT_PERSPECTIVE

@@ -536,8 +536,21 @@ TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {
       EXPECT_GE(layer.x1, std::min(plan.light.layer_size, int(c.max.x) + kCertifiedReadTexels));
       EXPECT_GE(layer.y1, std::min(plan.light.layer_size, int(c.max.y) + kCertifiedReadTexels));
     }
-    for (const DrawRange& draw : layer.draws) EXPECT_EQ(draw.cull, CullMode::None);
+    // Closed meshes' faces turned from the light are culled (the centre
+    // map; the conservative passes' quads all face the light, and their
+    // geometry shader drops those faces itself).
+    for (const DrawRange& draw : layer.draws)
+      EXPECT_EQ(draw.cull, draw.first < mesh.closed_index_count ? CullMode::Back : CullMode::None);
   }
+  EXPECT_TRUE(plan.shadow.cull_closed_back);
+  // ... unless a point light is inside a closed object's bounds.
+  RenderRequest inside = r;
+  inside.light.projection = LightProjection::Perspective;
+  inside.light.position = r.scene.objects[1].center;
+  const FramePlan lit_inside = plan_frame(inside, mesh, "scene", KeptShadowMap{});
+  EXPECT_FALSE(lit_inside.shadow.cull_closed_back);
+  for (const ShadowLayerDraw& layer : lit_inside.shadow.layers)
+    for (const DrawRange& draw : layer.draws) EXPECT_EQ(draw.cull, CullMode::None);
   RenderRequest fixed = r;
   fixed.shadow.fit = FrustumFit::Fixed;
   const FramePlan fixed_plan = plan_frame(fixed, mesh, "scene", KeptShadowMap{});

@@ -126,9 +126,9 @@ FrameBlock frame_block(const RenderRequest& request, const ShadowPlan& plan, con
   return b;
 }
 
-std::string variant_defines(CertifyPass pass, bool perspective) {
+std::string variant_defines(CertifyPass pass, bool perspective, bool cull_closed_back) {
   return "#define CERTIFY_PASS " + std::to_string(int(pass)) + "\n#define LIGHT_PERSPECTIVE " +
-         std::to_string(int(perspective)) + "\n";
+         std::to_string(int(perspective)) + "\n#define CULL_CLOSED_BACK " + std::to_string(int(cull_closed_back)) + "\n";
 }
 
 std::vector<glm::vec4> object_facts(const Scene& scene, const glm::dvec3& origin) {

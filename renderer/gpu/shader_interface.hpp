@@ -115,7 +115,9 @@ inline constexpr int kObjectFlagModel = 1;
 inline constexpr int kObjectFlagClosed = 2;
 /// certify.frag's passes (CERTIFY_PASS: CERTIFY_CENTRE, _NEAREST, _OTHERS).
 enum class CertifyPass { Centre = 0, Nearest = 1, Others = 2 };
-std::string variant_defines(CertifyPass pass, bool perspective);
+/// CULL_CLOSED_BACK: the conservative passes leave out the faces of closed
+/// shapes that clearly turn from the light (ShadowPassPlan::cull_closed_back).
+std::string variant_defines(CertifyPass pass, bool perspective, bool cull_closed_back);
 /// Per object of `scene`, certificate.glsl's facts (4 floats each), for
 /// positions relative to `origin`.
 std::vector<glm::vec4> object_facts(const Scene& scene, const glm::dvec3& origin);

@@ -414,9 +414,10 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan) {
   glDisable(GL_CLIP_DISTANCE0);
   glBindTextureUnit(kTextureUnitTriangleObjects, scene().triangle_objects.id());
   glBindTextureUnit(kTextureUnitObjectFacts, scene().object_facts.id());
-  const GLuint centre = certify_.centre.get(variant_defines(CertifyPass::Centre, light.perspective)).id();
-  const GLuint nearest = certify_.conservative.get(variant_defines(CertifyPass::Nearest, light.perspective)).id();
-  const GLuint others = certify_.conservative.get(variant_defines(CertifyPass::Others, light.perspective)).id();
+  const bool cull = plan.shadow.cull_closed_back;
+  const GLuint centre = certify_.centre.get(variant_defines(CertifyPass::Centre, light.perspective, cull)).id();
+  const GLuint nearest = certify_.conservative.get(variant_defines(CertifyPass::Nearest, light.perspective, cull)).id();
+  const GLuint others = certify_.conservative.get(variant_defines(CertifyPass::Others, light.perspective, cull)).id();
   const int coarse = certified_map_size(size);
   set_triangle_base_ = true;
   // One layer at a time, three maps each: what a draw's program writes

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include <glm/geometric.hpp>
+#include <glm/vector_relational.hpp>
 
 #include "core/shader_facts.hpp"
 #include "plan/draw_cost.hpp"
@@ -391,10 +392,11 @@ CasterTexels certified_caster_table(const RenderRequest& request, const ShadowPl
   return casters;
 }
 
-// Filter "exact": the certified maps (ShadowPassPlan::certify), no face
-// culled: the conservative maps must hold every triangle that may lie in
-// front of a point the certificate reads them for (a closed mesh's near
-// faces are where it first blocks a ray).
+// Filter "exact": the certified maps (ShadowPassPlan::certify). The
+// conservative maps must hold, in each texel, the nearest of whatever may
+// lie in front of a point the certificate reads them for: of a closed
+// shape, the faces turned to the light are enough (where a ray leaves it
+// last), unless the light is inside it (cull_closed_back).
 ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
                                           const std::vector<bool>& planes, const CasterTexels& casters) {
   ShadowPassPlan pass;
@@ -409,12 +411,26 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
   // reaching into it are drawn, and a layer nothing reaches is left alone.
   const bool fixed = request.shadow.fit == FrustumFit::Fixed;
   const std::vector<bool> drawn = drawn_objects(mesh, planes);
+  // A closed shape between a point and the light crosses the point's ray
+  // last (nearest the light) on a face turned to the light, unless the
+  // light is inside it.
+  pass.cull_closed_back = true;
+  if (light.perspective)
+    for (const ObjectRange& r : mesh.object_ranges)
+      if (r.first_index < mesh.closed_index_count) {
+        const Aabb& b = mesh.bounds[r.object];
+        const glm::dvec3 hair = 1e-6 * (b.extent() + 1.0);
+        if (glm::all(glm::greaterThanEqual(light.position, b.min - hair)) &&
+            glm::all(glm::lessThanEqual(light.position, b.max + hair)))
+          pass.cull_closed_back = false;
+      }
+  const CullMode closed_cull = pass.cull_closed_back ? CullMode::Back : CullMode::None;
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     ShadowLayerDraw draw;
     draw.layer = int(layer);
     if (fixed) {
       draw.clear_whole = true;
-      draw.draws = scene_draw_ranges(mesh, CullMode::None, drawn);
+      draw.draws = scene_draw_ranges(mesh, closed_cull, drawn);
     } else {
       const TexelRect& c = casters.by_view[layer];
       if (light.views[layer].empty || c.empty()) continue;
@@ -425,7 +441,7 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
       draw.y1 = std::min(light.layer_size, int(c.max.y) + margin);
       std::vector<bool> in_view;
       for (const TexelRect& object : casters.by_object[layer]) in_view.push_back(!object.empty());
-      draw.draws = scene_draw_ranges(mesh, CullMode::None, in_view);
+      draw.draws = scene_draw_ranges(mesh, closed_cull, in_view);
     }
     pass.layers.push_back(std::move(draw));
   }

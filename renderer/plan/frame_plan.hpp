@@ -100,12 +100,20 @@ struct ShadowPassPlan {
   /// The kept map serves this frame: no shadow pass runs.
   bool reused = false;
   /// Filter "exact": the layers are drawn as the certificate reads them
-  /// (docs/certified-shadows.md): the map itself (every object, no face
-  /// culled, whole layers cleared) with each texel's triangle beside it, and
+  /// (docs/certified-shadows.md): the map itself (every object; closed
+  /// meshes' faces turned from the light culled) with each texel's triangle beside it, and
   /// two conservative maps: the nearest depth any triangle reaches
   /// anywhere in each texel, with its owner, and the nearest of all other
   /// owners. Such a map is never kept for reuse.
   bool certify = false;
+  /// ... and the faces of closed shapes that turn from the light are left
+  /// out (docs/certified-shadows.md, "Faces turned from the light"): the
+  /// centre map culls them (DrawRange::cull Back for closed meshes; the
+  /// conservative passes' quads always face the light, so GL culls none of
+  /// them), the conservative passes drop an analytic shape's face whose
+  /// projection is clearly clockwise (CULL_CLOSED_BACK). Off when a point
+  /// light lies within a closed object's bounds.
+  bool cull_closed_back = false;
   /// Layers drawn, ascending (empty views and, unless whole, layers no drawn
   /// object reaches are left out: nothing reads them).
   std::vector<ShadowLayerDraw> layers;
