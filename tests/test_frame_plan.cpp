@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@
 #include "core/scene.hpp"
 #include "scene_support.hpp"
 #include "plan/frame_plan.hpp"
+#include "request_parser.hpp"
 
 namespace umbra {
 namespace {
@@ -501,6 +503,25 @@ TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds
   EXPECT_TRUE(pass.steps[1].stencil.marks_only);
   EXPECT_EQ(pass.steps[4].stencil.test, StencilStep::Test::NotEqual);
   EXPECT_EQ(pass.steps[4].stencil.mask, 0xFE);  // neither of the plane's marks
+  // A floor 10^5 wide: its polygons' float corners round by up to
+  // 2^-24 of 5 10^4, and the shadow of the bounds is grown by that too.
+  const ParsedRequest parsed = parse_render_request(R"({"scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [100000, 100000]},
+      {"type": "box", "center": [0, 0.5, 0], "size": [1, 1, 1]}]}, "light": {"position": [0, 10, 0], "target": [0, 0, 0]},
+      "camera": {"position": [0, 3, 3], "target": [0, 0, 0]}, "shadow": {"filter": "exact"}})",
+                                                     Route::Render, {});
+  ASSERT_TRUE(parsed.ok()) << parsed.error.message;
+  const RenderRequest& huge = *parsed.request;
+  const Mesh huge_mesh = tessellate(huge.scene);
+  const FramePlan huge_plan = plan_frame(huge, huge_mesh, "scene", KeptShadowMap{});
+  ASSERT_GE(huge_plan.display.steps.size(), 2u);
+  const DisplayStep& marks = huge_plan.display.steps[1];
+  ASSERT_EQ(marks.kind, Kind::BoundsMarks);
+  double lowest_x = 1e300;
+  for (std::size_t i = marks.draws[0].first; i < marks.draws[0].first + marks.draws[0].count; ++i)
+    lowest_x = std::min(lowest_x, double(huge_plan.display.cell_vertices[huge_plan.display.cell_indices[i]].position[0]) +
+                                      huge_mesh.origin.x);
+  EXPECT_LT(lowest_x, -0.5 - 3.0 * double(huge_plan.display.proof_margin) - 5e4 * std::ldexp(1.0, -24));
+  EXPECT_GT(lowest_x, -0.5 - 3.0 * double(huge_plan.display.proof_margin) - 0.02);
   // The other filters' Lit and Dark programs prove nothing.
   RenderRequest pcf = r;
   pcf.shadow.filter = ShadowFilter::Pcf;

@@ -188,7 +188,7 @@ void append_cell_steps(const std::vector<PlaneDraw>& planes, std::vector<Display
 // settles (docs/certified-shadows.md, "Proved plane parts"): for each, the
 // umbras of boxes and spheres shrunk by 3 `margin` (proved dark) and the
 // shadows of every other object's bounds grown by 3 `margin` (outside
-// them, proved lit), found as the other filters' cells find theirs but
+// them, proved lit), and by their corners' float rounding, found as the other filters' cells find theirs but
 // in world units and asking no view (umbras.hpp). A plane whose shadows
 // cannot be bounded (a point light's foot under an object, too many
 // objects) stays whole.
@@ -202,14 +202,21 @@ CellDraws proved_planes_of(const RenderRequest& request, const ShadowPlan& light
     const PlaneRange& plane = mesh.planes[i];
     if (planes[i]) continue;  // in the maps: a caster, certified by them
     const Aabb& bounds = mesh.bounds[plane.object];
+    // The polygons are drawn with float corners relative to the mesh
+    // origin, each moved by up to 2^-24 of its largest coordinate there
+    // (all lie on the plane, a hair past its edge at most): their edges
+    // move as far, and the proofs are taken that much wider.
+    const double far = std::max({std::abs(bounds.min.x - mesh.origin.x), std::abs(bounds.max.x - mesh.origin.x),
+                                 std::abs(bounds.min.z - mesh.origin.z), std::abs(bounds.max.z - mesh.origin.z)});
+    const double grow = 3.0 * margin + 2e-7 * 1.01 * far;
     const std::optional<std::vector<PlanePolygon>> shadows =
-        shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, 0.0, 3.0 * margin);
+        shadow_bounds_on_plane(bounds, plane.object, light, mesh.bounds, 0.0, grow);
     if (!shadows) continue;
     PlaneDraw draw;
     draw.plane = i;
     draw.dark.first = cells.dark.size();
     draw.bounds.first = cells.bounds.size();
-    const std::vector<PlanePolygon> dark = umbras_on_plane(bounds, light, request.scene.objects, 0.0, 3.0 * margin);
+    const std::vector<PlanePolygon> dark = umbras_on_plane(bounds, light, request.scene.objects, 0.0, grow);
     append_dark_triangles(dark, plane.height, plane.color, mesh.origin, cells);
     draws.umbras += dark.size();
     append_polygon_triangles(*shadows, plane.height, plane.color, mesh.origin, cells, cells.bounds);
