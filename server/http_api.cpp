@@ -594,8 +594,9 @@ void HttpApi::render(const HttpRequest& req, HttpResponse& res, bool depth_route
   if (result.certified) {
     const CertifiedShare& c = *result.certified;
     char buffer[160];
-    std::snprintf(buffer, sizeof buffer, "uncertain=%.4f%%, ray_cast=%zu, pixels=%zu",
-                  c.pixels > 0 ? 100.0 * double(c.ray_cast) / double(c.pixels) : 0.0, c.ray_cast, c.pixels);
+    std::snprintf(buffer, sizeof buffer, "uncertain=%.4f%%, ray_cast=%zu, pixels=%zu, path=%s",
+                  c.pixels > 0 ? 100.0 * double(c.ray_cast) / double(c.pixels) : 0.0, c.ray_cast, c.pixels,
+                  result.certified_path.c_str());
     res.set_header("Umbra-Certified", buffer);
   }
   if (result.error) {

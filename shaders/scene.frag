@@ -671,8 +671,11 @@ void main() {
 #if CERTIFICATES && !SHADOWS && PROOF == 0
   // Certified without a lookup: a sun below the horizon lights nothing, so
   // every surface is dark; the CPU casts only around changes of object.
+  // With the light up, a frame drawn without maps (DisplayPassPlan::
+  // certificates, FramePlan: the ray cast is cheaper than the maps) leaves
+  // every pixel but the proved plane parts' to the ray cast.
   o_certificate = ((object_of(u_triangle_base + gl_PrimitiveID) + 1u) << 3) | (n_dot_l > 0.0 ? 4u : 0u) |
-                  CERTIFICATE_DARK;
+                  (DIRECT_LIGHT == 1 ? CERTIFICATE_UNCERTAIN : CERTIFICATE_DARK);
 #endif
 
 #if OUTPUT_SHADOW

@@ -283,13 +283,15 @@ function fmt(v) {
   return v === undefined ? "–" : v.toFixed(1);
 }
 
-// Filter "exact": "uncertain=0.2288%, ray_cast=1186, pixels=518400" ->
-// "certified: 0.2288 % of pixels ray cast (1,186 of 518,400)".
+// Filter "exact": "uncertain=0.2288%, ray_cast=1186, pixels=518400, path=maps" ->
+// "certified: 0.2288 % of pixels ray cast (1,186 of 518,400), by the maps".
+const CERTIFIED_PATHS = { maps: "by the maps", proofs: "without maps", "ray-cast": "all ray cast" };
 function certifiedText(header) {
   const f = parseFigures(header);
   if (!("uncertain" in f)) return `certified: ${header}`;
   const count = (key) => (/^\d+$/.test(f[key] || "") ? Number(f[key]).toLocaleString("en") : "?");
-  return `certified: ${f.uncertain.replace("%", " %")} of pixels ray cast (${count("ray_cast")} of ${count("pixels")})`;
+  const path = f.path in CERTIFIED_PATHS ? `, ${CERTIFIED_PATHS[f.path]}` : "";
+  return `certified: ${f.uncertain.replace("%", " %")} of pixels ray cast (${count("ray_cast")} of ${count("pixels")})${path}`;
 }
 
 function togglePlay() {

@@ -101,6 +101,10 @@ struct RenderResult {
   std::optional<PixelCertificates> certificates;
   /// Filter "exact", once settled: how many pixels were ray cast.
   std::optional<CertifiedShare> certified;
+  /// Filter "exact": how the frame was certified: "maps", "proofs" (no
+  /// maps: every pixel but the proved plane parts' ray cast) or "ray-cast"
+  /// (every pixel); empty for other frames (CertifiedPath, frame_plan.hpp).
+  std::string certified_path;
 };
 
 }  // namespace umbra

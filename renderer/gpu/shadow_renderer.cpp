@@ -788,22 +788,23 @@ PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back) {
   return c;
 }
 
-RenderResult ShadowRenderer::render(const RenderRequest& request, const FrameWatch& watch) {
+RenderResult ShadowRenderer::render(const RenderRequest& request, const FrameWatch& watch, CertifiedPath path) {
   watch_ = watch;
   try {
-    return render_frame(request);
+    return render_frame(request, path);
   } catch (...) {
     abandon_frame();
     throw;
   }
 }
 
-RenderResult ShadowRenderer::render_frame(const RenderRequest& request) {
+RenderResult ShadowRenderer::render_frame(const RenderRequest& request, CertifiedPath path) {
   RenderResult result;
   map_allocated_ = false;
   result.scene_uploaded = use_scene(request.scene);
   check_watch("the scene's upload");
-  const FramePlan plan = plan_frame(request, scene().mesh, current_scene_key(), shadow_.kept);
+  const FramePlan plan = plan_frame(request, scene().mesh, current_scene_key(), shadow_.kept, path);
+  if (plan.display.certificates) result.certified_path = to_string(plan.certified_path);
   result.shadow_reused = plan.shadow.reused;
   result.shadow_views = plan.shadow_views;
   const FrameBlock block = frame_block(request, plan.light, scene().mesh, plan.casters.by_view);

@@ -52,7 +52,9 @@ class ShadowRenderer {
   /// valid (as the request parser guarantees). Throws FrameCutShort once
   /// past `watch.until` (checked between chunks and passes: a chunk is
   /// about kChunkMs of work, so the frame ends within about that of it).
-  RenderResult render(const RenderRequest& request, const FrameWatch& watch = {});
+  /// `path`: plan_frame's (filter "exact" frames only).
+  RenderResult render(const RenderRequest& request, const FrameWatch& watch = {},
+                      CertifiedPath path = CertifiedPath::Maps);
 
   /// Bytes of GL memory kept between requests: cached scenes' buffers, the
   /// shadow map, the display framebuffer, the depth preview (as allocated:
@@ -156,7 +158,7 @@ class ShadowRenderer {
   // for is a few hundred, each a large program on a software rasteriser.
   static constexpr std::size_t kKeptVariants = 24;
 
-  RenderResult render_frame(const RenderRequest& request);
+  RenderResult render_frame(const RenderRequest& request, CertifiedPath path);
   /// Makes `scene` the current one (scenes_.front()), uploading it unless a
   /// scene with the same content is cached; true if it was uploaded.
   bool use_scene(const Scene& scene);

@@ -480,11 +480,14 @@ CullMode closed_cull_of(const RenderRequest& request, const Mesh& mesh) {
 }
 
 DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
-                                            const std::vector<bool>& planes) {
+                                            const std::vector<bool>& planes, CertifiedPath path) {
   DisplayPassPlan pass = display_pass_of(request, light);
   pass.certificates = true;
+  // Without maps, the frame's program has no lookup: every pixel it draws
+  // is left to the ray cast (scene.frag, CERTIFICATES without SHADOWS).
+  if (path != CertifiedPath::Maps) pass.variant = without_shadows(pass.variant);
   CellDraws proved;
-  if (pass.variant.shadows) {
+  if (pass.variant.direct_light && path != CertifiedPath::RayCast) {
     pass.proof_margin = float(proof_margin_of(light, mesh, planes));
     proved = proved_planes_of(request, light, mesh, planes, double(pass.proof_margin));
   }
@@ -501,7 +504,9 @@ DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const 
   all.draws = scene_draw_ranges(mesh, closed_cull, drawn_objects(mesh, proved.whole_planes));
   pass.steps.push_back(std::move(all));
   append_proved_plane_steps(proved.planes, mesh, request.camera.position, pass.steps);
-  pass.sliver_draws = scene_draw_ranges(mesh, CullMode::None, {});
+  // The sliver pass finds pixels to ray cast: with every pixel ray cast,
+  // there are none to find.
+  if (path != CertifiedPath::RayCast) pass.sliver_draws = scene_draw_ranges(mesh, CullMode::None, {});
   return pass;
 }
 
@@ -587,7 +592,7 @@ std::string preview_tiles_parameters(const ShadowPlan& plan) {
 
 DisplayVariant program_variant(const DisplayVariant& frame, DisplayProgram which) {
   DisplayVariant v = which == DisplayProgram::Frame || which == DisplayProgram::LightFacing ? frame : without_shadows(frame);
-  if (frame.certificates && frame.shadows && (which == DisplayProgram::Lit || which == DisplayProgram::Dark)) {
+  if (frame.certificates && frame.direct_light && (which == DisplayProgram::Lit || which == DisplayProgram::Dark)) {
     // A proof's program keeps the direct light: an uncertain pixel is drawn
     // lit for the CPU to pick from.
     v.proof = which == DisplayProgram::Lit ? 1 : -1;
@@ -712,8 +717,17 @@ std::vector<double> object_draw_ms(const Scene& scene, const std::vector<glm::dm
   return ms;
 }
 
+const char* to_string(CertifiedPath path) {
+  switch (path) {
+    case CertifiedPath::Maps: return "maps";
+    case CertifiedPath::Proofs: return "proofs";
+    case CertifiedPath::RayCast: return "ray-cast";
+  }
+  return "maps";
+}
+
 FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::string& scene_key,
-                     const KeptShadowMap& kept) {
+                     const KeptShadowMap& kept, CertifiedPath path) {
   FramePlan plan;
   plan.light = plan_shadow(request);
   plan.depth_output = request.output == Output::Depth;
@@ -726,11 +740,15 @@ FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::
     // A sun below the horizon: no map, every surface dark (CERTIFICATES
     // without a lookup).
     plan.casters = certified_caster_table(request, plan.light, mesh, plan.casting_planes);
-    if (plan.shadow.needed) {
+    // A sun below the horizon needs no map whatever the path.
+    plan.certified_path = plan.shadow.needed ? path : CertifiedPath::Maps;
+    if (plan.certified_path != CertifiedPath::Maps) {
+      plan.shadow = ShadowPassPlan{};
+    } else if (plan.shadow.needed) {
       plan.shadow = plan_certified_shadow_pass(request, plan.light, mesh, plan.casting_planes, plan.casters);
       plan.shadow_views = describe_views(plan.light);
     }
-    plan.display = plan_certified_display_pass(request, plan.light, mesh, plan.casting_planes);
+    plan.display = plan_certified_display_pass(request, plan.light, mesh, plan.casting_planes, plan.certified_path);
     plan.read_back = {false, request.width, request.height, request.output == Output::Shadow ? 1 : 3, 8};
     plan.read_back.certificates = true;
     plan.read_back.unlit = request.output != Output::Shadow;

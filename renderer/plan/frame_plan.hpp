@@ -49,6 +49,16 @@ inline constexpr std::size_t kHeavyTriangles = 4096;
 // find than they save.
 inline constexpr std::size_t kMaxPlanesInCells = 8;
 
+/// How a filter "exact" frame settles its pixels (docs/certified-shadows.md):
+/// - Maps: the certified maps and the proved plane parts prove what they
+///   can, the rest is ray cast;
+/// - Proofs: no maps: the proved plane parts are proved, every other pixel
+///   is ray cast;
+/// - RayCast: no maps, no proofs, no sliver pass: every pixel is ray cast
+///   (the main pass only shades).
+enum class CertifiedPath { Maps, Proofs, RayCast };
+const char* to_string(CertifiedPath path);
+
 /// What the shadow map holds from the frame that drew it, so that a frame
 /// whose light, scene and cull mode are unchanged (a camera-only change)
 /// reuses it. The renderer keeps it beside the map.
@@ -251,13 +261,19 @@ struct FramePlan {
   DisplayPassPlan display;   ///< unless depth_output
   DepthPreviewPlan preview;  ///< depth_output only
   ReadBack read_back;
+  /// Filter "exact": how the frame was certified (plan_frame's `path`, or
+  /// Maps under a sun below the horizon, which draws none).
+  CertifiedPath certified_path = CertifiedPath::Maps;
 };
 
 /// The plan of `request`'s frame (valid, as the parser guarantees) drawing
 /// `mesh` (tessellate(request.scene); vertices and indices not needed),
 /// whose content key is `scene_key`, with `kept` in the shadow map.
+/// `path`: how a filter "exact" frame under a light that is up is
+/// certified (the caller's choice, by exact_filter_paths in
+/// service/request_cost.hpp).
 FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::string& scene_key,
-                     const KeptShadowMap& kept);
+                     const KeptShadowMap& kept, CertifiedPath path = CertifiedPath::Maps);
 
 // The steps plan_frame is made of, exposed for tests.
 

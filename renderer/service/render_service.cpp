@@ -192,6 +192,9 @@ struct RenderService::Impl {
   std::atomic<std::uint64_t> cached{0};  // ShadowRenderer::cached_bytes after the last job or release
   bool idle_release_due = false;  // guarded by mutex: work was done since the last idle release
   RendererInfo info;
+  // The GL is llvmpipe, which request_cost's estimates are calibrated on
+  // (set with info, before any job runs).
+  bool llvmpipe = false;
   std::thread thread;
   std::thread reaper;
 
@@ -304,6 +307,7 @@ struct RenderService::Impl {
       // Read by other threads without a lock, so set once: a fresh context
       // is chosen by the same rules (EglContext) and is on the same driver.
       info = {renderer->gl_renderer(), renderer->gl_version(), context->source()};
+      llvmpipe = info.gl_renderer.find("llvmpipe") != std::string::npos;
     } catch (...) {
       ready.set_exception(std::current_exception());
       return;
@@ -348,7 +352,13 @@ struct RenderService::Impl {
         // The watchdog: the estimate admitted the frame, but one it
         // misjudged, or a busy machine, must not hold the GL thread (and
         // every request queued behind it, and a drain) without bound.
-        result = renderer->render(job.request, FrameWatch{started + limits.max_run_time});
+        // Filter "exact" on llvmpipe takes the path its estimates price
+        // lowest (request_cost.hpp); elsewhere the maps.
+        const CertifiedPath path = llvmpipe && job.request.shadow.filter == ShadowFilter::Exact &&
+                                           job.request.output != Output::Depth
+                                       ? exact_filter_paths(job.request).best()
+                                       : CertifiedPath::Maps;
+        result = renderer->render(job.request, FrameWatch{started + limits.max_run_time}, path);
         if (result->certificates) settle(*result, job, started);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);

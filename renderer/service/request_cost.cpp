@@ -70,6 +70,14 @@ constexpr double kMsPerMeshFragment = 2.5e-5;  // plus kMsPerGather for each of 
 // Map 2048^2 and 1024^2, 1.3e10 and 3.3e9 texels: 5.2 s and 1.24 s.
 constexpr double kMsPerMeshTexel = 5.0e-7;
 // kMsPerTileTest: a triangle tested against a 64 x 64 tile, plan/draw_cost.hpp.
+// Filter "exact"'s conservative passes (certify.geom): the 102,400-triangle
+// teapot, 2 views, 2 passes, 960x540: 190..210 ms of its shadow pass past
+// the centre map's.
+constexpr double kMsPerConservativeTriangle = 5.0e-4;
+// The exact output's ray cast measured over ray_cast_ms, in the certified
+// bench (bench/results/certified.md, 960x540, 2 cores): 0.29..0.76 over 16
+// scenes, median 0.4.
+constexpr double kRayCastShare = 0.4;
 
 // Mesh sizes, as tessellate() builds them: each shape's row says (test_shapes
 // checks it against its tessellation).
@@ -308,6 +316,30 @@ CostFactors cost_factors(const RenderRequest& request) {
   return f;
 }
 
+CertifiedPath ExactFilterPaths::best() const {
+  if (maps_ms <= proofs_ms && maps_ms <= ray_cast_ms) return CertifiedPath::Maps;
+  return proofs_ms <= ray_cast_ms ? CertifiedPath::Proofs : CertifiedPath::RayCast;
+}
+
+ExactFilterPaths exact_filter_paths(const RenderRequest& request) {
+  const CostFactors f = cost_factors(request);
+  RenderRequest as_exact = request;
+  as_exact.output = Output::Exact;
+  const double ray_cast = ray_cast_ms(cost_factors(as_exact)) * kRayCastShare;
+  const int views = std::max(0, f.draws - 1);  // the camera's draw aside
+  const double quads = double(f.triangles) * kMsPerConservativeTriangle;
+  Scene objects;
+  for (const SceneObject& o : request.scene.objects)
+    if (o.type != SceneObject::Type::Plane) objects.objects.push_back(o);
+  const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
+  const double cover = depth_complexity(objects, camera.projection * camera.view);
+  ExactFilterPaths paths;
+  paths.maps_ms = 2.0 * double(views) * quads + quads + ray_cast / 20.0;
+  paths.proofs_ms = quads + ray_cast * std::min(1.0, 3.0 * cover);
+  paths.ray_cast_ms = ray_cast;
+  return paths;
+}
+
 const CostPart& RequestCost::dominant() const {
   return *std::max_element(parts.begin(), parts.end(),
                            [](const CostPart& a, const CostPart& b) { return a.ms < b.ms; });
@@ -363,9 +395,13 @@ RequestCost estimate_cost(const RenderRequest& request) {
     RenderRequest as_exact = request;
     as_exact.output = Output::Exact;
     const CostFactors e = cost_factors(as_exact);
-    cost.parts.push_back({"certified maps and uncertain pixels",
-                          8.0 * (f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel) +
-                              ray_cast_ms(e) / 3.0 + double(e.bvh_triangles) * kMsPerBvhTriangle,
+    // Without maps (where they would cost more), every pixel but the
+    // proved plane parts' may be ray cast.
+    const double settle = exact_filter_paths(request).best() == CertifiedPath::Maps
+                              ? 8.0 * (f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel) +
+                                    ray_cast_ms(e) / 3.0
+                              : ray_cast_ms(e);
+    cost.parts.push_back({"certified maps and uncertain pixels", settle + double(e.bvh_triangles) * kMsPerBvhTriangle,
                           "shadow.filter", "use filter \"pcf\", or lower shadow.map_size, width and height"});
   }
   for (const CostPart& part : cost.parts) cost.total_ms += part.ms;

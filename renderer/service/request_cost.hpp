@@ -15,6 +15,7 @@
 
 #include "core/request.hpp"
 #include "core/sun_hours.hpp"
+#include "plan/frame_plan.hpp"
 #include "reference/sun_hours_footprints.hpp"
 
 namespace umbra {
@@ -113,6 +114,30 @@ CostFactors cost_factors(const RenderRequest& request);
 
 /// The estimate: cost_factors priced by the calibration in request_cost.cpp.
 RequestCost estimate_cost(const RenderRequest& request);
+
+/// Filter "exact" on the reference machine (llvmpipe): what each way of
+/// certifying a frame (CertifiedPath, plan/frame_plan.hpp) costs beyond
+/// the main pass they share (docs/certified-shadows.md, "Choosing the
+/// path"). A geometry shader's quad per triangle (kMsPerConservativeTriangle)
+/// is paid twice per view by the maps and once by the sliver pass; the ray
+/// cast is priced as the exact output's (ray_cast_ms, whose calibration
+/// leans high) times kRayCastShare, what the bench scenes measured of it.
+/// - maps: the conservative passes, the sliver pass, and the ray cast of
+///   the pixels the maps leave (a twentieth of the frame's, about the bench
+///   scenes' median);
+/// - proofs: the sliver pass, and the ray cast of the pixels that are not
+///   proved plane parts: the objects' share of the camera's image (their
+///   bounds' depth complexity, planes aside) and twice as much again for
+///   the bands about their shadows, at most all;
+/// - ray cast: every pixel's.
+struct ExactFilterPaths {
+  double maps_ms = 0.0;
+  double proofs_ms = 0.0;
+  double ray_cast_ms = 0.0;
+  /// The cheapest; Maps on a tie.
+  CertifiedPath best() const;
+};
+ExactFilterPaths exact_filter_paths(const RenderRequest& request);
 
 /// A sun-hours analysis (POST /api/sun-hours), by the faster of its two
 /// paths: the pure ray cast (one shadow ray per point and sample with the

@@ -692,7 +692,7 @@ try {
     assert.ok(!("pcf_radius" in sent.shadow), "no pcf_radius with filter exact");
     // The share the server ray cast, from Umbra-Certified, and its settle stage.
     const timing = await page.$eval("#timing", (p) => p.textContent);
-    assert.match(timing, /certified: [\d.]+ % of pixels ray cast \([\d,]+ of [\d,]+\)/);
+    assert.match(timing, /certified: [\d.]+ % of pixels ray cast \([\d,]+ of [\d,]+\), by the maps/);
     assert.match(timing, /settle [\d.]+/);
     // Its shadow term is the exact reference's: the error view is black.
     const toError = await currentSources(page);
