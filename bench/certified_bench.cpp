@@ -151,6 +151,13 @@ struct Answer {
     for (const char* s : stages) sum += std::max(0.0, ::timing(timing, s));
     return sum;
   }
+  // "..., path=maps" -> "maps"; "-" if absent.
+  std::string path() const {
+    const std::size_t at = certified.find("path=");
+    if (at == std::string::npos) return "-";
+    const std::size_t end = certified.find_first_of(", \r\n", at + 5);
+    return certified.substr(at + 5, end == std::string::npos ? std::string::npos : end - at - 5);
+  }
   // "uncertain=0.1234%, ..." -> 0.1234; -1 if absent.
   double uncertain_percent() const {
     const std::size_t at = certified.find("uncertain=");
@@ -202,6 +209,7 @@ struct SceneRow {
   std::string scene;
   std::string skipped;  // why, if not measured
   double pcf_ms = NAN, exact_ms = NAN, raycast_ms = NAN, settle_ms = NAN, uncertain = NAN;
+  std::string path;  // Umbra-Certified's path of the rounds (several: joined with "/")
   Compare at_own_time;
   long sweep_worst = -1;
   double sweep_worst_time = 0.0;
@@ -238,6 +246,7 @@ SceneRow measure_scene(Poster& poster, const std::string& name, const json& base
       exact.push_back(e.ms({"shadow", "main", "readback", "settle"}));
       settle.push_back(e.ms({"settle"}));
       uncertain.push_back(e.uncertain_percent());
+      if (row.path.find(e.path()) == std::string::npos) row.path += (row.path.empty() ? "" : "/") + e.path();
     }
     if (r.status == 200) raycast.push_back(r.ms({"raycast"}));
     if (p.status != 200 || e.status != 200 || r.status != 200)
@@ -653,24 +662,25 @@ int main(int argc, char** argv) {
         "\"exact\"}` with output `shadow`, and output `exact`. Times are the medians, from `Server-Timing`: pcf ms "
         "= shadow + main + readback; exact ms = shadow + main + readback + settle (settle: the CPU ray cast of the "
         "pixels the maps left uncertain; its median on its own is the settle column); raycast ms = the `exact` output's raycast stage (the full CPU ray cast). "
-        "uncertain % = median share of pixels ray cast, from `Umbra-Certified`.\n"
+        "uncertain % = median share of pixels ray cast, and path how the server certified the frames (maps, proofs: "
+        "no maps, the floor's proofs and the rest ray cast, ray-cast: every pixel), from `Umbra-Certified`.\n"
      << "- Accuracy: filter exact's `shadow` PNG against the `exact` PNG (decoded, 8-bit grey) at the scene's own "
         "time: diff px = pixels that differ at all, wrong px = off by more than 127, MAE = mean |a - b| / 255 over "
         "all pixels. Sweep = the most differing pixels over " << umbra::kOrbitSweepTimes << " light angles t = k x "
      << umbra::kOrbitTurnSeconds << " / " << umbra::kOrbitSweepTimes << " s, k = 0.." << umbra::kOrbitSweepTimes - 1
      << " (" << (sweep ? "measured" : "not measured: --no-sweep") << ").\n"
      << "- The machine is shared and noisy: the times are indicative.\n\n"
-     << "| scene | pcf ms | exact-filter ms | of which settle ms | raycast ms | exact/pcf | exact/raycast | uncertain % | differing px | "
-        "wrong px | MAE | sweep worst differing px |\n"
-     << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+     << "| scene | pcf ms | exact-filter ms | of which settle ms | raycast ms | exact/pcf | exact/raycast | path | uncertain % | "
+        "differing px | wrong px | MAE | sweep worst differing px |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const SceneRow& r : rows) {
     if (!r.skipped.empty()) {
-      md << "| " << r.scene << " | skipped: " << r.skipped << " | | | | | | | | | | |\n";
+      md << "| " << r.scene << " | skipped: " << r.skipped << " | | | | | | | | | | | |\n";
       continue;
     }
     md << "| " << r.scene << " | " << cell(r.pcf_ms, "%.2f") << " | " << cell(r.exact_ms, "%.2f") << " | " << cell(r.settle_ms, "%.2f") << " | "
        << cell(r.raycast_ms, "%.2f") << " | " << cell(r.exact_ms / r.pcf_ms, "%.2f") << " | "
-       << cell(r.exact_ms / r.raycast_ms, "%.3f") << " | " << cell(r.uncertain, "%.4f") << " | "
+       << cell(r.exact_ms / r.raycast_ms, "%.3f") << " | " << r.path << " | " << cell(r.uncertain, "%.4f") << " | "
        << r.at_own_time.differing << " | " << r.at_own_time.wrong << " | " << fmt("%.2e", r.at_own_time.mae) << " | "
        << (r.sweep_worst < 0 ? std::string("-")
                              : std::to_string(r.sweep_worst) + (r.sweep_worst > 0 ? " (t=" + fmt("%.0f", r.sweep_worst_time) + " s)" : ""))
@@ -733,7 +743,7 @@ int main(int argc, char** argv) {
       row["skipped"] = r.skipped;
     } else {
       row.update({{"pcf_ms", r.pcf_ms}, {"exact_filter_ms", r.exact_ms}, {"settle_ms", r.settle_ms},
-                  {"raycast_ms", r.raycast_ms}, {"uncertain_percent", r.uncertain},
+                  {"raycast_ms", r.raycast_ms}, {"uncertain_percent", r.uncertain}, {"path", r.path},
                   {"differing_px", r.at_own_time.differing}, {"wrong_px", r.at_own_time.wrong},
                   {"mae", r.at_own_time.mae}, {"pixels", r.at_own_time.pixels},
                   {"png_bytes_equal", r.at_own_time.bytes_equal}, {"sweep_worst_differing_px", r.sweep_worst},

@@ -98,12 +98,22 @@ void main() {
   // light, the ray leaves the shape last through a face turned to it, which
   // lies nearer the light in the same texel (the light is outside every
   // closed object: ShadowPassPlan::cull_closed_back). Only a face clearly
-  // clockwise on the layer, by more than the rounding of its corners'
-  // texel coordinates (1e-7 of the extent each) can turn its sign.
-  float perimeter = 0.0;
+  // clockwise on the layer: its area taken from edge vectors (a fan from
+  // the first corner, so that rounding scales with the edges, not with the
+  // corners' distance from the layer's origin, as the shoelace sum's
+  // products' does: a red-team pass saw a face turned to the light come
+  // out clockwise that way), below minus its rounding: each corner's texel
+  // coordinates off by up to about 4e-7 of the extent (the projection's
+  // float steps) times the perimeter, and the products' own rounding
+  // (2^-24 of the edges' lengths multiplied), both with tenfold headroom.
+  float perimeter = 0.0, fan_area = 0.0;
   for (int i = 0; i < n; ++i) perimeter += length(p[(i + 1) % n].xy - p[i].xy);
-  if (has_flag(facts, OBJECT_FLAG_CLOSED) && !has_flag(facts, OBJECT_FLAG_MODEL) &&
-      area < -(1e-5 * max(1.0, extent) * perimeter + 1e-4 * max(1.0, extent)))
+  for (int i = 1; i + 1 < n; ++i) {
+    vec2 e1 = p[i].xy - p[0].xy, e2 = p[i + 1].xy - p[0].xy;
+    fan_area += e1.x * e2.y - e1.y * e2.x;
+  }
+  float fan_rounding = 4e-6 * max(1.0, extent) * perimeter + 1e-6 * perimeter * perimeter;
+  if (has_flag(facts, OBJECT_FLAG_CLOSED) && !has_flag(facts, OBJECT_FLAG_MODEL) && fan_area < -fan_rounding)
     return;
 #endif
   // Below this the polygon is a sliver whose edge normals rounding can
