@@ -125,6 +125,27 @@ std::vector<glm::dvec2> points_over(const PlanePolygon& polygon) {
   return points;
 }
 
+// Points `hair` outside each edge of `shadows` (at its ends and at five
+// places along it) that lie outside them all and on the plane (not past
+// its edge, where the shadows are cut).
+std::vector<glm::dvec2> points_just_outside(const std::vector<PlanePolygon>& shadows, const Aabb& plane, double hair) {
+  const auto outside_all = [&](const glm::dvec2& q) {
+    return std::none_of(shadows.begin(), shadows.end(), [&](const PlanePolygon& s) { return inside(s, q); });
+  };
+  std::vector<glm::dvec2> points;
+  for (const PlanePolygon& s : shadows)
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      const glm::dvec2 a = s[i], b = s[(i + 1) % s.size()];
+      const glm::dvec2 outward = glm::normalize(glm::dvec2(b.y - a.y, a.x - b.x));
+      for (double f : {0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0}) {
+        const glm::dvec2 q = a + (b - a) * f + outward * hair;
+        if (outside_all(q) && q.x > plane.min.x && q.x < plane.max.x && q.y > plane.min.z && q.y < plane.max.z)
+          points.push_back(q);
+      }
+    }
+  return points;
+}
+
 // The lights every test below is run under: the sun at four points of its
 // orbit, and point lights above the objects and lower than the box's top.
 std::vector<RenderRequest> lit_scenes() {
@@ -189,32 +210,19 @@ TEST(Umbras, NoTexelReadFromOutsideTheShadowBoundsSeesAnObject) {
         shadow_bounds_on_plane(plane, floor.object, plan, mesh.bounds, read + 1.0);
     ASSERT_TRUE(shadows.has_value()) << where;
     ASSERT_EQ(shadows->size(), 2u) << where;
-    const auto outside_all = [&](const glm::dvec2& q) {
-      return std::none_of(shadows->begin(), shadows->end(), [&](const PlanePolygon& s) { return inside(s, q); });
-    };
-    // Points a hair outside each edge, at its ends and at five places
-    // along it.
-    for (const PlanePolygon& s : *shadows)
-      for (std::size_t i = 0; i < s.size(); ++i) {
-        const glm::dvec2 a = s[i], b = s[(i + 1) % s.size()];
-        const glm::dvec2 outward = glm::normalize(glm::dvec2(b.y - a.y, a.x - b.x));
-        for (double f : {0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0}) {
-          const glm::dvec2 q = a + (b - a) * f + outward * 1e-6;
-          if (!outside_all(q) || q.x <= plane.min.x || q.x >= plane.max.x || q.y <= plane.min.z || q.y >= plane.max.z)
-            continue;
-          const glm::dvec3 p(q.x, floor.height, q.y);
-          const int view = view_for(plan, p, reach);
-          if (view < 0) continue;  // no view holds it: lit without a lookup
-          ++points;
-          for (int dy = -read; dy <= read; ++dy)
-            for (int dx = -read; dx <= read; ++dx) {
-              const TexelRay ray = texel_ray(r, plan, view, p, {dx, dy}, floor.height);
-              EXPECT_FALSE(ray.before.has_value())
-                  << where << ": the texel (" << dx << ", " << dy << ") from " << q.x << ", " << q.y << " sees object "
-                  << ray.before->object;
-            }
+    for (const glm::dvec2& q : points_just_outside(*shadows, plane, 1e-6)) {
+      const glm::dvec3 p(q.x, floor.height, q.y);
+      const int view = view_for(plan, p, reach);
+      if (view < 0) continue;  // no view holds it: lit without a lookup
+      ++points;
+      for (int dy = -read; dy <= read; ++dy)
+        for (int dx = -read; dx <= read; ++dx) {
+          const TexelRay ray = texel_ray(r, plan, view, p, {dx, dy}, floor.height);
+          EXPECT_FALSE(ray.before.has_value())
+              << where << ": the texel (" << dx << ", " << dy << ") from " << q.x << ", " << q.y << " sees object "
+              << ray.before->object;
         }
-      }
+    }
   }
   EXPECT_GT(points, 100);
 }
@@ -416,28 +424,15 @@ TEST(Umbras, ProvedPartsHoldWithinTwoMarginsOfEveryPoint) {
       const std::optional<std::vector<PlanePolygon>> shadows =
           shadow_bounds_on_plane(plane, floor.object, plan, mesh.bounds, 0.0, 3.0 * margin);
       ASSERT_TRUE(shadows.has_value()) << where;
-      const auto outside_all = [&](const glm::dvec2& q) {
-        return std::none_of(shadows->begin(), shadows->end(), [&](const PlanePolygon& s) { return inside(s, q); });
-      };
       // Points a hair outside each edge, moved 2 margins every way.
-      for (const PlanePolygon& s : *shadows)
-        for (std::size_t i = 0; i < s.size(); ++i) {
-          const glm::dvec2 a = s[i], b = s[(i + 1) % s.size()];
-          const glm::dvec2 outward = glm::normalize(glm::dvec2(b.y - a.y, a.x - b.x));
-          for (double f : {0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0}) {
-            const glm::dvec2 q = a + (b - a) * f + outward * 1e-9;
-            // (Not past the plane's edge, where the shadows are cut.)
-            if (!outside_all(q) || q.x <= plane.min.x || q.x >= plane.max.x || q.y <= plane.min.z || q.y >= plane.max.z)
-              continue;
-            for (const glm::dvec2& d : offsets) {
-              const glm::dvec2 moved = q + d;
-              if (moved.x <= plane.min.x || moved.x >= plane.max.x || moved.y <= plane.min.z || moved.y >= plane.max.z)
-                continue;
-              const glm::dvec3 p(moved.x, floor.height, moved.y);
-              ++lit;
-              EXPECT_EQ(exact_visibility(r, light, p, {0.0, 1.0, 0.0}), 1.0) << where << ": " << p.x << ", " << p.z;
-            }
-          }
+      for (const glm::dvec2& q : points_just_outside(*shadows, plane, 1e-9))
+        for (const glm::dvec2& d : offsets) {
+          const glm::dvec2 moved = q + d;
+          if (moved.x <= plane.min.x || moved.x >= plane.max.x || moved.y <= plane.min.z || moved.y >= plane.max.z)
+            continue;
+          const glm::dvec3 p(moved.x, floor.height, moved.y);
+          ++lit;
+          EXPECT_EQ(exact_visibility(r, light, p, {0.0, 1.0, 0.0}), 1.0) << where << ": " << p.x << ", " << p.z;
         }
     }
   }

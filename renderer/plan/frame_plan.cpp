@@ -40,6 +40,24 @@ struct CellDraws {
   std::vector<std::uint32_t> indices;
 };
 
+// `cells`' index lists into one buffer of `draws`, each plane's ranges
+// moved to where their list lands in it: every plane's umbras, then the
+// shadows of the objects' bounds, then the shadowable cells, then the
+// others (the last two empty for proved plane parts).
+void pack_cells(CellTriangles& cells, CellDraws& draws) {
+  if (draws.planes.empty()) return;
+  std::vector<std::uint32_t> indices = std::move(cells.dark);
+  for (std::vector<std::uint32_t>* part : {&cells.bounds, &cells.shadowable, &cells.unshadowable}) {
+    for (PlaneDraw& draw : draws.planes) {
+      IndexRange& range = part == &cells.bounds ? draw.bounds : part == &cells.shadowable ? draw.shadowable : draw.unshadowable;
+      range.first += indices.size();
+    }
+    indices.insert(indices.end(), part->begin(), part->end());
+  }
+  draws.vertices = std::move(cells.vertices);
+  draws.indices = std::move(indices);
+}
+
 // The cells of the planes the shadow pass leaves out (planes[i] false).
 CellDraws plane_cells_of(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
                          const std::vector<bool>& planes, const CasterTexels& casters) {
@@ -97,19 +115,7 @@ CellDraws plane_cells_of(const RenderRequest& request, const ShadowPlan& light, 
     draws.planes.push_back(draw);
     draws.whole_planes[i] = false;
   }
-  if (draws.planes.empty()) return draws;
-  // One index buffer: every plane's umbras, then the shadows of the
-  // objects' bounds, then the shadowable cells, then the others.
-  std::vector<std::uint32_t> indices = std::move(cells.dark);
-  for (std::vector<std::uint32_t>* part : {&cells.bounds, &cells.shadowable, &cells.unshadowable}) {
-    for (PlaneDraw& draw : draws.planes) {
-      IndexRange& range = part == &cells.bounds ? draw.bounds : part == &cells.shadowable ? draw.shadowable : draw.unshadowable;
-      range.first += indices.size();
-    }
-    indices.insert(indices.end(), part->begin(), part->end());
-  }
-  draws.vertices = std::move(cells.vertices);
-  draws.indices = std::move(indices);
+  pack_cells(cells, draws);
   return draws;
 }
 
@@ -225,13 +231,7 @@ CellDraws proved_planes_of(const RenderRequest& request, const ShadowPlan& light
     draws.planes.push_back(draw);
     draws.whole_planes[i] = false;
   }
-  if (draws.planes.empty()) return draws;
-  // One index buffer: every plane's umbras, then the shadows of the bounds.
-  std::vector<std::uint32_t> indices = std::move(cells.dark);
-  for (PlaneDraw& draw : draws.planes) draw.bounds.first += indices.size();
-  indices.insert(indices.end(), cells.bounds.begin(), cells.bounds.end());
-  draws.vertices = std::move(cells.vertices);
-  draws.indices = std::move(indices);
+  pack_cells(cells, draws);
   return draws;
 }
 
