@@ -100,6 +100,14 @@ TEST(CertifiedPaths, EachPathEqualsTheExactReference) {
   }
   std::mt19937 random(20261127);
   for (int i = 0; i < 6; ++i) requests.push_back(request(random_scene(random).dump()));
+  // A box 0.2 pixel tall that the raster misses at every pixel centre, with
+  // the sky behind it and with a lit floor (AnObjectThinnerThanAPixel...):
+  // without the sliver pass, the ray cast path must cast the sky too.
+  for (const char* body : {
+           R"({"width":160,"height":90,"scene":{"objects":[{"type":"plane","center":[0,0,0],"size":[20,20]},{"type":"box","center":[0,2.4295262187929394,5.0],"size":[4,0.004,0.004]}]},"light":{"position":[0,10,-10],"target":[0,0,0]},"camera":{"position":[0,2,10],"target":[0,2,0],"fov_y_deg":30,"near":0.1,"far":100}})",
+           R"({"width":160,"height":90,"scene":{"objects":[{"type":"plane","center":[0,0,0],"size":[20,20]},{"type":"box","center":[0,3.0217628897582145,3.0],"size":[4,0.004,0.004]}]},"light":{"position":[0,10,-10],"target":[0,0,0]},"camera":{"position":[0,6,6],"target":[0,0,0],"fov_y_deg":30,"near":0.1,"far":100,"up":[0,-1,0]}})",
+       })
+    requests.push_back(request(body));
   gl::EglContext context;
   ShadowRenderer renderer;
   for (const CertifiedPath path : {CertifiedPath::Maps, CertifiedPath::Proofs, CertifiedPath::RayCast}) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/light_math.hpp"
+#include "core/render_result.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
 #include "scene_support.hpp"
@@ -537,6 +538,41 @@ TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds
   const FramePlan whole = plan_frame(inside, mesh, "scene", KeptShadowMap{});
   ASSERT_EQ(whole.display.steps.size(), 1u);
   EXPECT_TRUE(whole.display.cell_indices.empty());
+}
+
+// The two paths without maps (CertifiedPath): proofs keep the floor's
+// proved parts and the sliver pass; the ray cast keeps neither, and an
+// undrawn pixel (the sky) is uncertain too: nothing else would find an
+// object the raster missed there.
+TEST(FramePlan, ACertifiedFrameWithoutMapsProvesTheFloorOrCastsEveryPixel) {
+  RenderRequest r = test::builtin_request("three-cubes");
+  r.shadow.filter = ShadowFilter::Exact;
+  const Mesh mesh = tessellate(r.scene);
+  const FramePlan maps = plan_frame(r, mesh, "scene", KeptShadowMap{}, CertifiedPath::Maps);
+  const FramePlan proofs = plan_frame(r, mesh, "scene", KeptShadowMap{}, CertifiedPath::Proofs);
+  const FramePlan cast = plan_frame(r, mesh, "scene", KeptShadowMap{}, CertifiedPath::RayCast);
+  EXPECT_TRUE(maps.shadow.needed);
+  EXPECT_EQ(maps.certified_path, CertifiedPath::Maps);
+  for (const FramePlan* plan : {&proofs, &cast}) {
+    EXPECT_FALSE(plan->shadow.needed);
+    EXPECT_TRUE(plan->shadow.layers.empty());
+    EXPECT_TRUE(plan->shadow_views.empty());
+    EXPECT_TRUE(plan->display.certificates);
+    EXPECT_FALSE(plan->display.variant.shadows);  // the frame's program marks its pixels uncertain
+    EXPECT_TRUE(plan->display.variant.direct_light);
+    EXPECT_TRUE(plan->read_back.certificates);
+  }
+  EXPECT_EQ(proofs.certified_path, CertifiedPath::Proofs);
+  EXPECT_EQ(proofs.display.steps.size(), maps.display.steps.size());
+  EXPECT_EQ(proofs.display.umbras, 3u);
+  EXPECT_FALSE(proofs.display.sliver_draws.empty());
+  EXPECT_EQ(proofs.display.background_certificate, 0u);
+  EXPECT_EQ(program_variant(proofs.display.variant, DisplayProgram::Lit).proof, 1);
+  EXPECT_EQ(cast.certified_path, CertifiedPath::RayCast);
+  ASSERT_EQ(cast.display.steps.size(), 1u);
+  EXPECT_TRUE(cast.display.cell_indices.empty());
+  EXPECT_TRUE(cast.display.sliver_draws.empty());
+  EXPECT_EQ(cast.display.background_certificate, PixelCertificates::kUncertain);
 }
 
 TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {

@@ -657,8 +657,9 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
   glClearStencil(0);
   if (pass.certificates) {
     // An integer buffer is cleared by value: 0 is "no object, lit" (the
-    // background: what the reference finds there decides).
-    const GLuint background = 0;
+    // background: what the reference finds there decides), unless the plan
+    // leaves every pixel to the ray cast.
+    const GLuint background = pass.background_certificate;
     const float clear[4] = {pass.clear_color.r, pass.clear_color.g, pass.clear_color.b, pass.clear_color.a};
     glClearBufferfv(GL_COLOR, 0, clear);
     glClearBufferuiv(GL_COLOR, 1, &background);

@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vector_relational.hpp>
 
+#include "core/render_result.hpp"
 #include "core/shader_facts.hpp"
 #include "plan/draw_cost.hpp"
 #include "plan/receiver_cells.hpp"
@@ -504,9 +505,13 @@ DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const 
   all.draws = scene_draw_ranges(mesh, closed_cull, drawn_objects(mesh, proved.whole_planes));
   pass.steps.push_back(std::move(all));
   append_proved_plane_steps(proved.planes, mesh, request.camera.position, pass.steps);
-  // The sliver pass finds pixels to ray cast: with every pixel ray cast,
-  // there are none to find.
-  if (path != CertifiedPath::RayCast) pass.sliver_draws = scene_draw_ranges(mesh, CullMode::None, {});
+  // The sliver pass finds pixels to ray cast where the raster missed an
+  // object thinner than a pixel: with every pixel ray cast, the sky's
+  // included, there are none to find.
+  if (path == CertifiedPath::RayCast)
+    pass.background_certificate = PixelCertificates::kUncertain;
+  else
+    pass.sliver_draws = scene_draw_ranges(mesh, CullMode::None, {});
   return pass;
 }
 

@@ -201,6 +201,11 @@ struct DisplayPassPlan {
   /// ... the reach (world units) a proved part's pixel may have: past it,
   /// the pixel is uncertain (u_proof_margin).
   float proof_margin = 0.0f;
+  /// ... the certificate of a pixel nothing is drawn at: "no object, lit"
+  /// (the reference decides around the objects' outlines), or, with every
+  /// pixel ray cast and no sliver pass to find what the raster missed,
+  /// "no object, uncertain".
+  std::uint32_t background_certificate = 0;
   /// ... and then draws every triangle's edges (the sliver pass: sliver.geom),
   /// no face culled.
   std::vector<DrawRange> sliver_draws;
