@@ -195,10 +195,10 @@ void append_cell_steps(const std::vector<PlaneDraw>& planes, std::vector<Display
 // settles (docs/certified-shadows.md, "Proved plane parts"): for each, the
 // umbras of boxes and spheres shrunk by 3 `margin` (proved dark) and the
 // shadows of every other object's bounds grown by 3 `margin` (outside
-// them, proved lit), and by their corners' float rounding, found as the other filters' cells find theirs but
-// in world units and asking no view (umbras.hpp). A plane whose shadows
-// cannot be bounded (a point light's foot under an object, too many
-// objects) stays whole.
+// them, proved lit), and by their corners' float rounding; found as the
+// other filters' cells find theirs, but in world units and asking no view
+// (umbras.hpp). A plane whose shadows cannot be bounded (a point light's
+// foot under an object, too many objects) stays whole.
 CellDraws proved_planes_of(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
                            const std::vector<bool>& planes, double margin) {
   CellDraws draws;

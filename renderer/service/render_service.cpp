@@ -57,12 +57,15 @@ struct RenderService::Impl {
     // The estimate's dominant part: what a frame cut short at max_run_time
     // tells its client to lower.
     CostPart dominant;
+    // Filter "exact": the path the estimate priced (RequestCost::
+    // exact_filter_path), taken on llvmpipe.
+    CertifiedPath certified_path = CertifiedPath::Maps;
   };
 
   std::future<RenderResult> enqueue(RenderRequest request, bool holds_place, ClientGoneCheck client_gone,
-                                    std::uint64_t peak_bytes, CostPart dominant) {
+                                    std::uint64_t peak_bytes, CostPart dominant, CertifiedPath certified_path) {
     Job job{std::move(request), {},        std::chrono::steady_clock::now(), holds_place, std::move(client_gone),
-            peak_bytes,         std::move(dominant)};
+            peak_bytes,         std::move(dominant), certified_path};
     std::future<RenderResult> result = job.promise.get_future();
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -352,13 +355,10 @@ struct RenderService::Impl {
         // The watchdog: the estimate admitted the frame, but one it
         // misjudged, or a busy machine, must not hold the GL thread (and
         // every request queued behind it, and a drain) without bound.
-        // Filter "exact" on llvmpipe takes the path its estimates price
+        // Filter "exact" on llvmpipe takes the path its estimate priced
         // lowest (request_cost.hpp); elsewhere the maps.
-        const CertifiedPath path = llvmpipe && job.request.shadow.filter == ShadowFilter::Exact &&
-                                           job.request.output != Output::Depth
-                                       ? exact_filter_paths(job.request).best()
-                                       : CertifiedPath::Maps;
-        result = renderer->render(job.request, FrameWatch{started + limits.max_run_time}, path);
+        result = renderer->render(job.request, FrameWatch{started + limits.max_run_time},
+                                  llvmpipe ? job.certified_path : CertifiedPath::Maps);
         if (result->certificates) settle(*result, job, started);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);
@@ -417,16 +417,19 @@ std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGon
   const bool ray_cast = request.output == Output::Exact || request.output == Output::Error;
   const RequestCost cost = estimate_cost(request);
   impl_->check_budget(cost);
-  if (ray_cast) return submit_reference(std::move(request), std::move(client_gone), cost.dominant(), cost.peak_bytes);
+  if (ray_cast) return submit_reference(std::move(request), std::move(client_gone), cost);
   impl_->reserve();
-  return impl_->enqueue(std::move(request), true, std::move(client_gone), cost.peak_bytes, cost.dominant());
+  return impl_->enqueue(std::move(request), true, std::move(client_gone), cost.peak_bytes, cost.dominant(),
+                        cost.exact_filter_path);
 }
 
 // The exact reference needs no GL: it is ray cast on its own thread so the GL
 // thread keeps rendering. "error" also needs the GL "shadow" output. The
 // ray cast holds a place in the queue too, so that CPU work is bounded.
 std::future<RenderResult> RenderService::submit_reference(RenderRequest request, ClientGoneCheck client_gone,
-                                                         const CostPart& dominant, std::uint64_t peak_bytes) {
+                                                         const RequestCost& cost) {
+  const CostPart& dominant = cost.dominant();
+  const std::uint64_t peak_bytes = cost.peak_bytes;
   impl_->reserve();
   // The whole request's peak, "error"'s GL frame included, is reserved
   // until the cast ends; its GL job then needs no room of its own.
@@ -435,7 +438,7 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
   if (request.output == Output::Error) {
     RenderRequest shadow = request;
     shadow.output = Output::Shadow;
-    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0, dominant);
+    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0, dominant, cost.exact_filter_path);
   }
   std::string dominant_field = dominant.field;
   Impl* impl = impl_.get();

@@ -215,8 +215,7 @@ class RenderService {
   const ServiceLimits& limits() const;
 
  private:
-  std::future<RenderResult> submit_reference(RenderRequest request, ClientGoneCheck client_gone,
-                                             const CostPart& dominant, std::uint64_t peak_bytes);
+  std::future<RenderResult> submit_reference(RenderRequest request, ClientGoneCheck client_gone, const RequestCost& cost);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;

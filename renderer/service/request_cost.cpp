@@ -322,11 +322,12 @@ CertifiedPath ExactFilterPaths::best() const {
   return proofs_ms <= ray_cast_ms ? CertifiedPath::Proofs : CertifiedPath::RayCast;
 }
 
-ExactFilterPaths exact_filter_paths(const RenderRequest& request) {
-  const CostFactors f = cost_factors(request);
-  RenderRequest as_exact = request;
-  as_exact.output = Output::Exact;
-  const double ray_cast = ray_cast_ms(cost_factors(as_exact)) * kRayCastShare;
+namespace {
+
+// exact_filter_paths from the request's factors and those of its exact
+// output (`as_exact`), which estimate_cost has already counted.
+ExactFilterPaths exact_filter_paths(const RenderRequest& request, const CostFactors& f, const CostFactors& as_exact) {
+  const double ray_cast = ray_cast_ms(as_exact) * kRayCastShare;
   const int views = std::max(0, f.draws - 1);  // the camera's draw aside
   const double quads = double(f.triangles) * kMsPerConservativeTriangle;
   Scene objects;
@@ -339,6 +340,18 @@ ExactFilterPaths exact_filter_paths(const RenderRequest& request) {
   paths.proofs_ms = quads + ray_cast * std::min(1.0, 3.0 * cover);
   paths.ray_cast_ms = ray_cast;
   return paths;
+}
+
+RenderRequest as_exact_output(const RenderRequest& request) {
+  RenderRequest as_exact = request;
+  as_exact.output = Output::Exact;
+  return as_exact;
+}
+
+}  // namespace
+
+ExactFilterPaths exact_filter_paths(const RenderRequest& request) {
+  return exact_filter_paths(request, cost_factors(request), cost_factors(as_exact_output(request)));
 }
 
 const CostPart& RequestCost::dominant() const {
@@ -393,12 +406,11 @@ RequestCost estimate_cost(const RenderRequest& request) {
   const bool certified = request.shadow.filter == ShadowFilter::Exact && request.shadow.enabled &&
                          request.output != Output::Depth && request.output != Output::Exact;
   if (certified) {
-    RenderRequest as_exact = request;
-    as_exact.output = Output::Exact;
-    const CostFactors e = cost_factors(as_exact);
+    const CostFactors e = cost_factors(as_exact_output(request));
+    cost.exact_filter_path = exact_filter_paths(request, f, e).best();
     // Without maps (where they would cost more), every pixel but the
     // proved plane parts' may be ray cast.
-    const double settle = exact_filter_paths(request).best() == CertifiedPath::Maps
+    const double settle = cost.exact_filter_path == CertifiedPath::Maps
                               ? 8.0 * (f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel) +
                                     ray_cast_ms(e) / 3.0
                               : ray_cast_ms(e);

@@ -90,6 +90,10 @@ struct CostPart {
 
 struct RequestCost {
   CostFactors factors;
+  /// Filter "exact" (not the exact or depth output): the path priced, the
+  /// cheapest on the reference machine (exact_filter_paths(...).best()),
+  /// which the service takes on llvmpipe. Maps otherwise.
+  CertifiedPath exact_filter_path = CertifiedPath::Maps;
   /// Every part, in a fixed order; parts that do not apply are 0 ms.
   std::vector<CostPart> parts;
   /// Sum of the parts: the GL thread's and the ray cast's time together
