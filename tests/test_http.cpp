@@ -7,6 +7,7 @@
 #include <memory>
 #include <regex>
 #include <thread>
+#include <vector>
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -68,6 +69,7 @@ httplib::Client client() {
 
 struct Decoded {
   int width = 0, height = 0, channels = 0;
+  std::vector<unsigned char> pixels;
 };
 
 Decoded decode_png(const std::string& bytes) {
@@ -75,6 +77,7 @@ Decoded decode_png(const std::string& bytes) {
   unsigned char* pixels = stbi_load_from_memory(reinterpret_cast<const unsigned char*>(bytes.data()), int(bytes.size()),
                                                 &d.width, &d.height, &d.channels, 0);
   EXPECT_NE(pixels, nullptr) << "not a PNG";
+  if (pixels) d.pixels.assign(pixels, pixels + std::size_t(d.width) * std::size_t(d.height) * std::size_t(d.channels));
   stbi_image_free(pixels);
   return d;
 }
@@ -136,6 +139,35 @@ TEST(Http, RenderReturnsAPngFrameWithServerTiming) {
   EXPECT_EQ(d.width, 960);
   EXPECT_EQ(d.height, 540);
   EXPECT_EQ(d.channels, 3);
+}
+
+// Filter "exact": Umbra-Certified says how many pixels were ray cast and
+// how the frame was certified (docs/api.md "Umbra-Certified"): the default
+// scene by the maps, a 100,000-triangle model by the ray cast alone (on
+// llvmpipe, where the server prices the paths; the maps elsewhere); the PNGs are the same
+// shadow term as the exact output's either way.
+TEST(Http, TheCertifiedHeaderNamesThePathTaken) {
+  const std::regex header("uncertain=[0-9.]+%, ray_cast=[0-9]+, pixels=([0-9]+), path=(maps|proofs|ray-cast)");
+  for (const auto& [body, path] : {std::pair{std::string(R"({"width": 160, "height": 90, "output": "shadow", "shadow": {"filter": "exact"}})"), "maps"},
+                                   std::pair{std::string(R"({"scene": "teapot", "width": 160, "height": 90, "output": "shadow", "shadow": {"filter": "exact"}})"), "ray-cast"}}) {
+    auto res = client().Post("/api/render", body, "application/json");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    const std::string certified = res->get_header_value("Umbra-Certified");
+    std::smatch m;
+    ASSERT_TRUE(std::regex_match(certified, m, header)) << certified;
+    EXPECT_EQ(m[1], "14400");
+    // Elsewhere than llvmpipe, always the maps.
+    const bool llvmpipe =
+        json::parse(client().Get("/api/health")->body)["gl_renderer"].get<std::string>().find("llvmpipe") != std::string::npos;
+    EXPECT_EQ(m[2], llvmpipe ? path : "maps") << body;
+    std::string exact_body = body;
+    exact_body.replace(exact_body.find("\"output\": \"shadow\""), 18, "\"output\": \"exact\"");
+    auto exact = client().Post("/api/render", exact_body, "application/json");
+    ASSERT_TRUE(exact);
+    ASSERT_EQ(exact->status, 200) << exact->body;
+    EXPECT_EQ(decode_png(res->body).pixels, decode_png(exact->body).pixels) << body;
+  }
 }
 
 TEST(Http, EveryOutputDecodesToTheRightSize) {
