@@ -1940,7 +1940,12 @@ async function runSunHours() {
     $("sh-status").textContent = doneText(sunHours.shown);
   } catch (e) {
     if (e instanceof SunHoursCancelled) {
-      $("sh-status").textContent = "Cancelled" + (run.location ? ": the job was deleted on the server." : ".");
+      // Said only once the server has answered the DELETE: until then the
+      // job may still be held there.
+      const deleted = run.deleting ? await run.deleting : null;
+      $("sh-status").textContent = deleted === null ? "Cancelled."
+        : deleted ? "Cancelled: the job was deleted on the server."
+        : "Cancelled here, but the server did not confirm the job's deletion: it ends on its own once its result expires.";
     } else {
       showError(e.message, "sun-hours");
       markSunHoursRefusal(e);
@@ -1957,9 +1962,9 @@ async function cancelSunHours() {
   run.cancelled = true;
   run.controller.abort();  // an answer awaited at once: the server stops once the connection closes
   if (run.location) {
-    try {
-      await apiFetch(run.location, { method: "DELETE" });
-    } catch (_) { /* gone with the server: nothing runs */ }
+    // 404: already gone (expired, or its server restarted): nothing runs.
+    run.deleting = apiFetch(run.location, { method: "DELETE" }).then((r) => r.ok || r.status === 404, () => false);
+    await run.deleting;
   }
 }
 
