@@ -1015,6 +1015,36 @@ TEST(Http, WaitingSunHoursJobsLeaveTheQueueToOthers) {
   EXPECT_EQ(renderer.queue_depth(), 0u);
 }
 
+// Jobs take their turns in the order they were submitted, whatever order
+// their threads start in (each thread polling one mutex let any in first).
+TEST(Http, SunHoursJobsRunInTheOrderSubmitted) {
+  RenderService renderer;
+  // Jobs far longer than the polling below: a year of minutes over a
+  // million points (each is cancelled as soon as it starts).
+  json body = sun_hours_body();
+  body["scene"] = "three-cubes";
+  body["period"] = {{"start", "2026-01-01T00:00:00Z"}, {"end", "2027-01-01T00:00:00Z"}, {"step_minutes", 1}};
+  body["grid"] = {{"center", {0, 0.01, 0}}, {"size", {20, 20}}, {"spacing", 0.02}};
+  const ParsedSunHours long_job = parse_sun_hours_request(body.dump());
+  ASSERT_TRUE(long_job.ok()) << long_job.error.message;
+  for (int round = 0; round < 3; ++round) {
+    std::vector<std::shared_ptr<SunHoursProgress>> progress;
+    std::vector<std::future<SunHoursResult>> jobs;
+    for (int i = 0; i < 6; ++i) {
+      progress.push_back(std::make_shared<SunHoursProgress>());
+      jobs.push_back(renderer.submit_sun_hours(*long_job.request, {}, true, progress.back()));
+    }
+    for (std::size_t next = 0; next < jobs.size(); ++next) {
+      while (!progress[next]->started) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      for (std::size_t later = next + 1; later < jobs.size(); ++later)
+        EXPECT_FALSE(progress[later]->started) << "job " << later << " ran before job " << next;
+      progress[next]->cancel = true;
+      EXPECT_THROW(jobs[next].get(), ClientGone) << "job " << next;
+    }
+  }
+  EXPECT_EQ(renderer.queue_depth(), 0u);
+}
+
 TEST(Http, BodyOverOneMebibyteIs413) {
   const std::string body = R"({"scene": ")" + std::string((1 << 20) + 10, 'x') + R"("})";
   expect_json_error(client().Post("/api/render", body, "application/json"), 413, "");

@@ -184,7 +184,15 @@ struct RenderService::Impl {
   std::deque<Job> jobs;
   bool stopping = false;
   std::atomic<std::size_t> in_flight{0};
-  std::timed_mutex sun_hours_jobs;  // held by the sun-hours job running
+  // Sun-hours jobs run one at a time, in the order they were submitted (a
+  // mutex polled by each waiting thread would let any of them in first).
+  struct JobLine {
+    std::mutex mutex;
+    std::condition_variable turn_free;
+    std::deque<std::uint64_t> waiting;  // tickets, oldest first
+    std::uint64_t next_ticket = 0;
+    bool running = false;
+  } job_line;
   std::atomic<std::uint64_t> frames{0};
   std::atomic<std::uint64_t> shadow_reuses{0};
   std::atomic<std::uint64_t> scene_uploads{0};
@@ -281,6 +289,66 @@ struct RenderService::Impl {
 
   // A ray cast's place in the queue and its reserved bytes, given back
   // however the cast ends.
+  // A job's place in job_line: it leaves the line when its turn comes, or
+  // when it is dropped (cancelled, or its thread never ran).
+  struct JobTicket {
+    Impl* const impl;
+    const std::uint64_t number;
+    JobTicket(Impl* impl, std::uint64_t number) : impl(impl), number(number) {}
+    JobTicket(const JobTicket&) = delete;
+    JobTicket& operator=(const JobTicket&) = delete;
+    ~JobTicket() { impl->leave_job_line(number); }
+  };
+  // Held by the job running; the next in line goes once it is dropped.
+  struct JobTurn {
+    Impl* const impl;
+    explicit JobTurn(Impl* impl) : impl(impl) {}
+    JobTurn(const JobTurn&) = delete;
+    JobTurn& operator=(const JobTurn&) = delete;
+    ~JobTurn() {
+      {
+        std::lock_guard<std::mutex> lock(impl->job_line.mutex);
+        impl->job_line.running = false;
+      }
+      impl->job_line.turn_free.notify_all();
+    }
+  };
+
+  std::shared_ptr<JobTicket> join_job_line() {
+    std::lock_guard<std::mutex> lock(job_line.mutex);
+    const std::uint64_t number = job_line.next_ticket++;
+    job_line.waiting.push_back(number);
+    return std::make_shared<JobTicket>(this, number);
+  }
+
+  void leave_job_line(std::uint64_t number) {
+    {
+      std::lock_guard<std::mutex> lock(job_line.mutex);
+      const auto it = std::find(job_line.waiting.begin(), job_line.waiting.end(), number);
+      if (it == job_line.waiting.end()) return;
+      job_line.waiting.erase(it);
+    }
+    job_line.turn_free.notify_all();
+  }
+
+  // Waits until no job runs and `ticket` is first in line, then takes the
+  // turn; null (out of the line) once `cancelled` says so.
+  template <class Cancelled>
+  std::unique_ptr<JobTurn> wait_for_job_turn(const JobTicket& ticket, Cancelled cancelled) {
+    std::unique_lock<std::mutex> lock(job_line.mutex);
+    while (job_line.running || job_line.waiting.empty() || job_line.waiting.front() != ticket.number) {
+      if (cancelled()) {
+        lock.unlock();
+        leave_job_line(ticket.number);
+        return nullptr;
+      }
+      job_line.turn_free.wait_for(lock, std::chrono::milliseconds(50));
+    }
+    job_line.waiting.pop_front();
+    job_line.running = true;
+    return std::make_unique<JobTurn>(this);
+  }
+
   struct CastPlace {
     Impl* impl;
     std::uint64_t peak_bytes;
@@ -539,23 +607,27 @@ std::future<SunHoursResult> RenderService::submit_sun_hours(SunHoursRequest requ
   if (!progress) progress = std::make_shared<SunHoursProgress>();
   Impl* impl = impl_.get();
   const auto queued = std::chrono::steady_clock::now();
-  return std::async(std::launch::async, [impl, queued, plan, job, progress, request = std::move(request),
+  // The ticket is taken here, on the submitting thread, so the line keeps
+  // the order of submission whatever order the threads start in.
+  std::shared_ptr<Impl::JobTicket> ticket;
+  if (job) ticket = impl->join_job_line();
+  return std::async(std::launch::async, [impl, queued, plan, job, progress, ticket, request = std::move(request),
                                          client_gone = std::move(client_gone), dominant = cost.dominant(),
                                          peak_bytes = cost.peak_bytes]() {
     std::unique_ptr<Impl::CastPlace> place;
     if (!job) place.reset(new Impl::CastPlace{impl, peak_bytes});
-    // Jobs one after another: each uses every core. A job waits for its
-    // turn however long it takes (its client comes back for it later), and
-    // then for a place in the queue.
-    std::unique_lock<std::timed_mutex> turn(impl->sun_hours_jobs, std::defer_lock);
+    // Jobs one after another, first submitted first: each uses every core.
+    // A job waits for its turn however long it takes (its client comes back
+    // for it later), and then for a place in the queue.
+    std::unique_ptr<Impl::JobTurn> turn;
     if (job) {
       const auto cancelled = [&] {
         if (!progress->cancel) return false;
         impl->abandoned_count.fetch_add(1);
         return true;
       };
-      while (!turn.try_lock_for(std::chrono::milliseconds(50)))
-        if (cancelled()) throw ClientGone();
+      turn = impl->wait_for_job_turn(*ticket, [&] { return progress->cancel.load(); });
+      if (!turn && cancelled()) throw ClientGone();
       while (!impl->try_reserve()) {
         if (cancelled()) throw ClientGone();
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
