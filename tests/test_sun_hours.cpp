@@ -423,6 +423,26 @@ TEST(SunHoursFootprints, EveryPointEqualsThePureRayCast) {
   EXPECT_GT(double(by_maps), 0.5 * double(pairs));
 }
 
+// Points in a core's shadow are counted when they enter and leave it, not
+// at every sample: wide boxes whose shadows cross, overlap and part over
+// two days of minutes (rows entering one shadow as they leave another, a
+// shadow held through sunset) still give every point the pure ray cast's
+// lit samples and longest run.
+TEST(SunHoursFootprints, PointsCountedAsTheyEnterAndLeaveCoreShadows) {
+  json body = {{"scene", {{"objects", json::array({
+                   {{"type", "plane"}, {"center", {0, -0.5, 0}}, {"size", {60, 60}}},
+                   {{"type", "box"}, {"center", {-2, 1.5, 0}}, {"size", {3, 4, 2}}, {"rotation_y_deg", 20}},
+                   {{"type", "box"}, {"center", {2.5, 1, 1}}, {"size", {2, 3, 3}}},
+                   {{"type", "box"}, {"center", {0, 3, -4}}, {"size", {6, 0.5, 2}}},
+               })}}},
+               {"site", {{"latitude", 51.5}, {"longitude", 0}, {"north_deg", 30}}},
+               {"period", {{"start", "2026-03-20T00:00:00Z"}, {"end", "2026-03-22T00:00:00Z"}, {"step_minutes", 1}}},
+               {"grid", {{"center", {0, -0.49, 0}}, {"size", {20, 20}}, {"spacing", 0.2}}}};
+  const SunHoursRequest q = parsed(body);
+  const SunHoursResult exact = cast(q), footprints = cast_by_footprints(q);
+  expect_same_tallies(footprints, exact, body.dump());
+}
+
 // A grid wholly under a roof, a grid on the floor's own plane, and a sun
 // grazing the horizon at the polar circle: the footprints still agree.
 TEST(SunHoursFootprints, RoofsFloorsAndGrazingSuns) {

@@ -292,6 +292,48 @@ class PlaneShadow {
   double z_low_ = 0.0, z_high_ = 0.0, extent_ = 1.0, slack_ = 0.0;
 };
 
+// Columns [first, last] of a grid row.
+struct ColumnSpan {
+  int first, last;
+};
+
+// Sorts a row's spans and joins those that overlap or touch.
+void merge_spans(std::vector<ColumnSpan>& spans) {
+  if (spans.size() < 2) return;
+  std::sort(spans.begin(), spans.end(), [](const ColumnSpan& a, const ColumnSpan& b) { return a.first < b.first; });
+  std::size_t kept = 0;
+  for (std::size_t i = 1; i < spans.size(); ++i) {
+    if (spans[i].first <= spans[kept].last + 1)
+      spans[kept].last = std::max(spans[kept].last, spans[i].last);
+    else
+      spans[++kept] = spans[i];
+  }
+  spans.resize(kept + 1);
+}
+
+// Calls f(first, last) for each stretch of columns in `from` (merged spans,
+// `count` of them) that no span of `without` (merged spans) holds, in order.
+template <class F>
+void for_each_difference(const ColumnSpan* from, std::size_t count, const std::vector<ColumnSpan>& without, F&& f) {
+  std::size_t w = 0;
+  for (const ColumnSpan* span = from; span != from + count; ++span) {
+    int c = span->first;
+    while (w < without.size() && without[w].last < c) ++w;
+    for (std::size_t v = w; c <= span->last; ++v) {
+      if (v == without.size() || without[v].first > span->last) {
+        f(c, span->last);
+        break;
+      }
+      if (without[v].first > c) f(c, without[v].first - 1);
+      c = std::max(c, without[v].last + 1);
+    }
+  }
+}
+template <class F>
+void for_each_difference(const std::vector<ColumnSpan>& from, const std::vector<ColumnSpan>& without, F&& f) {
+  for_each_difference(from.data(), from.size(), without, f);
+}
+
 }  // namespace
 
 void footprint_spans(const Aabb& bounds, const glm::dvec3& direction, const SunGrid& grid, int first_row,
@@ -696,6 +738,9 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
     std::int32_t dark_stretch = -1;
     std::uint32_t dark = 0;
     std::uint32_t longest = 0;
+    // In a core's shadow since this sample, without a break (-1: not):
+    // its dark samples since are counted when it leaves (CoreRuns).
+    std::int32_t core_since = -1;
   };
   // A point inside a solid (a box's, a sphere's, a model's closed shell's
   // core) by twice the margin sees no sun at any sample (mark_inside):
@@ -749,6 +794,12 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   Barrier barrier(threads);
   std::atomic<std::uint64_t> cast{0};
   StopPoll poll(stop_requested);
+  // Per row, the columns in some core's shadow at the row's last sample
+  // (merged, in order), and this sample's as the cores are drawn: a row's
+  // points are touched only where they enter or leave a core's shadow,
+  // not at every sample they stay in it (a city's long shadows were most
+  // of the walk). Each row is its owner thread's alone.
+  std::vector<std::vector<ColumnSpan>> core_dark(std::size_t(grid.rows)), core_now(std::size_t(grid.rows));
   const auto worker = [&](int t) {
     std::uint64_t casts = 0, since = 0;
     for (std::size_t first = 0; first < ups.size(); first += block) {
@@ -784,31 +835,61 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           point.dark_stretch = std::int32_t(j);
           ++point.dark;
         };
+        // A point whose core run ends: dark from core_since (counted when
+        // it entered) to the sample before `until`, the rest counted now.
+        const auto leave_core = [&](PointState& point, std::size_t until) {
+          point.dark += std::uint32_t(until - std::size_t(point.core_since) - 1);
+          point.last_dark = std::int32_t(until - 1);
+          point.core_since = -1;
+        };
+        // A ray through a solid's core surely meets it (SolidCore): each
+        // row's stretch there is dark, proved for the row at once.
         for (std::size_t w = 0; w < drawn.size() && !poll.stopped(); ++w) {
           const std::optional<PlaneShadow>& shadow = shadows[e * drawn.size() + w];
-          if (!shadow) continue;
+          int first_row, last_row;
+          if (!drawn[w].core || !shadow || !shadow->rows(0, grid.rows, 1, first_row, last_row)) continue;
+          owned_rows(t, first_row, last_row, [&](int r) {
+            int c0, c1;
+            if (shadow->inner_columns(r, c0, c1)) core_now[std::size_t(r)].push_back({c0, c1});
+          });
+        }
+        // Each row's points that enter a core's shadow turn dark (and stay
+        // so, uncounted, while in it); those that leave it are counted.
+        owned_rows(t, 0, grid.rows - 1, [&](int r) {
+          std::vector<ColumnSpan>& was = core_dark[std::size_t(r)];
+          std::vector<ColumnSpan>& is = core_now[std::size_t(r)];
+          if (was.empty() && is.empty()) return;
+          merge_spans(is);
+          PointState* row = &state[std::size_t(r) * std::size_t(grid.columns)];
+          std::uint64_t touched = 0;
+          for_each_difference(is, was, [&](int c0, int c1) {
+            touched += std::uint64_t(c1 - c0 + 1);
+            for (int c = c0; c <= c1; ++c)
+              if (row[c].tested != kInside) dark(row[c]), row[c].core_since = now;
+          });
+          for_each_difference(was, is, [&](int c0, int c1) {
+            touched += std::uint64_t(c1 - c0 + 1);
+            for (int c = c0; c <= c1; ++c)
+              if (row[c].core_since >= 0) leave_core(row[c], k);
+          });
+          poll.after(since, touched);
+          was.swap(is);
+          is.clear();
+        });
+        for (std::size_t w = 0; w < drawn.size() && !poll.stopped(); ++w) {
+          const std::optional<PlaneShadow>& shadow = shadows[e * drawn.size() + w];
+          if (!shadow || drawn[w].core) continue;
           int first_row, last_row;
           if (!shadow->rows(0, grid.rows, 1, first_row, last_row)) continue;
           const Caster& object = *drawn[w].caster;
-          if (drawn[w].core) {
-            // A ray through a solid's core surely meets it (SolidCore):
-            // each row's stretch there is dark, proved for the row at once.
-            owned_rows(t, first_row, last_row, [&](int r) {
-              int c0, c1;
-              if (!shadow->inner_columns(r, c0, c1) || poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
-              for (int c = c0; c <= c1; ++c) {
-                PointState& point = state[std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)];
-                if (point.tested >= now) continue;
-                point.tested = now;
-                dark(point);
-              }
-            });
-            continue;
-          }
-          // A footprint: its points not settled yet.
+          // A footprint: its points not settled yet (outside the cores'
+          // shadows).
           owned_rows(t, first_row, last_row, [&](int r) {
-            int c0, c1;
-            if (!shadow->outer_columns(r, c0, c1) || poll.after(since, std::uint64_t(c1 - c0 + 1))) return;
+            int outer0, outer1;
+            if (!shadow->outer_columns(r, outer0, outer1) || poll.after(since, std::uint64_t(outer1 - outer0 + 1)))
+              return;
+            const ColumnSpan outer{outer0, outer1};
+            for_each_difference(&outer, 1, core_dark[std::size_t(r)], [&](int c0, int c1) {
             for (int c = c0; c <= c1; ++c) {
               const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
               PointState& point = state[i];
@@ -824,19 +905,23 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
               if (!surely_dark) {
                 ++casts;
                 const bool lit = sees_sun(rays, p, d);
-                if (poll.after(since, 16)) return;  // a query weighs about as much as 16 visits
+                poll.after(since, 16);  // a query weighs about as much as 16 visits
                 if (lit) continue;
               }
               dark(point);
             }
+            });
           });
         }
         if (!up.last || poll.stopped()) continue;
-        // The stretch ends: each point's last run in it.
+        // The stretch ends: each point's last run in it, and the runs in
+        // the cores' shadows (the sun sets on them).
         owned_rows(t, 0, grid.rows - 1, [&](int r) {
+          core_dark[std::size_t(r)].clear();
           for (int c = 0; c < grid.columns; ++c) {
             PointState& point = state[std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)];
             if (point.tested == kInside) continue;
+            if (point.core_since >= 0) leave_core(point, stretch.end);
             const std::size_t start =
                 point.dark_stretch == std::int32_t(j) ? std::size_t(point.last_dark + 1) : stretch.first;
             point.longest = std::max<std::uint32_t>(point.longest, std::uint32_t(stretch.end - start));
