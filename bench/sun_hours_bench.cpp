@@ -275,13 +275,15 @@ struct Plan {
 };
 
 // What fits about five minutes on two cores (measured on that machine): the
-// footprints path costs about share x pairs rays, and the city (about 90 %
-// of its pairs ray cast), the poles and the teapots' year would each take
-// from minutes to hours on the whole 1000 x 1000 grid. A coarser grid keeps
-// the whole scene but widens each footprint by its spare cells (the poles'
-// share triples at 1 m); a window keeps the spacing but sees part of the
-// scene: the poles' year takes the window (they are spread evenly), the
-// city and the teapots (in the middle third) the coarser grid.
+// footprints path costs about share x pairs rays plus a visit per point
+// entering or leaving a shadow, and the poles and the teapots' year would
+// each take from minutes to hours on the whole 1000 x 1000 grid (their
+// shares ray cast are several per cent). A coarser grid keeps the whole
+// scene but each sample's footprints then weigh more against its points; a
+// window keeps the spacing but sees part of the scene: the poles' year
+// takes the window (they are spread evenly), the teapots (in the middle
+// third) the coarser grid. The cities run on the whole grid (their year:
+// about half a minute each).
 Plan plan_for(const std::string& scene, const std::string& period, bool quick) {
   Plan p;
   if (quick) {
@@ -289,12 +291,11 @@ Plan plan_for(const std::string& scene, const std::string& period, bool quick) {
     return p;
   }
   if (period == "day") {
-    if (scene == "city" || scene == "city-mesh" || scene == "thin-poles") p.coarsen = 2;
+    if (scene == "thin-poles") p.coarsen = 2;
     return p;
   }
   // The year: ~37 times a day's pairs; about 1000 pure points (~27 M pairs).
   p.pure_column_step = 20;  // 20 rows x 50 points
-  if (scene == "city" || scene == "city-mesh") p.coarsen = 10, p.pure_column_step = 2;
   if (scene == "thin-poles") p.window = 200, p.pure_column_step = 4;
   if (scene == "teapots-1m") p.coarsen = 5, p.pure_column_step = 4;
   if (scene == "grazing-tromso") p.coarsen = 4, p.pure_column_step = 5;
