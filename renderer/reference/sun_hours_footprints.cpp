@@ -516,8 +516,17 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
       }
       caster.cores = mesh_cores(o, facts->second.cores, grid.center.y, caster.margin);
     } else {
-      const Aabb reachable = reachable_bounds(caster.bounds, grid.center.y, reach);
-      if (!reachable.empty()) caster.hulls.push_back(reachable.corners());
+      // The points around the object (a turned box's own corners, a
+      // pole's prism), else its bounds: the margin covers the pure
+      // query's rounding either way.
+      std::vector<glm::dvec3> around;
+      if (caster.kind->points_around) around = caster.kind->points_around(o, caster.margin, grid.center.y);
+      if (!around.empty() && around.size() <= std::size_t(kMaxShadowPoints)) {
+        caster.hulls.push_back(std::move(around));
+      } else if (!caster.kind->points_around) {
+        const Aabb reachable = reachable_bounds(caster.bounds, grid.center.y, reach);
+        if (!reachable.empty()) caster.hulls.push_back(reachable.corners());
+      }
       caster.cores = solid_cores(o, grid.center.y, caster.margin);
     }
     if (caster.hulls.empty()) continue;

@@ -91,6 +91,20 @@ std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, 
   return points;
 }
 
+// The box grown by `margin` on every side holds the box's points within
+// `margin`; cut at `low`, it stays a box (turned about y only).
+std::vector<glm::dvec3> points_around(const SceneObject& object, double margin, double low) {
+  std::vector<glm::dvec3> points;
+  const glm::dvec3 half = 0.5 * object.size + margin;
+  const double bottom = std::max(object.center.y - half.y, low), top = object.center.y + half.y;
+  if (!(bottom <= top)) return points;
+  for (int i = 0; i < 8; ++i) {
+    const glm::dvec3 corner = rotate_y({i & 1 ? half.x : -half.x, 0.0, i & 2 ? half.z : -half.z}, object.rotation_y_deg);
+    points.emplace_back(object.center.x + corner.x, i & 4 ? top : bottom, object.center.z + corner.z);
+  }
+  return points;
+}
+
 // The slab test against the box shrunk by `margin`: the ray is inside all
 // three slabs together over an interval reaching past t = margin.
 bool surely_meets(const SceneObject& o, const glm::dvec3& origin, const glm::dvec3& dir, double margin) {
@@ -124,7 +138,7 @@ bool contains(const SceneObject& o, const glm::dvec3& point, double margin) {
 extern const ShapeKind kBoxShape;  // listed in shapes.cpp
 const ShapeKind kBoxShape = {
     SceneObject::Type::Box, "box", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside, /*tessellation_error=*/nullptr, surely_meets, contains,
+    vertices, intersect, points_inside, /*tessellation_error=*/nullptr, surely_meets, contains, points_around,
 };
 
 }  // namespace umbra

@@ -168,6 +168,22 @@ bool surely_meets(const SceneObject& o, const glm::dvec3& origin, const glm::dve
   return t0 < t1;
 }
 
+// A prism of 16 sides around the cylinder grown by `margin` (the sides
+// touch the circle of radius r + margin), cut at `low`.
+std::vector<glm::dvec3> points_around(const SceneObject& o, double margin, double low) {
+  std::vector<glm::dvec3> points;
+  constexpr int kSides = 16;
+  const double corner_radius = (o.radius + margin) / std::cos(kPi / kSides), h = half_height(o) + margin;
+  const double bottom = std::max(o.center.y - h, low), top = o.center.y + h;
+  if (!(bottom <= top)) return points;
+  for (const double y : {bottom, top})
+    for (int k = 0; k < kSides; ++k) {
+      const double angle = k * (2.0 * kPi / kSides);
+      points.emplace_back(o.center.x + corner_radius * std::cos(angle), y, o.center.z + corner_radius * std::sin(angle));
+    }
+  return points;
+}
+
 bool contains(const SceneObject& o, const glm::dvec3& point, double margin) {
   const double r = o.radius - margin, h = half_height(o) - margin;
   const glm::dvec3 p = point - o.center;

@@ -87,6 +87,12 @@ struct ShapeKind {
   /// (surely_meets with margin / 2 holds for all directions): a point of a
   /// closed convex solid's inside sees no sun. Null with surely_meets.
   bool (*contains)(const SceneObject& object, const glm::dvec3& point, double margin);
+  /// Points whose convex hull holds every point within `margin` world
+  /// units of the object at or above world height `low` (what a ray leaving
+  /// the plane y = low upwards can meet); none where nothing is above. What
+  /// sun hours draws an object's footprint from, tighter than its bounds
+  /// for a turned box or a round pole. Null: the bounds stand for it.
+  std::vector<glm::dvec3> (*points_around)(const SceneObject& object, double margin, double low) = nullptr;
 };
 
 /// Every kind, in SceneObject::Type order.
