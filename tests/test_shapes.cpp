@@ -295,9 +295,11 @@ TEST(Shapes, UmbraPointsLieInsideTheObject) {
   EXPECT_GT(found, 0u);
 }
 
-// points_around: a vertical prism (what box and cylinder give) holding
-// every point within the margin of the object at or above `low`: points on
-// the exact surface (rays' hits), pushed out by up to 0.999 margin.
+// points_around holds every point within the margin of the object at or
+// above `low`, as sun hours uses it: slid along any upward direction onto
+// the plane y = low, each such point (a ray's hit on the exact surface,
+// pushed out by up to 0.999 margin) lands inside the hull of the slid
+// points, the object's footprint.
 TEST(Shapes, PointsAroundHoldTheObjectGrownByTheMargin) {
   std::mt19937_64 random(7);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
@@ -307,6 +309,10 @@ TEST(Shapes, PointsAroundHoldTheObjectGrownByTheMargin) {
       if (glm::length(d) > 0.1 && glm::length(d) <= 1.0) return glm::normalize(d);
     }
   };
+  using Point2 = std::pair<double, double>;
+  const auto turn = [](const Point2& o2, const Point2& a, const Point2& b) {
+    return (a.first - o2.first) * (b.second - o2.second) - (a.second - o2.second) * (b.first - o2.first);
+  };
   std::size_t checked = 0;
   for (const ShapeKind* kind : shape_kinds()) {
     if (!kind->points_around) continue;
@@ -315,58 +321,56 @@ TEST(Shapes, PointsAroundHoldTheObjectGrownByTheMargin) {
       const Aabb bounds = kind->bounds(o);
       const double margin = 1e-3 * glm::length(bounds.extent());
       EXPECT_TRUE(kind->points_around(o, margin, bounds.max.y + 2 * margin).empty()) << "nothing above";
-      for (const double low : {bounds.min.y - 1.0, bounds.center().y}) {
+      for (const double low : {bounds.min.y - 1.0, bounds.center().y, bounds.max.y - 0.1 * bounds.extent().y}) {
         const std::vector<glm::dvec3> points = kind->points_around(o, margin, low);
-        ASSERT_GE(points.size(), 6u);
-        // A vertical prism: each corner at the lowest and at the highest
-        // height, the lowest at `low` or below the object.
-        double bottom = kInf, top = -kInf;
-        for (const glm::dvec3& p : points) bottom = std::min(bottom, p.y), top = std::max(top, p.y);
-        EXPECT_GE(bottom, low);
-        std::vector<std::pair<double, double>> ring;
-        for (const glm::dvec3& p : points) {
-          EXPECT_TRUE(p.y == bottom || p.y == top);
-          if (p.y == top) ring.emplace_back(p.x, p.z);
-        }
-        for (const glm::dvec3& p : points)
-          EXPECT_TRUE(std::find(ring.begin(), ring.end(), std::make_pair(p.x, p.z)) != ring.end());
-        // Its section, counter-clockwise (monotone chain).
-        std::sort(ring.begin(), ring.end());
-        std::vector<std::pair<double, double>> hull;
-        const auto turn = [](auto& o2, auto& a, auto& b) {
-          return (a.first - o2.first) * (b.second - o2.second) - (a.second - o2.second) * (b.first - o2.first);
-        };
-        for (int pass = 0; pass < 2; ++pass) {
-          const std::size_t start = hull.size();
-          for (const auto& q : ring) {
-            while (hull.size() >= start + 2 && turn(hull[hull.size() - 2], hull.back(), q) <= 0) hull.pop_back();
-            hull.push_back(q);
-          }
-          hull.pop_back();
-          std::reverse(ring.begin(), ring.end());
-        }
-        const auto inside = [&](const glm::dvec3& q) {
-          if (q.y < bottom || q.y > top) return false;
-          const std::pair<double, double> at{q.x, q.z};
-          for (std::size_t i = 0; i < hull.size(); ++i)
-            if (turn(hull[i], hull[(i + 1) % hull.size()], at) < 0) return false;
-          return true;
-        };
-        for (int n = 0; n < 4000; ++n) {
+        ASSERT_GE(points.size(), 4u);
+        for (const glm::dvec3& p : points) EXPECT_GE(p.y, low);
+        // Points near the object above `low`.
+        std::vector<glm::dvec3> near;
+        while (near.size() < 1000) {
           const glm::dvec3 from = bounds.center() + 2.0 * glm::length(bounds.extent()) * random_direction();
-          const glm::dvec3 dir = glm::normalize(bounds.center() + 0.5 * bounds.extent() * glm::dvec3(unit(random), unit(random), unit(random)) - from);
+          const glm::dvec3 dir = glm::normalize(
+              bounds.center() + 0.5 * bounds.extent() * glm::dvec3(unit(random), unit(random), unit(random)) - from);
           glm::dvec3 normal;
           const double t = kind->intersect(o, from, dir, 0.0, kInf, normal);
           if (!(t < kInf)) continue;
           const glm::dvec3 q = from + t * dir + 0.999 * margin * std::abs(unit(random)) * random_direction();
-          if (q.y < low) continue;
-          EXPECT_TRUE(inside(q)) << q.x << " " << q.y << " " << q.z;
-          ++checked;
+          if (q.y >= low) near.push_back(q);
+        }
+        for (int s = 0; s < 8; ++s) {
+          glm::dvec3 sun = random_direction();
+          sun.y = std::max(0.05, std::abs(sun.y));
+          sun = glm::normalize(sun);
+          const auto slide = [&](const glm::dvec3& p) {
+            const double t = (p.y - low) / sun.y;
+            return Point2{p.x - t * sun.x, p.z - t * sun.z};
+          };
+          std::vector<Point2> slid;
+          for (const glm::dvec3& p : points) slid.push_back(slide(p));
+          std::sort(slid.begin(), slid.end());
+          std::vector<Point2> hull;  // counter-clockwise (monotone chain)
+          for (int pass = 0; pass < 2; ++pass) {
+            const std::size_t first = hull.size();
+            for (const Point2& q : slid) {
+              while (hull.size() >= first + 2 && turn(hull[hull.size() - 2], hull.back(), q) <= 0) hull.pop_back();
+              hull.push_back(q);
+            }
+            hull.pop_back();
+            std::reverse(slid.begin(), slid.end());
+          }
+          for (const glm::dvec3& q : near) {
+            const Point2 at = slide(q);
+            bool inside = true;
+            for (std::size_t i = 0; i < hull.size(); ++i)
+              inside = inside && turn(hull[i], hull[(i + 1) % hull.size()], at) >= 0;
+            EXPECT_TRUE(inside) << q.x << " " << q.y << " " << q.z;
+            ++checked;
+          }
         }
       }
     }
   }
-  EXPECT_GT(checked, 10000u);
+  EXPECT_GT(checked, 100000u);
 }
 
 }  // namespace

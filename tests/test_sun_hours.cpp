@@ -1000,18 +1000,21 @@ TEST(SunHoursStop, IsAskedWithinOneSample) {
 }
 
 // The cost of a ray is the objects whose bounds it passes: a thousand
-// spheres at one spot cost a thousand tests a ray that passes their bounds
-// but not them (footprints are their bounds' shadows), not log2(1000) (the
-// estimate was 160 times under the time taken).
+// teapots at one spot (open models: every pair in their footprints is a
+// ray) cost a thousand tests a ray, not log2(1000) (the estimate was 160
+// times under the time taken).
 TEST(SunHoursCost, OverlappingObjectsArePricedByTheirDepth) {
   json stacked_body = stacked_spokes(1000, 0.2);
   for (int i = 0; i < 1000; ++i)
-    stacked_body["scene"]["objects"][std::size_t(i)] = {{"type", "sphere"}, {"center", {0, 4, 0}}, {"radius", 3}};
+    stacked_body["scene"]["objects"][std::size_t(i)] = {
+        {"type", "mesh"}, {"model", "teapot"}, {"position", {0, 1, 0}}, {"scale", 2}};
   const SunHoursRequest stacked = parsed(stacked_body);
-  json spread_body = stacked_spokes(1000, 0.2);
-  for (int i = 0; i < 1000; ++i)  // small spheres, far apart: no ray meets two
-    spread_body["scene"]["objects"][std::size_t(i)] = {
-        {"type", "sphere"}, {"center", {1000.0 + 10.0 * (i % 40), 1, 1000.0 + 10.0 * (i / 40)}}, {"radius", 0.05}};
+  json spread_body = stacked_body;
+  for (int i = 0; i < 1000; ++i)  // small, far apart: no ray meets two
+    spread_body["scene"]["objects"][std::size_t(i)] = {{"type", "mesh"},
+                                                       {"model", "teapot"},
+                                                       {"position", {1000.0 + 10.0 * (i % 40), 1, 1000.0 + 10.0 * (i / 40)}},
+                                                       {"scale", 0.02}};
   const SunHoursRequest spread = parsed(spread_body);
   const SunHoursPlan a = plan_sun_hours(stacked), b = plan_sun_hours(spread);
   EXPECT_GT(a.estimate.ray_cast_ms, 30.0 * b.estimate.ray_cast_ms);

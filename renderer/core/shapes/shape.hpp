@@ -91,7 +91,8 @@ struct ShapeKind {
   /// units of the object at or above world height `low` (what a ray leaving
   /// the plane y = low upwards can meet); none where nothing is above. What
   /// sun hours draws an object's footprint from, tighter than its bounds
-  /// for a turned box or a round pole. Null: the bounds stand for it.
+  /// for a turned box, a round pole or a ball. Null: the bounds stand for
+  /// it.
   std::vector<glm::dvec3> (*points_around)(const SceneObject& object, double margin, double low) = nullptr;
 };
 

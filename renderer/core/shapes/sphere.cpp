@@ -101,6 +101,45 @@ TessellationError tessellation_error_of(const SceneObject& o) {
   return {o.radius * (1.0 - std::cos(3.14159265358979323846 / kStacks)), 0.12};
 }
 
+// A solid of revolution around the sphere grown by `margin` (radius R):
+// its meridian has vertices at R / cos 15 deg every 30 deg from -60 to 60
+// and at -+75 deg (where the polar tangents y = -+R meet the next), so
+// every edge lies at least R from the centre and the polygon holds the
+// circle; each vertex's height is a ring of 16 points at 1 / cos(pi / 16)
+// of its radius, whose polygon holds the circle there. Cut at `low`: the
+// rings above, and one at `low` as wide as the wider of the two around it.
+std::vector<glm::dvec3> points_around(const SceneObject& object, double margin, double low) {
+  constexpr double kPi = 3.14159265358979323846;
+  constexpr int kSides = 6, kRing = 16;
+  std::vector<glm::dvec3> points;
+  const double radius = object.radius + margin, step = kPi / kSides;
+  const double corner = radius / std::cos(0.5 * step), widen = 1.0 / std::cos(kPi / kRing);
+  if (!(object.center.y + radius >= low)) return points;
+  std::vector<std::pair<double, double>> rings;  // (height, meridian radius), bottom up
+  for (int j = 0; j <= kSides; ++j) {
+    const double angle = -0.5 * kPi + j * step;
+    // The first and last vertices are where the polar tangents meet the
+    // next ones: at y = -+R, radius R tan(step / 2).
+    if (j == 0) rings.emplace_back(object.center.y - radius, radius * std::tan(0.5 * step));
+    else if (j == kSides) rings.emplace_back(object.center.y + radius, radius * std::tan(0.5 * step));
+    else rings.emplace_back(object.center.y + corner * std::sin(angle), corner * std::cos(angle));
+  }
+  std::vector<std::pair<double, double>> kept;
+  for (std::size_t i = 0; i < rings.size(); ++i) {
+    if (rings[i].first >= low) {
+      if (kept.empty() && i > 0) kept.emplace_back(low, std::max(rings[i - 1].second, rings[i].second));
+      kept.push_back(rings[i]);
+    }
+  }
+  for (const auto& [y, meridian] : kept)
+    for (int k = 0; k < kRing; ++k) {
+      const double angle = k * (2.0 * kPi / kRing);
+      points.emplace_back(object.center.x + widen * meridian * std::cos(angle), y,
+                          object.center.z + widen * meridian * std::sin(angle));
+    }
+  return points;
+}
+
 // The ray's closest approach to the centre, within the sphere shrunk by
 // `margin`, past t = margin: the chord through the shrunk sphere reaches
 // beyond margin.
@@ -125,7 +164,7 @@ bool contains(const SceneObject& o, const glm::dvec3& point, double margin) {
 extern const ShapeKind kSphereShape;  // listed in shapes.cpp
 const ShapeKind kSphereShape = {
     SceneObject::Type::Sphere, "sphere", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside, tessellation_error_of, surely_meets, contains,
+    vertices, intersect, points_inside, tessellation_error_of, surely_meets, contains, points_around,
 };
 
 }  // namespace umbra
