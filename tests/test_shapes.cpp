@@ -314,8 +314,10 @@ TEST(Shapes, PointsAroundHoldTheObjectGrownByTheMargin) {
     return (a.first - o2.first) * (b.second - o2.second) - (a.second - o2.second) * (b.first - o2.first);
   };
   std::size_t checked = 0;
+  std::set<std::string> kinds;
   for (const ShapeKind* kind : shape_kinds()) {
     if (!kind->points_around) continue;
+    kinds.insert(kind->name);
     for (const SceneObject& o : objects_of(kind->type)) {
       SCOPED_TRACE(kind->name);
       const Aabb bounds = kind->bounds(o);
@@ -371,6 +373,8 @@ TEST(Shapes, PointsAroundHoldTheObjectGrownByTheMargin) {
     }
   }
   EXPECT_GT(checked, 100000u);
+  // The solids (whose footprints were their bounds' before) each have one.
+  EXPECT_EQ(kinds, (std::set<std::string>{"box", "cylinder", "sphere"}));
 }
 
 }  // namespace

@@ -193,7 +193,7 @@ bool contains(const SceneObject& o, const glm::dvec3& point, double margin) {
 extern const ShapeKind kCylinderShape;  // listed in shapes.cpp
 const ShapeKind kCylinderShape = {
     SceneObject::Type::Cylinder, "cylinder", bounds, bounds, closed, /*horizontal_plane=*/false, tessellate, triangles,
-    vertices, intersect, points_inside, tessellation_error_of, surely_meets, contains,
+    vertices, intersect, points_inside, tessellation_error_of, surely_meets, contains, points_around,
 };
 
 }  // namespace umbra
