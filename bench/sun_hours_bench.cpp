@@ -166,7 +166,9 @@ json city(std::uint64_t seed) {
 // outside): the footprints are drawn from clusters of its triangles and
 // the proofs of dark are its shells' cores (mesh_cluster_bounds,
 // shell_cores), not the analytic boxes'.
-std::shared_ptr<const umbra::TriangleModel> city_model(std::uint64_t seed) {
+// Without floors, each block lacks its ground face (as many city files
+// write buildings): shells open only at their floor.
+std::shared_ptr<const umbra::TriangleModel> city_model(std::uint64_t seed, bool floors) {
   umbra::ModelPart part;
   const json blocks = city(seed);
   for (const json& o : blocks["objects"]) {
@@ -175,6 +177,7 @@ std::shared_ptr<const umbra::TriangleModel> city_model(std::uint64_t seed) {
     const glm::vec3 half(o["size"][0].get<float>() / 2, o["size"][1].get<float>() / 2, o["size"][2].get<float>() / 2);
     for (int k = 0; k < 3; ++k)
       for (const float sign : {1.0f, -1.0f}) {
+        if (k == 1 && sign < 0.0f && !floors) continue;
         glm::vec3 n(0.0f), u(0.0f), v(0.0f);
         n[k] = sign;
         const int iu = (k + 1) % 3, iv = (k + 2) % 3;
@@ -195,21 +198,23 @@ std::shared_ptr<const umbra::TriangleModel> city_model(std::uint64_t seed) {
   return model;
 }
 
-json city_mesh(std::uint64_t seed) {
+json city_mesh(std::uint64_t seed, bool floors = true) {
   return {{"objects", {{{"type", "plane"}, {"center", {0, 0, 0}}, {"size", {400, 400}}},
-                       {{"type", "mesh"}, {"model", "bench-city-" + std::to_string(seed)}}}}};
+                       {{"type", "mesh"}, {"model", std::string(floors ? "bench-city-" : "bench-city-open-") +
+                                                        std::to_string(seed)}}}}};
 }
 
 // The models the cases name (city_mesh's), for the parser.
 std::optional<umbra::FoundModel> find_bench_model(const std::string& name) {
-  const std::string prefix = "bench-city-";
+  const std::string prefix = "bench-city-", open = "bench-city-open-";
   if (name.rfind(prefix, 0) != 0) return std::nullopt;
-  const std::uint64_t seed = std::stoull(name.substr(prefix.size()));
+  const bool floors = name.rfind(open, 0) != 0;
+  const std::uint64_t seed = std::stoull(name.substr((floors ? prefix : open).size()));
   static std::mutex mutex;
-  static std::map<std::uint64_t, std::shared_ptr<const umbra::TriangleModel>> models;
+  static std::map<std::pair<std::uint64_t, bool>, std::shared_ptr<const umbra::TriangleModel>> models;
   std::lock_guard<std::mutex> lock(mutex);
-  auto& model = models[seed];
-  if (!model) model = city_model(seed);
+  auto& model = models[{seed, floors}];
+  if (!model) model = city_model(seed, floors);
   return umbra::FoundModel{"sha256:" + name, model};
 }
 
@@ -256,6 +261,8 @@ std::vector<HardScene> hard_scenes(std::uint64_t seed) {
        city(seed), kLondon, equinox, 1.5, 300.0},
       {"city-mesh", "the city's 144 blocks as one closed model of 1728 triangles (a city file's buildings); grid 1.5 m above the street, 300 x 300 m",
        city_mesh(seed), kLondon, equinox, 1.5, 300.0},
+      {"city-mesh-open", "the same model without the blocks' ground faces (1584 triangles; as many city files write buildings): shells open at their floor; grid 1.5 m above the street, 300 x 300 m",
+       city_mesh(seed, false), kLondon, equinox, 1.5, 300.0},
       {"thin-poles", "200 cylinders r 0.03-0.1 m, 2-8 m tall, over the grid; grid 0.01 above the ground, 50 x 50 m",
        poles(seed), kLondon, equinox, 0.01, 50.0},
       {"teapots-1m", "bench/scenes/mesh-teapots-1m.json's objects (10 teapots, ~1M triangles, 30 x 30 floor); grid 0.01 above it, 30 x 30 m",

@@ -45,10 +45,11 @@ inline std::shared_ptr<const TriangleModel> box_model(const glm::vec3& half, boo
 
 /// A block of `n` x `n` closed boxes in one model, as a city's buildings
 /// come in one file: box (i, j) stands on y = 0 at x = i * pitch, z = j *
-/// pitch, `width` wide and 2 + (3 i + 5 j) % 7 tall.
-inline std::shared_ptr<const TriangleModel> city_model(int n, float pitch, float width) {
+/// pitch, `width` wide and 2 + (3 i + 5 j) % 7 tall. Without floors, each
+/// box lacks its ground face (as many city files write buildings).
+inline std::shared_ptr<const TriangleModel> city_model(int n, float pitch, float width, bool with_floors = true) {
   ModelPart part;
-  const auto one = box_model({0.5f, 0.5f, 0.5f});
+  const auto one = box_model({0.5f, 0.5f, 0.5f}, with_floors);
   const ModelPart& cube = one->parts[0];
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {

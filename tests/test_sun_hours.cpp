@@ -938,6 +938,85 @@ TEST(SunHoursFootprints, ACityInOneMeshIsDrawnBuildingByBuilding) {
   EXPECT_LT(double(footprints.pairs_ray_cast), 0.35 * double(footprints.pairs));
 }
 
+// Buildings without their ground faces (as city files often write them)
+// are shells open only at their floor: closed by it, they have cores for
+// rising rays, so a city of them is drawn with proofs of dark, as a closed
+// one is. Proved, not guessed: every rising ray through such a core is dark
+// in Embree's own test; a shell open anywhere else, or along edges at more
+// than one height, has none; and an instance that does not keep up up
+// (turned about x) does without them, its hours still the pure ray cast's.
+TEST(SunHoursFootprints, ShellsOpenOnlyAtTheirFloorHaveCoresForRisingRays) {
+  const auto open_box = test::box_model({1, 1, 1}, /*with_bottom=*/false);
+  EXPECT_TRUE(shell_cores(*open_box, 1e-3).empty());
+  ASSERT_EQ(shell_cores(*open_box, 1e-3, /*open_floors=*/true).size(), 1u);
+  // Upside down: open at its top.
+  {
+    auto flipped = std::make_shared<TriangleModel>(*open_box);
+    for (glm::vec3& p : flipped->parts[0].positions) p.y = -p.y;
+    finish_model(*flipped);
+    EXPECT_TRUE(shell_cores(*flipped, 1e-3, true).empty());
+  }
+  // One corner of its open rim raised: open along edges at two heights.
+  {
+    auto raised = std::make_shared<TriangleModel>(*open_box);
+    for (glm::vec3& p : raised->parts[0].positions)
+      if (p == glm::vec3(1, -1, 1)) p.y = -0.9f;
+    finish_model(*raised);
+    EXPECT_TRUE(shell_cores(*raised, 1e-3, true).empty());
+  }
+  // Rays through the cores of a floorless city, turned about y and
+  // stretched, from anywhere along the line before the core point.
+  const auto city = test::city_model(4, 10.0f, 5.0f, /*with_floors=*/false);
+  ASSERT_FALSE(city->closed);
+  const std::vector<Aabb> cores = shell_cores(*city, 1e-3, true);
+  ASSERT_EQ(cores.size(), 16u);
+  {
+    Scene scene;
+    SceneObject mesh;
+    mesh.type = SceneObject::Type::Mesh;
+    mesh.model = city;
+    mesh.model_id = "model";
+    mesh.center = {3, -1, 2};
+    mesh.rotation_deg = {0, 27, 0};
+    mesh.mesh_scale = {1.5, 0.8, 1.2};
+    scene.objects.push_back(mesh);
+    const RayScene rays(scene);
+    const glm::dmat4 to_world = mesh_transform(mesh);
+    std::uint64_t seed = 78;
+    const auto uniform = [&](double lo, double hi) {
+      seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+      return lo + (hi - lo) * double(seed >> 11) / double(1ull << 53);
+    };
+    for (int i = 0; i < 20000; ++i) {
+      const Aabb& core = cores[std::size_t(i) % cores.size()];
+      const glm::dvec3 in_core = glm::mix(core.min, core.max, glm::dvec3(uniform(0, 1), uniform(0, 1), uniform(0, 1)));
+      const glm::dvec3 through(to_world * glm::dvec4(in_core, 1.0));
+      const glm::dvec3 d = glm::normalize(glm::dvec3(uniform(-1, 1), uniform(0.02, 1), uniform(-1, 1)));
+      const glm::dvec3 origin = through - uniform(0.0, 60.0) * d;
+      ASSERT_FALSE(sees_sun(rays, origin, d)) << "ray " << i;
+    }
+  }
+  // The sun hours of a floorless city: as the pure ray cast's, and by
+  // proofs (few rays); turned about x it keeps no cores, and still agrees.
+  for (const bool upright : {true, false}) {
+    json body = json::parse(R"({"scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [200, 200]},
+        {"type": "mesh", "model": "city", "position": [-30, 0, -30], "rotation_deg": [0, 20, 0]}]},
+        "site": {"latitude": 51.5, "longitude": -0.12},
+        "period": {"start": "2026-03-20T00:00:00Z", "end": "2026-03-21T00:00:00Z", "step_minutes": 10},
+        "grid": {"center": [0, 0.5, 0], "size": [80, 80], "spacing": 0.5}})");
+    if (!upright) body["scene"]["objects"][1]["rotation_deg"] = {0.5, 20, 0};
+    const ParsedSunHours p = parse_sun_hours_request(
+        body.dump(), test::lookup_of({{"sha256:city", test::city_model(5, 14.0f, 8.0f, false)}}, {{"city", "sha256:city"}}));
+    ASSERT_TRUE(p.request) << p.error.message;
+    const SunHoursResult exact = cast(*p.request), footprints = cast_by_footprints(*p.request);
+    expect_same_tallies(footprints, exact, upright ? "floorless city" : "floorless city, turned about x");
+    if (upright)
+      EXPECT_LT(double(footprints.pairs_ray_cast), 0.01 * double(footprints.pairs));
+    else
+      EXPECT_GT(double(footprints.pairs_ray_cast), 0.05 * double(footprints.pairs));
+  }
+}
+
 // A fine grid (a micrometre apart) and an object kilometres away: its
 // footprint lies billions of rows off the grid, past any int (the red-team
 // pass found this crash and hang). Both paths agree, and nothing is cast.

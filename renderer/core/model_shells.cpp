@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <numeric>
 
 #include <glm/common.hpp>
@@ -46,7 +47,8 @@ bool overlaps(const Triangle& t, const glm::dvec3& centre, const glm::dvec3& hal
 // Whether `p` is inside the shell: +1 inside, 0 outside, -1 unsure (the
 // ray from p passes near an edge or a corner, or along a face). The ray's
 // direction is no simple one, so that a grid of vertices is not met
-// square on.
+// square on. It rises: a shell open only at its lowest height is closed
+// by a floor there that the ray from a point above it never meets.
 int parity(const std::vector<Triangle>& triangles, const glm::dvec3& p) {
   const glm::dvec3 d = glm::normalize(glm::dvec3(0.5773502, 0.6178, 0.5340711));
   constexpr double kEpsilon = 2.2e-16;
@@ -144,6 +146,51 @@ bool closes(const std::vector<std::array<std::uint32_t, 3>>& triangles) {
   return true;
 }
 
+// Whether the triangles (welded corners; `triangles` their coordinates,
+// in the same order) close up once a floor is laid at height `floor`:
+// every directed edge whose reverse is missing lies at that height (both
+// corners), and those edges meet an even number of times at each corner,
+// so that they bound a region of that plane (even-odd) which closes the
+// shell. No directed edge twice; degenerate triangles left out.
+bool closes_over_floor(const std::vector<std::array<std::uint32_t, 3>>& corners,
+                       const std::vector<Triangle>& triangles, double floor) {
+  std::vector<std::uint64_t> edges;
+  std::vector<std::pair<std::uint32_t, double>> heights;  // a corner's id, its y
+  for (std::size_t t = 0; t < corners.size(); ++t) {
+    const auto& c = corners[t];
+    if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) continue;
+    for (int k = 0; k < 3; ++k) edges.push_back(std::uint64_t(c[k]) << 32 | c[(k + 1) % 3]);
+    heights.push_back({c[0], triangles[t].a.y});
+    heights.push_back({c[1], triangles[t].b.y});
+    heights.push_back({c[2], triangles[t].c.y});
+  }
+  if (edges.empty()) return false;
+  std::sort(edges.begin(), edges.end());
+  if (std::adjacent_find(edges.begin(), edges.end()) != edges.end()) return false;
+  std::sort(heights.begin(), heights.end());
+  const auto y_of = [&](std::uint32_t id) {
+    return std::lower_bound(heights.begin(), heights.end(), std::make_pair(id, -std::numeric_limits<double>::infinity()))
+        ->second;
+  };
+  std::vector<std::uint32_t> open_corners;
+  for (const std::uint64_t e : edges) {
+    if (std::binary_search(edges.begin(), edges.end(), (e << 32) | (e >> 32))) continue;
+    const auto from = std::uint32_t(e >> 32), to = std::uint32_t(e);
+    if (y_of(from) != floor || y_of(to) != floor) return false;
+    open_corners.push_back(from);
+    open_corners.push_back(to);
+  }
+  if (open_corners.empty()) return false;  // closed: not this case
+  std::sort(open_corners.begin(), open_corners.end());
+  for (std::size_t i = 0; i < open_corners.size();) {
+    std::size_t j = i;
+    while (j < open_corners.size() && open_corners[j] == open_corners[i]) ++j;
+    if ((j - i) % 2 != 0) return false;
+    i = j;
+  }
+  return true;
+}
+
 // Which shell each triangle (its welded corners, `ids` distinct) is in.
 std::vector<std::uint32_t> shells_of(const std::vector<std::array<std::uint32_t, 3>>& corners, std::uint32_t ids,
                                      std::uint32_t& shells) {
@@ -178,7 +225,7 @@ std::vector<std::uint32_t> triangle_shells(const TriangleModel& model, std::uint
   return shells_of(corners, ids, shells);
 }
 
-std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
+std::vector<Aabb> shell_cores(const TriangleModel& model, double margin, bool open_floors) {
   std::vector<Aabb> cores;
   std::vector<Triangle> all;
   for (const ModelPart& part : model.parts)
@@ -217,8 +264,11 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin) {
     first = last;
     if (shell.size() > kShellCoreMaxTriangles) continue;
     // The whole model closes up; each shell must on its own, or the
-    // parity below would count the crossings of an open piece.
-    if (!closes(shell_corners)) continue;
+    // parity below would count the crossings of an open piece. With
+    // open_floors, a shell open only at its lowest height (a building
+    // without its ground face) is closed by a floor there, which a rising
+    // ray from above it never meets (parity's, and the callers').
+    if (!closes(shell_corners) && !(open_floors && closes_over_floor(shell_corners, shell, bounds.min.y))) continue;
     // Candidates, largest first: the bounds shrunk about their centre, or
     // about the middle of their floor, by fractions across and up.
     static constexpr double kFractions[] = {0.98, 0.9, 0.75, 0.6, 0.45, 0.3};

@@ -54,7 +54,13 @@ std::vector<Aabb> shell_clusters(const TriangleModel& model, const std::vector<s
 /// them fits has none. Time at most about kShellCoreWork passes over the
 /// triangles (the candidates not yet tried then are left out, as are
 /// shells above kShellCoreMaxTriangles: their cost, not their shape).
-std::vector<Aabb> shell_cores(const TriangleModel& model, double margin);
+///
+/// With `open_floors`, a shell also has one when it is open only along
+/// edges at its lowest height (a building without its ground face, as city
+/// files and exports often write them), closed by a floor there: then the
+/// box is proved only for rays that rise (model space), which leave it
+/// through the shell, never through the floor below.
+std::vector<Aabb> shell_cores(const TriangleModel& model, double margin, bool open_floors = false);
 
 /// The largest shell shell_cores looks into, and how many passes over the
 /// model's triangles it spends at most.

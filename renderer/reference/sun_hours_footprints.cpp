@@ -452,7 +452,18 @@ struct ModelFacts {
   std::vector<Aabb> clusters;
   std::vector<Aabb> cores;
   double core_margin = 0.0;
+  // Every instance keeps up up (turned about y only, not flipped): a ray
+  // that rises in the world rises in the model too, so shells open only
+  // at their floor have cores (shell_cores' open_floors).
+  bool upright = true;
 };
+
+// Whether a mesh's model-space y rises with world y and with nothing else:
+// the row of its inverse transform that gives model y is (0, +, 0).
+bool keeps_up(const SceneObject& mesh) {
+  const glm::dmat4 to_model = glm::inverse(mesh_transform(mesh));
+  return to_model[0][1] == 0.0 && to_model[2][1] == 0.0 && to_model[1][1] > 0.0;
+}
 
 std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* model_triangles = nullptr) {
   const double reach = grid_reach(grid);
@@ -472,12 +483,13 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
     if (o.type == SceneObject::Type::Mesh && o.model && smallest_scale(o) > 0.0) {
       ModelFacts& facts = models[o.model.get()];
       facts.core_margin = std::max(facts.core_margin, margin_of(o, object_bounds(o)) / smallest_scale(o));
+      facts.upright = facts.upright && keeps_up(o);
     }
   for (auto& [model, facts] : models) {
     std::uint32_t shells = 0;
     const std::vector<std::uint32_t> shell_of = triangle_shells(*model, shells);
     facts.clusters = shell_clusters(*model, shell_of, shells, kFewestMeshClusters, kMostMeshClusters);
-    facts.cores = shell_cores(*model, facts.core_margin);
+    facts.cores = shell_cores(*model, facts.core_margin, /*open_floors=*/facts.upright);
     if (model_triangles) *model_triangles += double(model->triangle_count());
   }
   // Every instance draws its model's clusters and cores each sample: past
@@ -557,8 +569,10 @@ bool pays(const Caster& caster, const PlaneShadow& core) {
 // column) inside a solid by twice its margin: every ray from them, in any
 // direction, surely meets it (ShapeKind::contains), so they see no sun at
 // any sample. A closed mesh's points are those inside a shell's core by
-// twice the margin (in model space): every ray from them leaves the shell.
-// The core cut does not matter here: the whole box is inside.
+// twice the margin (in model space): every ray from them leaves the shell
+// (every rising one, for a shell closed by its floor: the sun's are, at
+// every sample it is up). The core cut does not matter here: the whole
+// box is inside.
 void mark_inside(const std::vector<Caster>& casters, const SunGrid& grid, int stride,
                  const std::function<void(int, int)>& mark) {
   const glm::dvec3 origin = grid.origin();
