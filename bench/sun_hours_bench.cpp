@@ -453,6 +453,8 @@ struct HardRow {
   // submit_sun_hours plans by) and its estimates, ms.
   bool service_footprints = false;
   double service_estimate_ms = NAN, service_pure_estimate_ms = NAN;
+  json service_estimate_parts = json::object();  // the plan's parts, ms
+  json shares = json::object();                  // footprint_shares on the whole grid
   double fp_rate() const { return double(pairs) / (fp_ms / 1000.0); }
   double pure_rate() const { return double(pure_pairs) / (pure_ms / 1000.0); }
   double speedup() const { return fp_rate() / pure_rate(); }
@@ -651,14 +653,20 @@ int main(int argc, char** argv) {
           whole.spacing = hs.grid_side / full;
           whole.columns = whole.rows = full;
           row.share_estimate_here = umbra::footprint_shares(q.view.scene, q.grid, directions).queried;
-          row.share_estimate_full = umbra::footprint_shares(q.view.scene, whole, directions).queried;
+          const umbra::FootprintShares full_shares = umbra::footprint_shares(q.view.scene, whole, directions);
+          row.share_estimate_full = full_shares.queried;
+          row.shares = {{"queried", full_shares.queried},       {"candidates", full_shares.candidates},
+                        {"depth", full_shares.depth},           {"tests", full_shares.tests},
+                        {"hulls", full_shares.hulls},           {"core_rows", full_shares.core_rows}};
           // As submit_sun_hours plans it (the same function).
           const umbra::SunHoursCost cost = umbra::plan_sun_hours(q).estimate;
           row.service_footprints = cost.footprints;
           row.service_pure_estimate_ms = cost.ray_cast_ms;
           row.service_estimate_ms = 0.0;
-          for (const umbra::CostPart& part : cost.cost.parts)
+          for (const umbra::CostPart& part : cost.cost.parts) {
             if (part.name.rfind("sun-hours", 0) == 0) row.service_estimate_ms += part.ms;
+            row.service_estimate_parts[part.name] = part.ms;
+          }
         }
 
         // The pure ray cast's points: about pure_rows rows spread evenly over
@@ -731,7 +739,9 @@ int main(int argc, char** argv) {
                        {"shrunk", row.shrunk},
                        {"service_picks", row.service_footprints ? "footprints" : "ray_cast"},
                        {"service_estimate_ms_of_its_pick", row.service_estimate_ms},
-                       {"service_estimate_ms_pure", row.service_pure_estimate_ms}});
+                       {"service_estimate_ms_pure", row.service_pure_estimate_ms},
+                       {"service_estimate_parts_ms", row.service_estimate_parts},
+                       {"footprint_shares_whole_grid", row.shares}});
     }
   }
 

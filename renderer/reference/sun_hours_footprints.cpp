@@ -633,7 +633,8 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   // budget. A proof (a turned box's trigonometry) weighs 16 visits.
   constexpr double kMaxWork = 16.0e6, kWorkPerProof = 16.0, kWorkPerHull = 64.0;
   double work = 0.0;
-  double candidates = 0.0, queried = 0.0, visits = 0.0, tests = 0.0, queried_tests = 0.0;
+  double candidates = 0.0, queried = 0.0, visits = 0.0, tests = 0.0, queried_tests = 0.0, core_rows = 0.0,
+         mesh_visits = 0.0;
   std::vector<std::uint16_t> depth(lattice, 0);
   std::vector<std::int64_t> last_visit(lattice, -1);
   std::vector<std::uint8_t> dark(lattice, 0), left(lattice, 0), proofs(lattice, 0);
@@ -666,6 +667,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
         if (!core.rows(0, grid.rows, stride, first_row, last_row)) continue;
         for (int r = first_row; r <= last_row; r += stride) {
           if (!core.inner_columns(r, c0, c1)) continue;
+          core_rows += double(stride);
           for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
             work += 1.0;
             cored[cell(r, c)] = int(n);
@@ -682,12 +684,13 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
         if (!footprint.outer_columns(r, c0, c1)) continue;
         for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
           const std::size_t i = cell(r, c);
-          visits += 1.0;
+          visits += cored[i] == int(n) ? 0.0 : 1.0;
           work += 1.0;
           if (depth[i] == 0) touched.push_back(i);
           // Once per object, however many of its boxes hold the point.
           const std::int64_t visit = std::int64_t(n) * std::int64_t(casters.size()) + std::int64_t(index);
           if (last_visit[i] != visit && depth[i] < 65535) ++depth[i];
+          if (last_visit[i] != visit && !o.kind->intersect) mesh_visits += 1.0;
           last_visit[i] = visit;
           if (inside[i]) continue;
           const bool in_core = cored[i] == int(n);
@@ -728,6 +731,8 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   out.queried = queried / judged;
   out.candidates = candidates / judged;
   out.depth = visits / judged;
+  out.core_rows = core_rows / double(judged_directions);
+  out.mesh_depth = mesh_visits / judged;
   out.tests = tests / judged;
   out.queried_tests = queried > 0.0 ? queried_tests / queried : 0.0;
   return out;

@@ -84,9 +84,17 @@ struct FootprintShares {
   /// Inside any footprint, not inside a solid and not in a core's shadow
   /// (SolidCore): each judged for a proof of dark.
   double candidates = 0.0;
-  /// Footprints holding a pair, on average over all pairs: the footprints
-  /// path's visits.
+  /// Footprints holding a pair outside the cores' shadows (those the walk
+  /// visits one by one), on average over all pairs.
   double depth = 0.0;
+  /// Rows of the grid that the drawn cores' shadows cross, per sample:
+  /// each a span merged and compared with the last sample's, and the
+  /// points that enter or leave it touched.
+  double core_rows = 0.0;
+  /// Models whose footprints hold a pair (outside every core's shadow), on
+  /// average over all pairs: the models a ray of the pure ray cast meets
+  /// the bounds of, each a traversal of its own tree.
+  double mesh_depth = 0.0;
   /// Objects a pair's ray is tested against besides the tree's levels and
   /// one more, on average over all pairs: every other object whose bounds
   /// it passes through, or none where some object surely meets it (its
