@@ -34,7 +34,8 @@ double cross(const Point2& o, const Point2& a, const Point2& b) {
   return (a.x - o.x) * (b.z - o.z) - (a.z - o.z) * (b.x - o.x);
 }
 
-// Andrew's monotone chain: the convex hull of up to 8 points, in order.
+// Andrew's monotone chain: the convex hull of n points (at most n + 1
+// slots of `hull` are written), in order.
 int convex_hull(Point2* p, int n, Point2* hull) {
   std::sort(p, p + n, [](const Point2& a, const Point2& b) { return a.x < b.x || (a.x == b.x && a.z < b.z); });
   int k = 0;
