@@ -919,26 +919,26 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
               return;
             const ColumnSpan outer{outer0, outer1};
             for_each_difference(&outer, 1, core_dark[std::size_t(r)], [&](int c0, int c1) {
-            for (int c = c0; c <= c1; ++c) {
-              const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
-              PointState& point = state[i];
-              if (point.tested >= now) continue;
-              point.tested = now;
-              // Dark for certain when the ray passes well inside the
-              // object whose footprint holds the point: the pure ray
-              // cast's query would find that hit (ShapeKind::surely_meets).
-              // Else the query itself settles it.
-              const glm::dvec3 p = grid.point(i);
-              const bool surely_dark =
-                  object.kind->surely_meets && object.kind->surely_meets(*object.object, p, d, object.margin);
-              if (!surely_dark) {
-                ++casts;
-                const bool lit = sees_sun(rays, p, d);
-                poll.after(since, 16);  // a query weighs about as much as 16 visits
-                if (lit) continue;
+              for (int c = c0; c <= c1; ++c) {
+                const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+                PointState& point = state[i];
+                if (point.tested >= now) continue;
+                point.tested = now;
+                // Dark for certain when the ray passes well inside the
+                // object whose footprint holds the point: the pure ray
+                // cast's query would find that hit (ShapeKind::surely_meets).
+                // Else the query itself settles it.
+                const glm::dvec3 p = grid.point(i);
+                const bool surely_dark =
+                    object.kind->surely_meets && object.kind->surely_meets(*object.object, p, d, object.margin);
+                if (!surely_dark) {
+                  ++casts;
+                  const bool lit = sees_sun(rays, p, d);
+                  poll.after(since, 16);  // a query weighs about as much as 16 visits
+                  if (lit) continue;
+                }
+                dark(point);
               }
-              dark(point);
-            }
             });
           });
         }
