@@ -268,7 +268,14 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin, bool op
     // open_floors, a shell open only at its lowest height (a building
     // without its ground face) is closed by a floor there, which a rising
     // ray from above it never meets (parity's, and the callers').
-    if (!closes(shell_corners) && !(open_floors && closes_over_floor(shell_corners, shell, bounds.min.y))) continue;
+    const bool closed = closes(shell_corners);
+    if (!closed && !(open_floors && closes_over_floor(shell_corners, shell, bounds.min.y))) continue;
+    // Above an open floor, a box at least twice the margin up: a rising
+    // ray from it passes the open edges far above Embree's rounding there
+    // (a red team measured misses up to 1.7e-7 of the coordinates: the
+    // margin is 1e-5 of them), not the 1 % of the shell's height the
+    // candidates on the floor leave.
+    const double lowest = closed ? -std::numeric_limits<double>::infinity() : bounds.min.y + 2.0 * margin;
     // Candidates, largest first: the bounds shrunk about their centre, or
     // about the middle of their floor, by fractions across and up.
     static constexpr double kFractions[] = {0.98, 0.9, 0.75, 0.6, 0.45, 0.3};
@@ -283,6 +290,7 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin, bool op
           const double floor_gap = (1.0 - 0.98) * half.y;
           box.min.y = on_floor ? bounds.min.y + floor_gap : centre.y - up * half.y;
           box.max.y = on_floor ? bounds.min.y + floor_gap + up * 2.0 * half.y * 0.98 : centre.y + up * half.y;
+          box.min.y = std::max(box.min.y, lowest);
           if (box.min.x < box.max.x && box.min.y < box.max.y && box.min.z < box.max.z) candidates.push_back(box);
         }
     const auto volume = [](const Aabb& b) {
