@@ -423,6 +423,33 @@ TEST(SunHoursFootprints, EveryPointEqualsThePureRayCast) {
   EXPECT_GT(double(by_maps), 0.5 * double(pairs));
 }
 
+// A small grid (a garden) among objects near and far: those whose shadows
+// never reach it are not drawn, and those far away whose long low-sun
+// shadows do still are: every point as the pure ray cast's.
+TEST(SunHoursFootprints, AGardenAmongFarObjectsKeepsTheLongShadows) {
+  json objects = json::array({{{"type", "plane"}, {"center", {0, -0.5, 0}}, {"size", {400, 400}}}});
+  for (int k = 0; k < 40; ++k) {
+    const double angle = k * 0.61, distance = 1.5 + 2.0 * k;
+    const json at = {distance * std::cos(angle), 1.0 + 0.1 * k, distance * std::sin(angle)};
+    if (k % 3 == 0)
+      objects.push_back({{"type", "box"}, {"center", at}, {"size", {0.8, 3.0 + 0.2 * k, 0.8}}, {"rotation_y_deg", 7 * k}});
+    else if (k % 3 == 1)
+      objects.push_back({{"type", "cylinder"}, {"center", at}, {"radius", 0.1}, {"height", 3.0 + 0.2 * k}});
+    else
+      objects.push_back({{"type", "sphere"}, {"center", at}, {"radius", 0.5}});
+  }
+  const json body = {{"scene", {{"objects", objects}}},
+                     {"site", {{"latitude", 64}, {"longitude", 10}}},
+                     {"period", {{"start", "2026-02-10T00:00:00Z"}, {"end", "2026-02-12T00:00:00Z"}, {"step_minutes", 2}}},
+                     {"grid", {{"center", {0.3, -0.49, -0.2}}, {"size", {2, 2}}, {"spacing", 0.05}}}};
+  const SunHoursRequest q = parsed(body);
+  const SunHoursResult exact = cast(q), footprints = cast_by_footprints(q);
+  expect_same_tallies(footprints, exact, "garden");
+  std::uint64_t dark = 0;
+  for (const PointTally& t : exact.tally) dark += exact.samples_up - t.lit;
+  EXPECT_GT(dark, exact.pairs / 10) << "the far objects' shadows reach the garden";
+}
+
 // Points in a core's shadow are counted when they enter and leave it, not
 // at every sample: wide boxes whose shadows cross, overlap and part over
 // two days of minutes (rows entering one shadow as they leave another, a

@@ -794,12 +794,37 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
     const Caster* caster;
     const std::vector<glm::dvec3>* points;
     bool core;
+    Aabb box;  // of the points
   };
   std::vector<Drawn> drawn;
+  const auto box_of = [](const std::vector<glm::dvec3>& points) {
+    Aabb box;
+    for (const glm::dvec3& p : points) box.extend(p);
+    return box;
+  };
   for (const Caster& o : casters)
-    for (const std::size_t c : o.drawn_cores) drawn.push_back({&o, &o.cores[c].points, true});
+    for (const std::size_t c : o.drawn_cores) drawn.push_back({&o, &o.cores[c].points, true, box_of(o.cores[c].points)});
   for (const Caster& o : casters)
-    for (const std::vector<glm::dvec3>& hull : o.hulls) drawn.push_back({&o, &hull, false});
+    for (const std::vector<glm::dvec3>& hull : o.hulls) drawn.push_back({&o, &hull, false, box_of(hull)});
+  // The grid's rectangle, a cell wider each way and a millionth of the
+  // magnitudes met (a thousand times PlaneShadow's slack): a shadow whose
+  // box lies outside it holds no point (a site's objects far from a
+  // garden's grid cost a hull each sample otherwise).
+  const glm::dvec3 grid_low = grid.origin(),
+                   grid_high = grid.origin() + glm::dvec3(grid.columns * grid.spacing, 0.0, grid.rows * grid.spacing);
+  const auto misses_grid = [&](const Aabb& box, const glm::dvec3& d) {
+    // Each corner slid down the sun onto the plane: x - (y - y0) dx / dy,
+    // whose extremes over the box are at its corners.
+    const double t_low = (box.min.y - grid.center.y) / d.y, t_high = (box.max.y - grid.center.y) / d.y;
+    const double x0 = std::min(box.min.x - t_low * d.x, box.min.x - t_high * d.x),
+                 x1 = std::max(box.max.x - t_low * d.x, box.max.x - t_high * d.x),
+                 z0 = std::min(box.min.z - t_low * d.z, box.min.z - t_high * d.z),
+                 z1 = std::max(box.max.z - t_low * d.z, box.max.z - t_high * d.z);
+    const double slack =
+        grid.spacing + 1e-6 * (1.0 + std::max({std::abs(x0), std::abs(x1), std::abs(z0), std::abs(z1),
+                                                max_abs(grid_low), max_abs(grid_high)}));
+    return x1 < grid_low.x - slack || x0 > grid_high.x + slack || z1 < grid_low.z - slack || z0 > grid_high.z + slack;
+  };
   // Samples go in blocks: first all threads draw the block's shadows (each
   // once, however many threads walk it), then each walks its own rows
   // through the block's samples in order. Rows are dealt in stripes of
@@ -841,7 +866,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           shadow.reset();
           const glm::dvec3& d = samples[ups[first + i / drawn.size()].k].direction;
           const Drawn& w = drawn[i % drawn.size()];
-          if (!(d.y > 0.0)) continue;
+          if (!(d.y > 0.0) || misses_grid(w.box, d)) continue;
           shadow.emplace(w.points->data(), int(w.points->size()), d, grid);
           // An analytic solid's core's shadow only where it spares more
           // proofs than its rows' crossings cost (a model's spares rays).
