@@ -952,6 +952,33 @@ TEST(SunHoursFootprints, ManyInstancesOfManyShellsDrawABoundedNumber) {
             2.0 * (1024 + 4900));
 }
 
+// A model's clusters and cores are found once and kept for the next
+// request on it (the plan's, then its walk's, then the next request's):
+// found, they are priced; kept, not. Placed elsewhere (another margin) or
+// another model, found again.
+TEST(SunHoursFootprints, AModelsClustersAndCoresAreKeptForTheNextRequest) {
+  const auto city = test::city_model(6, 10.0f, 5.0f);
+  const auto body_at = [&](double x) {
+    return json{{"scene", {{"objects", json::array({{{"type", "mesh"}, {"model", "city"}, {"position", {x, 0, 0}}}})}}},
+                {"site", {{"latitude", 51.5}, {"longitude", -0.12}}},
+                {"period", {{"start", "2026-06-20T00:00:00Z"}, {"end", "2026-06-21T00:00:00Z"}, {"step_minutes", 10}}},
+                {"grid", {{"center", {0, 0.5, 0}}, {"size", {20, 20}}, {"spacing", 0.25}}}};
+  };
+  const auto shares_of = [&](const json& body) {
+    const ParsedSunHours p =
+        parse_sun_hours_request(body.dump(), test::lookup_of({{"sha256:city", city}}, {{"city", "sha256:city"}}));
+    EXPECT_TRUE(p.request) << p.error.message;
+    return footprint_shares(p.request->view.scene, p.request->grid, {glm::normalize(glm::dvec3(0.3, 0.5, 0.2))});
+  };
+  const double triangles = double(city->triangle_count());
+  EXPECT_EQ(shares_of(body_at(0)).model_triangles, triangles);
+  const FootprintShares again = shares_of(body_at(0));
+  EXPECT_EQ(again.model_triangles, 0.0);
+  EXPECT_EQ(again.hulls, 2.0 * 36);  // its 36 buildings' clusters and cores, as found
+  EXPECT_EQ(shares_of(body_at(5e5)).model_triangles, triangles);  // a larger margin
+  EXPECT_EQ(shares_of(body_at(0)).model_triangles, 0.0);
+}
+
 // A city of 25 buildings in one mesh, as a CityJSON or glTF file brings
 // it: the footprints path equals the pure ray cast at every point, and
 // casts far fewer rays than one box around the whole city would leave to

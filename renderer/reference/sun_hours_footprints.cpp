@@ -9,6 +9,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -450,6 +451,7 @@ struct Caster {
 // What a model's instances share, found once per request: its clusters,
 // and its shells' cores clear by the largest margin any instance needs.
 struct ModelFacts {
+  std::shared_ptr<const TriangleModel> model;
   std::vector<Aabb> clusters;
   std::vector<Aabb> cores;
   double core_margin = 0.0;
@@ -458,6 +460,58 @@ struct ModelFacts {
   // at their floor have cores (shell_cores' open_floors).
   bool upright = true;
 };
+
+// A model's clusters and cores, kept for the next request on it (and for
+// the walk after its plan: both draw the same casters): finding them is a
+// few passes over the model's triangles, about 0.3 s for a million. Held by
+// the model's weak pointer, so a model dropped from the store is dropped
+// here; at most kKept, the least recently used going first.
+class ModelFactsCache {
+ public:
+  // The clusters and cores of `model` for `margin` and `open_floors`;
+  // false if they were not kept (then `find` computes them).
+  template <class Find>
+  bool get(const std::shared_ptr<const TriangleModel>& model, double margin, bool open_floors,
+           std::vector<Aabb>& clusters, std::vector<Aabb>& cores, Find&& find) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (Entry& e : entries_)
+        if (e.margin == margin && e.open_floors == open_floors && !e.model.owner_before(model) &&
+            !model.owner_before(e.model) && !e.model.expired()) {
+          e.used = ++clock_;
+          clusters = e.clusters, cores = e.cores;
+          return true;
+        }
+    }
+    find(clusters, cores);
+    std::lock_guard<std::mutex> lock(mutex_);
+    entries_.erase(std::remove_if(entries_.begin(), entries_.end(), [](const Entry& e) { return e.model.expired(); }),
+                   entries_.end());
+    if (entries_.size() >= kKept)
+      entries_.erase(std::min_element(entries_.begin(), entries_.end(),
+                                      [](const Entry& a, const Entry& b) { return a.used < b.used; }));
+    entries_.push_back({model, margin, open_floors, clusters, cores, ++clock_});
+    return false;
+  }
+
+ private:
+  static constexpr std::size_t kKept = 32;
+  struct Entry {
+    std::weak_ptr<const TriangleModel> model;
+    double margin;
+    bool open_floors;
+    std::vector<Aabb> clusters, cores;
+    std::uint64_t used;
+  };
+  std::mutex mutex_;
+  std::vector<Entry> entries_;
+  std::uint64_t clock_ = 0;
+};
+
+ModelFactsCache& model_facts_cache() {
+  static ModelFactsCache cache;
+  return cache;
+}
 
 // Whether a mesh's model-space y rises with world y and with nothing else:
 // the row of its inverse transform that gives model y is (0, +, 0).
@@ -483,15 +537,22 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
   for (const SceneObject& o : scene.objects)
     if (o.type == SceneObject::Type::Mesh && o.model && smallest_scale(o) > 0.0) {
       ModelFacts& facts = models[o.model.get()];
+      facts.model = o.model;
       facts.core_margin = std::max(facts.core_margin, margin_of(o, object_bounds(o)) / smallest_scale(o));
       facts.upright = facts.upright && keeps_up(o);
     }
   for (auto& [model, facts] : models) {
-    std::uint32_t shells = 0;
-    const std::vector<std::uint32_t> shell_of = triangle_shells(*model, shells);
-    facts.clusters = shell_clusters(*model, shell_of, shells, kFewestMeshClusters, kMostMeshClusters);
-    facts.cores = shell_cores(*model, facts.core_margin, /*open_floors=*/facts.upright);
-    if (model_triangles) *model_triangles += double(model->triangle_count());
+    const bool kept = model_facts_cache().get(
+        facts.model, facts.core_margin, facts.upright, facts.clusters, facts.cores,
+        [&, model = model](std::vector<Aabb>& clusters, std::vector<Aabb>& cores) {
+          std::uint32_t shells = 0;
+          const std::vector<std::uint32_t> shell_of = triangle_shells(*model, shells);
+          clusters = shell_clusters(*model, shell_of, shells, kFewestMeshClusters, kMostMeshClusters);
+          cores = shell_cores(*model, facts.core_margin, /*open_floors=*/facts.upright);
+        });
+    // Priced only where found now (the plan finds them; its walk, and the
+    // next request on the same model, take them kept).
+    if (model_triangles && !kept) *model_triangles += double(model->triangle_count());
   }
   // Every instance draws its model's clusters and cores each sample: past
   // kMostDrawn in all (a thousand instances of a model of thousands of
