@@ -541,10 +541,12 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
       facts.core_margin = std::max(facts.core_margin, margin_of(o, object_bounds(o)) / smallest_scale(o));
       facts.upright = facts.upright && keeps_up(o);
     }
-  for (auto& [model, facts] : models) {
+  for (auto& entry : models) {
+    const TriangleModel* model = entry.first;
+    ModelFacts& facts = entry.second;
     const bool kept = model_facts_cache().get(
         facts.model, facts.core_margin, facts.upright, facts.clusters, facts.cores,
-        [&, model = model](std::vector<Aabb>& clusters, std::vector<Aabb>& cores) {
+        [&](std::vector<Aabb>& clusters, std::vector<Aabb>& cores) {
           std::uint32_t shells = 0;
           const std::vector<std::uint32_t> shell_of = triangle_shells(*model, shells);
           clusters = shell_clusters(*model, shell_of, shells, kFewestMeshClusters, kMostMeshClusters);
