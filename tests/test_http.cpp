@@ -988,6 +988,16 @@ TEST(Http, ASunHoursJobGivesProgressThenTheSameAnswer) {
   server.join();
 }
 
+// Three turned cubes over a million points, every minute from `start` to
+// `end`: a job that runs for seconds at least.
+ParsedSunHours long_sun_hours_job(const std::string& start, const std::string& end) {
+  json body = sun_hours_body();
+  body["scene"] = "three-cubes";
+  body["period"] = {{"start", start}, {"end", end}, {"step_minutes", 1}};
+  body["grid"] = {{"center", {0, 0.01, 0}}, {"size", {20, 20}}, {"spacing", 0.02}};
+  return parse_sun_hours_request(body.dump());
+}
+
 // Sun-hours jobs waiting for their turn hold no place in the queue: four
 // long jobs on a queue of two leave room for a request beside the running
 // one (jobs waiting once took a place each, and renders got 503).
@@ -997,11 +1007,7 @@ TEST(Http, WaitingSunHoursJobsLeaveTheQueueToOthers) {
   RenderService renderer(limits);
   // Long jobs: a month of minutes (a day's took 0.4 s once the footprints
   // lost their spare cells, and the first was done before the cancel).
-  json body = sun_hours_body();
-  body["scene"] = "three-cubes";
-  body["period"] = {{"start", "2026-03-01T00:00:00Z"}, {"end", "2026-03-31T00:00:00Z"}, {"step_minutes", 1}};
-  body["grid"] = {{"center", {0, 0.01, 0}}, {"size", {20, 20}}, {"spacing", 0.02}};
-  const ParsedSunHours long_job = parse_sun_hours_request(body.dump());
+  const ParsedSunHours long_job = long_sun_hours_job("2026-03-01T00:00:00Z", "2026-03-31T00:00:00Z");
   ASSERT_TRUE(long_job.ok()) << long_job.error.message;
   std::vector<std::shared_ptr<SunHoursProgress>> progress;
   std::vector<std::future<SunHoursResult>> jobs;
@@ -1034,11 +1040,7 @@ TEST(Http, SunHoursJobsRunInTheOrderSubmitted) {
   RenderService renderer;
   // Jobs far longer than the polling below: a year of minutes over a
   // million points (each is cancelled as soon as it starts).
-  json body = sun_hours_body();
-  body["scene"] = "three-cubes";
-  body["period"] = {{"start", "2026-01-01T00:00:00Z"}, {"end", "2027-01-01T00:00:00Z"}, {"step_minutes", 1}};
-  body["grid"] = {{"center", {0, 0.01, 0}}, {"size", {20, 20}}, {"spacing", 0.02}};
-  const ParsedSunHours long_job = parse_sun_hours_request(body.dump());
+  const ParsedSunHours long_job = long_sun_hours_job("2026-01-01T00:00:00Z", "2027-01-01T00:00:00Z");
   ASSERT_TRUE(long_job.ok()) << long_job.error.message;
   for (int round = 0; round < 3; ++round) {
     std::vector<std::shared_ptr<SunHoursProgress>> progress;

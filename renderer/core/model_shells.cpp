@@ -129,10 +129,11 @@ std::vector<std::array<std::uint32_t, 3>> welded_corners(const TriangleModel& mo
   return corners;
 }
 
-// Whether the triangles (welded corners) close up: every directed edge's
-// reverse is among them, and no directed edge twice. Triangles with two
-// equal corners are left out (as is_closed leaves them).
-bool closes(const std::vector<std::array<std::uint32_t, 3>>& triangles) {
+// The directed edges of the triangles (welded corners) whose reverse is
+// not among them: none when they close up. False when there is no edge,
+// or a directed edge twice (no shell then). Triangles with two equal
+// corners are left out (as is_closed leaves them).
+bool open_edges(const std::vector<std::array<std::uint32_t, 3>>& triangles, std::vector<std::uint64_t>& open) {
   std::vector<std::uint64_t> edges;
   for (const auto& c : triangles) {
     if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) continue;
@@ -141,46 +142,38 @@ bool closes(const std::vector<std::array<std::uint32_t, 3>>& triangles) {
   if (edges.empty()) return false;
   std::sort(edges.begin(), edges.end());
   if (std::adjacent_find(edges.begin(), edges.end()) != edges.end()) return false;
+  open.clear();
   for (const std::uint64_t e : edges)
-    if (!std::binary_search(edges.begin(), edges.end(), (e << 32) | (e >> 32))) return false;
+    if (!std::binary_search(edges.begin(), edges.end(), (e << 32) | (e >> 32))) open.push_back(e);
   return true;
 }
 
-// Whether the triangles (welded corners; `triangles` their coordinates,
-// in the same order) close up once a floor is laid at height `floor`:
-// every directed edge whose reverse is missing lies at that height (both
-// corners), and those edges meet an even number of times at each corner,
-// so that they bound a region of that plane (even-odd) which closes the
-// shell. No directed edge twice; degenerate triangles left out.
-bool closes_over_floor(const std::vector<std::array<std::uint32_t, 3>>& corners,
+// Whether a shell's open edges (open_edges, not none; `corners` its
+// triangles' welded corners and `triangles` their coordinates, in the same
+// order) close up once a floor is laid at height `floor`: each lies at that
+// height (both corners), and they meet an even number of times at each
+// corner, so that they bound a region of that plane (even-odd) which closes
+// the shell.
+bool closes_over_floor(const std::vector<std::uint64_t>& open, const std::vector<std::array<std::uint32_t, 3>>& corners,
                        const std::vector<Triangle>& triangles, double floor) {
-  std::vector<std::uint64_t> edges;
   std::vector<std::pair<std::uint32_t, double>> heights;  // a corner's id, its y
   for (std::size_t t = 0; t < corners.size(); ++t) {
-    const auto& c = corners[t];
-    if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) continue;
-    for (int k = 0; k < 3; ++k) edges.push_back(std::uint64_t(c[k]) << 32 | c[(k + 1) % 3]);
-    heights.push_back({c[0], triangles[t].a.y});
-    heights.push_back({c[1], triangles[t].b.y});
-    heights.push_back({c[2], triangles[t].c.y});
+    heights.push_back({corners[t][0], triangles[t].a.y});
+    heights.push_back({corners[t][1], triangles[t].b.y});
+    heights.push_back({corners[t][2], triangles[t].c.y});
   }
-  if (edges.empty()) return false;
-  std::sort(edges.begin(), edges.end());
-  if (std::adjacent_find(edges.begin(), edges.end()) != edges.end()) return false;
   std::sort(heights.begin(), heights.end());
   const auto y_of = [&](std::uint32_t id) {
     return std::lower_bound(heights.begin(), heights.end(), std::make_pair(id, -std::numeric_limits<double>::infinity()))
         ->second;
   };
   std::vector<std::uint32_t> open_corners;
-  for (const std::uint64_t e : edges) {
-    if (std::binary_search(edges.begin(), edges.end(), (e << 32) | (e >> 32))) continue;
+  for (const std::uint64_t e : open) {
     const auto from = std::uint32_t(e >> 32), to = std::uint32_t(e);
     if (y_of(from) != floor || y_of(to) != floor) return false;
     open_corners.push_back(from);
     open_corners.push_back(to);
   }
-  if (open_corners.empty()) return false;  // closed: not this case
   std::sort(open_corners.begin(), open_corners.end());
   for (std::size_t i = 0; i < open_corners.size();) {
     std::size_t j = i;
@@ -268,8 +261,10 @@ std::vector<Aabb> shell_cores(const TriangleModel& model, double margin, bool op
     // open_floors, a shell open only at its lowest height (a building
     // without its ground face) is closed by a floor there, which a rising
     // ray from above it never meets (parity's, and the callers').
-    const bool closed = closes(shell_corners);
-    if (!closed && !(open_floors && closes_over_floor(shell_corners, shell, bounds.min.y))) continue;
+    std::vector<std::uint64_t> open;
+    if (!open_edges(shell_corners, open)) continue;
+    const bool closed = open.empty();
+    if (!closed && !(open_floors && closes_over_floor(open, shell_corners, shell, bounds.min.y))) continue;
     // Above an open floor, a box at least twice the margin up: a rising
     // ray from it passes the open edges far above Embree's rounding there
     // (a red team measured misses up to 1.7e-7 of the coordinates: the

@@ -593,13 +593,13 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
       caster.cores = mesh_cores(o, facts->second.cores, grid.center.y, caster.margin);
     } else {
       // The points around the object (a turned box's own corners, a
-      // pole's prism), else its bounds: the margin covers the pure
-      // query's rounding either way.
+      // pole's prism), else its bounds (none above the plane either way):
+      // the margin covers the pure query's rounding in both.
       std::vector<glm::dvec3> around;
       if (caster.kind->points_around) around = caster.kind->points_around(o, caster.margin, grid.center.y);
       if (!around.empty() && around.size() <= std::size_t(kMaxShadowPoints)) {
         caster.hulls.push_back(std::move(around));
-      } else if (!caster.kind->points_around) {
+      } else {
         const Aabb reachable = reachable_bounds(caster.bounds, grid.center.y, reach);
         if (!reachable.empty()) caster.hulls.push_back(reachable.corners());
       }
@@ -748,7 +748,8 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
         if (!footprint.outer_columns(r, c0, c1)) continue;
         for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
           const std::size_t i = cell(r, c);
-          visits += cored[i] == int(n) ? 0.0 : 1.0;
+          const bool in_core = cored[i] == int(n);
+          visits += in_core ? 0.0 : 1.0;
           work += 1.0;
           if (depth[i] == 0) touched.push_back(i);
           // Once per object, however many of its boxes hold the point.
@@ -757,7 +758,6 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
           if (last_visit[i] != visit && !o.kind->intersect) mesh_visits += 1.0;
           last_visit[i] = visit;
           if (inside[i]) continue;
-          const bool in_core = cored[i] == int(n);
           const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
           // At most a few proofs a point: a thousand identical boxes
           // that none proves would be a thousand.
@@ -875,6 +875,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   // garden's grid cost a hull each sample otherwise).
   const glm::dvec3 grid_low = grid.origin(),
                    grid_high = grid.origin() + glm::dvec3(grid.columns * grid.spacing, 0.0, grid.rows * grid.spacing);
+  const double grid_magnitude = std::max(max_abs(grid_low), max_abs(grid_high));
   const auto misses_grid = [&](const Aabb& box, const glm::dvec3& d) {
     // Each corner slid down the sun onto the plane: x - (y - y0) dx / dy,
     // whose extremes over the box are at its corners.
@@ -884,8 +885,8 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
                  z0 = std::min(box.min.z - t_low * d.z, box.min.z - t_high * d.z),
                  z1 = std::max(box.max.z - t_low * d.z, box.max.z - t_high * d.z);
     const double slack =
-        grid.spacing + 1e-6 * (1.0 + std::max({std::abs(x0), std::abs(x1), std::abs(z0), std::abs(z1),
-                                                max_abs(grid_low), max_abs(grid_high)}));
+        grid.spacing +
+        1e-6 * (1.0 + std::max({std::abs(x0), std::abs(x1), std::abs(z0), std::abs(z1), grid_magnitude}));
     return x1 < grid_low.x - slack || x0 > grid_high.x + slack || z1 < grid_low.z - slack || z0 > grid_high.z + slack;
   };
   // Samples go in blocks: first all threads draw the block's shadows (each

@@ -91,18 +91,12 @@ std::vector<glm::dvec3> points_inside(const SceneObject& object, double margin, 
   return points;
 }
 
-// The box grown by `margin` on every side holds the box's points within
-// `margin`; cut at `low`, it stays a box (turned about y only).
+// The box grown by `margin` on every side (points_inside's box shrunk by
+// -margin) holds the box's points within `margin`; cut at `low`, it stays
+// a box (turned about y only). None where it only touches `low`: the box
+// itself then lies below it.
 std::vector<glm::dvec3> points_around(const SceneObject& object, double margin, double low) {
-  std::vector<glm::dvec3> points;
-  const glm::dvec3 half = 0.5 * object.size + margin;
-  const double bottom = std::max(object.center.y - half.y, low), top = object.center.y + half.y;
-  if (!(bottom <= top)) return points;
-  for (int i = 0; i < 8; ++i) {
-    const glm::dvec3 corner = rotate_y({i & 1 ? half.x : -half.x, 0.0, i & 2 ? half.z : -half.z}, object.rotation_y_deg);
-    points.emplace_back(object.center.x + corner.x, i & 4 ? top : bottom, object.center.z + corner.z);
-  }
-  return points;
+  return points_inside(object, -margin, low, kInf);
 }
 
 // The slab test against the box shrunk by `margin`: the ray is inside all
