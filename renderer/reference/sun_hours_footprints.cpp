@@ -20,6 +20,7 @@
 #include "core/model.hpp"
 #include "core/shapes/shape.hpp"
 #include "core/model_shells.hpp"
+#include "reference/mesh_grid_shadow.hpp"
 #include "reference/ray_cast.hpp"
 #include "reference/sun_hours_ray_cast.hpp"
 
@@ -294,25 +295,6 @@ class PlaneShadow {
   double z_low_ = 0.0, z_high_ = 0.0, extent_ = 1.0, slack_ = 0.0;
 };
 
-// Columns [first, last] of a grid row.
-struct ColumnSpan {
-  int first, last;
-};
-
-// Sorts a row's spans and joins those that overlap or touch.
-void merge_spans(std::vector<ColumnSpan>& spans) {
-  if (spans.size() < 2) return;
-  std::sort(spans.begin(), spans.end(), [](const ColumnSpan& a, const ColumnSpan& b) { return a.first < b.first; });
-  std::size_t kept = 0;
-  for (std::size_t i = 1; i < spans.size(); ++i) {
-    if (spans[i].first <= spans[kept].last + 1)
-      spans[kept].last = std::max(spans[kept].last, spans[i].last);
-    else
-      spans[++kept] = spans[i];
-  }
-  spans.resize(kept + 1);
-}
-
 // Calls f(first, last) for each stretch of columns in `from` (merged spans,
 // `count` of them) that no span of `without` (merged spans) holds, in order.
 template <class F>
@@ -431,6 +413,13 @@ namespace {
 constexpr int kFewestMeshClusters = 32, kMostMeshClusters = 1024;
 // The most footprints and cores a request's objects draw each sample.
 constexpr int kMostDrawn = 65536;
+// The most triangles of the instances whose mesh shadows a request draws
+// (each instance holds its model's corners in the world, about half as
+// many, 24 bytes each): past it, the instances beyond draw their
+// clusters' footprints instead.
+constexpr std::size_t kMostShadowTriangles = std::size_t(8) << 20;
+// The most bytes the models' mesh shadows kept between requests hold.
+constexpr std::size_t kKeptShadowBytes = std::size_t(256) << 20;
 
 // One object as the footprints see it: the convex solids its footprints
 // are drawn from (its bounds; a mesh's clusters of triangles), each cut to
@@ -446,14 +435,24 @@ struct Caster {
   // A mesh's: world to model space, and the margin there.
   glm::dmat4 to_model{1.0};
   double model_margin = 0.0;
+  // A model with open surfaces: its exact shadow each sample
+  // (MeshGridShadow: dark, unsure and lit spans), drawn instead of hulls
+  // and cores.
+  std::shared_ptr<const MeshGridShadow> mesh_shadow;
 };
 
 // What a model's instances share, found once per request: its clusters,
 // and its shells' cores clear by the largest margin any instance needs.
-struct ModelFacts {
-  std::shared_ptr<const TriangleModel> model;
+struct KeptFacts {
   std::vector<Aabb> clusters;
   std::vector<Aabb> cores;
+  // Set when some shell has no core (an open surface: no core proves its
+  // rays dark): the model as its exact shadows need it.
+  std::shared_ptr<const MeshShadowModel> shadow;
+};
+struct ModelFacts {
+  std::shared_ptr<const TriangleModel> model;
+  KeptFacts kept;
   double core_margin = 0.0;
   // Every instance keeps up up (turned about y only, not flipped): a ray
   // that rises in the world rises in the model too, so shells open only
@@ -461,36 +460,47 @@ struct ModelFacts {
   bool upright = true;
 };
 
-// A model's clusters and cores, kept for the next request on it (and for
-// the walk after its plan: both draw the same casters): finding them is a
-// few passes over the model's triangles, about 0.3 s for a million. Held by
-// the model's weak pointer, so a model dropped from the store is dropped
-// here; at most kKept, the least recently used going first.
+// A model's clusters, cores and shadow model, kept for the next request on
+// it (and for the walk after its plan: both draw the same casters):
+// finding them is a few passes over the model's triangles, about 0.3 s for
+// a million. Held by the model's weak pointer, so a model dropped from the
+// store is dropped here; at most kKept, and shadow models of at most
+// kKeptShadowBytes in all, the least recently used going first.
 class ModelFactsCache {
  public:
   // The clusters and cores of `model` for `margin` and `open_floors`;
   // false if they were not kept (then `find` computes them).
   template <class Find>
-  bool get(const std::shared_ptr<const TriangleModel>& model, double margin, bool open_floors,
-           std::vector<Aabb>& clusters, std::vector<Aabb>& cores, Find&& find) {
+  bool get(const std::shared_ptr<const TriangleModel>& model, double margin, bool open_floors, KeptFacts& facts,
+           Find&& find) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (Entry& e : entries_)
         if (e.margin == margin && e.open_floors == open_floors && !e.model.owner_before(model) &&
             !model.owner_before(e.model) && !e.model.expired()) {
           e.used = ++clock_;
-          clusters = e.clusters, cores = e.cores;
+          facts = e.facts;
           return true;
         }
     }
-    find(clusters, cores);
+    find(facts);
     std::lock_guard<std::mutex> lock(mutex_);
     entries_.erase(std::remove_if(entries_.begin(), entries_.end(), [](const Entry& e) { return e.model.expired(); }),
                    entries_.end());
-    if (entries_.size() >= kKept)
-      entries_.erase(std::min_element(entries_.begin(), entries_.end(),
-                                      [](const Entry& a, const Entry& b) { return a.used < b.used; }));
-    entries_.push_back({model, margin, open_floors, clusters, cores, ++clock_});
+    const auto oldest = [&] {
+      return std::min_element(entries_.begin(), entries_.end(),
+                              [](const Entry& a, const Entry& b) { return a.used < b.used; });
+    };
+    if (entries_.size() >= kKept) entries_.erase(oldest());
+    const auto shadow_bytes = [](const KeptFacts& f) { return f.shadow ? mesh_shadow_model_bytes(*f.shadow) : 0; };
+    std::size_t bytes = shadow_bytes(facts);
+    for (const Entry& e : entries_) bytes += shadow_bytes(e.facts);
+    while (bytes > kKeptShadowBytes && !entries_.empty()) {
+      const auto gone = oldest();
+      bytes -= shadow_bytes(gone->facts);
+      entries_.erase(gone);
+    }
+    if (shadow_bytes(facts) <= kKeptShadowBytes) entries_.push_back({model, margin, open_floors, facts, ++clock_});
     return false;
   }
 
@@ -500,7 +510,7 @@ class ModelFactsCache {
     std::weak_ptr<const TriangleModel> model;
     double margin;
     bool open_floors;
-    std::vector<Aabb> clusters, cores;
+    KeptFacts facts;
     std::uint64_t used;
   };
   std::mutex mutex_;
@@ -520,7 +530,9 @@ bool keeps_up(const SceneObject& mesh) {
   return to_model[0][1] == 0.0 && to_model[2][1] == 0.0 && to_model[1][1] > 0.0;
 }
 
-std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* model_triangles = nullptr) {
+// `slots`: the memories each mesh shadow keeps (MeshGridShadow::draw).
+std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* model_triangles = nullptr,
+                               int slots = 0) {
   const double reach = grid_reach(grid);
   const auto margin_of = [&](const SceneObject& o, const Aabb& bounds) {
     double margin = rounding_margin(bounds, reach);
@@ -545,12 +557,12 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
     const TriangleModel* model = entry.first;
     ModelFacts& facts = entry.second;
     const bool kept = model_facts_cache().get(
-        facts.model, facts.core_margin, facts.upright, facts.clusters, facts.cores,
-        [&](std::vector<Aabb>& clusters, std::vector<Aabb>& cores) {
+        facts.model, facts.core_margin, facts.upright, facts.kept, [&](KeptFacts& found) {
           std::uint32_t shells = 0;
           const std::vector<std::uint32_t> shell_of = triangle_shells(*model, shells);
-          clusters = shell_clusters(*model, shell_of, shells, kFewestMeshClusters, kMostMeshClusters);
-          cores = shell_cores(*model, facts.core_margin, /*open_floors=*/facts.upright);
+          found.clusters = shell_clusters(*model, shell_of, shells, kFewestMeshClusters, kMostMeshClusters);
+          found.cores = shell_cores(*model, facts.core_margin, /*open_floors=*/facts.upright);
+          if (found.cores.size() < shells) found.shadow = mesh_shadow_model(*model);
         });
     // Priced only where found now (the plan finds them; its walk, and the
     // next request on the same model, take them kept).
@@ -563,13 +575,16 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
   double drawn = 0.0;
   for (const SceneObject& o : scene.objects) {
     const auto facts = o.model ? models.find(o.model.get()) : models.end();
-    drawn += facts == models.end() ? 2.0 : double(facts->second.clusters.size() + facts->second.cores.size());
+    drawn += facts == models.end() || facts->second.kept.shadow
+                 ? 2.0
+                 : double(facts->second.kept.clusters.size() + facts->second.kept.cores.size());
   }
   if (drawn > double(kMostDrawn))
     for (auto& [model, facts] : models) {
-      facts.clusters = {model->bounds};
-      facts.cores.clear();
+      facts.kept.clusters = {model->bounds};
+      facts.kept.cores.clear();
     }
+  std::size_t shadow_triangles = 0;
   std::vector<Caster> casters;
   for (const SceneObject& o : scene.objects) {
     Caster caster;
@@ -584,13 +599,20 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
       caster.to_model = glm::inverse(mesh_transform(o));
       caster.model_margin = caster.margin / smallest_scale(o);
       const glm::dmat4 to_world = mesh_transform(o);
-      for (Aabb box : facts->second.clusters) {
+      const std::shared_ptr<const MeshShadowModel>& shadow = facts->second.kept.shadow;
+      if (shadow && shadow_triangles + mesh_shadow_model_triangles(*shadow) <= kMostShadowTriangles) {
+        shadow_triangles += mesh_shadow_model_triangles(*shadow);
+        caster.mesh_shadow = std::make_shared<MeshGridShadow>(shadow, to_world, grid.center.y, caster.margin, slots);
+        if (!caster.mesh_shadow->reach().empty()) casters.push_back(std::move(caster));
+        continue;
+      }
+      for (Aabb box : facts->second.kept.clusters) {
         box.min -= glm::dvec3(caster.model_margin);
         box.max += glm::dvec3(caster.model_margin);
         std::vector<glm::dvec3> points = world_box_above(box, to_world, grid.center.y);
         if (points.size() >= 4) caster.hulls.push_back(std::move(points));
       }
-      caster.cores = mesh_cores(o, facts->second.cores, grid.center.y, caster.margin);
+      caster.cores = mesh_cores(o, facts->second.kept.cores, grid.center.y, caster.margin);
     } else {
       // The points around the object (a turned box's own corners, a
       // pole's prism), else its bounds (none above the plane either way):
@@ -679,7 +701,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   FootprintShares out;
   if (directions.empty() || grid.points() == 0) return out;
   const std::vector<Caster> casters = casters_of(scene, grid, &out.model_triangles);
-  for (const Caster& o : casters) out.hulls += double(o.hulls.size() + o.drawn_cores.size());
+  for (const Caster& o : casters) out.hulls += double(o.hulls.size() + o.drawn_cores.size() + (o.mesh_shadow ? 1 : 0));
   // A lattice of at most about 128 x 128 of the grid's points (every
   // stride-th row and column), judged as footprint_sun_hours judges them:
   // inside a footprint, and then settled by a proof of dark or left to the
@@ -698,7 +720,9 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   constexpr double kMaxWork = 16.0e6, kWorkPerProof = 16.0, kWorkPerHull = 64.0;
   double work = 0.0;
   double candidates = 0.0, queried = 0.0, visits = 0.0, tests = 0.0, queried_tests = 0.0, core_rows = 0.0,
-         mesh_visits = 0.0;
+         mesh_visits = 0.0, mesh_shadow_work = 0.0;
+  // Each mesh shadow's for the direction judged.
+  std::vector<GridShadow> mesh_shadows(casters.size());
   std::vector<std::uint16_t> depth(lattice, 0);
   std::vector<std::int64_t> last_visit(lattice, -1);
   std::vector<std::uint8_t> dark(lattice, 0), left(lattice, 0), proofs(lattice, 0);
@@ -722,6 +746,24 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
     work += kWorkPerHull * out.hulls;
     // As footprint_sun_hours: first the cores' shadows, dark without a
     // proof each.
+    for (std::size_t index = 0; index < casters.size(); ++index) {
+      const Caster& o = casters[index];
+      if (!o.mesh_shadow) continue;
+      GridShadow& mesh = mesh_shadows[index];
+      o.mesh_shadow->draw(d, grid, stride, mesh);
+      work += mesh.work;
+      mesh_shadow_work += mesh.work;
+      for (int r = mesh.first_row; r <= mesh.last_row; r += stride) {
+        std::size_t count;
+        const ColumnSpan* spans = mesh.dark_of(r, count);
+        core_rows += count > 0 ? double(stride) : 0.0;
+        for (std::size_t k = 0; k < count; ++k)
+          for (int c = (spans[k].first + stride - 1) / stride * stride; c <= spans[k].last; c += stride) {
+            work += 1.0;
+            cored[cell(r, c)] = int(n);
+          }
+      }
+    }
     for (const Caster& o : casters)
       for (const std::size_t c : o.drawn_cores) {
         const SolidCore& solid = o.cores[c];
@@ -738,45 +780,59 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
           }
         }
       }
+    // A lattice point in object `index`'s footprint (or a mesh's unsure span).
+    const auto judge = [&](std::size_t index, int r, int c) {
+      const Caster& o = casters[index];
+      const std::size_t i = cell(r, c);
+      const bool in_core = cored[i] == int(n);
+      visits += in_core ? 0.0 : 1.0;
+      work += 1.0;
+      if (depth[i] == 0) touched.push_back(i);
+      // Once per object, however many of its boxes hold the point.
+      const std::int64_t visit = std::int64_t(n) * std::int64_t(casters.size()) + std::int64_t(index);
+      if (last_visit[i] != visit && depth[i] < 65535) ++depth[i];
+      if (last_visit[i] != visit && !o.kind->intersect) mesh_visits += 1.0;
+      last_visit[i] = visit;
+      if (inside[i]) return;
+      const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
+      // At most a few proofs a point: a thousand identical boxes
+      // that none proves would be a thousand.
+      const bool ask = !in_core && !dark[i] && o.kind->surely_meets && proofs[i] < 4;
+      proofs[i] += ask ? 1 : 0;
+      work += ask ? kWorkPerProof : 0.0;
+      const bool sure = in_core || (ask && o.kind->surely_meets(*o.object, p, d, o.margin));
+      dark[i] |= sure;
+      // As footprint_sun_hours: the first footprint holding the
+      // point judges it, and the query settles what it cannot.
+      if (seen[i] == int(n)) return;
+      seen[i] = int(n);
+      candidates += in_core ? 0.0 : 1.0;
+      if (!sure) {
+        queried += 1.0;
+        left[i] = 1;
+      }
+    };
     for (std::size_t index = 0; index < casters.size(); ++index) {
       const Caster& o = casters[index];
-      for (const std::vector<glm::dvec3>& hull : o.hulls) {
-      const PlaneShadow footprint(hull.data(), int(hull.size()), d, grid);
-      int first_row, last_row, c0, c1;
-      if (!footprint.rows(0, grid.rows, stride, first_row, last_row)) continue;
-      for (int r = first_row; r <= last_row; r += stride) {
-        if (!footprint.outer_columns(r, c0, c1)) continue;
-        for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) {
-          const std::size_t i = cell(r, c);
-          const bool in_core = cored[i] == int(n);
-          visits += in_core ? 0.0 : 1.0;
-          work += 1.0;
-          if (depth[i] == 0) touched.push_back(i);
-          // Once per object, however many of its boxes hold the point.
-          const std::int64_t visit = std::int64_t(n) * std::int64_t(casters.size()) + std::int64_t(index);
-          if (last_visit[i] != visit && depth[i] < 65535) ++depth[i];
-          if (last_visit[i] != visit && !o.kind->intersect) mesh_visits += 1.0;
-          last_visit[i] = visit;
-          if (inside[i]) continue;
-          const glm::dvec3 p = grid.point(std::size_t(r) * std::size_t(grid.columns) + std::size_t(c));
-          // At most a few proofs a point: a thousand identical boxes
-          // that none proves would be a thousand.
-          const bool ask = !in_core && !dark[i] && o.kind->surely_meets && proofs[i] < 4;
-          proofs[i] += ask ? 1 : 0;
-          work += ask ? kWorkPerProof : 0.0;
-          const bool sure = in_core || (ask && o.kind->surely_meets(*o.object, p, d, o.margin));
-          dark[i] |= sure;
-          // As footprint_sun_hours: the first footprint holding the
-          // point judges it, and the query settles what it cannot.
-          if (seen[i] == int(n)) continue;
-          seen[i] = int(n);
-          candidates += in_core ? 0.0 : 1.0;
-          if (!sure) {
-            queried += 1.0;
-            left[i] = 1;
-          }
+      if (o.mesh_shadow) {
+        const GridShadow& mesh = mesh_shadows[index];
+        for (int r = mesh.first_row; r <= mesh.last_row; r += stride) {
+          std::size_t count;
+          const ColumnSpan* spans = mesh.unsure_of(r, count);
+          for (std::size_t k = 0; k < count; ++k)
+            for (int c = (spans[k].first + stride - 1) / stride * stride; c <= spans[k].last; c += stride)
+              judge(index, r, c);
         }
+        continue;
       }
+      for (const std::vector<glm::dvec3>& hull : o.hulls) {
+        const PlaneShadow footprint(hull.data(), int(hull.size()), d, grid);
+        int first_row, last_row, c0, c1;
+        if (!footprint.rows(0, grid.rows, stride, first_row, last_row)) continue;
+        for (int r = first_row; r <= last_row; r += stride) {
+          if (!footprint.outer_columns(r, c0, c1)) continue;
+          for (int c = (c0 + stride - 1) / stride * stride; c <= c1; c += stride) judge(index, r, c);
+        }
       }
     }
     // The objects a ray is tested against besides the tree's levels and
@@ -797,6 +853,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   out.depth = visits / judged;
   out.core_rows = core_rows / double(judged_directions);
   out.mesh_depth = mesh_visits / judged;
+  out.mesh_shadow_work = mesh_shadow_work / double(judged_directions);
   out.tests = tests / judged;
   out.queried_tests = queried > 0.0 ? queried_tests / queried : 0.0;
   return out;
@@ -813,10 +870,23 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   result.pairs = std::uint64_t(points) * up;
   result.tally.assign(points, PointTally{});
 
+  // Samples go in blocks: first all threads draw the block's shadows (each
+  // once, however many threads walk it), then each walks its own rows
+  // through the block's samples in order. Rows are dealt in stripes of
+  // kStripe, in turn, so that a scene whose shadows gather in one part of
+  // the grid keeps every thread busy.
+  constexpr int kStripe = 4;
+  const int threads = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
+                                                          unsigned((grid.rows + kStripe - 1) / kStripe))));
+  // A mesh's shadows are drawn in runs of consecutive samples, each run
+  // by one thread with a memory of its own (MeshGridShadow::draw): as many
+  // runs a block as there are threads for each mesh, at most kMeshRuns.
+  constexpr int kMeshRuns = 4;
+
   // Each object that a ray from the plane can reach: the solids of its
   // footprints, and the proof of a hit its kind offers
   // (ShapeKind::surely_meets).
-  const std::vector<Caster> casters = casters_of(scene, grid);
+  const std::vector<Caster> casters = casters_of(scene, grid, nullptr, std::min(threads, kMeshRuns));
 
   // Per point, in one place (the walk visits millions of points a
   // sample, each a cache miss per array it touches): the sample it was last
@@ -855,9 +925,10 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   // every footprint.
   struct Drawn {
     const Caster* caster;
-    const std::vector<glm::dvec3>* points;
+    const std::vector<glm::dvec3>* points;  // null for a mesh shadow
     bool core;
     Aabb box;  // of the points
+    std::size_t mesh = 0;  // a mesh shadow's slot among a sample's
   };
   std::vector<Drawn> drawn;
   const auto box_of = [](const std::vector<glm::dvec3>& points) {
@@ -869,6 +940,9 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
     for (const std::size_t c : o.drawn_cores) drawn.push_back({&o, &o.cores[c].points, true, box_of(o.cores[c].points)});
   for (const Caster& o : casters)
     for (const std::vector<glm::dvec3>& hull : o.hulls) drawn.push_back({&o, &hull, false, box_of(hull)});
+  std::size_t meshes = 0;
+  for (const Caster& o : casters)
+    if (o.mesh_shadow) drawn.push_back({&o, nullptr, false, o.mesh_shadow->reach(), meshes++});
   // The grid's rectangle, a cell wider each way and a millionth of the
   // magnitudes met (a thousand times PlaneShadow's slack): a shadow whose
   // box lies outside it holds no point (a site's objects far from a
@@ -889,16 +963,10 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
         1e-6 * (1.0 + std::max({std::abs(x0), std::abs(x1), std::abs(z0), std::abs(z1), grid_magnitude}));
     return x1 < grid_low.x - slack || x0 > grid_high.x + slack || z1 < grid_low.z - slack || z0 > grid_high.z + slack;
   };
-  // Samples go in blocks: first all threads draw the block's shadows (each
-  // once, however many threads walk it), then each walks its own rows
-  // through the block's samples in order. Rows are dealt in stripes of
-  // kStripe, in turn, so that a scene whose shadows gather in one part of
-  // the grid keeps every thread busy.
-  constexpr int kStripe = 4;
-  const int threads = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
-                                                          unsigned((grid.rows + kStripe - 1) / kStripe))));
+  const std::size_t runs = std::size_t(std::clamp(threads / int(std::max<std::size_t>(1, meshes)), 1, kMeshRuns));
   const std::size_t block = std::clamp<std::size_t>(16384 / std::max<std::size_t>(1, drawn.size()), 1, 32);
   std::vector<std::optional<PlaneShadow>> shadows(block * drawn.size());
+  std::vector<GridShadow> mesh_shadows(block * meshes);
   const auto owned_rows = [&](int t, int first, int last, const auto& visit) {
     // The first row of t's stripes at or after `first`.
     int stripe = first / kStripe;
@@ -930,11 +998,27 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           shadow.reset();
           const glm::dvec3& d = samples[ups[first + i / drawn.size()].k].direction;
           const Drawn& w = drawn[i % drawn.size()];
+          if (w.caster->mesh_shadow) continue;
           if (!(d.y > 0.0) || misses_grid(w.box, d)) continue;
           shadow.emplace(w.points->data(), int(w.points->size()), d, grid);
           // An analytic solid's core's shadow only where it spares more
           // proofs than its rows' crossings cost (a model's spares rays).
           if (w.core && !pays(*w.caster, *shadow)) shadow.reset();
+        }
+      // The meshes' shadows: run j of mesh m is the j-th of `runs` stretches
+      // of the block's samples, always by the same thread, in order.
+      if (!poll.stopped())
+        for (std::size_t item = std::size_t(t); item < meshes * runs; item += std::size_t(threads)) {
+          const std::size_t m = item / runs, j = item % runs;
+          const Drawn& w = *std::find_if(drawn.begin(), drawn.end(),
+                                         [&](const Drawn& x) { return x.caster->mesh_shadow && x.mesh == m; });
+          for (std::size_t e = count * j / runs; e < count * (j + 1) / runs; ++e) {
+            const glm::dvec3& d = samples[ups[first + e].k].direction;
+            GridShadow& mesh = mesh_shadows[e * meshes + m];
+            mesh.first_row = 0, mesh.last_row = -1;
+            if (d.y > 0.0 && !misses_grid(w.box, d)) w.caster->mesh_shadow->draw(d, grid, 1, mesh, int(j));
+            if (poll.after(since, std::uint64_t(mesh.work))) break;
+          }
         }
       barrier.wait();
       for (std::size_t e = 0; e < count && !poll.stopped(); ++e) {
@@ -963,6 +1047,17 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
         // A ray through a solid's core surely meets it (SolidCore): each
         // row's stretch there is dark, proved for the row at once.
         for (std::size_t w = 0; w < drawn.size() && !poll.stopped(); ++w) {
+          if (drawn[w].caster->mesh_shadow) {
+            // A mesh's dark spans, as a core's.
+            const GridShadow& mesh = mesh_shadows[e * meshes + drawn[w].mesh];
+            if (mesh.empty()) continue;
+            owned_rows(t, mesh.first_row, mesh.last_row, [&](int r) {
+              std::size_t count;
+              const ColumnSpan* spans = mesh.dark_of(r, count);
+              core_now[std::size_t(r)].insert(core_now[std::size_t(r)].end(), spans, spans + count);
+            });
+            continue;
+          }
           const std::optional<PlaneShadow>& shadow = shadows[e * drawn.size() + w];
           int first_row, last_row;
           if (!drawn[w].core || !shadow || !shadow->rows(0, grid.rows, 1, first_row, last_row)) continue;
@@ -994,12 +1089,49 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           was.swap(is);
           is.clear();
         });
+        // A point in a footprint, not settled yet this sample: dark for
+        // certain when the ray passes well inside the object whose
+        // footprint holds it (the pure ray cast's query would find that
+        // hit: ShapeKind::surely_meets), else settled by the query itself.
+        const auto judge = [&](const Caster& object, int r, int c0, int c1) {
+          for (int c = c0; c <= c1; ++c) {
+            const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+            PointState& point = state[i];
+            if (point.tested >= now) continue;
+            point.tested = now;
+            const glm::dvec3 p = grid.point(i);
+            const bool surely_dark =
+                object.kind->surely_meets && object.kind->surely_meets(*object.object, p, d, object.margin);
+            if (!surely_dark) {
+              ++casts;
+              const bool lit = sees_sun(rays, p, d);
+              poll.after(since, 16);  // a query weighs about as much as 16 visits
+              if (lit) continue;
+            }
+            dark(point);
+          }
+        };
         for (std::size_t w = 0; w < drawn.size() && !poll.stopped(); ++w) {
+          const Caster& object = *drawn[w].caster;
+          if (object.mesh_shadow) {
+            // A mesh's unsure spans (its dark ones are the cores' now, the
+            // rest lit as far as it goes).
+            const GridShadow& mesh = mesh_shadows[e * meshes + drawn[w].mesh];
+            if (mesh.empty()) continue;
+            owned_rows(t, mesh.first_row, mesh.last_row, [&](int r) {
+              std::size_t count;
+              const ColumnSpan* spans = mesh.unsure_of(r, count);
+              for_each_difference(spans, count, core_dark[std::size_t(r)], [&](int c0, int c1) {
+                poll.after(since, std::uint64_t(c1 - c0 + 1));
+                judge(object, r, c0, c1);
+              });
+            });
+            continue;
+          }
           const std::optional<PlaneShadow>& shadow = shadows[e * drawn.size() + w];
           if (!shadow || drawn[w].core) continue;
           int first_row, last_row;
           if (!shadow->rows(0, grid.rows, 1, first_row, last_row)) continue;
-          const Caster& object = *drawn[w].caster;
           // A footprint: its points not settled yet (outside the cores'
           // shadows).
           owned_rows(t, first_row, last_row, [&](int r) {
@@ -1007,28 +1139,8 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
             if (!shadow->outer_columns(r, outer0, outer1) || poll.after(since, std::uint64_t(outer1 - outer0 + 1)))
               return;
             const ColumnSpan outer{outer0, outer1};
-            for_each_difference(&outer, 1, core_dark[std::size_t(r)], [&](int c0, int c1) {
-              for (int c = c0; c <= c1; ++c) {
-                const std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
-                PointState& point = state[i];
-                if (point.tested >= now) continue;
-                point.tested = now;
-                // Dark for certain when the ray passes well inside the
-                // object whose footprint holds the point: the pure ray
-                // cast's query would find that hit (ShapeKind::surely_meets).
-                // Else the query itself settles it.
-                const glm::dvec3 p = grid.point(i);
-                const bool surely_dark =
-                    object.kind->surely_meets && object.kind->surely_meets(*object.object, p, d, object.margin);
-                if (!surely_dark) {
-                  ++casts;
-                  const bool lit = sees_sun(rays, p, d);
-                  poll.after(since, 16);  // a query weighs about as much as 16 visits
-                  if (lit) continue;
-                }
-                dark(point);
-              }
-            });
+            for_each_difference(&outer, 1, core_dark[std::size_t(r)],
+                                [&](int c0, int c1) { judge(object, r, c0, c1); });
           });
         }
         if (!up.last || poll.stopped()) continue;

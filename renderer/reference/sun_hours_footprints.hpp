@@ -106,8 +106,12 @@ struct FootprintShares {
   /// each, shell_clusters) and the solids' cores.
   double hulls = 0.0;
   /// Triangles of the models whose clusters and shells are found once per
-  /// request (triangle_shells, shell_clusters, shell_cores).
+  /// request (triangle_shells, shell_clusters, shell_cores, and a model
+  /// with open surfaces' mesh_shadow_model).
   double model_triangles = 0.0;
+  /// The mesh shadows' drawing per sample (MeshGridShadow, for models with
+  /// open surfaces), in GridShadow::work units.
+  double mesh_shadow_work = 0.0;
 };
 /// The shares for `directions`, in turn until about 16 M units of work (a
 /// lattice point visited in a footprint, 16 for a proof of dark), so the

@@ -1,0 +1,903 @@
+#include "reference/mesh_grid_shadow.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <limits>
+#include <tuple>
+
+#include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
+
+namespace umbra {
+
+void merge_spans(std::vector<ColumnSpan>& spans) {
+  if (spans.size() < 2) return;
+  std::sort(spans.begin(), spans.end(), [](const ColumnSpan& a, const ColumnSpan& b) { return a.first < b.first; });
+  std::size_t kept = 0;
+  for (std::size_t i = 1; i < spans.size(); ++i) {
+    if (spans[i].first <= spans[kept].last + 1)
+      spans[kept].last = std::max(spans[kept].last, spans[i].last);
+    else
+      spans[++kept] = spans[i];
+  }
+  spans.resize(kept + 1);
+}
+
+struct MeshShadowModel {
+  // Welded by exact position, model space (the model's own floats), in the
+  // order the leaves' triangles first use them (a leaf's corners lie
+  // together in memory; each placement carries them into the world as it
+  // uses them, so ten placements share these 12 bytes a corner).
+  std::vector<glm::vec3> corners;
+  struct Triangle {
+    std::uint32_t v[3];  // corners, in the model's own order
+  };
+  std::vector<Triangle> triangles;  // in leaf order
+  // Unit normals (float: every test against them keeps kEdgeOn, far above
+  // their rounding, between itself and a sign); zero for a triangle
+  // without area, which no ray meets and which is left out of the count.
+  std::vector<glm::vec3> normals;
+  struct Leaf {
+    std::uint32_t first, last;  // its triangles
+    // Its inner edges (only its triangles run them) in `edges`: the open
+    // ones (their uses do not cancel: a rim) and the shut ones.
+    std::uint32_t open_first, open_last, shut_first, shut_last;
+  };
+  std::vector<Leaf> leaves;
+  // The leaves' tree, as they were split (preorder: node 0 the whole
+  // model): a node whose triangles all face one way settles its leaves and
+  // the edges between them with one test.
+  struct Node {
+    std::uint32_t leaf_first, leaf_last;  // its leaves [first, last)
+    std::int32_t left = -1, right = -1;   // children; -1 for a leaf
+    // The groups whose two leaves part here (lowest common node).
+    std::uint32_t group_first = 0, group_last = 0;
+  };
+  std::vector<Node> nodes;
+  // Per node, the cone of its normals: axis, and the cosine and sine of the
+  // largest angle from it (cos_spread <= 0: no cone). Arrays of their own:
+  // the one test of a node reads them.
+  std::vector<glm::dvec3> axes;
+  std::vector<double> cos_spread, sin_spread;
+  // An edge run by one or two triangles (one: direction[1] is 0), each
+  // with its leaf and its direction: +1 from corner a to b, -1 back.
+  struct Edge {
+    std::uint32_t a, b;  // corners, a < b
+    std::uint32_t triangle[2];
+    std::uint32_t leaf[2];
+    std::int8_t direction[2];
+    std::int8_t sum;
+  };
+  // The leaves' open inner edges (in leaf order: a node's lie together),
+  // their shut ones, the groups' (by node), then the loose ones (from
+  // loose_first: run by two leaves without cancelling), so that each pass
+  // reads them in order.
+  std::vector<Edge> edges;
+  // Edges run by the triangles of exactly two leaves, whose uses cancel
+  // when both face one way: skipped at once when both leaves do.
+  struct Group {
+    std::uint32_t leaf_a, leaf_b, first, last;  // edges [first, last)
+  };
+  std::vector<Group> groups;
+  std::uint32_t loose_first = 0;
+  // Edges of more than two triangles (never in a real model's surface,
+  // but possible): their uses listed, judged at every draw.
+  struct Use {
+    std::uint32_t triangle, leaf;
+    std::int32_t direction;
+  };
+  struct Many {
+    std::uint32_t a, b, first, count;  // uses [first, first + count)
+  };
+  std::vector<Many> many;
+  std::vector<Use> uses;
+  std::vector<std::uint32_t> no_area;  // triangles without area: always unsure
+  // Per triangle, its three edges: an index into `edges`, or kManyEdge |
+  // an index into `many` (kNoEdge for a triangle without area).
+  static constexpr std::uint32_t kManyEdge = 0x80000000u, kNoEdge = 0xffffffffu;
+  std::vector<std::array<std::uint32_t, 3>> triangle_edges;
+};
+
+namespace {
+
+// A triangle whose normal is this near square to the sun (|cos|) is seen
+// edge on: its sign is not trusted, it is left out of the count and its
+// shadow is unsure.
+constexpr double kEdgeOn = 1e-4;
+
+struct Point2 {
+  double x, z;
+};
+
+}  // namespace
+
+std::size_t mesh_shadow_model_bytes(const MeshShadowModel& m) {
+  return sizeof(m) + m.corners.capacity() * sizeof(m.corners[0]) + m.triangles.capacity() * sizeof(m.triangles[0]) +
+         m.normals.capacity() * sizeof(m.normals[0]) + m.leaves.capacity() * sizeof(m.leaves[0]) +
+         m.nodes.capacity() * sizeof(m.nodes[0]) +
+         m.axes.capacity() * sizeof(m.axes[0]) + 2 * m.cos_spread.capacity() * sizeof(double) +
+         m.edges.capacity() * sizeof(m.edges[0]) + m.groups.capacity() * sizeof(m.groups[0]) +
+         m.many.capacity() * sizeof(m.many[0]) + m.uses.capacity() * sizeof(m.uses[0]) +
+         m.no_area.capacity() * sizeof(std::uint32_t) + m.triangle_edges.capacity() * sizeof(m.triangle_edges[0]);
+}
+
+std::size_t mesh_shadow_model_triangles(const MeshShadowModel& m) { return m.triangles.size(); }
+
+std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& model) {
+  auto out = std::make_shared<MeshShadowModel>();
+  MeshShadowModel& m = *out;
+  // Corners welded by value (as triangle_shells welds them: Embree sees
+  // equal floats as one point, whatever the indices).
+  std::vector<glm::vec3> positions;
+  for (const ModelPart& part : model.parts) positions.insert(positions.end(), part.positions.begin(), part.positions.end());
+  std::vector<std::uint32_t> order(positions.size());
+  std::iota(order.begin(), order.end(), 0u);
+  const auto less = [&](std::uint32_t i, std::uint32_t j) {
+    return std::tie(positions[i].x, positions[i].y, positions[i].z) < std::tie(positions[j].x, positions[j].y, positions[j].z);
+  };
+  std::sort(order.begin(), order.end(), less);
+  std::vector<std::uint32_t> welded(positions.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    if (k == 0 || less(order[k - 1], order[k])) m.corners.push_back(positions[order[k]]);
+    welded[order[k]] = std::uint32_t(m.corners.size() - 1);
+  }
+  // Triangles, each with its unit normal (zero: no area).
+  struct Input {
+    MeshShadowModel::Triangle t;
+    glm::vec3 normal;
+    glm::dvec3 centre;
+  };
+  std::vector<Input> input;
+  input.reserve(model.triangle_count());
+  std::size_t base = 0;
+  for (const ModelPart& part : model.parts) {
+    for (std::size_t t = 0; t < part.triangle_count(); ++t) {
+      Input in;
+      for (int k = 0; k < 3; ++k) in.t.v[k] = welded[base + part.indices[3 * t + std::size_t(k)]];
+      const glm::dvec3 a(m.corners[in.t.v[0]]), b(m.corners[in.t.v[1]]), c(m.corners[in.t.v[2]]);
+      const glm::dvec3 e1 = b - a, e2 = c - a;
+      const glm::dvec3 n = glm::cross(e1, e2);
+      const double length = glm::length(n);
+      const bool area = in.t.v[0] != in.t.v[1] && in.t.v[1] != in.t.v[2] && in.t.v[0] != in.t.v[2] &&
+                        length > 1e-12 * glm::length(e1) * glm::length(e2);
+      in.normal = area ? glm::vec3(n / length) : glm::vec3(0.0f);
+      in.centre = (a + b + c) / 3.0;
+      input.push_back(in);
+    }
+    base += part.positions.size();
+  }
+  // Leaves: halved at the median along the longest side of their centres
+  // or, where their normals spread wider than the leaf is long, of their
+  // normals (scaled by the leaf's size), until a leaf holds at most
+  // kMeshShadowLeaf triangles whose normals lie within about 10 degrees of
+  // their axis (or at most 4 triangles): a leaf is one test while the sun
+  // stays clear of square to all its normals, and the silhouette crosses
+  // few.
+  struct Cone {
+    glm::dvec3 axis{0.0};
+    double cos_spread = -1.0, sin_spread = 1.0;
+  };
+  const auto cone_of = [&](std::size_t first, std::size_t last) {
+    Cone cone;
+    glm::dvec3 sum(0.0);
+    for (std::size_t i = first; i < last; ++i) sum += glm::dvec3(input[i].normal);
+    if (glm::length(sum) == 0.0) return cone;
+    const glm::dvec3 axis = glm::normalize(sum);
+    double low = 1.0;
+    for (std::size_t i = first; i < last; ++i)
+      if (input[i].normal != glm::vec3(0.0f)) low = std::min(low, glm::dot(glm::dvec3(input[i].normal), axis));
+    // A hair lower: the dot products' rounding.
+    low -= 1e-9;
+    if (low <= 0.05) return cone;
+    cone.axis = axis;
+    cone.cos_spread = low;
+    cone.sin_spread = std::sqrt(std::max(0.0, 1.0 - low * low));
+    return cone;
+  };
+  std::vector<std::pair<std::size_t, std::size_t>> leaves, node_triangles;
+  const auto split = [&](auto&& self, std::size_t first, std::size_t last) -> std::int32_t {
+    const std::size_t count = last - first;
+    const std::int32_t node = std::int32_t(m.nodes.size());
+    m.nodes.push_back({std::uint32_t(leaves.size()), 0});
+    node_triangles.emplace_back(first, last);
+    if (count <= 4 || (count <= std::size_t(kMeshShadowLeaf) && cone_of(first, last).cos_spread >= 0.985)) {
+      leaves.emplace_back(first, last);
+      m.nodes[std::size_t(node)].leaf_last = std::uint32_t(leaves.size());
+      return node;
+    }
+    Aabb centres, normals;
+    for (std::size_t i = first; i < last; ++i) centres.extend(input[i].centre), normals.extend(glm::dvec3(input[i].normal));
+    const glm::dvec3 e = centres.extent(), n = normals.extent() * 0.5 * std::max({e.x, e.y, e.z});
+    int axis = 0;
+    double longest = -1.0;
+    for (int k = 0; k < 6; ++k) {
+      const double side = k < 3 ? e[k] : n[k - 3];
+      if (side > longest) longest = side, axis = k;
+    }
+    if (!(longest > 0.0)) {  // all alike: no split parts them
+      leaves.emplace_back(first, last);
+      m.nodes[std::size_t(node)].leaf_last = std::uint32_t(leaves.size());
+      return node;
+    }
+    const std::size_t middle = first + count / 2;
+    std::nth_element(input.begin() + std::ptrdiff_t(first), input.begin() + std::ptrdiff_t(middle),
+                     input.begin() + std::ptrdiff_t(last), [axis](const Input& a, const Input& b) {
+                       return axis < 3 ? a.centre[axis] < b.centre[axis] : a.normal[axis - 3] < b.normal[axis - 3];
+                     });
+    const std::int32_t left = self(self, first, middle), right = self(self, middle, last);
+    m.nodes[std::size_t(node)].left = left, m.nodes[std::size_t(node)].right = right;
+    m.nodes[std::size_t(node)].leaf_last = std::uint32_t(leaves.size());
+    return node;
+  };
+  if (!input.empty()) split(split, 0, input.size());
+  for (const auto& [first, last] : node_triangles) {
+    const Cone cone = cone_of(first, last);
+    m.axes.push_back(cone.axis);
+    m.cos_spread.push_back(cone.cos_spread);
+    m.sin_spread.push_back(cone.sin_spread);
+  }
+  // The corners renumbered in order of first use.
+  std::vector<std::uint32_t> renumbered(m.corners.size(), std::numeric_limits<std::uint32_t>::max());
+  std::vector<glm::vec3> corners;
+  std::vector<std::uint32_t> leaf_of;
+  m.triangles.reserve(input.size());
+  m.normals.reserve(input.size());
+  leaf_of.reserve(input.size());
+  for (const auto& [first, last] : leaves) {
+    m.leaves.push_back({std::uint32_t(first), std::uint32_t(last), 0, 0, 0, 0});
+    for (std::size_t i = first; i < last; ++i) {
+      MeshShadowModel::Triangle t = input[i].t;
+      for (std::uint32_t& v : t.v) {
+        if (renumbered[v] == std::numeric_limits<std::uint32_t>::max()) {
+          renumbered[v] = std::uint32_t(corners.size());
+          corners.push_back(m.corners[v]);
+        }
+        v = renumbered[v];
+      }
+      m.triangles.push_back(t);
+      m.normals.push_back(input[i].normal);
+      leaf_of.push_back(std::uint32_t(m.leaves.size() - 1));
+      if (input[i].normal == glm::vec3(0.0f)) m.no_area.push_back(std::uint32_t(i));
+    }
+  }
+  m.corners = std::move(corners);
+  // Edges: every triangle with area's three, by their corners.
+  struct Run {
+    std::uint32_t a, b, triangle;
+    std::int32_t direction;
+  };
+  std::vector<Run> runs;
+  runs.reserve(3 * m.triangles.size());
+  for (std::uint32_t t = 0; t < m.triangles.size(); ++t) {
+    if (m.normals[t] == glm::vec3(0.0f)) continue;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t from = m.triangles[t].v[k], to = m.triangles[t].v[(k + 1) % 3];
+      runs.push_back({std::min(from, to), std::max(from, to), t, from < to ? 1 : -1});
+    }
+  }
+  std::sort(runs.begin(), runs.end(),
+            [](const Run& x, const Run& y) { return std::tie(x.a, x.b, x.triangle) < std::tie(y.a, y.b, y.triangle); });
+  // The lowest node holding both leaves.
+  const auto parting = [&](std::uint32_t la, std::uint32_t lb) {
+    std::size_t node = 0;
+    while (m.nodes[node].left >= 0) {
+      const MeshShadowModel::Node& left = m.nodes[std::size_t(m.nodes[node].left)];
+      if (la >= left.leaf_first && la < left.leaf_last && lb >= left.leaf_first && lb < left.leaf_last)
+        node = std::size_t(m.nodes[node].left);
+      else if (la >= left.leaf_last && lb >= left.leaf_last)
+        node = std::size_t(m.nodes[node].right);
+      else
+        break;
+    }
+    return std::uint32_t(node);
+  };
+  // Each edge's place: a leaf's inner edges (open, shut), a group between
+  // two leaves (by the node where they part), or loose.
+  struct Placed {
+    int kind;  // 0 open inner, 1 shut inner, 2 group, 3 loose
+    std::uint32_t key[3];
+    MeshShadowModel::Edge edge;
+  };
+  std::vector<Placed> placed;
+  for (std::size_t i = 0; i < runs.size();) {
+    std::size_t j = i;
+    while (j < runs.size() && runs[j].a == runs[i].a && runs[j].b == runs[i].b) ++j;
+    if (j - i > 2) {
+      m.many.push_back({runs[i].a, runs[i].b, std::uint32_t(m.uses.size()), std::uint32_t(j - i)});
+      for (std::size_t k = i; k < j; ++k) m.uses.push_back({runs[k].triangle, leaf_of[runs[k].triangle], runs[k].direction});
+      i = j;
+      continue;
+    }
+    MeshShadowModel::Edge edge{};
+    edge.a = runs[i].a, edge.b = runs[i].b;
+    const std::size_t second = j - i == 2 ? i + 1 : i;
+    edge.triangle[0] = runs[i].triangle, edge.triangle[1] = runs[second].triangle;
+    edge.leaf[0] = leaf_of[edge.triangle[0]], edge.leaf[1] = leaf_of[edge.triangle[1]];
+    edge.direction[0] = std::int8_t(runs[i].direction);
+    edge.direction[1] = j - i == 2 ? std::int8_t(runs[second].direction) : std::int8_t(0);
+    edge.sum = std::int8_t(edge.direction[0] + edge.direction[1]);
+    const std::uint32_t la = std::min(edge.leaf[0], edge.leaf[1]), lb = std::max(edge.leaf[0], edge.leaf[1]);
+    if (la == lb)
+      placed.push_back({edge.sum != 0 ? 0 : 1, {la, 0, 0}, edge});
+    else if (edge.sum == 0)
+      placed.push_back({2, {parting(la, lb), la, lb}, edge});
+    else
+      placed.push_back({3, {0, 0, 0}, edge});
+    i = j;
+  }
+  std::stable_sort(placed.begin(), placed.end(), [](const Placed& x, const Placed& y) {
+    return std::tie(x.kind, x.key[0], x.key[1], x.key[2]) < std::tie(y.kind, y.key[0], y.key[1], y.key[2]);
+  });
+  m.edges.reserve(placed.size());
+  for (const Placed& p : placed) m.edges.push_back(p.edge);
+  std::size_t i = 0;
+  for (std::uint32_t l = 0; l < m.leaves.size(); ++l) {
+    m.leaves[l].open_first = std::uint32_t(i);
+    while (i < placed.size() && placed[i].kind == 0 && placed[i].key[0] == l) ++i;
+    m.leaves[l].open_last = std::uint32_t(i);
+  }
+  for (std::uint32_t l = 0; l < m.leaves.size(); ++l) {
+    m.leaves[l].shut_first = std::uint32_t(i);
+    while (i < placed.size() && placed[i].kind == 1 && placed[i].key[0] == l) ++i;
+    m.leaves[l].shut_last = std::uint32_t(i);
+  }
+  for (; i < placed.size() && placed[i].kind == 2; ++i) {
+    if (m.groups.empty() || m.groups.back().leaf_a != placed[i].key[1] || m.groups.back().leaf_b != placed[i].key[2]) {
+      MeshShadowModel::Node& node = m.nodes[placed[i].key[0]];
+      if (node.group_first == node.group_last) node.group_first = node.group_last = std::uint32_t(m.groups.size());
+      m.groups.push_back({placed[i].key[1], placed[i].key[2], std::uint32_t(i), std::uint32_t(i)});
+      node.group_last = std::uint32_t(m.groups.size());
+    }
+    m.groups.back().last = std::uint32_t(i + 1);
+  }
+  m.loose_first = std::uint32_t(i);
+  m.triangle_edges.assign(m.triangles.size(), {MeshShadowModel::kNoEdge, MeshShadowModel::kNoEdge, MeshShadowModel::kNoEdge});
+  const auto attach = [&](std::uint32_t t, std::uint32_t index) {
+    for (std::uint32_t& slot : m.triangle_edges[t])
+      if (slot == MeshShadowModel::kNoEdge) {
+        slot = index;
+        return;
+      }
+  };
+  for (std::uint32_t e = 0; e < m.edges.size(); ++e) {
+    attach(m.edges[e].triangle[0], e);
+    if (m.edges[e].direction[1] != 0) attach(m.edges[e].triangle[1], e);
+  }
+  for (std::uint32_t e = 0; e < m.many.size(); ++e)
+    for (std::uint32_t u = m.many[e].first; u < m.many[e].first + m.many[e].count; ++u)
+      attach(m.uses[u].triangle, MeshShadowModel::kManyEdge | e);
+  return out;
+}
+
+glm::dvec3 MeshGridShadow::corner(std::uint32_t i) const {
+  return glm::dvec3(to_world_ * glm::dvec4(glm::dvec3(model_->corners[i]), 1.0));
+}
+
+namespace {
+
+// A memory stays while the sun's direction (unit, model space) is within
+// kDrift of the one it judged at (chord length): a triangle whose normal's
+// cosine with it lay further than kEdgeOn + kDrift from 0 keeps its sign
+// and its face till then. Its tracked triangles go in kBuckets by that
+// room, so a draw re-judges only those with too little of it.
+constexpr double kDrift = 0.05;
+constexpr int kBuckets = 32;
+constexpr std::uint8_t kSteady = 255;  // not tracked: settled with the whole drift to spare
+
+}  // namespace
+
+struct MeshGridShadow::Memory {
+  bool valid = false;
+  glm::dvec3 dm{0.0};                 // the direction judged at
+  std::vector<std::int8_t> leaf_sign;  // then, per leaf (kMixed: per triangle)
+  std::vector<std::int8_t> sign;       // then, per triangle of a mixed leaf
+  std::vector<std::int8_t> now;        // this draw, per tracked triangle re-judged
+  std::vector<std::uint8_t> bucket;    // per triangle: its room's bucket, or kSteady
+  std::vector<std::uint32_t> tracked, tracked_start;  // tracked triangles by bucket
+  struct Kept {
+    std::uint32_t a, b;
+    std::int32_t times;
+    std::uint32_t bucket;  // the lower of its triangles'
+  };
+  std::vector<Kept> outline;        // the outline edges then
+  std::vector<std::uint32_t> near;  // triangles near the plane with a sign then
+  std::vector<std::uint32_t> stamp; // per edge: the draw that last judged it
+  std::uint32_t clock = 0;
+};
+
+MeshGridShadow::~MeshGridShadow() = default;
+MeshGridShadow::MeshGridShadow(MeshGridShadow&&) noexcept = default;
+
+MeshGridShadow::MeshGridShadow(std::shared_ptr<const MeshShadowModel> model, const glm::dmat4& to_world,
+                               double plane_y, double margin, int slots)
+    : model_(std::move(model)),
+      to_world_(to_world),
+      to_model_(glm::inverse(glm::dmat3(to_world))),
+      plane_y_(plane_y),
+      margin_(margin) {
+  const MeshShadowModel& m = *model_;
+  height_.resize(m.corners.size());
+  for (std::size_t i = 0; i < m.corners.size(); ++i) {
+    const double y = corner(std::uint32_t(i)).y;
+    height_[i] = y < plane_y - margin ? 0 : (y < plane_y + margin ? 1 : 2);
+  }
+  std::vector<std::uint8_t> leaf_place(m.leaves.size(), 0);
+  for (std::size_t l = 0; l < m.leaves.size(); ++l) {
+    bool any_up = false, all_above = true;
+    for (std::uint32_t t = m.leaves[l].first; t < m.leaves[l].last; ++t) {
+      const auto& v = m.triangles[t].v;
+      const int low = std::min({height_[v[0]], height_[v[1]], height_[v[2]]});
+      const int high = std::max({height_[v[0]], height_[v[1]], height_[v[2]]});
+      any_up = any_up || high > 0;
+      all_above = all_above && low == 2;
+      if (high > 0)
+        for (const std::uint32_t c : v) reach_.extend(corner(c));
+    }
+    leaf_place[l] = all_above ? 2 : (any_up ? 1 : 0);
+  }
+  // Nodes after their children (preorder, backwards).
+  node_place_.assign(m.nodes.size(), 0);
+  for (std::size_t n = m.nodes.size(); n-- > 0;) {
+    const MeshShadowModel::Node& node = m.nodes[n];
+    node_place_[n] = node.left < 0 ? leaf_place[node.leaf_first]
+                                   : (node_place_[std::size_t(node.left)] == node_place_[std::size_t(node.right)]
+                                          ? node_place_[std::size_t(node.left)]
+                                          : std::uint8_t(1));
+  }
+  for (int i = 0; i < slots; ++i) memory_.push_back(std::make_unique<Memory>());
+}
+
+namespace {
+
+// What a draw gathers before it sorts: crossings of rows by the outline
+// (with the change in count) and unsure columns.
+struct Crossing {
+  int row;
+  double x;
+  int change;
+};
+struct Unsure {
+  int row;
+  ColumnSpan columns;
+};
+
+// Calls f(first, last) for each stretch of the columns [first, last] that
+// no span of `without` (sorted, merged) holds.
+template <class F>
+void for_each_outside(int first, int last, const ColumnSpan* without, std::size_t count, F&& f) {
+  int c = first;
+  for (std::size_t v = 0; v < count && c <= last; ++v) {
+    if (without[v].last < c) continue;
+    if (without[v].first > last) break;
+    if (without[v].first > c) f(c, without[v].first - 1);
+    c = std::max(c, without[v].last + 1);
+  }
+  if (c <= last) f(c, last);
+}
+
+}  // namespace
+
+void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step, GridShadow& out, int slot) const {
+  out.first_row = 0, out.last_row = -1;
+  out.dark_start.clear(), out.unsure_start.clear(), out.dark.clear(), out.unsure.clear();
+  out.work = 0.0;
+  if (!(d.y > 0.0) || reach_.empty() || grid.rows <= 0 || grid.columns <= 0) return;
+  const MeshShadowModel& m = *model_;
+  const glm::dvec3 dm = glm::normalize(to_model_ * d);
+  const glm::dvec3 origin = grid.origin();
+  const double spacing = grid.spacing, cut = plane_y_ + margin_;
+  // The largest magnitude the steps below meet: the rounding of each (a
+  // slide, a crossing, a grid point) is a few 1e-16 of it.
+  const double extent = std::max({1.0, std::abs(origin.x), std::abs(origin.z), std::abs(reach_.min.x),
+                                  std::abs(reach_.max.x), std::abs(reach_.min.z), std::abs(reach_.max.z),
+                                  (reach_.max.y - plane_y_) / d.y});
+  // How far from the outline a point's ray may pass and still be judged:
+  // the margin (the ray cast's rounding, across the ray) slid onto the
+  // plane, where it stretches by 1 / d.y at most, and this code's own.
+  const double reach = margin_ * (1.0 + 1e-6) / d.y + 1e-9 * extent;
+  const auto slide = [&](const glm::dvec3& p) {
+    const double t = (p.y - plane_y_) / d.y;
+    return Point2{p.x - t * d.x, p.z - t * d.z};
+  };
+  const auto row_z = [&](int r) { return origin.z + double(r) * spacing; };
+
+  thread_local std::vector<Crossing> crossings;
+  thread_local std::vector<Unsure> unsure;
+  thread_local std::vector<std::int8_t> own_sign, own_leaf_sign;
+  crossings.clear(), unsure.clear();
+  Memory* memory = slot >= 0 && std::size_t(slot) < memory_.size() ? memory_[std::size_t(slot)].get() : nullptr;
+  std::vector<std::int8_t>& sign = memory ? memory->sign : own_sign;
+  std::vector<std::int8_t>& leaf_sign = memory ? memory->leaf_sign : own_leaf_sign;
+  if (sign.size() < m.triangles.size()) sign.resize(m.triangles.size());
+  if (leaf_sign.size() < m.leaves.size()) leaf_sign.resize(m.leaves.size());
+  constexpr std::int8_t kMixed = 2;
+  double work = double(m.leaves.size());
+
+  // The rows (multiples of row_step in the grid) whose z lies in [low, high].
+  const auto rows_between = [&](double low, double high, int& r0, int& r1) {
+    const double from = std::max(0.0, std::ceil((low - origin.z) / spacing) - 1.0);
+    const double to = std::min(double(grid.rows - 1), std::floor((high - origin.z) / spacing) + 1.0);
+    if (!(from <= to)) return false;
+    r0 = int(std::ceil(from / row_step)) * row_step, r1 = int(to);
+    return r0 <= r1;
+  };
+  // The columns within `reach` of a convex polygon (1 to 5 points slid
+  // onto the plane) in each row it comes near: unsure.
+  const auto mark_unsure = [&](const Point2* p, int n) {
+    double z_low = p[0].z, z_high = p[0].z;
+    for (int i = 1; i < n; ++i) z_low = std::min(z_low, p[i].z), z_high = std::max(z_high, p[i].z);
+    int r0, r1;
+    if (!rows_between(z_low - reach, z_high + reach, r0, r1)) return;
+    for (int r = r0; r <= r1; r += row_step) {
+      const double z = row_z(r), band_low = z - reach, band_high = z + reach;
+      double x_low = 1e300, x_high = -1e300;
+      const int edges = n == 2 ? 1 : n;
+      for (int i = 0; i < edges; ++i) {
+        const Point2& a = p[i];
+        const Point2& b = p[(i + 1) % n];
+        const double e_low = std::min(a.z, b.z), e_high = std::max(a.z, b.z);
+        if (e_high < band_low || e_low > band_high) continue;
+        if (a.z == b.z) {
+          x_low = std::min({x_low, a.x, b.x}), x_high = std::max({x_high, a.x, b.x});
+          continue;
+        }
+        for (const double at : {std::max(band_low, e_low), std::min(band_high, e_high)}) {
+          const double s = std::clamp((at - a.z) / (b.z - a.z), 0.0, 1.0);
+          const double x = a.x + s * (b.x - a.x);
+          x_low = std::min(x_low, x), x_high = std::max(x_high, x);
+        }
+      }
+      if (n == 1 && p[0].z >= band_low && p[0].z <= band_high) x_low = x_high = p[0].x;
+      if (x_low > x_high) continue;
+      const double c0 = std::max(0.0, std::ceil((x_low - reach - origin.x) / spacing));
+      const double c1 = std::min(double(grid.columns - 1), std::floor((x_high + reach - origin.x) / spacing));
+      if (c0 <= c1) unsure.push_back({r, {int(c0), int(c1)}});
+      work += 1.0;
+    }
+  };
+  // An outline edge from a to b counted `times` (the net of the triangles
+  // that run it): its crossings of the rows, and its unsure columns (those
+  // within `reach` of it, in the rows whose band of z within `reach` it
+  // meets). One pass over its rows for both: the silhouette's edges are
+  // most of a draw, and most meet no row at all.
+  const double inverse = 1.0 / spacing;
+  const auto outline = [&](const Point2& a, const Point2& b, int times) {
+    work += 1.0;
+    const double low = std::min(a.z, b.z), high = std::max(a.z, b.z);
+    // A row more each way than the products find: each is checked below.
+    const double from = std::max(0.0, std::ceil((low - reach - origin.z) * inverse) - 1.0);
+    const double to = std::min(double(grid.rows - 1), std::floor((high + reach - origin.z) * inverse) + 1.0);
+    if (!(from <= to)) return;
+    const int change = (b.z > a.z ? 1 : -1) * times;
+    for (int r = int(std::ceil(from / row_step)) * row_step; r <= int(to); r += row_step) {
+      const double z = row_z(r);
+      if (high < z - reach || low > z + reach) continue;
+      double x_low, x_high;
+      if (a.z == b.z) {
+        x_low = std::min(a.x, b.x), x_high = std::max(a.x, b.x);
+      } else {
+        const double s0 = std::clamp((z - reach - a.z) / (b.z - a.z), 0.0, 1.0);
+        const double s1 = std::clamp((z + reach - a.z) / (b.z - a.z), 0.0, 1.0);
+        x_low = a.x + s0 * (b.x - a.x), x_high = a.x + s1 * (b.x - a.x);
+        if (x_low > x_high) std::swap(x_low, x_high);
+        // Half open, so that two edges that meet at a row's height count once.
+        if ((a.z <= z) != (b.z <= z)) crossings.push_back({r, a.x + (z - a.z) * (b.x - a.x) / (b.z - a.z), change});
+      }
+      const double c0 = std::max(0.0, std::ceil((x_low - reach - origin.x) * inverse));
+      const double c1 = std::min(double(grid.columns - 1), std::floor((x_high + reach - origin.x) * inverse));
+      if (c0 <= c1) unsure.push_back({r, {int(c0), int(c1)}});
+    }
+  };
+  // Where the edge between corners i < j crosses the cut (the same point
+  // for every triangle that runs it, so that their parts above still meet).
+  const auto cut_point = [&](std::uint32_t i, std::uint32_t j) {
+    const glm::dvec3 p = corner(i), q = corner(j);
+    glm::dvec3 c = p + (cut - p.y) / (q.y - p.y) * (q - p);
+    c.y = cut;
+    return c;
+  };
+  // An edge (a < b), its part above the cut, counted `times`.
+  const auto edge_outline = [&](std::uint32_t a, std::uint32_t b, int times) {
+    const bool a_up = height_[a] == 2, b_up = height_[b] == 2;
+    if (!a_up && !b_up) return;
+    const glm::dvec3 p = a_up ? corner(a) : cut_point(a, b);
+    const glm::dvec3 q = b_up ? corner(b) : cut_point(a, b);
+    outline(slide(p), slide(q), times);
+  };
+  const auto triangle_unsure = [&](std::uint32_t t) {
+    const auto& v = m.triangles[t].v;
+    if (height_[v[0]] == 0 && height_[v[1]] == 0 && height_[v[2]] == 0) return;
+    const Point2 p[3] = {slide(corner(v[0])), slide(corner(v[1])), slide(corner(v[2]))};
+    mark_unsure(p, 3);
+  };
+  // A triangle near the plane: its part within the margin of it is unsure
+  // (a ray from the plane may meet it at once or not), and its part above
+  // the cut ends in a cut edge from where its outline leaves the part
+  // above to where it comes back.
+  const auto near_plane = [&](std::uint32_t t, int s) {
+    const auto& v = m.triangles[t].v;
+    // The triangle clipped to plane_y +- margin (Sutherland-Hodgman).
+    glm::dvec3 poly[7], next[7];
+    int n = 3;
+    for (int k = 0; k < 3; ++k) poly[k] = corner(v[k]);
+    for (const double side : {-1.0, 1.0}) {
+      const double bound = plane_y_ + side * margin_;
+      int kept = 0;
+      for (int k = 0; k < n; ++k) {
+        const glm::dvec3 &a = poly[k], &b = poly[(k + 1) % n];
+        const bool a_in = side < 0 ? a.y >= bound : a.y <= bound, b_in = side < 0 ? b.y >= bound : b.y <= bound;
+        if (a_in) next[kept++] = a;
+        if (a_in != b_in) {
+          glm::dvec3 c = a + (bound - a.y) / (b.y - a.y) * (b - a);
+          c.y = bound;
+          next[kept++] = c;
+        }
+      }
+      n = kept;
+      std::copy(next, next + n, poly);
+      if (n == 0) break;
+    }
+    if (n > 0) {
+      Point2 p[7];
+      for (int k = 0; k < n; ++k) p[k] = slide(poly[k]);
+      mark_unsure(p, n);
+    }
+    if (s == 0) return;
+    int exit_edge = -1, entry_edge = -1;
+    for (int k = 0; k < 3; ++k) {
+      const bool from_up = height_[v[k]] == 2, to_up = height_[v[(k + 1) % 3]] == 2;
+      if (from_up && !to_up) exit_edge = k;
+      if (!from_up && to_up) entry_edge = k;
+    }
+    if (exit_edge < 0 || entry_edge < 0) return;
+    const auto on = [&](int k) {
+      const std::uint32_t i = v[k], j = v[(k + 1) % 3];
+      return cut_point(std::min(i, j), std::max(i, j));
+    };
+    outline(slide(on(exit_edge)), slide(on(entry_edge)), s);
+  };
+
+  const auto sign_of = [&](std::uint32_t t, std::uint32_t leaf) {
+    const int s = leaf_sign[leaf];
+    return s == kMixed ? int(sign[t]) : s;
+  };
+  // A triangle (not below the plane, with area) judged alone: its sign,
+  // 0 if seen edge on (its shadow unsure), and near the plane its cut
+  // outline and its unsure slice.
+  const auto judge_triangle = [&](std::uint32_t t, double facing) -> std::int8_t {
+    work += 1.0;
+    if (std::abs(facing) <= kEdgeOn) {
+      triangle_unsure(t);
+      return 0;
+    }
+    const std::int8_t s = facing > 0.0 ? 1 : -1;
+    const auto& v = m.triangles[t].v;
+    if (!(height_[v[0]] == 2 && height_[v[1]] == 2 && height_[v[2]] == 2)) near_plane(t, s);
+    return s;
+  };
+  const auto below = [&](std::uint32_t t) {
+    const auto& v = m.triangles[t].v;
+    return height_[v[0]] == 0 && height_[v[1]] == 0 && height_[v[2]] == 0;
+  };
+  // The tracked triangles' buckets of room (Memory): 0 for none.
+  const double bucket_width = kDrift / kBuckets;
+  const auto bucket_of = [&](double facing) {
+    const double room = std::abs(facing) - kEdgeOn;
+    return room <= 0.0 ? std::uint8_t(0) : std::uint8_t(std::min<double>(kBuckets, std::ceil(room / bucket_width)));
+  };
+  // (A hair more: the normals are floats, a few 1e-8 off unit length.)
+  const double drift = memory && memory->valid ? glm::length(dm - memory->dm) * (1.0 + 1e-6) : 1e300;
+  const int turned = int(std::min<double>(kBuckets, std::ceil(drift / bucket_width)));
+  if (memory && turned < kBuckets) {
+    // Since the memory's direction the sun has turned by `drift`: the
+    // tracked triangles with no more room than that are judged again, the
+    // edges they run too; everything else is as it was.
+    if (++memory->clock == 0) std::fill(memory->stamp.begin(), memory->stamp.end(), 0u), memory->clock = 1;
+    const std::uint32_t* first = memory->tracked.data() + memory->tracked_start[0];
+    const std::uint32_t* last = memory->tracked.data() + memory->tracked_start[std::size_t(turned) + 1];
+    for (const std::uint32_t* t = first; t != last; ++t)
+      memory->now[*t] = judge_triangle(*t, glm::dot(glm::dvec3(m.normals[*t]), dm));
+    const auto sign_now = [&](std::uint32_t t, std::uint32_t leaf) {
+      return memory->bucket[t] <= turned ? int(memory->now[t]) : sign_of(t, leaf);
+    };
+    for (const std::uint32_t t : memory->near)
+      if (memory->bucket[t] > turned) near_plane(t, sign[t]);
+    for (const Memory::Kept& k : memory->outline)
+      if (k.bucket > std::uint32_t(turned)) edge_outline(k.a, k.b, k.times);
+    for (const std::uint32_t* t = first; t != last; ++t)
+      for (const std::uint32_t index : m.triangle_edges[*t]) {
+        if (index == MeshShadowModel::kNoEdge || (index & MeshShadowModel::kManyEdge)) continue;
+        if (memory->stamp[index] == memory->clock) continue;
+        memory->stamp[index] = memory->clock;
+        const MeshShadowModel::Edge& e = m.edges[index];
+        work += 0.25;
+        const int times = sign_now(e.triangle[0], e.leaf[0]) * e.direction[0] + sign_now(e.triangle[1], e.leaf[1]) * e.direction[1];
+        if (times != 0) edge_outline(e.a, e.b, times);
+      }
+    for (const MeshShadowModel::Many& e : m.many) {
+      int times = 0;
+      for (std::uint32_t u = e.first; u < e.first + e.count; ++u)
+        times += sign_now(m.uses[u].triangle, m.uses[u].leaf) * m.uses[u].direction;
+      if (times != 0) edge_outline(e.a, e.b, times);
+    }
+    for (const std::uint32_t t : m.no_area) triangle_unsure(t);
+    work += double(memory->outline.size() + memory->near.size()) * 0.25;
+  } else {
+  if (memory) {
+    memory->valid = true;
+    memory->dm = dm;
+    memory->bucket.assign(m.triangles.size(), kSteady);
+    memory->now.resize(m.triangles.size());
+    memory->stamp.resize(m.edges.size());
+    memory->tracked.clear();
+    memory->outline.clear();
+    memory->near.clear();
+  }
+  const auto bucket = [&](std::uint32_t t) { return memory->bucket[t]; };
+  const auto judge = [&](const MeshShadowModel::Edge& e) {
+    const int times = sign_of(e.triangle[0], e.leaf[0]) * e.direction[0] + sign_of(e.triangle[1], e.leaf[1]) * e.direction[1];
+    if (times == 0) return;
+    edge_outline(e.a, e.b, times);
+    if (memory) memory->outline.push_back({e.a, e.b, times, std::min(bucket(e.triangle[0]), bucket(e.triangle[1]))});
+  };
+  // Whether all of a node's normals face the sun (+1), all face away (-1),
+  // clear of square by kEdgeOn (with a memory, by the drift it allows
+  // too), or neither (0): cos(angle to the axis -/+ the spread), the
+  // nearest any normal comes to square, against that bar and a hair for
+  // the rounding: c C - s S > bar with s = sqrt(1 - c^2), squared.
+  const double bar = kEdgeOn + (memory ? kDrift : 0.0) + 1e-9;
+  const auto facing_of = [&](std::size_t n) {
+    if (!(m.cos_spread[n] > 0.0)) return 0;
+    const double c = glm::dot(m.axes[n], dm), C = m.cos_spread[n], S = m.sin_spread[n];
+    const double rest = (1.0 - c * c) * S * S;
+    const double front = c * C - bar, back = -c * C - bar;
+    if (front > 0.0 && front * front > rest) return 1;
+    if (back > 0.0 && back * back > rest) return -1;
+    return 0;
+  };
+  // The tree, from its root: a node wholly below the plane counts nothing;
+  // one wholly above facing one way settles its leaves, and every edge
+  // between two of its triangles cancels but the open ones; any other is
+  // split, down to leaves judged triangle by triangle, and then the edges
+  // between its two halves are judged.
+  const auto visit = [&](auto&& self, std::size_t n) -> void {
+    const MeshShadowModel::Node& node = m.nodes[n];
+    work += 1.0;
+    const int place = node_place_[n];
+    if (place == 0) {
+      std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(0));
+      return;
+    }
+    const int facing = place == 2 ? facing_of(n) : 0;
+    if (facing != 0) {
+      std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(facing));
+      const std::uint32_t first = m.leaves[node.leaf_first].open_first, last = m.leaves[node.leaf_last - 1].open_last;
+      for (std::uint32_t i = first; i < last; ++i) {
+        edge_outline(m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum);
+        if (memory) memory->outline.push_back({m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum, kSteady});
+      }
+      return;
+    }
+    if (node.left >= 0) {
+      self(self, std::size_t(node.left));
+      self(self, std::size_t(node.right));
+      for (std::uint32_t g = node.group_first; g < node.group_last; ++g) {
+        const MeshShadowModel::Group& group = m.groups[g];
+        if (leaf_sign[group.leaf_a] != kMixed && leaf_sign[group.leaf_a] == leaf_sign[group.leaf_b]) continue;
+        work += 0.25 * double(group.last - group.first);
+        for (std::uint32_t i = group.first; i < group.last; ++i) judge(m.edges[i]);
+      }
+      work += 0.05 * double(node.group_last - node.group_first);
+      return;
+    }
+    const std::uint32_t l = node.leaf_first;
+    const MeshShadowModel::Leaf& leaf = m.leaves[l];
+    leaf_sign[l] = kMixed;
+    for (std::uint32_t t = leaf.first; t < leaf.last; ++t) {
+      sign[t] = 0;
+      if (m.normals[t] == glm::vec3(0.0f) || below(t)) continue;  // no area (no_area), or out of reach
+      const double facing_t = glm::dot(glm::dvec3(m.normals[t]), dm);
+      sign[t] = judge_triangle(t, facing_t);
+      if (!memory) continue;
+      memory->bucket[t] = bucket_of(facing_t);
+      memory->tracked.push_back(t);
+      const auto& v = m.triangles[t].v;
+      if (sign[t] != 0 && !(height_[v[0]] == 2 && height_[v[1]] == 2 && height_[v[2]] == 2)) memory->near.push_back(t);
+    }
+    work += 0.25 * double(leaf.open_last - leaf.open_first + leaf.shut_last - leaf.shut_first);
+    for (std::uint32_t i = leaf.open_first; i < leaf.open_last; ++i) judge(m.edges[i]);
+    for (std::uint32_t i = leaf.shut_first; i < leaf.shut_last; ++i) judge(m.edges[i]);
+  };
+  if (!m.nodes.empty()) visit(visit, 0);
+  for (const std::uint32_t t : m.no_area) triangle_unsure(t);
+  for (std::size_t i = m.loose_first; i < m.edges.size(); ++i) judge(m.edges[i]);
+  for (const MeshShadowModel::Many& e : m.many) {
+    int times = 0;
+    for (std::uint32_t u = e.first; u < e.first + e.count; ++u)
+      times += sign_of(m.uses[u].triangle, m.uses[u].leaf) * m.uses[u].direction;
+    if (times != 0) edge_outline(e.a, e.b, times);
+  }
+  work += 0.25 * double(m.edges.size() - m.loose_first + m.uses.size());
+  if (memory) {
+    // The tracked triangles by bucket (a counting sort).
+    std::vector<std::uint32_t>& start = memory->tracked_start;
+    start.assign(kBuckets + 2, 0);
+    for (const std::uint32_t t : memory->tracked) ++start[std::size_t(memory->bucket[t]) + 1];
+    for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+    std::vector<std::uint32_t> next(start.begin(), start.end() - 1), sorted(memory->tracked.size());
+    for (const std::uint32_t t : memory->tracked) sorted[next[memory->bucket[t]]++] = t;
+    memory->tracked.swap(sorted);
+  }
+  }
+
+  // Row by row: the unsure columns merged, and the dark ones where the
+  // count is not zero, less the unsure. Both lists go by row first (a
+  // counting sort: a low sun's shadow crosses every row, tens of thousands
+  // of crossings), then by x within each row (a few).
+  work += 0.1 * double(crossings.size() + unsure.size());
+  out.work = work;
+  if (crossings.empty() && unsure.empty()) return;
+  int first = std::numeric_limits<int>::max(), last = -1;
+  for (const Crossing& c : crossings) first = std::min(first, c.row), last = std::max(last, c.row);
+  for (const Unsure& u : unsure) first = std::min(first, u.row), last = std::max(last, u.row);
+  thread_local std::vector<Crossing> crossings_by_row;
+  thread_local std::vector<Unsure> unsure_by_row;
+  thread_local std::vector<std::uint32_t> crossing_start, unsure_at;
+  const auto by_row = [&](const auto& from, auto& to, std::vector<std::uint32_t>& start, const auto& less) {
+    start.assign(std::size_t(last - first + 2), 0);
+    for (const auto& item : from) ++start[std::size_t(item.row - first) + 1];
+    for (std::size_t r = 1; r < start.size(); ++r) start[r] += start[r - 1];
+    to.resize(from.size());
+    std::vector<std::uint32_t>& next = unsure_at;
+    next.assign(start.begin(), start.end() - 1);
+    for (const auto& item : from) to[next[std::size_t(item.row - first)]++] = item;
+    for (std::size_t r = 0; r + 1 < start.size(); ++r)
+      if (start[r + 1] - start[r] > 1) std::sort(to.begin() + start[r], to.begin() + start[r + 1], less);
+  };
+  thread_local std::vector<std::uint32_t> unsure_start;
+  by_row(crossings, crossings_by_row, crossing_start, [](const Crossing& a, const Crossing& b) { return a.x < b.x; });
+  by_row(unsure, unsure_by_row, unsure_start,
+         [](const Unsure& a, const Unsure& b) { return a.columns.first < b.columns.first; });
+  crossings.swap(crossings_by_row);
+  unsure.swap(unsure_by_row);
+  out.first_row = first, out.last_row = last;
+  out.dark_start.assign(std::size_t(last - first + 2), 0);
+  out.unsure_start.assign(std::size_t(last - first + 2), 0);
+  std::size_t ci = 0, ui = 0;
+  for (int r = first; r <= last; ++r) {
+    const std::size_t row = std::size_t(r - first);
+    out.unsure_start[row] = std::uint32_t(out.unsure.size());
+    out.dark_start[row] = std::uint32_t(out.dark.size());
+    const std::size_t unsure_first = out.unsure.size();
+    for (; ui < unsure.size() && unsure[ui].row == r; ++ui) {
+      const ColumnSpan& c = unsure[ui].columns;
+      if (out.unsure.size() > unsure_first && c.first <= out.unsure.back().last + 1)
+        out.unsure.back().last = std::max(out.unsure.back().last, c.last);
+      else
+        out.unsure.push_back(c);
+    }
+    const ColumnSpan* row_unsure = out.unsure.data() + unsure_first;
+    const std::size_t row_unsure_count = out.unsure.size() - unsure_first;
+    int count = 0;
+    double run_start = 0.0;
+    for (; ci < crossings.size() && crossings[ci].row == r; ++ci) {
+      const int before = count;
+      count += crossings[ci].change;
+      if (before == 0 && count != 0) run_start = crossings[ci].x;
+      if (before != 0 && count == 0) {
+        const double c0 = std::max(0.0, std::ceil((run_start - origin.x) / spacing));
+        const double c1 = std::min(double(grid.columns - 1), std::floor((crossings[ci].x - origin.x) / spacing));
+        if (c0 <= c1)
+          for_each_outside(int(c0), int(c1), row_unsure, row_unsure_count,
+                           [&](int a, int b) { out.dark.push_back({a, b}); });
+      }
+    }
+  }
+  out.unsure_start.back() = std::uint32_t(out.unsure.size());
+  out.dark_start.back() = std::uint32_t(out.dark.size());
+}
+
+}  // namespace umbra

@@ -1,0 +1,211 @@
+// The exact shadow of a mesh on the grid (reference/mesh_grid_shadow.hpp):
+// every point it calls dark, the ray cast finds dark, and every point it
+// calls lit (neither dark nor unsure), the ray cast finds lit, for the
+// very query the pure ray cast asks (sees_sun: Embree in float in the
+// model's space), over open and closed models, turned, stretched and
+// mirrored, crossing the grid's plane, with grazing suns.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
+
+#include "core/builtin_models.hpp"
+#include "core/mesh_instance.hpp"
+#include "model_support.hpp"
+#include "reference/mesh_grid_shadow.hpp"
+#include "reference/ray_cast.hpp"
+#include "reference/sun_hours_ray_cast.hpp"
+
+namespace umbra {
+namespace {
+
+struct Placed {
+  std::string what;
+  std::shared_ptr<const TriangleModel> model;
+  glm::dvec3 position{0.0}, rotation_deg{0.0}, scale{1.0};
+  SunGrid grid;
+};
+
+SunGrid grid_of(double y, double size, double spacing) {
+  SunGrid grid;
+  grid.center = {0.0, y, 0.0};
+  grid.size_x = grid.size_z = size;
+  grid.spacing = spacing;
+  grid.columns = grid.rows = int(std::lround(size / spacing));
+  return grid;
+}
+
+SceneObject mesh_of(const Placed& p) {
+  SceneObject mesh;
+  mesh.type = SceneObject::Type::Mesh;
+  mesh.model = p.model;
+  mesh.model_id = p.what;
+  mesh.center = p.position;
+  mesh.rotation_deg = p.rotation_deg;
+  mesh.mesh_scale = p.scale;
+  return mesh;
+}
+
+// The margin the footprints give a mesh (sun_hours_footprints' caster):
+// a hundred thousandth of the magnitudes met, and of the model's own
+// coordinates times its largest scale (Embree tests in those, in float).
+double margin_of(const SceneObject& mesh, const SunGrid& grid) {
+  const Aabb b = object_bounds(mesh);
+  const glm::dvec3 far = grid.point(grid.points() - 1), near = grid.origin();
+  const double reach = std::max({std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x),
+                                 std::abs(b.max.y), std::abs(b.max.z), std::abs(far.x), std::abs(far.z),
+                                 std::abs(near.x), std::abs(near.z), std::abs(grid.center.y)});
+  const double scale = std::max({std::abs(mesh.mesh_scale.x), std::abs(mesh.mesh_scale.y), std::abs(mesh.mesh_scale.z)});
+  return std::max(1e-5 * (1.0 + reach), 1e-5 * (1.0 + mesh.model->bounds.reach()) * scale);
+}
+
+glm::dvec3 sun(double azimuth_deg, double elevation_deg) {
+  const double az = glm::radians(azimuth_deg), el = glm::radians(elevation_deg);
+  return {std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az)};
+}
+
+enum class Said : std::uint8_t { lit, dark, unsure };
+
+// What the shadow says of each grid point.
+std::vector<Said> said_of(const GridShadow& shadow, const SunGrid& grid) {
+  std::vector<Said> said(grid.points(), Said::lit);
+  for (int r = shadow.first_row; r <= shadow.last_row && !shadow.empty(); ++r) {
+    std::size_t count;
+    const ColumnSpan* dark = shadow.dark_of(r, count);
+    for (std::size_t k = 0; k < count; ++k)
+      for (int c = dark[k].first; c <= dark[k].last; ++c) said[std::size_t(r) * std::size_t(grid.columns) + std::size_t(c)] = Said::dark;
+    const ColumnSpan* unsure = shadow.unsure_of(r, count);
+    for (std::size_t k = 0; k < count; ++k)
+      for (int c = unsure[k].first; c <= unsure[k].last; ++c) {
+        std::size_t i = std::size_t(r) * std::size_t(grid.columns) + std::size_t(c);
+        EXPECT_NE(said[i], Said::dark) << "a point both dark and unsure, row " << r << " column " << c;
+        said[i] = Said::unsure;
+      }
+  }
+  return said;
+}
+
+// Every point of the grid, at every direction: dark where the shadow says
+// dark, lit where it says lit; and most of the shadow settled.
+void expect_as_the_ray_cast(const Placed& p, const std::vector<glm::dvec3>& suns) {
+  SCOPED_TRACE(p.what);
+  Scene scene;
+  scene.objects.push_back(mesh_of(p));
+  const RayScene rays(scene);
+  const MeshGridShadow shadow(mesh_shadow_model(*p.model), mesh_transform(scene.objects[0]), p.grid.center.y,
+                              margin_of(scene.objects[0], p.grid));
+  std::size_t dark = 0, unsure = 0, shaded = 0;
+  for (const glm::dvec3& d : suns) {
+    GridShadow drawn;
+    shadow.draw(d, p.grid, 1, drawn);
+    const std::vector<Said> said = said_of(drawn, p.grid);
+    for (std::size_t i = 0; i < said.size(); ++i) {
+      const bool lit = sees_sun(rays, p.grid.point(i), d);
+      shaded += lit ? 0 : 1;
+      if (said[i] == Said::unsure) {
+        ++unsure;
+        continue;
+      }
+      dark += said[i] == Said::dark;
+      ASSERT_EQ(lit, said[i] == Said::lit) << "point " << i << " (" << p.grid.point(i).x << ", " << p.grid.point(i).z
+                                           << "), sun (" << d.x << ", " << d.y << ", " << d.z << ")";
+    }
+  }
+  // The shadow is found, not left to the rays: nearly all of it proved dark.
+  EXPECT_GT(shaded, 1000u);
+  EXPECT_GT(double(dark), 0.9 * double(shaded));
+  EXPECT_LT(double(unsure), 0.1 * double(shaded));
+}
+
+std::vector<glm::dvec3> suns_around() {
+  std::vector<glm::dvec3> suns;
+  // Grazing, low, high; from every side.
+  const double elevations[] = {0.7, 3.0, 11.0, 27.0, 48.0, 83.0};
+  for (int i = 0; i < 24; ++i) suns.push_back(sun(17.0 + 15.3 * i, elevations[i % 6]));
+  return suns;
+}
+
+TEST(MeshGridShadow, TheOpenTeapotsDarkAndLitAreTheRayCasts) {
+  Placed p{"teapot", utah_teapot(6), {0.2, 0.0, -0.3}, {0.0, 37.0, 0.0}, glm::dvec3(0.4), grid_of(0.01, 8.0, 0.02)};
+  expect_as_the_ray_cast(p, suns_around());
+}
+
+TEST(MeshGridShadow, ABoxOpenBelowTurnedStretchedAndMirroredAcrossThePlane) {
+  // The grid's plane cuts it: its parts below cast nothing, those within
+  // the margin of the plane are unsure, the rest dark.
+  Placed p{"open box", test::box_model({1.0f, 1.0f, 1.0f}, false), {0.3, 0.2, -0.1}, {30.0, 20.0, 10.0},
+           {-1.0, 0.7, 1.3}, grid_of(0.0, 10.0, 0.025)};
+  expect_as_the_ray_cast(p, suns_around());
+}
+
+TEST(MeshGridShadow, AFloorlessCityStandingOnTheGrid) {
+  Placed p{"floorless city", test::city_model(3, 6.0f, 3.0f, false), {-7.0, -0.25, -6.0}, {0.0, 20.0, 0.0},
+           glm::dvec3(1.0), grid_of(0.5, 40.0, 0.1)};
+  expect_as_the_ray_cast(p, suns_around());
+}
+
+// Triangles a modeller's file may hold: a fin of three on one edge, a
+// triangle twice, one wound the other way, one without area.
+std::shared_ptr<const TriangleModel> odd_model() {
+  ModelPart part;
+  const auto triangle = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c) {
+    const auto first = std::uint32_t(part.positions.size());
+    for (const glm::vec3& q : {a, b, c}) part.positions.push_back(q), part.normals.push_back({0, 1, 0});
+    part.indices.insert(part.indices.end(), {first, first + 1, first + 2});
+  };
+  const glm::vec3 a(0, 1, 0), b(1, 1, 0);
+  triangle(a, b, {0.5f, 2, 0.4f});
+  triangle(b, a, {0.5f, 1.3f, -0.8f});
+  triangle(a, b, {0.5f, 0.4f, 0.6f});                       // the fin's third: a non-manifold edge
+  triangle({2, 1, 0}, {3, 1, 0}, {2.5f, 1.5f, 1});          // twice
+  triangle({2, 1, 0}, {3, 1, 0}, {2.5f, 1.5f, 1});
+  triangle({2, 1, 0}, {2.5f, 1.5f, 1}, {2.5f, 0.7f, -0.5f}); // against its neighbour's winding
+  triangle({0, 1, 2}, {1, 1.5f, 2}, {2, 2, 2});             // in a line: no area
+  triangle({0, 1.2f, 2.5f}, {2, 1.2f, 2.5f}, {1, 1.9f, 3.2f});
+  auto model = std::make_shared<TriangleModel>();
+  model->parts.push_back(part);
+  finish_model(*model);
+  return model;
+}
+
+TEST(MeshGridShadow, FinsDoublesWrongWindingsAndTrianglesWithoutArea) {
+  Placed p{"odd", odd_model(), {-1.0, 0.0, -1.0}, {0.0, 10.0, 0.0}, glm::dvec3(1.0), grid_of(0.3, 12.0, 0.03)};
+  expect_as_the_ray_cast(p, suns_around());
+}
+
+// A memory's draws equal fresh ones, through a day's suns a minute apart
+// and a jump back, and those of another memory.
+TEST(MeshGridShadow, DrawsFromMemoryAreFreshDraws) {
+  const auto teapot = utah_teapot(8);
+  SceneObject mesh = mesh_of({"teapot", teapot, {0.0, 0.0, 0.0}, {0.0, 111.0, 0.0}, glm::dvec3(0.4), {}});
+  const SunGrid grid = grid_of(0.01, 12.0, 0.03);
+  const MeshGridShadow shadow(mesh_shadow_model(*teapot), mesh_transform(mesh), grid.center.y, 1e-4, 2);
+  const auto same = [](const GridShadow& a, const GridShadow& b) {
+    if (a.empty() != b.empty() || a.first_row != b.first_row || a.last_row != b.last_row) return false;
+    const auto equal = [](const ColumnSpan& x, const ColumnSpan& y) { return x.first == y.first && x.last == y.last; };
+    return std::equal(a.dark.begin(), a.dark.end(), b.dark.begin(), b.dark.end(), equal) &&
+           std::equal(a.unsure.begin(), a.unsure.end(), b.unsure.begin(), b.unsure.end(), equal) &&
+           a.dark_start == b.dark_start && a.unsure_start == b.unsure_start;
+  };
+  GridShadow kept, fresh;
+  int checked = 0;
+  for (int k = 0; k < 400; ++k) {
+    const double t = k < 300 ? k : 300 - 3 * (k - 300);
+    const glm::dvec3 d = sun(80.0 + 0.4 * t, 2.0 + 0.12 * t);
+    shadow.draw(d, grid, 1, kept, k % 7 == 0 ? 1 : 0);
+    shadow.draw(d, grid, 1, fresh);
+    ASSERT_TRUE(same(kept, fresh)) << "sample " << k;
+    checked += kept.dark.empty() ? 0 : 1;
+  }
+  EXPECT_GT(checked, 300);
+}
+
+}  // namespace
+}  // namespace umbra
