@@ -283,14 +283,14 @@ struct Plan {
 
 // What fits about five minutes on two cores (measured on that machine): the
 // footprints path costs about share x pairs rays plus a visit per point
-// entering or leaving a shadow, and the poles and the teapots' year would
-// each take from minutes to hours on the whole 1000 x 1000 grid (their
-// shares ray cast are several per cent). A coarser grid keeps the whole
+// entering or leaving a shadow, and the poles' year would take many
+// minutes on the whole 1000 x 1000 grid. A coarser grid keeps the whole
 // scene but each sample's footprints then weigh more against its points; a
 // window keeps the spacing but sees part of the scene: the poles' year
-// takes the window (they are spread evenly), the teapots (in the middle
-// third) the coarser grid. The cities run on the whole grid (their year:
-// about half a minute each).
+// takes the window (they are spread evenly). The cities and the teapots
+// run on the whole grid (their year: about half a minute to a minute
+// each; the teapots' cost is their shadows' outlines, a sample at a time,
+// not their points).
 Plan plan_for(const std::string& scene, const std::string& period, bool quick) {
   Plan p;
   if (quick) {
@@ -304,7 +304,6 @@ Plan plan_for(const std::string& scene, const std::string& period, bool quick) {
   // The year: ~37 times a day's pairs; about 1000 pure points (~27 M pairs).
   p.pure_column_step = 20;  // 20 rows x 50 points
   if (scene == "thin-poles") p.window = 200, p.pure_column_step = 4;
-  if (scene == "teapots-1m") p.coarsen = 5, p.pure_column_step = 4;
   if (scene == "grazing-tromso") p.coarsen = 4, p.pure_column_step = 5;
   return p;
 }
@@ -657,7 +656,8 @@ int main(int argc, char** argv) {
           row.share_estimate_full = full_shares.queried;
           row.shares = {{"queried", full_shares.queried},       {"candidates", full_shares.candidates},
                         {"depth", full_shares.depth},           {"tests", full_shares.tests},
-                        {"hulls", full_shares.hulls},           {"core_rows", full_shares.core_rows}};
+                        {"hulls", full_shares.hulls},           {"core_rows", full_shares.core_rows},
+                        {"mesh_shadow_work", full_shares.mesh_shadow_work}};
           // As submit_sun_hours plans it (the same function).
           const umbra::SunHoursCost cost = umbra::plan_sun_hours(q).estimate;
           row.service_footprints = cost.footprints;
