@@ -106,8 +106,8 @@ struct FootprintShares {
   /// each, shell_clusters) and the solids' cores.
   double hulls = 0.0;
   /// Triangles of the models whose clusters and shells are found once per
-  /// request (triangle_shells, shell_clusters, shell_cores, and a model
-  /// with open surfaces' mesh_shadow_model).
+  /// request (triangle_shells, shell_clusters, shell_cores), those of a
+  /// model with open surfaces twice (its mesh_shadow_model too).
   double model_triangles = 0.0;
   /// The mesh shadows' drawing per sample (MeshGridShadow, for models with
   /// open surfaces), in GridShadow::work units.
