@@ -94,7 +94,7 @@ std::vector<Said> said_of(const GridShadow& shadow, const SunGrid& grid) {
 
 // Every point of the grid, at every direction: dark where the shadow says
 // dark, lit where it says lit; and most of the shadow settled.
-void expect_as_the_ray_cast(const Placed& p, const std::vector<glm::dvec3>& suns) {
+void expect_as_the_ray_cast(const Placed& p, const std::vector<glm::dvec3>& suns, bool mostly_proved = true) {
   SCOPED_TRACE(p.what);
   Scene scene;
   scene.objects.push_back(mesh_of(p));
@@ -119,6 +119,7 @@ void expect_as_the_ray_cast(const Placed& p, const std::vector<glm::dvec3>& suns
     }
   }
   // The shadow is found, not left to the rays: nearly all of it proved dark.
+  if (!mostly_proved) return;
   EXPECT_GT(shaded, 1000u);
   EXPECT_GT(double(dark), 0.9 * double(shaded));
   EXPECT_LT(double(unsure), 0.1 * double(shaded));
@@ -178,6 +179,71 @@ std::shared_ptr<const TriangleModel> odd_model() {
 TEST(MeshGridShadow, FinsDoublesWrongWindingsAndTrianglesWithoutArea) {
   Placed p{"odd", odd_model(), {-1.0, 0.0, -1.0}, {0.0, 10.0, 0.0}, glm::dvec3(1.0), grid_of(0.3, 12.0, 0.03)};
   expect_as_the_ray_cast(p, suns_around());
+}
+
+// Triangles as `corners` (three per triangle), one part.
+std::shared_ptr<const TriangleModel> model_of(const std::vector<glm::vec3>& corners) {
+  ModelPart part;
+  for (std::size_t i = 0; i < corners.size(); ++i) {
+    part.positions.push_back(corners[i]);
+    part.normals.push_back({0, 1, 0});
+    part.indices.push_back(std::uint32_t(i));
+  }
+  auto model = std::make_shared<TriangleModel>();
+  model->parts.push_back(part);
+  finish_model(*model);
+  return model;
+}
+
+// Found by the red team: two faces 1.5e-4 from edge on to a sun straight
+// up, folded along an edge 3e-5 above the grid (the margin 2e-5): the rays
+// along the fold pass inside both by far more than the margin, yet Embree
+// finds neither, since its depth test (t from a dot product in float) is
+// noise for a hit that near a face so nearly along the ray. Those points
+// are unsure now (the faces' slices near the plane reach as far as their
+// cosines are small), on grids a hair off the fold too.
+TEST(MeshGridShadow, AFoldNearlyAlongTheSunJustAboveThePlane) {
+  const float c = float(1.5e-4 * (1.0 - 3e-5) / std::sqrt(2.0));
+  const glm::vec3 a(-0.3f, 3e-5f, -0.3f), b(0.3f, 3e-5f, 0.3f);
+  const auto fold = model_of({{c, 1.0f, -c}, b, a, {-c, 1.0f, c}, a, b});
+  for (const double shift : {0.0, 1e-8, 2e-8, 4e-8, 1e-7}) {
+    Placed p{"fold", fold, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, glm::dvec3(1.0), grid_of(0.0, 0.6, 0.001)};
+    p.grid.center.x = shift;
+    expect_as_the_ray_cast(p, {glm::dvec3(0.0, 1.0, 0.0), sun(30.0, 89.0), sun(200.0, 60.0)}, false);
+  }
+}
+
+// Blades 2 m tall under a sun 5 degrees up, each crossing most rows:
+// more outline than a draw gathers, so it takes the whole slid box as
+// unsure (bounded memory), and every claim it still makes holds.
+TEST(MeshGridShadow, AFieldOfBladesPastWhatADrawGathers) {
+  std::vector<glm::vec3> corners;
+  for (int i = 0; i < 3000; ++i) {
+    const float x = float(i % 30) * 0.3f, z = float(i / 30) * 0.09f;
+    corners.insert(corners.end(), {{x, 0.0f, z}, {x + 0.1f, 0.0f, z + 0.02f}, {x + 0.05f, 2.0f, z}});
+  }
+  const auto blades = model_of(corners);
+  Scene scene;
+  scene.objects.push_back(mesh_of({"blades", blades, {-4.5, 0.0, -4.5}, {0.0, 0.0, 0.0}, glm::dvec3(1.0), {}}));
+  const SunGrid grid = grid_of(0.5, 20.0, 0.02);
+  const MeshGridShadow shadow(mesh_shadow_model(*blades), mesh_transform(scene.objects[0]), grid.center.y,
+                              margin_of(scene.objects[0], grid));
+  GridShadow drawn;
+  const glm::dvec3 d = sun(10.0, 5.0);
+  shadow.draw(d, grid, 1, drawn);
+  EXPECT_TRUE(drawn.dark.empty());
+  EXPECT_LE(drawn.unsure.size(), std::size_t(grid.rows));
+  const RayScene rays(scene);
+  const std::vector<Said> said = said_of(drawn, grid);
+  std::size_t shaded = 0;
+  for (std::size_t i = 0; i < said.size(); ++i) {
+    const bool lit = sees_sun(rays, grid.point(i), d);
+    shaded += lit ? 0 : 1;
+    if (said[i] == Said::lit) {
+      ASSERT_TRUE(lit) << "point " << i;
+    }
+  }
+  EXPECT_GT(shaded, 10000u);
 }
 
 // A memory's draws equal fresh ones, through a day's suns a minute apart

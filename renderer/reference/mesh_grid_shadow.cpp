@@ -40,6 +40,13 @@ struct MeshShadowModel {
   // their rounding, between itself and a sign); zero for a triangle
   // without area, which no ray meets and which is left out of the count.
   std::vector<glm::vec3> normals;
+  // Per triangle (model units), its longest edge times how far Embree's
+  // own normal for it may stray in ulps (1 + that edge squared over twice
+  // its area: 1/sin of its sharpest corner, about); per node, the largest
+  // of its triangles'. The depth test's rounding grows with it, for a
+  // sliver (see MeshGridShadow::draw).
+  std::vector<float> skew;
+  std::vector<float> node_skew;
   struct Leaf {
     std::uint32_t first, last;  // its triangles
     // Its inner edges (only its triangles run them) in `edges`: the open
@@ -107,6 +114,9 @@ namespace {
 // edge on: its sign is not trusted, it is left out of the count and its
 // shadow is unsure.
 constexpr double kEdgeOn = 1e-4;
+// Crossings and unsure entries one draw gathers at most (beyond twice the
+// grid's rows): about 40 MB.
+constexpr std::size_t kMostGathered = std::size_t(1) << 21;
 
 struct Point2 {
   double x, z;
@@ -117,6 +127,7 @@ struct Point2 {
 std::size_t mesh_shadow_model_bytes(const MeshShadowModel& m) {
   return sizeof(m) + m.corners.capacity() * sizeof(m.corners[0]) + m.triangles.capacity() * sizeof(m.triangles[0]) +
          m.normals.capacity() * sizeof(m.normals[0]) + m.leaves.capacity() * sizeof(m.leaves[0]) +
+         (m.skew.capacity() + m.node_skew.capacity()) * sizeof(float) +
          m.nodes.capacity() * sizeof(m.nodes[0]) +
          m.axes.capacity() * sizeof(m.axes[0]) + 2 * m.cos_spread.capacity() * sizeof(double) +
          m.edges.capacity() * sizeof(m.edges[0]) + m.groups.capacity() * sizeof(m.groups[0]) +
@@ -148,6 +159,7 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
   struct Input {
     MeshShadowModel::Triangle t;
     glm::vec3 normal;
+    float skew;
     glm::dvec3 centre;
   };
   std::vector<Input> input;
@@ -164,6 +176,8 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
       const bool area = in.t.v[0] != in.t.v[1] && in.t.v[1] != in.t.v[2] && in.t.v[0] != in.t.v[2] &&
                         length > 1e-12 * glm::length(e1) * glm::length(e2);
       in.normal = area ? glm::vec3(n / length) : glm::vec3(0.0f);
+      const double longest = std::max({glm::length(e1), glm::length(e2), glm::length(c - b)});
+      in.skew = area ? float(longest * (1.0 + longest * longest / length)) * 1.001f : 0.0f;
       in.centre = (a + b + c) / 3.0;
       input.push_back(in);
     }
@@ -234,6 +248,9 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
   };
   if (!input.empty()) split(split, 0, input.size());
   for (const auto& [first, last] : node_triangles) {
+    float skew = 0.0f;
+    for (std::size_t i = first; i < last; ++i) skew = std::max(skew, input[i].skew);
+    m.node_skew.push_back(skew);
     const Cone cone = cone_of(first, last);
     m.axes.push_back(cone.axis);
     m.cos_spread.push_back(cone.cos_spread);
@@ -259,6 +276,7 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
       }
       m.triangles.push_back(t);
       m.normals.push_back(input[i].normal);
+      m.skew.push_back(input[i].skew);
       leaf_of.push_back(std::uint32_t(m.leaves.size() - 1));
       if (input[i].normal == glm::vec3(0.0f)) m.no_area.push_back(std::uint32_t(i));
     }
@@ -383,7 +401,7 @@ namespace {
 // cosine with it lay further than kEdgeOn + kDrift from 0 keeps its sign
 // and its face till then. Its tracked triangles go in kBuckets by that
 // room, so a draw re-judges only those with too little of it.
-constexpr double kDrift = 0.05;
+constexpr double kDrift = 0.03;
 constexpr int kBuckets = 32;
 constexpr std::uint8_t kSteady = 255;  // not tracked: settled with the whole drift to spare
 
@@ -398,12 +416,11 @@ struct MeshGridShadow::Memory {
   std::vector<std::uint8_t> bucket;    // per triangle: its room's bucket, or kSteady
   std::vector<std::uint32_t> tracked, tracked_start;  // tracked triangles by bucket
   struct Kept {
-    std::uint32_t a, b;
+    glm::dvec3 p, q;  // its part above the cut, in the world
     std::int32_t times;
     std::uint32_t bucket;  // the lower of its triangles'
   };
   std::vector<Kept> outline;        // the outline edges then
-  std::vector<std::uint32_t> near;  // triangles near the plane with a sign then
   std::vector<std::uint32_t> stamp; // per edge: the draw that last judged it
   std::uint32_t clock = 0;
 };
@@ -420,32 +437,33 @@ MeshGridShadow::MeshGridShadow(std::shared_ptr<const MeshShadowModel> model, con
       margin_(margin) {
   const MeshShadowModel& m = *model_;
   height_.resize(m.corners.size());
+  corner_y_.resize(m.corners.size());
   for (std::size_t i = 0; i < m.corners.size(); ++i) {
     const double y = corner(std::uint32_t(i)).y;
+    corner_y_[i] = y;
     height_[i] = y < plane_y - margin ? 0 : (y < plane_y + margin ? 1 : 2);
   }
-  std::vector<std::uint8_t> leaf_place(m.leaves.size(), 0);
-  for (std::size_t l = 0; l < m.leaves.size(); ++l) {
-    bool any_up = false, all_above = true;
-    for (std::uint32_t t = m.leaves[l].first; t < m.leaves[l].last; ++t) {
-      const auto& v = m.triangles[t].v;
-      const int low = std::min({height_[v[0]], height_[v[1]], height_[v[2]]});
-      const int high = std::max({height_[v[0]], height_[v[1]], height_[v[2]]});
-      any_up = any_up || high > 0;
-      all_above = all_above && low == 2;
-      if (high > 0)
-        for (const std::uint32_t c : v) reach_.extend(corner(c));
-    }
-    leaf_place[l] = all_above ? 2 : (any_up ? 1 : 0);
-  }
-  // Nodes after their children (preorder, backwards).
-  node_place_.assign(m.nodes.size(), 0);
+  const glm::dmat3 linear(to_world);
+  const double x = glm::length(linear[0]), y = glm::length(linear[1]), z = glm::length(linear[2]);
+  stretch_ = std::min({x, y, z}) > 0.0 ? std::max({x, y, z}) / std::min({x, y, z}) : 1e300;
+  // Every corner: a triangle far below the plane may still be met by a
+  // ray's line seen edge on (MeshGridShadow::draw's triangle_unsure).
+  for (std::uint32_t c = 0; c < m.corners.size(); ++c) reach_.extend(corner(c));
+  // Each node's lowest and highest corner, after its children (preorder,
+  // backwards).
+  node_low_.assign(m.nodes.size(), 1e300);
+  node_high_.assign(m.nodes.size(), -1e300);
   for (std::size_t n = m.nodes.size(); n-- > 0;) {
     const MeshShadowModel::Node& node = m.nodes[n];
-    node_place_[n] = node.left < 0 ? leaf_place[node.leaf_first]
-                                   : (node_place_[std::size_t(node.left)] == node_place_[std::size_t(node.right)]
-                                          ? node_place_[std::size_t(node.left)]
-                                          : std::uint8_t(1));
+    if (node.left < 0) {
+      const MeshShadowModel::Leaf& leaf = m.leaves[node.leaf_first];
+      for (std::uint32_t t = leaf.first; t < leaf.last; ++t)
+        for (const std::uint32_t c : m.triangles[t].v)
+          node_low_[n] = std::min(node_low_[n], corner_y_[c]), node_high_[n] = std::max(node_high_[n], corner_y_[c]);
+    } else {
+      node_low_[n] = std::min(node_low_[std::size_t(node.left)], node_low_[std::size_t(node.right)]);
+      node_high_[n] = std::max(node_high_[std::size_t(node.left)], node_high_[std::size_t(node.right)]);
+    }
   }
   for (int i = 0; i < slots; ++i) memory_.push_back(std::make_unique<Memory>());
 }
@@ -526,7 +544,17 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   };
   // The columns within `reach` of a convex polygon (1 to 5 points slid
   // onto the plane) in each row it comes near: unsure.
+  // What one draw may gather: past it (a field of thin blades under a low
+  // sun crossing every row each), the draw gives up its outline and takes
+  // its whole slid box as unsure instead, so its memory stays bounded.
+  const std::size_t most = kMostGathered + 2 * std::size_t(grid.rows);
+  bool overflow = false;
+  const auto full = [&] {
+    overflow = overflow || crossings.size() + unsure.size() >= most;
+    return overflow;
+  };
   const auto mark_unsure = [&](const Point2* p, int n) {
+    if (full()) return;
     double z_low = p[0].z, z_high = p[0].z;
     for (int i = 1; i < n; ++i) z_low = std::min(z_low, p[i].z), z_high = std::max(z_high, p[i].z);
     int r0, r1;
@@ -566,6 +594,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   const double inverse = 1.0 / spacing;
   const auto outline = [&](const Point2& a, const Point2& b, int times) {
     work += 1.0;
+    if (full()) return;
     const double low = std::min(a.z, b.z), high = std::max(a.z, b.z);
     // A row more each way than the products find: each is checked below.
     const double from = std::max(0.0, std::ceil((low - reach - origin.z) * inverse) - 1.0);
@@ -600,16 +629,20 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     return c;
   };
   // An edge (a < b), its part above the cut, counted `times`.
-  const auto edge_outline = [&](std::uint32_t a, std::uint32_t b, int times) {
+  // (With `keep`, also kept in the memory with that bucket.)
+  const auto edge_outline = [&](std::uint32_t a, std::uint32_t b, int times, int keep = -1) {
     const bool a_up = height_[a] == 2, b_up = height_[b] == 2;
     if (!a_up && !b_up) return;
     const glm::dvec3 p = a_up ? corner(a) : cut_point(a, b);
     const glm::dvec3 q = b_up ? corner(b) : cut_point(a, b);
     outline(slide(p), slide(q), times);
+    if (keep >= 0) memory->outline.push_back({p, q, times, std::uint32_t(keep)});
   };
+  // A triangle seen edge on or without area, wherever it is: Embree's
+  // depth test on it is noise (below the plane too), so every point whose
+  // ray's line meets it is unsure.
   const auto triangle_unsure = [&](std::uint32_t t) {
     const auto& v = m.triangles[t].v;
-    if (height_[v[0]] == 0 && height_[v[1]] == 0 && height_[v[2]] == 0) return;
     const Point2 p[3] = {slide(corner(v[0])), slide(corner(v[1])), slide(corner(v[2]))};
     mark_unsure(p, 3);
   };
@@ -617,14 +650,14 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   // (a ray from the plane may meet it at once or not), and its part above
   // the cut ends in a cut edge from where its outline leaves the part
   // above to where it comes back.
-  const auto near_plane = [&](std::uint32_t t, int s) {
+  const auto near_plane = [&](std::uint32_t t, int s, double slab) {
     const auto& v = m.triangles[t].v;
-    // The triangle clipped to plane_y +- margin (Sutherland-Hodgman).
+    // The triangle clipped to plane_y +- slab (Sutherland-Hodgman).
     glm::dvec3 poly[7], next[7];
     int n = 3;
     for (int k = 0; k < 3; ++k) poly[k] = corner(v[k]);
     for (const double side : {-1.0, 1.0}) {
-      const double bound = plane_y_ + side * margin_;
+      const double bound = plane_y_ + side * slab;
       int kept = 0;
       for (int k = 0; k < n; ++k) {
         const glm::dvec3 &a = poly[k], &b = poly[(k + 1) % n];
@@ -664,23 +697,46 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const int s = leaf_sign[leaf];
     return s == kMixed ? int(sign[t]) : s;
   };
-  // A triangle (not below the plane, with area) judged alone: its sign,
-  // 0 if seen edge on (its shadow unsure), and near the plane its cut
-  // outline and its unsure slice.
-  const auto judge_triangle = [&](std::uint32_t t, double facing) -> std::int8_t {
+  // How near the plane a hit on a triangle may be misjudged. Embree's
+  // depth test takes t from dot(v0 - O, Ng) / dot(D, Ng) in float: its
+  // rounding, a few ulps of the coordinates and, for a sliver whose normal
+  // Embree finds less well, of its length times 1/sin of its sharpest
+  // corner (skew), against the origin's distance from the triangle's
+  // plane, t times the cosine between the ray and the normal. Where that
+  // exceeds twice the margin (1e-5 of the coordinates, a hundred times the
+  // rounding) plus 1e-5 of the sliver's term, the hit's side is sure; the
+  // parts of a triangle nearer the plane than that (in height: `slab`, at
+  // least the margin) are unsure, above it (the ray may miss them) and
+  // below it (the ray may meet them). Uneven stretching multiplies it.
+  const double scale = glm::length(glm::dmat3(to_world_)[0]) + glm::length(glm::dmat3(to_world_)[1]) +
+                       glm::length(glm::dmat3(to_world_)[2]);
+  const auto slab_of = [&](double skew, double cosine, double dy) {
+    return std::max(margin_, 2.0 * stretch_ * dy * (margin_ + 1e-5 * scale * skew) / cosine);
+  };
+  // A triangle with area judged alone: its sign (0 if it has no part above
+  // the cut, or is seen edge on, its shadow then unsure), its cut outline
+  // where it crosses the cut and its unsure slice near the plane.
+  // (`low`, `high`: bounds on its corners' heights, its leaf's: a leaf
+  // clear of the slab spares loading them.)
+  const auto judge_triangle = [&](std::uint32_t t, double facing, double low, double high) -> std::int8_t {
     work += 1.0;
     if (std::abs(facing) <= kEdgeOn) {
       triangle_unsure(t);
       return 0;
     }
-    const std::int8_t s = facing > 0.0 ? 1 : -1;
     const auto& v = m.triangles[t].v;
-    if (!(height_[v[0]] == 2 && height_[v[1]] == 2 && height_[v[2]] == 2)) near_plane(t, s);
+    const std::int8_t s =
+        height_[v[0]] == 2 || height_[v[1]] == 2 || height_[v[2]] == 2 ? (facing > 0.0 ? 1 : -1) : 0;
+    // Clear of the plane by more than its slab: (height) |cos| > the
+    // slab's numerator, without a division (most triangles, a leaf far up).
+    const double room = std::max(low - plane_y_, plane_y_ - high);
+    if (room > margin_ && room * std::abs(facing) > 2.0 * stretch_ * d.y * (margin_ + 1e-5 * scale * m.skew[t]))
+      return s;
+    const double slab = slab_of(m.skew[t], std::abs(facing), d.y);
+    low = std::min({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]});
+    high = std::max({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]});
+    if (low < plane_y_ + slab && high > plane_y_ - slab) near_plane(t, s, slab);
     return s;
-  };
-  const auto below = [&](std::uint32_t t) {
-    const auto& v = m.triangles[t].v;
-    return height_[v[0]] == 0 && height_[v[1]] == 0 && height_[v[2]] == 0;
   };
   // The tracked triangles' buckets of room (Memory): 0 for none.
   const double bucket_width = kDrift / kBuckets;
@@ -699,14 +755,12 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const std::uint32_t* first = memory->tracked.data() + memory->tracked_start[0];
     const std::uint32_t* last = memory->tracked.data() + memory->tracked_start[std::size_t(turned) + 1];
     for (const std::uint32_t* t = first; t != last; ++t)
-      memory->now[*t] = judge_triangle(*t, glm::dot(glm::dvec3(m.normals[*t]), dm));
+      memory->now[*t] = judge_triangle(*t, glm::dot(glm::dvec3(m.normals[*t]), dm), -1e300, 1e300);
     const auto sign_now = [&](std::uint32_t t, std::uint32_t leaf) {
       return memory->bucket[t] <= turned ? int(memory->now[t]) : sign_of(t, leaf);
     };
-    for (const std::uint32_t t : memory->near)
-      if (memory->bucket[t] > turned) near_plane(t, sign[t]);
     for (const Memory::Kept& k : memory->outline)
-      if (k.bucket > std::uint32_t(turned)) edge_outline(k.a, k.b, k.times);
+      if (k.bucket > std::uint32_t(turned)) outline(slide(k.p), slide(k.q), k.times);
     for (const std::uint32_t* t = first; t != last; ++t)
       for (const std::uint32_t index : m.triangle_edges[*t]) {
         if (index == MeshShadowModel::kNoEdge || (index & MeshShadowModel::kManyEdge)) continue;
@@ -724,7 +778,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       if (times != 0) edge_outline(e.a, e.b, times);
     }
     for (const std::uint32_t t : m.no_area) triangle_unsure(t);
-    work += double(memory->outline.size() + memory->near.size()) * 0.25;
+    work += double(memory->outline.size()) * 0.25;
   } else {
   if (memory) {
     memory->valid = true;
@@ -734,14 +788,12 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     memory->stamp.resize(m.edges.size());
     memory->tracked.clear();
     memory->outline.clear();
-    memory->near.clear();
   }
   const auto bucket = [&](std::uint32_t t) { return memory->bucket[t]; };
   const auto judge = [&](const MeshShadowModel::Edge& e) {
     const int times = sign_of(e.triangle[0], e.leaf[0]) * e.direction[0] + sign_of(e.triangle[1], e.leaf[1]) * e.direction[1];
     if (times == 0) return;
-    edge_outline(e.a, e.b, times);
-    if (memory) memory->outline.push_back({e.a, e.b, times, std::min(bucket(e.triangle[0]), bucket(e.triangle[1]))});
+    edge_outline(e.a, e.b, times, memory ? int(std::min(bucket(e.triangle[0]), bucket(e.triangle[1]))) : -1);
   };
   // Whether all of a node's normals face the sun (+1), all face away (-1),
   // clear of square by kEdgeOn (with a memory, by the drift it allows
@@ -749,14 +801,23 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   // nearest any normal comes to square, against that bar and a hair for
   // the rounding: c C - s S > bar with s = sqrt(1 - c^2), squared.
   const double bar = kEdgeOn + (memory ? kDrift : 0.0) + 1e-9;
-  const auto facing_of = [&](std::size_t n) {
+  // And whether it lies clear of all its triangles' slabs (with a memory,
+  // for any sun within its drift: the cosine less the drift, d.y at most
+  // 1): a height `room` from the plane with room (c C - s S - drift) > K,
+  // K the slab's numerator; squared, as above, without a root.
+  const double drift = memory ? kDrift : 0.0, dy = memory ? 1.0 : d.y;
+  const auto facing_of = [&](std::size_t n, bool& clear) {
     if (!(m.cos_spread[n] > 0.0)) return 0;
     const double c = glm::dot(m.axes[n], dm), C = m.cos_spread[n], S = m.sin_spread[n];
     const double rest = (1.0 - c * c) * S * S;
     const double front = c * C - bar, back = -c * C - bar;
-    if (front > 0.0 && front * front > rest) return 1;
-    if (back > 0.0 && back * back > rest) return -1;
-    return 0;
+    const int facing = front > 0.0 && front * front > rest ? 1 : (back > 0.0 && back * back > rest ? -1 : 0);
+    if (facing == 0) return 0;
+    const double room = std::max(node_low_[n] - plane_y_, plane_y_ - node_high_[n]);
+    const double k = 2.0 * stretch_ * dy * (margin_ + 1e-5 * scale * m.node_skew[n]);
+    const double left = room * (facing * c * C - drift) - k;
+    clear = room > margin_ && left > 0.0 && left * left > room * room * rest;
+    return facing;
   };
   // The tree, from its root: a node wholly below the plane counts nothing;
   // one wholly above facing one way settles its leaves, and every edge
@@ -766,18 +827,18 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   const auto visit = [&](auto&& self, std::size_t n) -> void {
     const MeshShadowModel::Node& node = m.nodes[n];
     work += 1.0;
-    const int place = node_place_[n];
-    if (place == 0) {
+    bool clear = false;
+    int facing = facing_of(n, clear);
+    if (facing != 0 && clear && node_high_[n] < plane_y_) {  // wholly below: casts nothing, and surely
       std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(0));
       return;
     }
-    const int facing = place == 2 ? facing_of(n) : 0;
+    if (!clear) facing = 0;
     if (facing != 0) {
       std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(facing));
       const std::uint32_t first = m.leaves[node.leaf_first].open_first, last = m.leaves[node.leaf_last - 1].open_last;
       for (std::uint32_t i = first; i < last; ++i) {
-        edge_outline(m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum);
-        if (memory) memory->outline.push_back({m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum, kSteady});
+        edge_outline(m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum, memory ? kSteady : -1);
       }
       return;
     }
@@ -798,14 +859,23 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     leaf_sign[l] = kMixed;
     for (std::uint32_t t = leaf.first; t < leaf.last; ++t) {
       sign[t] = 0;
-      if (m.normals[t] == glm::vec3(0.0f) || below(t)) continue;  // no area (no_area), or out of reach
+      if (m.normals[t] == glm::vec3(0.0f)) continue;  // no area: no_area's
       const double facing_t = glm::dot(glm::dvec3(m.normals[t]), dm);
-      sign[t] = judge_triangle(t, facing_t);
+      sign[t] = judge_triangle(t, facing_t, node_low_[n], node_high_[n]);
       if (!memory) continue;
-      memory->bucket[t] = bucket_of(facing_t);
+      // Judged again at every draw where the drift may bring it edge on
+      // or its slab to the plane.
+      const double least = std::abs(facing_t) - kDrift;
+      bool near = least <= kEdgeOn;
+      if (!near) {
+        const auto& v = m.triangles[t].v;
+        const double slab = slab_of(m.skew[t], least, 1.0);
+        near = node_low_[n] < plane_y_ + slab && node_high_[n] > plane_y_ - slab &&
+               std::min({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}) < plane_y_ + slab &&
+               std::max({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}) > plane_y_ - slab;
+      }
+      memory->bucket[t] = near ? std::uint8_t(0) : bucket_of(facing_t);
       memory->tracked.push_back(t);
-      const auto& v = m.triangles[t].v;
-      if (sign[t] != 0 && !(height_[v[0]] == 2 && height_[v[1]] == 2 && height_[v[2]] == 2)) memory->near.push_back(t);
     }
     work += 0.25 * double(leaf.open_last - leaf.open_first + leaf.shut_last - leaf.shut_first);
     for (std::uint32_t i = leaf.open_first; i < leaf.open_last; ++i) judge(m.edges[i]);
@@ -833,6 +903,28 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   }
   }
 
+  if (overflow) {
+    // The whole box slid: every point a ray of this mesh could meet.
+    crossings.clear(), unsure.clear();
+    overflow = false;
+    Point2 slid[8], hull[17];
+    int n = 0;
+    for (const glm::dvec3& c : reach_.corners()) slid[n++] = slide(c);
+    std::sort(slid, slid + 8, [](const Point2& a, const Point2& b) { return a.x != b.x ? a.x < b.x : a.z < b.z; });
+    const auto turn = [](const Point2& o, const Point2& a, const Point2& b) {
+      return (a.x - o.x) * (b.z - o.z) - (a.z - o.z) * (b.x - o.x);
+    };
+    int k = 0;
+    for (int i = 0; i < 8; ++i) {
+      while (k >= 2 && turn(hull[k - 2], hull[k - 1], slid[i]) <= 0.0) --k;
+      hull[k++] = slid[i];
+    }
+    for (int i = 6, lower = k + 1; i >= 0; --i) {
+      while (k >= lower && turn(hull[k - 2], hull[k - 1], slid[i]) <= 0.0) --k;
+      hull[k++] = slid[i];
+    }
+    mark_unsure(hull, std::max(1, k - 1));
+  }
   // Row by row: the unsure columns merged, and the dark ones where the
   // count is not zero, less the unsure. Both lists go by row first (a
   // counting sort: a low sun's shadow crosses every row, tens of thousands
@@ -858,7 +950,10 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       if (start[r + 1] - start[r] > 1) std::sort(to.begin() + start[r], to.begin() + start[r + 1], less);
   };
   thread_local std::vector<std::uint32_t> unsure_start;
-  by_row(crossings, crossings_by_row, crossing_start, [](const Crossing& a, const Crossing& b) { return a.x < b.x; });
+  // By x, and at one x by change, so that the spans do not depend on the
+  // order the outline was gathered in.
+  by_row(crossings, crossings_by_row, crossing_start,
+         [](const Crossing& a, const Crossing& b) { return a.x != b.x ? a.x < b.x : a.change < b.change; });
   by_row(unsure, unsure_by_row, unsure_start,
          [](const Unsure& a, const Unsure& b) { return a.columns.first < b.columns.first; });
   crossings.swap(crossings_by_row);
@@ -881,6 +976,15 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     }
     const ColumnSpan* row_unsure = out.unsure.data() + unsure_first;
     const std::size_t row_unsure_count = out.unsure.size() - unsure_first;
+    const std::size_t dark_first = out.dark.size();
+    // Runs that meet (the count back to zero and on again at one crossing)
+    // join, so a row's dark spans are merged as its unsure ones are.
+    const auto dark = [&](int a, int b) {
+      if (out.dark.size() > dark_first && a <= out.dark.back().last + 1)
+        out.dark.back().last = std::max(out.dark.back().last, b);
+      else
+        out.dark.push_back({a, b});
+    };
     int count = 0;
     double run_start = 0.0;
     for (; ci < crossings.size() && crossings[ci].row == r; ++ci) {
@@ -891,8 +995,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
         const double c0 = std::max(0.0, std::ceil((run_start - origin.x) / spacing));
         const double c1 = std::min(double(grid.columns - 1), std::floor((crossings[ci].x - origin.x) / spacing));
         if (c0 <= c1)
-          for_each_outside(int(c0), int(c1), row_unsure, row_unsure_count,
-                           [&](int a, int b) { out.dark.push_back({a, b}); });
+          for_each_outside(int(c0), int(c1), row_unsure, row_unsure_count, dark);
       }
     }
   }

@@ -86,9 +86,9 @@ struct GridShadow {
   }
 };
 
-/// A placement of a model over the grid's plane (y = plane_y): its corners
-/// in the world, and which leaves lie wholly above the plane, wholly below
-/// it, or cross it. `margin` (world units) covers the ray cast's rounding:
+/// A placement of a model over the grid's plane (y = plane_y): its
+/// corners' heights in the world, and each node's lowest and highest.
+/// `margin` (world units) covers the ray cast's rounding:
 /// the pure query tests its rays in float in the model's space
 /// (sun_hours_footprints' caster margin).
 class MeshGridShadow {
@@ -107,8 +107,8 @@ class MeshGridShadow {
   /// same either way. A slot is one thread's at a time; without one,
   /// draw is safe from any number of threads.
   void draw(const glm::dvec3& d, const SunGrid& grid, int row_step, GridShadow& out, int slot = -1) const;
-  /// The world box of the triangles that reach above the plane less the
-  /// margin (empty if none): what misses the grid casts nothing on it.
+  /// The world box of the model's corners: a shadow whose slide of it
+  /// misses the grid holds no point of it.
   const Aabb& reach() const { return reach_; }
 
  private:
@@ -120,9 +120,11 @@ class MeshGridShadow {
   glm::dmat3 to_model_;  // the linear part: sun directions into model space
   double plane_y_, margin_;
   std::vector<std::uint8_t> height_; // per corner: 0 below the plane less the margin, 1 near, 2 above plus the margin
-  // Per node of the model's leaves' tree: 0 wholly below the plane less
-  // the margin, 2 wholly above it plus the margin, 1 between or across.
-  std::vector<std::uint8_t> node_place_;
+  // Per corner, its height in the world; per node, its triangles' lowest
+  // and highest; how unevenly the placement stretches (largest over
+  // smallest scale), which the depth test's rounding grows with.
+  std::vector<double> corner_y_, node_low_, node_high_;
+  double stretch_ = 1.0;
   Aabb reach_;
   struct Memory;  // what a slot keeps between draws (mesh_grid_shadow.cpp)
   mutable std::vector<std::unique_ptr<Memory>> memory_;
