@@ -54,6 +54,7 @@ struct MeshShadowModel {
     std::uint32_t open_first, open_last, shut_first, shut_last;
   };
   std::vector<Leaf> leaves;
+  std::vector<std::uint32_t> node_of;  // per triangle, its leaf's node
   // The leaves' tree, as they were split (preorder: node 0 the whole
   // model): a node whose triangles all face one way settles its leaves and
   // the edges between them with one test.
@@ -115,8 +116,8 @@ namespace {
 // shadow is unsure.
 constexpr double kEdgeOn = 1e-4;
 // Crossings and unsure entries one draw gathers at most (beyond twice the
-// grid's rows): about 40 MB.
-constexpr std::size_t kMostGathered = std::size_t(1) << 21;
+// grid's rows): about 30 MB while gathering, 8 MB of spans after.
+constexpr std::size_t kMostGathered = std::size_t(1) << 20;
 
 struct Point2 {
   double x, z;
@@ -127,6 +128,7 @@ struct Point2 {
 std::size_t mesh_shadow_model_bytes(const MeshShadowModel& m) {
   return sizeof(m) + m.corners.capacity() * sizeof(m.corners[0]) + m.triangles.capacity() * sizeof(m.triangles[0]) +
          m.normals.capacity() * sizeof(m.normals[0]) + m.leaves.capacity() * sizeof(m.leaves[0]) +
+         m.node_of.capacity() * sizeof(std::uint32_t) +
          (m.skew.capacity() + m.node_skew.capacity()) * sizeof(float) +
          m.nodes.capacity() * sizeof(m.nodes[0]) +
          m.axes.capacity() * sizeof(m.axes[0]) + 2 * m.cos_spread.capacity() * sizeof(double) +
@@ -212,6 +214,7 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
     return cone;
   };
   std::vector<std::pair<std::size_t, std::size_t>> leaves, node_triangles;
+  std::vector<std::uint32_t> leaf_nodes;
   const auto split = [&](auto&& self, std::size_t first, std::size_t last) -> std::int32_t {
     const std::size_t count = last - first;
     const std::int32_t node = std::int32_t(m.nodes.size());
@@ -219,6 +222,7 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
     node_triangles.emplace_back(first, last);
     if (count <= 4 || (count <= std::size_t(kMeshShadowLeaf) && cone_of(first, last).cos_spread >= 0.985)) {
       leaves.emplace_back(first, last);
+      leaf_nodes.push_back(std::uint32_t(node));
       m.nodes[std::size_t(node)].leaf_last = std::uint32_t(leaves.size());
       return node;
     }
@@ -233,6 +237,7 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
     }
     if (!(longest > 0.0)) {  // all alike: no split parts them
       leaves.emplace_back(first, last);
+      leaf_nodes.push_back(std::uint32_t(node));
       m.nodes[std::size_t(node)].leaf_last = std::uint32_t(leaves.size());
       return node;
     }
@@ -275,6 +280,7 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
         v = renumbered[v];
       }
       m.triangles.push_back(t);
+      m.node_of.push_back(leaf_nodes[m.leaves.size() - 1]);
       m.normals.push_back(input[i].normal);
       m.skew.push_back(input[i].skew);
       leaf_of.push_back(std::uint32_t(m.leaves.size() - 1));
@@ -401,7 +407,7 @@ namespace {
 // cosine with it lay further than kEdgeOn + kDrift from 0 keeps its sign
 // and its face till then. Its tracked triangles go in kBuckets by that
 // room, so a draw re-judges only those with too little of it.
-constexpr double kDrift = 0.03;
+constexpr double kDrift = 0.06;
 constexpr int kBuckets = 32;
 constexpr std::uint8_t kSteady = 255;  // not tracked: settled with the whole drift to spare
 
@@ -498,7 +504,8 @@ void for_each_outside(int first, int last, const ColumnSpan* without, std::size_
 
 }  // namespace
 
-void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step, GridShadow& out, int slot) const {
+void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step, GridShadow& out, int slot,
+                          std::size_t most_gathered) const {
   out.first_row = 0, out.last_row = -1;
   out.dark_start.clear(), out.unsure_start.clear(), out.dark.clear(), out.unsure.clear();
   out.work = 0.0;
@@ -535,11 +542,15 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   double work = double(m.leaves.size());
 
   // The rows (multiples of row_step in the grid) whose z lies in [low, high].
+  // (Products by the inverse spacing, a row more each way: every row is
+  // checked against its band below; the columns' rounding, a few 1e-16 of
+  // the magnitudes, is far inside reach's 1e-9 of them.)
+  const double inverse = 1.0 / spacing;
   const auto rows_between = [&](double low, double high, int& r0, int& r1) {
-    const double from = std::max(0.0, std::ceil((low - origin.z) / spacing) - 1.0);
-    const double to = std::min(double(grid.rows - 1), std::floor((high - origin.z) / spacing) + 1.0);
+    const double from = std::max(0.0, std::ceil((low - origin.z) * inverse) - 1.0);
+    const double to = std::min(double(grid.rows - 1), std::floor((high - origin.z) * inverse) + 1.0);
     if (!(from <= to)) return false;
-    r0 = int(std::ceil(from / row_step)) * row_step, r1 = int(to);
+    r0 = row_step == 1 ? int(from) : int(std::ceil(from / row_step)) * row_step, r1 = int(to);
     return r0 <= r1;
   };
   // The columns within `reach` of a convex polygon (1 to 5 points slid
@@ -547,7 +558,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   // What one draw may gather: past it (a field of thin blades under a low
   // sun crossing every row each), the draw gives up its outline and takes
   // its whole slid box as unsure instead, so its memory stays bounded.
-  const std::size_t most = kMostGathered + 2 * std::size_t(grid.rows);
+  const std::size_t most = (most_gathered > 0 ? most_gathered : kMostGathered) + 2 * std::size_t(grid.rows);
   bool overflow = false;
   const auto full = [&] {
     overflow = overflow || crossings.size() + unsure.size() >= most;
@@ -580,8 +591,8 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       }
       if (n == 1 && p[0].z >= band_low && p[0].z <= band_high) x_low = x_high = p[0].x;
       if (x_low > x_high) continue;
-      const double c0 = std::max(0.0, std::ceil((x_low - reach - origin.x) / spacing));
-      const double c1 = std::min(double(grid.columns - 1), std::floor((x_high + reach - origin.x) / spacing));
+      const double c0 = std::max(0.0, std::ceil((x_low - reach - origin.x) * inverse));
+      const double c1 = std::min(double(grid.columns - 1), std::floor((x_high + reach - origin.x) * inverse));
       if (c0 <= c1) unsure.push_back({r, {int(c0), int(c1)}});
       work += 1.0;
     }
@@ -591,7 +602,6 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   // within `reach` of it, in the rows whose band of z within `reach` it
   // meets). One pass over its rows for both: the silhouette's edges are
   // most of a draw, and most meet no row at all.
-  const double inverse = 1.0 / spacing;
   const auto outline = [&](const Point2& a, const Point2& b, int times) {
     work += 1.0;
     if (full()) return;
@@ -601,7 +611,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const double to = std::min(double(grid.rows - 1), std::floor((high + reach - origin.z) * inverse) + 1.0);
     if (!(from <= to)) return;
     const int change = (b.z > a.z ? 1 : -1) * times;
-    for (int r = int(std::ceil(from / row_step)) * row_step; r <= int(to); r += row_step) {
+    for (int r = row_step == 1 ? int(from) : int(std::ceil(from / row_step)) * row_step; r <= int(to); r += row_step) {
       const double z = row_z(r);
       if (high < z - reach || low > z + reach) continue;
       double x_low, x_high;
@@ -740,10 +750,6 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   };
   // The tracked triangles' buckets of room (Memory): 0 for none.
   const double bucket_width = kDrift / kBuckets;
-  const auto bucket_of = [&](double facing) {
-    const double room = std::abs(facing) - kEdgeOn;
-    return room <= 0.0 ? std::uint8_t(0) : std::uint8_t(std::min<double>(kBuckets, std::ceil(room / bucket_width)));
-  };
   // (A hair more: the normals are floats, a few 1e-8 off unit length.)
   const double drift = memory && memory->valid ? glm::length(dm - memory->dm) * (1.0 + 1e-6) : 1e300;
   const int turned = int(std::min<double>(kBuckets, std::ceil(drift / bucket_width)));
@@ -755,7 +761,8 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const std::uint32_t* first = memory->tracked.data() + memory->tracked_start[0];
     const std::uint32_t* last = memory->tracked.data() + memory->tracked_start[std::size_t(turned) + 1];
     for (const std::uint32_t* t = first; t != last; ++t)
-      memory->now[*t] = judge_triangle(*t, glm::dot(glm::dvec3(m.normals[*t]), dm), -1e300, 1e300);
+      memory->now[*t] = judge_triangle(*t, glm::dot(glm::dvec3(m.normals[*t]), dm), node_low_[m.node_of[*t]],
+                                       node_high_[m.node_of[*t]]);
     const auto sign_now = [&](std::uint32_t t, std::uint32_t leaf) {
       return memory->bucket[t] <= turned ? int(memory->now[t]) : sign_of(t, leaf);
     };
@@ -805,7 +812,10 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   // for any sun within its drift: the cosine less the drift, d.y at most
   // 1): a height `room` from the plane with room (c C - s S - drift) > K,
   // K the slab's numerator; squared, as above, without a root.
-  const double drift = memory ? kDrift : 0.0, dy = memory ? 1.0 : d.y;
+  // (The sun's height within the drift: its direction moves by at most
+  // the drift in the model's space, twice the placement's stretch of it in
+  // the world.)
+  const double allowed = memory ? kDrift : 0.0, dy = memory ? std::min(1.0, d.y + 2.0 * kDrift * stretch_) : d.y;
   const auto facing_of = [&](std::size_t n, bool& clear) {
     if (!(m.cos_spread[n] > 0.0)) return 0;
     const double c = glm::dot(m.axes[n], dm), C = m.cos_spread[n], S = m.sin_spread[n];
@@ -815,7 +825,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     if (facing == 0) return 0;
     const double room = std::max(node_low_[n] - plane_y_, plane_y_ - node_high_[n]);
     const double k = 2.0 * stretch_ * dy * (margin_ + 1e-5 * scale * m.node_skew[n]);
-    const double left = room * (facing * c * C - drift) - k;
+    const double left = room * (facing * c * C - allowed) - k;
     clear = room > margin_ && left > 0.0 && left * left > room * room * rest;
     return facing;
   };
@@ -863,18 +873,21 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       const double facing_t = glm::dot(glm::dvec3(m.normals[t]), dm);
       sign[t] = judge_triangle(t, facing_t, node_low_[n], node_high_[n]);
       if (!memory) continue;
-      // Judged again at every draw where the drift may bring it edge on
-      // or its slab to the plane.
-      const double least = std::abs(facing_t) - kDrift;
-      bool near = least <= kEdgeOn;
-      if (!near) {
+      // Its room: how far the sun may turn before it may come edge on, or
+      // its slab reach the plane (at `height` from it, the slab is the
+      // numerator k over the cosine: while the cosine stays above
+      // k / height). The leaf's height first, the triangle's own where it
+      // tells.
+      const double cosine = std::abs(facing_t), k = 2.0 * stretch_ * dy * (margin_ + 1e-5 * scale * m.skew[t]);
+      double room = cosine - kEdgeOn, height = std::max(node_low_[n] - plane_y_, plane_y_ - node_high_[n]);
+      if (height <= margin_ || cosine - k / height < room) {
         const auto& v = m.triangles[t].v;
-        const double slab = slab_of(m.skew[t], least, 1.0);
-        near = node_low_[n] < plane_y_ + slab && node_high_[n] > plane_y_ - slab &&
-               std::min({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}) < plane_y_ + slab &&
-               std::max({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}) > plane_y_ - slab;
+        height = std::max(std::min({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}) - plane_y_,
+                          plane_y_ - std::max({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}));
+        room = height <= margin_ ? -1.0 : std::min(room, cosine - k / height);
       }
-      memory->bucket[t] = near ? std::uint8_t(0) : bucket_of(facing_t);
+      memory->bucket[t] = room <= 0.0 ? std::uint8_t(0)
+                                       : std::uint8_t(std::min<double>(kBuckets, std::ceil(room / bucket_width)));
       memory->tracked.push_back(t);
     }
     work += 0.25 * double(leaf.open_last - leaf.open_first + leaf.shut_last - leaf.shut_first);

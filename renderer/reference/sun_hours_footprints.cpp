@@ -974,6 +974,11 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   };
   const std::size_t runs = std::size_t(std::clamp(threads / int(std::max<std::size_t>(1, meshes)), 1, kMeshRuns));
   const std::size_t block = std::clamp<std::size_t>(16384 / std::max<std::size_t>(1, drawn.size()), 1, 32);
+  // A block's mesh shadows are held at once: each draw gathers at most its
+  // share of about 256 MB (16 bytes an entry; a fallback past it, see
+  // MeshGridShadow::draw), at least 65,536 entries.
+  const std::size_t most_gathered =
+      std::max<std::size_t>(65536, (std::size_t(256) << 20) / 16 / std::max<std::size_t>(1, block * meshes));
   std::vector<std::optional<PlaneShadow>> shadows(block * drawn.size());
   std::vector<GridShadow> mesh_shadows(block * meshes);
   const auto owned_rows = [&](int t, int first, int last, const auto& visit) {
@@ -1025,7 +1030,8 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
             const glm::dvec3& d = samples[ups[first + e].k].direction;
             GridShadow& mesh = mesh_shadows[e * meshes + m];
             mesh.first_row = 0, mesh.last_row = -1;
-            if (d.y > 0.0 && !misses_grid(w.box, d)) w.caster->mesh_shadow->draw(d, grid, 1, mesh, int(j));
+            if (d.y > 0.0 && !misses_grid(w.box, d))
+              w.caster->mesh_shadow->draw(d, grid, 1, mesh, int(j), most_gathered);
             if (poll.after(since, std::uint64_t(mesh.work))) break;
           }
         }
