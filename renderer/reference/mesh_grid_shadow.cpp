@@ -416,6 +416,7 @@ constexpr std::uint8_t kSteady = 255;  // not tracked: settled with the whole dr
 struct MeshGridShadow::Memory {
   bool valid = false;
   glm::dvec3 dm{0.0};                 // the direction judged at
+  glm::dvec3 last{0.0};               // the last draw's, judged or not
   std::vector<std::int8_t> leaf_sign;  // then, per leaf (kMixed: per triangle)
   std::vector<std::int8_t> sign;       // then, per triangle of a mixed leaf
   std::vector<std::int8_t> now;        // this draw, per tracked triangle re-judged
@@ -534,6 +535,14 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   thread_local std::vector<std::int8_t> own_sign, own_leaf_sign;
   crossings.clear(), unsure.clear();
   Memory* memory = slot >= 0 && std::size_t(slot) < memory_.size() ? memory_[std::size_t(slot)].get() : nullptr;
+  // Samples further apart than half the drift (a year's, ten minutes
+  // apart) would each start a memory afresh, which costs more than a
+  // fresh draw: those draw fresh.
+  if (memory) {
+    const bool far = glm::length(dm - memory->last) > 0.5 * kDrift;
+    memory->last = dm;
+    if (far) memory = nullptr;
+  }
   std::vector<std::int8_t>& sign = memory ? memory->sign : own_sign;
   std::vector<std::int8_t>& leaf_sign = memory ? memory->leaf_sign : own_leaf_sign;
   if (sign.size() < m.triangles.size()) sign.resize(m.triangles.size());

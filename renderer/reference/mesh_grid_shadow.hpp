@@ -23,11 +23,15 @@
 // margin (slid onto the plane) from every outline edge, where the count is
 // not zero, lies inside the union of triangles that lie above the plane by
 // the margin, so the ray that the ray cast casts in float from it passes
-// through a triangle or an edge shared by two of them, and Embree's
-// watertight test (RTC_SCENE_FLAG_ROBUST) meets one; where the count is
-// zero, it passes every triangle by more than its rounding. Triangles
-// near the plane (within the margin of it), seen edge on, or without area
-// are left out of the count and their shadows are unsure.
+// through a triangle or an edge shared by two of them, and Embree's edge
+// tests, watertight (RTC_SCENE_FLAG_ROBUST), pass one; where the count is
+// zero, its line passes every counted triangle by more than its rounding.
+// Embree's depth test (t from a float dot product) is not watertight: near
+// the ray's origin, on a face nearly along the ray, a hit's side is noise,
+// so each triangle's slice within its own slab of the plane (the margin
+// over its cosine with the sun, and more for a sliver) is unsure, above
+// the plane and below it. Triangles seen edge on or without area are left
+// out of the count and their whole shadows are unsure, wherever they are.
 #pragma once
 
 #include <cstdint>
