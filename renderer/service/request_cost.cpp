@@ -479,10 +479,14 @@ constexpr double kMsPerFootprintPoint = 2.5e-5;
 constexpr double kMsPerFootprintVisit = 3.0e-6;
 // A unit of a mesh shadow's drawing (GridShadow::work: a triangle judged,
 // an edge slid), per sample. The plan draws each fresh; the walk draws
-// from a memory that re-judges only what turned (about 0.6 of the time at
-// one-minute steps, nearly all at ten): ten teapots, 450,000 units a
-// sample, 727 one-minute samples in about 1.35 s on two cores, 4.1e-6.
-constexpr double kMsPerMeshShadowUnit = 5.0e-6;
+// from a memory that re-judges only what turned where samples are close
+// (ten teapots' day at one-minute steps: 450,000 units a sample, 727
+// samples in about 1.7 s on two cores), fresh where they are not (the sun
+// turns about 0.25 degrees a minute; past about six minutes a step, the
+// memory would start afresh at every sample: their year at ten, 490,000
+// units a sample, 26,736 samples in about 114 s).
+constexpr double kMsPerMeshShadowUnit = 5.0e-6, kMsPerFreshMeshShadowUnit = 8.5e-6;
+constexpr double kMostMinutesForMemory = 6.0;
 // Answer text per point: JSON (hours and longest run) or CSV (x, y, z too).
 constexpr std::uint64_t kAnswerBytesPerPoint = 96;
 // include_samples: a sample's instant, azimuth and elevation as JSON text.
@@ -528,7 +532,9 @@ SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t
                                samples_up * (double(request.grid.rows) + shares.core_rows) * kMsPerFootprintRow +
                                f.shadow_rays * shares.candidates * kMsPerFootprintPoint +
                                f.shadow_rays * shares.depth * kMsPerFootprintVisit +
-                               samples_up * shares.mesh_shadow_work * kMsPerMeshShadowUnit;
+                               samples_up * shares.mesh_shadow_work *
+                                   (request.period.step_minutes <= kMostMinutesForMemory ? kMsPerMeshShadowUnit
+                                                                                         : kMsPerFreshMeshShadowUnit);
   const double pure_ms = ray_cast_ms(f);
   const double via_footprints_ms = footprints_ms + ray_cast_ms(in_footprints);
 
