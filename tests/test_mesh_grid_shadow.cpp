@@ -21,6 +21,7 @@
 #include "model_support.hpp"
 #include "reference/mesh_grid_shadow.hpp"
 #include "reference/ray_cast.hpp"
+#include "reference/sun_hours_footprints.hpp"
 #include "reference/sun_hours_ray_cast.hpp"
 
 namespace umbra {
@@ -53,18 +54,8 @@ SceneObject mesh_of(const Placed& p) {
   return mesh;
 }
 
-// The margin the footprints give a mesh (sun_hours_footprints' caster):
-// a hundred thousandth of the magnitudes met, and of the model's own
-// coordinates times its largest scale (Embree tests in those, in float).
-double margin_of(const SceneObject& mesh, const SunGrid& grid) {
-  const Aabb b = object_bounds(mesh);
-  const glm::dvec3 far = grid.point(grid.points() - 1), near = grid.origin();
-  const double reach = std::max({std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x),
-                                 std::abs(b.max.y), std::abs(b.max.z), std::abs(far.x), std::abs(far.z),
-                                 std::abs(near.x), std::abs(near.z), std::abs(grid.center.y)});
-  const double scale = std::max({std::abs(mesh.mesh_scale.x), std::abs(mesh.mesh_scale.y), std::abs(mesh.mesh_scale.z)});
-  return std::max(1e-5 * (1.0 + reach), 1e-5 * (1.0 + mesh.model->bounds.reach()) * scale);
-}
+// The margin the footprints give a mesh (its caster's).
+double margin_of(const SceneObject& mesh, const SunGrid& grid) { return footprint_margin(mesh, grid); }
 
 glm::dvec3 sun(double azimuth_deg, double elevation_deg) {
   const double az = glm::radians(azimuth_deg), el = glm::radians(elevation_deg);

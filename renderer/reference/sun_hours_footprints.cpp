@@ -105,6 +105,18 @@ double rounding_margin(const Aabb& bounds, double reach) {
   return 1e-5 * (1.0 + std::max({max_abs(bounds.min), max_abs(bounds.max), reach}));
 }
 
+double footprint_margin(const SceneObject& object, const SunGrid& grid) {
+  double margin = rounding_margin(object_bounds(object), grid_reach(grid));
+  if (object.type == SceneObject::Type::Mesh && object.model) {
+    // Embree tests the rays in the model's own float coordinates: its
+    // rounding grows with those, however the model is placed.
+    const glm::dvec3& s = object.mesh_scale;
+    const double scale = std::max({std::abs(s.x), std::abs(s.y), std::abs(s.z)});
+    margin = std::max(margin, 1e-5 * (1.0 + object.model->bounds.reach()) * scale);
+  }
+  return margin;
+}
+
 Aabb reachable_bounds(const Aabb& bounds, double plane_y, double reach) {
   if (bounds.empty()) return bounds;
   const double margin = rounding_margin(bounds, reach);
@@ -538,23 +550,13 @@ bool keeps_up(const SceneObject& mesh) {
 std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* model_triangles = nullptr,
                                int slots = 0) {
   const double reach = grid_reach(grid);
-  const auto margin_of = [&](const SceneObject& o, const Aabb& bounds) {
-    double margin = rounding_margin(bounds, reach);
-    if (o.type == SceneObject::Type::Mesh && o.model) {
-      // Embree tests the rays in the model's own float coordinates: its
-      // rounding grows with those, however the model is placed.
-      const double scale = std::max({std::abs(o.mesh_scale.x), std::abs(o.mesh_scale.y), std::abs(o.mesh_scale.z)});
-      margin = std::max(margin, 1e-5 * (1.0 + o.model->bounds.reach()) * scale);
-    }
-    return margin;
-  };
   // Each model once, however many instances: the margin its cores need.
   std::map<const TriangleModel*, ModelFacts> models;
   for (const SceneObject& o : scene.objects)
     if (o.type == SceneObject::Type::Mesh && o.model && smallest_scale(o) > 0.0) {
       ModelFacts& facts = models[o.model.get()];
       facts.model = o.model;
-      facts.core_margin = std::max(facts.core_margin, margin_of(o, object_bounds(o)) / smallest_scale(o));
+      facts.core_margin = std::max(facts.core_margin, footprint_margin(o, grid) / smallest_scale(o));
       facts.upright = facts.upright && keeps_up(o);
     }
   for (auto& entry : models) {
@@ -600,7 +602,7 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
     caster.object = &o;
     caster.kind = &shape_kind(o.type);
     caster.bounds = object_bounds(o);
-    caster.margin = margin_of(o, caster.bounds);
+    caster.margin = footprint_margin(o, grid);
     const auto facts = o.model ? models.find(o.model.get()) : models.end();
     if (o.type == SceneObject::Type::Mesh && facts != models.end()) {
       // Each cluster's box grown by the margin in model space (at least

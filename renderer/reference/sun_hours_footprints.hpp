@@ -39,6 +39,12 @@ class RayScene;  // reference/ray_cast.hpp
 /// plane's upper side. Empty: the object lies wholly below the plane.
 Aabb reachable_bounds(const Aabb& bounds, double plane_y, double grid_reach);
 
+/// The margin the footprints give an object over the grid: 1e-5 of the
+/// magnitudes met (its bounds', the grid's points'), and for a model also
+/// of its own coordinates times its largest scale (Embree tests the rays
+/// in the model's float space): a hundred times every test's rounding.
+double footprint_margin(const SceneObject& object, const SunGrid& grid);
+
 /// Calls row_span(row, first_column, last_column) for each grid row that
 /// the footprint of `bounds` (reachable_bounds) along the unit sun
 /// direction (direction.y > 0) crosses, with the columns it covers (and
