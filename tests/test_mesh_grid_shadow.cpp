@@ -238,12 +238,14 @@ TEST(MeshGridShadow, AFieldOfBladesPastWhatADrawGathers) {
 }
 
 // A memory's draws equal fresh ones, through a day's suns a minute apart
-// and a jump back, and those of another memory.
+// and a jump back, and those of another memory: the teapot, a floorless
+// city turned and stretched through the plane, the odd triangles.
 TEST(MeshGridShadow, DrawsFromMemoryAreFreshDraws) {
-  const auto teapot = utah_teapot(8);
-  SceneObject mesh = mesh_of({"teapot", teapot, {0.0, 0.0, 0.0}, {0.0, 111.0, 0.0}, glm::dvec3(0.4), {}});
-  const SunGrid grid = grid_of(0.01, 12.0, 0.03);
-  const MeshGridShadow shadow(mesh_shadow_model(*teapot), mesh_transform(mesh), grid.center.y, 1e-4, 2);
+  const std::vector<Placed> placed = {
+      {"teapot", utah_teapot(8), {0.0, 0.0, 0.0}, {0.0, 111.0, 0.0}, glm::dvec3(0.4), grid_of(0.01, 12.0, 0.03)},
+      {"floorless city", test::city_model(3, 6.0f, 3.0f, false), {-7.0, -0.25, -6.0}, {5.0, 20.0, 0.0},
+       {1.0, 1.3, 0.8}, grid_of(0.5, 40.0, 0.1)},
+      {"odd", odd_model(), {-1.0, 0.0, -1.0}, {0.0, 10.0, 0.0}, glm::dvec3(1.0), grid_of(0.3, 12.0, 0.03)}};
   const auto same = [](const GridShadow& a, const GridShadow& b) {
     if (a.empty() != b.empty() || a.first_row != b.first_row || a.last_row != b.last_row) return false;
     const auto equal = [](const ColumnSpan& x, const ColumnSpan& y) { return x.first == y.first && x.last == y.last; };
@@ -251,17 +253,23 @@ TEST(MeshGridShadow, DrawsFromMemoryAreFreshDraws) {
            std::equal(a.unsure.begin(), a.unsure.end(), b.unsure.begin(), b.unsure.end(), equal) &&
            a.dark_start == b.dark_start && a.unsure_start == b.unsure_start;
   };
-  GridShadow kept, fresh;
-  int checked = 0;
-  for (int k = 0; k < 400; ++k) {
-    const double t = k < 300 ? k : 300 - 3 * (k - 300);
-    const glm::dvec3 d = sun(80.0 + 0.4 * t, 2.0 + 0.12 * t);
-    shadow.draw(d, grid, 1, kept, k % 7 == 0 ? 1 : 0);
-    shadow.draw(d, grid, 1, fresh);
-    ASSERT_TRUE(same(kept, fresh)) << "sample " << k;
-    checked += kept.dark.empty() ? 0 : 1;
+  for (const Placed& p : placed) {
+    SCOPED_TRACE(p.what);
+    const SceneObject mesh = mesh_of(p);
+    const MeshGridShadow shadow(mesh_shadow_model(*p.model), mesh_transform(mesh), p.grid.center.y,
+                                margin_of(mesh, p.grid), 2);
+    GridShadow kept, fresh;
+    int checked = 0;
+    for (int k = 0; k < 400; ++k) {
+      const double t = k < 300 ? k : 300 - 3 * (k - 300);
+      const glm::dvec3 d = sun(80.0 + 0.4 * t, 2.0 + 0.12 * t);
+      shadow.draw(d, p.grid, 1, kept, k % 7 == 0 ? 1 : 0);
+      shadow.draw(d, p.grid, 1, fresh);
+      ASSERT_TRUE(same(kept, fresh)) << "sample " << k;
+      checked += kept.dark.empty() ? 0 : 1;
+    }
+    EXPECT_GT(checked, 300);
   }
-  EXPECT_GT(checked, 300);
 }
 
 }  // namespace
