@@ -104,8 +104,8 @@ std::uint64_t bits_of(float f) {
   return b;
 }
 
-// Per triangle (parts in order) its corners' welded ids: one per distinct
-// position. `ids` is set to how many.
+}  // namespace
+
 std::vector<std::array<std::uint32_t, 3>> welded_corners(const TriangleModel& model, std::uint32_t& ids) {
   std::vector<std::pair<std::array<std::uint64_t, 2>, std::uint32_t>> keys;
   std::vector<std::array<std::uint32_t, 3>> corners;
@@ -128,6 +128,8 @@ std::vector<std::array<std::uint32_t, 3>> welded_corners(const TriangleModel& mo
   for (auto& c : corners) c = {welded[c[0]], welded[c[1]], welded[c[2]]};
   return corners;
 }
+
+namespace {
 
 // The directed edges of the triangles (welded corners) whose reverse is
 // not among them: none when they close up. False when there is no edge,

@@ -9,6 +9,7 @@
 // CPU code, no GL.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -16,6 +17,12 @@
 #include "core/scene.hpp"
 
 namespace umbra {
+
+/// Per triangle (parts in order, each's triangles in order) its corners'
+/// welded ids: one per distinct position (equal as numbers: -0 is 0, as
+/// Embree sees them), numbered in order of position. `ids` is set to how
+/// many.
+std::vector<std::array<std::uint32_t, 3>> welded_corners(const TriangleModel& model, std::uint32_t& ids);
 
 /// Which shell each triangle of the model is in (parts in order, each's
 /// triangles in order): triangles that share a corner (welded by exact

@@ -4,27 +4,15 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <numeric>
 #include <limits>
 #include <tuple>
 
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
 
-namespace umbra {
+#include "core/model_shells.hpp"
 
-void merge_spans(std::vector<ColumnSpan>& spans) {
-  if (spans.size() < 2) return;
-  std::sort(spans.begin(), spans.end(), [](const ColumnSpan& a, const ColumnSpan& b) { return a.first < b.first; });
-  std::size_t kept = 0;
-  for (std::size_t i = 1; i < spans.size(); ++i) {
-    if (spans[i].first <= spans[kept].last + 1)
-      spans[kept].last = std::max(spans[kept].last, spans[i].last);
-    else
-      spans[++kept] = spans[i];
-  }
-  spans.resize(kept + 1);
-}
+namespace umbra {
 
 struct MeshShadowModel {
   // Welded by exact position, model space (the model's own floats), in the
@@ -142,21 +130,11 @@ std::size_t mesh_shadow_model_triangles(const MeshShadowModel& m) { return m.tri
 std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& model) {
   auto out = std::make_shared<MeshShadowModel>();
   MeshShadowModel& m = *out;
-  // Corners welded by value (as triangle_shells welds them: Embree sees
+  // Corners welded by value, as triangle_shells welds them (Embree sees
   // equal floats as one point, whatever the indices).
-  std::vector<glm::vec3> positions;
-  for (const ModelPart& part : model.parts) positions.insert(positions.end(), part.positions.begin(), part.positions.end());
-  std::vector<std::uint32_t> order(positions.size());
-  std::iota(order.begin(), order.end(), 0u);
-  const auto less = [&](std::uint32_t i, std::uint32_t j) {
-    return std::tie(positions[i].x, positions[i].y, positions[i].z) < std::tie(positions[j].x, positions[j].y, positions[j].z);
-  };
-  std::sort(order.begin(), order.end(), less);
-  std::vector<std::uint32_t> welded(positions.size());
-  for (std::size_t k = 0; k < order.size(); ++k) {
-    if (k == 0 || less(order[k - 1], order[k])) m.corners.push_back(positions[order[k]]);
-    welded[order[k]] = std::uint32_t(m.corners.size() - 1);
-  }
+  std::uint32_t ids = 0;
+  const std::vector<std::array<std::uint32_t, 3>> welded = welded_corners(model, ids);
+  m.corners.assign(ids, glm::vec3(0.0f));
   // Triangles, each with its unit normal (zero: no area).
   struct Input {
     MeshShadowModel::Triangle t;
@@ -165,25 +143,27 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
     glm::dvec3 centre;
   };
   std::vector<Input> input;
-  input.reserve(model.triangle_count());
-  std::size_t base = 0;
-  for (const ModelPart& part : model.parts) {
+  input.reserve(welded.size());
+  for (const ModelPart& part : model.parts)
     for (std::size_t t = 0; t < part.triangle_count(); ++t) {
       Input in;
-      for (int k = 0; k < 3; ++k) in.t.v[k] = welded[base + part.indices[3 * t + std::size_t(k)]];
-      const glm::dvec3 a(m.corners[in.t.v[0]]), b(m.corners[in.t.v[1]]), c(m.corners[in.t.v[2]]);
-      const glm::dvec3 e1 = b - a, e2 = c - a;
-      const glm::dvec3 n = glm::cross(e1, e2);
-      const double length = glm::length(n);
-      const bool area = in.t.v[0] != in.t.v[1] && in.t.v[1] != in.t.v[2] && in.t.v[0] != in.t.v[2] &&
-                        length > 1e-12 * glm::length(e1) * glm::length(e2);
-      in.normal = area ? glm::vec3(n / length) : glm::vec3(0.0f);
-      const double longest = std::max({glm::length(e1), glm::length(e2), glm::length(c - b)});
-      in.skew = area ? float(longest * (1.0 + longest * longest / length)) * 1.001f : 0.0f;
-      in.centre = (a + b + c) / 3.0;
+      for (int k = 0; k < 3; ++k) {
+        in.t.v[k] = welded[input.size()][std::size_t(k)];
+        m.corners[in.t.v[k]] = part.positions[part.indices[3 * t + std::size_t(k)]];
+      }
       input.push_back(in);
     }
-    base += part.positions.size();
+  for (Input& in : input) {
+    const glm::dvec3 a(m.corners[in.t.v[0]]), b(m.corners[in.t.v[1]]), c(m.corners[in.t.v[2]]);
+    const glm::dvec3 e1 = b - a, e2 = c - a;
+    const glm::dvec3 n = glm::cross(e1, e2);
+    const double length = glm::length(n);
+    const bool area = in.t.v[0] != in.t.v[1] && in.t.v[1] != in.t.v[2] && in.t.v[0] != in.t.v[2] &&
+                      length > 1e-12 * glm::length(e1) * glm::length(e2);
+    in.normal = area ? glm::vec3(n / length) : glm::vec3(0.0f);
+    const double longest = std::max({glm::length(e1), glm::length(e2), glm::length(c - b)});
+    in.skew = area ? float(longest * (1.0 + longest * longest / length)) * 1.001f : 0.0f;
+    in.centre = (a + b + c) / 3.0;
   }
   // Leaves: halved at the median along the longest side of their centres
   // or, where their normals spread wider than the leaf is long, of their
@@ -445,17 +425,19 @@ MeshGridShadow::MeshGridShadow(std::shared_ptr<const MeshShadowModel> model, con
   const MeshShadowModel& m = *model_;
   height_.resize(m.corners.size());
   corner_y_.resize(m.corners.size());
+  // Every corner in reach_: a triangle far below the plane may still be
+  // met by a ray's line seen edge on (MeshGridShadow::draw's
+  // triangle_unsure).
   for (std::size_t i = 0; i < m.corners.size(); ++i) {
-    const double y = corner(std::uint32_t(i)).y;
-    corner_y_[i] = y;
-    height_[i] = y < plane_y - margin ? 0 : (y < plane_y + margin ? 1 : 2);
+    const glm::dvec3 p = corner(std::uint32_t(i));
+    corner_y_[i] = p.y;
+    height_[i] = p.y < plane_y - margin ? 0 : (p.y < plane_y + margin ? 1 : 2);
+    reach_.extend(p);
   }
   const glm::dmat3 linear(to_world);
   const double x = glm::length(linear[0]), y = glm::length(linear[1]), z = glm::length(linear[2]);
   stretch_ = std::min({x, y, z}) > 0.0 ? std::max({x, y, z}) / std::min({x, y, z}) : 1e300;
-  // Every corner: a triangle far below the plane may still be met by a
-  // ray's line seen edge on (MeshGridShadow::draw's triangle_unsure).
-  for (std::uint32_t c = 0; c < m.corners.size(); ++c) reach_.extend(corner(c));
+  scale_ = x + y + z;
   // Each node's lowest and highest corner, after its children (preorder,
   // backwards).
   node_low_.assign(m.nodes.size(), 1e300);
@@ -488,20 +470,6 @@ struct Unsure {
   int row;
   ColumnSpan columns;
 };
-
-// Calls f(first, last) for each stretch of the columns [first, last] that
-// no span of `without` (sorted, merged) holds.
-template <class F>
-void for_each_outside(int first, int last, const ColumnSpan* without, std::size_t count, F&& f) {
-  int c = first;
-  for (std::size_t v = 0; v < count && c <= last; ++v) {
-    if (without[v].last < c) continue;
-    if (without[v].first > last) break;
-    if (without[v].first > c) f(c, without[v].first - 1);
-    c = std::max(c, without[v].last + 1);
-  }
-  if (c <= last) f(c, last);
-}
 
 }  // namespace
 
@@ -665,10 +633,10 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const Point2 p[3] = {slide(corner(v[0])), slide(corner(v[1])), slide(corner(v[2]))};
     mark_unsure(p, 3);
   };
-  // A triangle near the plane: its part within the margin of it is unsure
-  // (a ray from the plane may meet it at once or not), and its part above
-  // the cut ends in a cut edge from where its outline leaves the part
-  // above to where it comes back.
+  // A triangle near the plane: its part within `slab` of it is unsure (a
+  // ray from the plane may meet it or not, whatever Embree's depth test
+  // says), and its part above the cut ends in a cut edge from where its
+  // outline leaves the part above to where it comes back.
   const auto near_plane = [&](std::uint32_t t, int s, double slab) {
     const auto& v = m.triangles[t].v;
     // The triangle clipped to plane_y +- slab (Sutherland-Hodgman).
@@ -716,6 +684,19 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const int s = leaf_sign[leaf];
     return s == kMixed ? int(sign[t]) : s;
   };
+  // The net of the triangles that run an edge, each by `signs(t, leaf)`.
+  const auto net = [&](const MeshShadowModel::Edge& e, const auto& signs) {
+    return signs(e.triangle[0], e.leaf[0]) * e.direction[0] + signs(e.triangle[1], e.leaf[1]) * e.direction[1];
+  };
+  // The edges run by more than two triangles, judged at every draw.
+  const auto judge_many = [&](const auto& signs) {
+    for (const MeshShadowModel::Many& e : m.many) {
+      int times = 0;
+      for (std::uint32_t u = e.first; u < e.first + e.count; ++u)
+        times += signs(m.uses[u].triangle, m.uses[u].leaf) * m.uses[u].direction;
+      if (times != 0) edge_outline(e.a, e.b, times);
+    }
+  };
   // How near the plane a hit on a triangle may be misjudged. Embree's
   // depth test takes t from dot(v0 - O, Ng) / dot(D, Ng) in float: its
   // rounding, a few ulps of the coordinates and, for a sliver whose normal
@@ -727,10 +708,12 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   // parts of a triangle nearer the plane than that (in height: `slab`, at
   // least the margin) are unsure, above it (the ray may miss them) and
   // below it (the ray may meet them). Uneven stretching multiplies it.
-  const double scale = glm::length(glm::dmat3(to_world_)[0]) + glm::length(glm::dmat3(to_world_)[1]) +
-                       glm::length(glm::dmat3(to_world_)[2]);
+  // (The slab is numerator / cosine, at least the margin.)
+  const auto slab_numerator = [&](double skew, double dy) {
+    return 2.0 * stretch_ * dy * (margin_ + 1e-5 * scale_ * skew);
+  };
   const auto slab_of = [&](double skew, double cosine, double dy) {
-    return std::max(margin_, 2.0 * stretch_ * dy * (margin_ + 1e-5 * scale * skew) / cosine);
+    return std::max(margin_, slab_numerator(skew, dy) / cosine);
   };
   // A triangle with area judged alone: its sign (0 if it has no part above
   // the cut, or is seen edge on, its shadow then unsure), its cut outline
@@ -749,8 +732,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     // Clear of the plane by more than its slab: (height) |cos| > the
     // slab's numerator, without a division (most triangles, a leaf far up).
     const double room = std::max(low - plane_y_, plane_y_ - high);
-    if (room > margin_ && room * std::abs(facing) > 2.0 * stretch_ * d.y * (margin_ + 1e-5 * scale * m.skew[t]))
-      return s;
+    if (room > margin_ && room * std::abs(facing) > slab_numerator(m.skew[t], d.y)) return s;
     const double slab = slab_of(m.skew[t], std::abs(facing), d.y);
     low = std::min({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]});
     high = std::max({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]});
@@ -784,145 +766,135 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
         memory->stamp[index] = memory->clock;
         const MeshShadowModel::Edge& e = m.edges[index];
         work += 0.25;
-        const int times = sign_now(e.triangle[0], e.leaf[0]) * e.direction[0] + sign_now(e.triangle[1], e.leaf[1]) * e.direction[1];
+        const int times = net(e, sign_now);
         if (times != 0) edge_outline(e.a, e.b, times);
       }
-    for (const MeshShadowModel::Many& e : m.many) {
-      int times = 0;
-      for (std::uint32_t u = e.first; u < e.first + e.count; ++u)
-        times += sign_now(m.uses[u].triangle, m.uses[u].leaf) * m.uses[u].direction;
-      if (times != 0) edge_outline(e.a, e.b, times);
-    }
+    judge_many(sign_now);
     for (const std::uint32_t t : m.no_area) triangle_unsure(t);
     work += double(memory->outline.size()) * 0.25;
   } else {
-  if (memory) {
-    memory->valid = true;
-    memory->dm = dm;
-    memory->bucket.assign(m.triangles.size(), kSteady);
-    memory->now.resize(m.triangles.size());
-    memory->stamp.resize(m.edges.size());
-    memory->tracked.clear();
-    memory->outline.clear();
-  }
-  const auto bucket = [&](std::uint32_t t) { return memory->bucket[t]; };
-  const auto judge = [&](const MeshShadowModel::Edge& e) {
-    const int times = sign_of(e.triangle[0], e.leaf[0]) * e.direction[0] + sign_of(e.triangle[1], e.leaf[1]) * e.direction[1];
-    if (times == 0) return;
-    edge_outline(e.a, e.b, times, memory ? int(std::min(bucket(e.triangle[0]), bucket(e.triangle[1]))) : -1);
-  };
-  // Whether all of a node's normals face the sun (+1), all face away (-1),
-  // clear of square by kEdgeOn (with a memory, by the drift it allows
-  // too), or neither (0): cos(angle to the axis -/+ the spread), the
-  // nearest any normal comes to square, against that bar and a hair for
-  // the rounding: c C - s S > bar with s = sqrt(1 - c^2), squared.
-  const double bar = kEdgeOn + (memory ? kDrift : 0.0) + 1e-9;
-  // And whether it lies clear of all its triangles' slabs (with a memory,
-  // for any sun within its drift: the cosine less the drift, d.y at most
-  // 1): a height `room` from the plane with room (c C - s S - drift) > K,
-  // K the slab's numerator; squared, as above, without a root.
-  // (The sun's height within the drift: its direction moves by at most
-  // the drift in the model's space, twice the placement's stretch of it in
-  // the world.)
-  const double allowed = memory ? kDrift : 0.0, dy = memory ? std::min(1.0, d.y + 2.0 * kDrift * stretch_) : d.y;
-  const auto facing_of = [&](std::size_t n, bool& clear) {
-    if (!(m.cos_spread[n] > 0.0)) return 0;
-    const double c = glm::dot(m.axes[n], dm), C = m.cos_spread[n], S = m.sin_spread[n];
-    const double rest = (1.0 - c * c) * S * S;
-    const double front = c * C - bar, back = -c * C - bar;
-    const int facing = front > 0.0 && front * front > rest ? 1 : (back > 0.0 && back * back > rest ? -1 : 0);
-    if (facing == 0) return 0;
-    const double room = std::max(node_low_[n] - plane_y_, plane_y_ - node_high_[n]);
-    const double k = 2.0 * stretch_ * dy * (margin_ + 1e-5 * scale * m.node_skew[n]);
-    const double left = room * (facing * c * C - allowed) - k;
-    clear = room > margin_ && left > 0.0 && left * left > room * room * rest;
-    return facing;
-  };
-  // The tree, from its root: a node wholly below the plane counts nothing;
-  // one wholly above facing one way settles its leaves, and every edge
-  // between two of its triangles cancels but the open ones; any other is
-  // split, down to leaves judged triangle by triangle, and then the edges
-  // between its two halves are judged.
-  const auto visit = [&](auto&& self, std::size_t n) -> void {
-    const MeshShadowModel::Node& node = m.nodes[n];
-    work += 1.0;
-    bool clear = false;
-    int facing = facing_of(n, clear);
-    if (facing != 0 && clear && node_high_[n] < plane_y_) {  // wholly below: casts nothing, and surely
-      std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(0));
-      return;
+    if (memory) {
+      memory->valid = true;
+      memory->dm = dm;
+      memory->bucket.assign(m.triangles.size(), kSteady);
+      memory->now.resize(m.triangles.size());
+      memory->stamp.resize(m.edges.size());
+      memory->tracked.clear();
+      memory->outline.clear();
     }
-    if (!clear) facing = 0;
-    if (facing != 0) {
-      std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(facing));
-      const std::uint32_t first = m.leaves[node.leaf_first].open_first, last = m.leaves[node.leaf_last - 1].open_last;
-      for (std::uint32_t i = first; i < last; ++i) {
-        edge_outline(m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum, memory ? kSteady : -1);
+    const auto bucket = [&](std::uint32_t t) { return memory->bucket[t]; };
+    const auto judge = [&](const MeshShadowModel::Edge& e) {
+      const int times = net(e, sign_of);
+      if (times == 0) return;
+      edge_outline(e.a, e.b, times, memory ? int(std::min(bucket(e.triangle[0]), bucket(e.triangle[1]))) : -1);
+    };
+    // Whether all of a node's normals face the sun (+1), all face away (-1),
+    // clear of square by kEdgeOn (with a memory, by the drift it allows
+    // too), or neither (0): cos(angle to the axis -/+ the spread), the
+    // nearest any normal comes to square, against that bar and a hair for
+    // the rounding: c C - s S > bar with s = sqrt(1 - c^2), squared.
+    const double bar = kEdgeOn + (memory ? kDrift : 0.0) + 1e-9;
+    // And whether it lies clear of all its triangles' slabs (with a memory,
+    // for any sun within its drift: the cosine less the drift, d.y at most
+    // 1): a height `room` from the plane with room (c C - s S - drift) > K,
+    // K the slab's numerator; squared, as above, without a root.
+    // (The sun's height within the drift: its direction moves by at most
+    // the drift in the model's space, twice the placement's stretch of it in
+    // the world.)
+    const double allowed = memory ? kDrift : 0.0, dy = memory ? std::min(1.0, d.y + 2.0 * kDrift * stretch_) : d.y;
+    const auto facing_of = [&](std::size_t n, bool& clear) {
+      if (!(m.cos_spread[n] > 0.0)) return 0;
+      const double c = glm::dot(m.axes[n], dm), C = m.cos_spread[n], S = m.sin_spread[n];
+      const double rest = (1.0 - c * c) * S * S;
+      const double front = c * C - bar, back = -c * C - bar;
+      const int facing = front > 0.0 && front * front > rest ? 1 : (back > 0.0 && back * back > rest ? -1 : 0);
+      if (facing == 0) return 0;
+      const double room = std::max(node_low_[n] - plane_y_, plane_y_ - node_high_[n]);
+      const double k = slab_numerator(m.node_skew[n], dy);
+      const double left = room * (facing * c * C - allowed) - k;
+      clear = room > margin_ && left > 0.0 && left * left > room * room * rest;
+      return facing;
+    };
+    // The tree, from its root: a node wholly below the plane counts nothing;
+    // one wholly above facing one way settles its leaves, and every edge
+    // between two of its triangles cancels but the open ones; any other is
+    // split, down to leaves judged triangle by triangle, and then the edges
+    // between its two halves are judged.
+    const auto visit = [&](auto&& self, std::size_t n) -> void {
+      const MeshShadowModel::Node& node = m.nodes[n];
+      work += 1.0;
+      bool clear = false;
+      int facing = facing_of(n, clear);
+      if (facing != 0 && clear && node_high_[n] < plane_y_) {  // wholly below: casts nothing, and surely
+        std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(0));
+        return;
       }
-      return;
-    }
-    if (node.left >= 0) {
-      self(self, std::size_t(node.left));
-      self(self, std::size_t(node.right));
-      for (std::uint32_t g = node.group_first; g < node.group_last; ++g) {
-        const MeshShadowModel::Group& group = m.groups[g];
-        if (leaf_sign[group.leaf_a] != kMixed && leaf_sign[group.leaf_a] == leaf_sign[group.leaf_b]) continue;
-        work += 0.25 * double(group.last - group.first);
-        for (std::uint32_t i = group.first; i < group.last; ++i) judge(m.edges[i]);
+      if (!clear) facing = 0;
+      if (facing != 0) {
+        std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(facing));
+        const std::uint32_t first = m.leaves[node.leaf_first].open_first, last = m.leaves[node.leaf_last - 1].open_last;
+        for (std::uint32_t i = first; i < last; ++i) {
+          edge_outline(m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum, memory ? kSteady : -1);
+        }
+        return;
       }
-      work += 0.05 * double(node.group_last - node.group_first);
-      return;
-    }
-    const std::uint32_t l = node.leaf_first;
-    const MeshShadowModel::Leaf& leaf = m.leaves[l];
-    leaf_sign[l] = kMixed;
-    for (std::uint32_t t = leaf.first; t < leaf.last; ++t) {
-      sign[t] = 0;
-      if (m.normals[t] == glm::vec3(0.0f)) continue;  // no area: no_area's
-      const double facing_t = glm::dot(glm::dvec3(m.normals[t]), dm);
-      sign[t] = judge_triangle(t, facing_t, node_low_[n], node_high_[n]);
-      if (!memory) continue;
-      // Its room: how far the sun may turn before it may come edge on, or
-      // its slab reach the plane (at `height` from it, the slab is the
-      // numerator k over the cosine: while the cosine stays above
-      // k / height). The leaf's height first, the triangle's own where it
-      // tells.
-      const double cosine = std::abs(facing_t), k = 2.0 * stretch_ * dy * (margin_ + 1e-5 * scale * m.skew[t]);
-      double room = cosine - kEdgeOn, height = std::max(node_low_[n] - plane_y_, plane_y_ - node_high_[n]);
-      if (height <= margin_ || cosine - k / height < room) {
-        const auto& v = m.triangles[t].v;
-        height = std::max(std::min({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}) - plane_y_,
-                          plane_y_ - std::max({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}));
-        room = height <= margin_ ? -1.0 : std::min(room, cosine - k / height);
+      if (node.left >= 0) {
+        self(self, std::size_t(node.left));
+        self(self, std::size_t(node.right));
+        for (std::uint32_t g = node.group_first; g < node.group_last; ++g) {
+          const MeshShadowModel::Group& group = m.groups[g];
+          if (leaf_sign[group.leaf_a] != kMixed && leaf_sign[group.leaf_a] == leaf_sign[group.leaf_b]) continue;
+          work += 0.25 * double(group.last - group.first);
+          for (std::uint32_t i = group.first; i < group.last; ++i) judge(m.edges[i]);
+        }
+        work += 0.05 * double(node.group_last - node.group_first);
+        return;
       }
-      memory->bucket[t] = room <= 0.0 ? std::uint8_t(0)
-                                       : std::uint8_t(std::min<double>(kBuckets, std::ceil(room / bucket_width)));
-      memory->tracked.push_back(t);
+      const std::uint32_t l = node.leaf_first;
+      const MeshShadowModel::Leaf& leaf = m.leaves[l];
+      leaf_sign[l] = kMixed;
+      for (std::uint32_t t = leaf.first; t < leaf.last; ++t) {
+        sign[t] = 0;
+        if (m.normals[t] == glm::vec3(0.0f)) continue;  // no area: no_area's
+        const double facing_t = glm::dot(glm::dvec3(m.normals[t]), dm);
+        sign[t] = judge_triangle(t, facing_t, node_low_[n], node_high_[n]);
+        if (!memory) continue;
+        // Its room: how far the sun may turn before it may come edge on, or
+        // its slab reach the plane (at `height` from it, the slab is the
+        // numerator k over the cosine: while the cosine stays above
+        // k / height). The leaf's height first, the triangle's own where it
+        // tells.
+        const double cosine = std::abs(facing_t), k = slab_numerator(m.skew[t], dy);
+        double room = cosine - kEdgeOn, height = std::max(node_low_[n] - plane_y_, plane_y_ - node_high_[n]);
+        if (height <= margin_ || cosine - k / height < room) {
+          const auto& v = m.triangles[t].v;
+          height = std::max(std::min({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}) - plane_y_,
+                            plane_y_ - std::max({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}));
+          room = height <= margin_ ? -1.0 : std::min(room, cosine - k / height);
+        }
+        memory->bucket[t] = room <= 0.0 ? std::uint8_t(0)
+                                         : std::uint8_t(std::min<double>(kBuckets, std::ceil(room / bucket_width)));
+        memory->tracked.push_back(t);
+      }
+      work += 0.25 * double(leaf.open_last - leaf.open_first + leaf.shut_last - leaf.shut_first);
+      for (std::uint32_t i = leaf.open_first; i < leaf.open_last; ++i) judge(m.edges[i]);
+      for (std::uint32_t i = leaf.shut_first; i < leaf.shut_last; ++i) judge(m.edges[i]);
+    };
+    if (!m.nodes.empty()) visit(visit, 0);
+    for (const std::uint32_t t : m.no_area) triangle_unsure(t);
+    for (std::size_t i = m.loose_first; i < m.edges.size(); ++i) judge(m.edges[i]);
+    judge_many(sign_of);
+    work += 0.25 * double(m.edges.size() - m.loose_first + m.uses.size());
+    if (memory) {
+      // The tracked triangles by bucket (a counting sort).
+      std::vector<std::uint32_t>& start = memory->tracked_start;
+      start.assign(kBuckets + 2, 0);
+      for (const std::uint32_t t : memory->tracked) ++start[std::size_t(memory->bucket[t]) + 1];
+      for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+      std::vector<std::uint32_t> next(start.begin(), start.end() - 1), sorted(memory->tracked.size());
+      for (const std::uint32_t t : memory->tracked) sorted[next[memory->bucket[t]]++] = t;
+      memory->tracked.swap(sorted);
     }
-    work += 0.25 * double(leaf.open_last - leaf.open_first + leaf.shut_last - leaf.shut_first);
-    for (std::uint32_t i = leaf.open_first; i < leaf.open_last; ++i) judge(m.edges[i]);
-    for (std::uint32_t i = leaf.shut_first; i < leaf.shut_last; ++i) judge(m.edges[i]);
-  };
-  if (!m.nodes.empty()) visit(visit, 0);
-  for (const std::uint32_t t : m.no_area) triangle_unsure(t);
-  for (std::size_t i = m.loose_first; i < m.edges.size(); ++i) judge(m.edges[i]);
-  for (const MeshShadowModel::Many& e : m.many) {
-    int times = 0;
-    for (std::uint32_t u = e.first; u < e.first + e.count; ++u)
-      times += sign_of(m.uses[u].triangle, m.uses[u].leaf) * m.uses[u].direction;
-    if (times != 0) edge_outline(e.a, e.b, times);
-  }
-  work += 0.25 * double(m.edges.size() - m.loose_first + m.uses.size());
-  if (memory) {
-    // The tracked triangles by bucket (a counting sort).
-    std::vector<std::uint32_t>& start = memory->tracked_start;
-    start.assign(kBuckets + 2, 0);
-    for (const std::uint32_t t : memory->tracked) ++start[std::size_t(memory->bucket[t]) + 1];
-    for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
-    std::vector<std::uint32_t> next(start.begin(), start.end() - 1), sorted(memory->tracked.size());
-    for (const std::uint32_t t : memory->tracked) sorted[next[memory->bucket[t]]++] = t;
-    memory->tracked.swap(sorted);
-  }
   }
 
   if (overflow) {
@@ -959,27 +931,25 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   for (const Unsure& u : unsure) first = std::min(first, u.row), last = std::max(last, u.row);
   thread_local std::vector<Crossing> crossings_by_row;
   thread_local std::vector<Unsure> unsure_by_row;
-  thread_local std::vector<std::uint32_t> crossing_start, unsure_at;
-  const auto by_row = [&](const auto& from, auto& to, std::vector<std::uint32_t>& start, const auto& less) {
+  thread_local std::vector<std::uint32_t> start, next;
+  // `from` sorted into `to` by row, then by `less` within each row, and
+  // swapped back.
+  const auto by_row = [&](auto& from, auto& to, const auto& less) {
     start.assign(std::size_t(last - first + 2), 0);
     for (const auto& item : from) ++start[std::size_t(item.row - first) + 1];
     for (std::size_t r = 1; r < start.size(); ++r) start[r] += start[r - 1];
     to.resize(from.size());
-    std::vector<std::uint32_t>& next = unsure_at;
     next.assign(start.begin(), start.end() - 1);
     for (const auto& item : from) to[next[std::size_t(item.row - first)]++] = item;
     for (std::size_t r = 0; r + 1 < start.size(); ++r)
       if (start[r + 1] - start[r] > 1) std::sort(to.begin() + start[r], to.begin() + start[r + 1], less);
+    from.swap(to);
   };
-  thread_local std::vector<std::uint32_t> unsure_start;
   // By x, and at one x by change, so that the spans do not depend on the
   // order the outline was gathered in.
-  by_row(crossings, crossings_by_row, crossing_start,
+  by_row(crossings, crossings_by_row,
          [](const Crossing& a, const Crossing& b) { return a.x != b.x ? a.x < b.x : a.change < b.change; });
-  by_row(unsure, unsure_by_row, unsure_start,
-         [](const Unsure& a, const Unsure& b) { return a.columns.first < b.columns.first; });
-  crossings.swap(crossings_by_row);
-  unsure.swap(unsure_by_row);
+  by_row(unsure, unsure_by_row, [](const Unsure& a, const Unsure& b) { return a.columns.first < b.columns.first; });
   out.first_row = first, out.last_row = last;
   out.dark_start.assign(std::size_t(last - first + 2), 0);
   out.unsure_start.assign(std::size_t(last - first + 2), 0);
@@ -1016,8 +986,10 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       if (before != 0 && count == 0) {
         const double c0 = std::max(0.0, std::ceil((run_start - origin.x) / spacing));
         const double c1 = std::min(double(grid.columns - 1), std::floor((crossings[ci].x - origin.x) / spacing));
-        if (c0 <= c1)
-          for_each_outside(int(c0), int(c1), row_unsure, row_unsure_count, dark);
+        if (c0 <= c1) {
+          const ColumnSpan run{int(c0), int(c1)};
+          for_each_difference(&run, 1, row_unsure, row_unsure_count, dark);
+        }
       }
     }
   }

@@ -43,16 +43,9 @@
 
 #include "core/model.hpp"
 #include "core/sun_hours.hpp"
+#include "reference/column_spans.hpp"
 
 namespace umbra {
-
-/// Columns [first, last] of a grid row.
-struct ColumnSpan {
-  int first, last;
-};
-
-/// Sorts a row's spans and joins those that overlap or touch.
-void merge_spans(std::vector<ColumnSpan>& spans);
 
 /// A model's triangles as its grid shadows need them, found once per model
 /// (O(triangles x log)): corners welded by exact position, each triangle's
@@ -133,6 +126,7 @@ class MeshGridShadow {
   // smallest scale), which the depth test's rounding grows with.
   std::vector<double> corner_y_, node_low_, node_high_;
   double stretch_ = 1.0;
+  double scale_ = 1.0;  // its three scales summed: a bound on the largest
   Aabb reach_;
   struct Memory;  // what a slot keeps between draws (mesh_grid_shadow.cpp)
   mutable std::vector<std::unique_ptr<Memory>> memory_;

@@ -307,28 +307,6 @@ class PlaneShadow {
   double z_low_ = 0.0, z_high_ = 0.0, extent_ = 1.0, slack_ = 0.0;
 };
 
-// Calls f(first, last) for each stretch of columns in `from` (merged spans,
-// `count` of them) that no span of `without` (merged spans) holds, in order.
-template <class F>
-void for_each_difference(const ColumnSpan* from, std::size_t count, const std::vector<ColumnSpan>& without, F&& f) {
-  std::size_t w = 0;
-  for (const ColumnSpan* span = from; span != from + count; ++span) {
-    int c = span->first;
-    while (w < without.size() && without[w].last < c) ++w;
-    for (std::size_t v = w; c <= span->last; ++v) {
-      if (v == without.size() || without[v].first > span->last) {
-        f(c, span->last);
-        break;
-      }
-      if (without[v].first > c) f(c, without[v].first - 1);
-      c = std::max(c, without[v].last + 1);
-    }
-  }
-}
-template <class F>
-void for_each_difference(const std::vector<ColumnSpan>& from, const std::vector<ColumnSpan>& without, F&& f) {
-  for_each_difference(from.data(), from.size(), without, f);
-}
 
 }  // namespace
 
@@ -426,9 +404,9 @@ constexpr int kFewestMeshClusters = 32, kMostMeshClusters = 1024;
 // The most footprints and cores a request's objects draw each sample.
 constexpr int kMostDrawn = 65536;
 // The most triangles of the instances whose mesh shadows a request draws
-// (each instance holds its model's corners in the world, about half as
-// many, 24 bytes each): past it, the instances beyond draw their
-// clusters' footprints instead.
+// (each instance holds its model's corners' heights, about half as many,
+// 9 bytes each, and its nodes' and memories' state): past it, the
+// instances beyond draw their clusters' footprints instead.
 constexpr std::size_t kMostShadowTriangles = std::size_t(8) << 20;
 // The most bytes the models' mesh shadows kept between requests hold.
 constexpr std::size_t kKeptShadowBytes = std::size_t(256) << 20;
@@ -954,6 +932,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   std::size_t meshes = 0;
   for (const Caster& o : casters)
     if (o.mesh_shadow) drawn.push_back({&o, nullptr, false, o.mesh_shadow->reach(), meshes++});
+  const Drawn* const mesh_drawn = drawn.data() + (drawn.size() - meshes);  // slot m is mesh_drawn[m]
   // The grid's rectangle, a cell wider each way and a millionth of the
   // magnitudes met (a thousand times PlaneShadow's slack): a shadow whose
   // box lies outside it holds no point (a site's objects far from a
@@ -1026,8 +1005,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
       if (!poll.stopped())
         for (std::size_t item = std::size_t(t); item < meshes * runs; item += std::size_t(threads)) {
           const std::size_t m = item / runs, j = item % runs;
-          const Drawn& w = *std::find_if(drawn.begin(), drawn.end(),
-                                         [&](const Drawn& x) { return x.caster->mesh_shadow && x.mesh == m; });
+          const Drawn& w = mesh_drawn[m];
           for (std::size_t e = count * j / runs; e < count * (j + 1) / runs; ++e) {
             const glm::dvec3& d = samples[ups[first + e].k].direction;
             GridShadow& mesh = mesh_shadows[e * meshes + m];
