@@ -237,6 +237,15 @@ TEST(MeshGridShadow, AFieldOfBladesPastWhatADrawGathers) {
   EXPECT_GT(shaded, 10000u);
 }
 
+// Two draws' spans are the same.
+bool same_shadow(const GridShadow& a, const GridShadow& b) {
+  if (a.empty() != b.empty() || a.first_row != b.first_row || a.last_row != b.last_row) return false;
+  const auto equal = [](const ColumnSpan& x, const ColumnSpan& y) { return x.first == y.first && x.last == y.last; };
+  return std::equal(a.dark.begin(), a.dark.end(), b.dark.begin(), b.dark.end(), equal) &&
+         std::equal(a.unsure.begin(), a.unsure.end(), b.unsure.begin(), b.unsure.end(), equal) &&
+         a.dark_start == b.dark_start && a.unsure_start == b.unsure_start;
+}
+
 // A memory's draws equal fresh ones, through a day's suns a minute apart
 // and a jump back, and those of another memory: the teapot, a floorless
 // city turned and stretched through the plane, the odd triangles.
@@ -246,13 +255,6 @@ TEST(MeshGridShadow, DrawsFromMemoryAreFreshDraws) {
       {"floorless city", test::city_model(3, 6.0f, 3.0f, false), {-7.0, -0.25, -6.0}, {5.0, 20.0, 0.0},
        {1.0, 1.3, 0.8}, grid_of(0.5, 40.0, 0.1)},
       {"odd", odd_model(), {-1.0, 0.0, -1.0}, {0.0, 10.0, 0.0}, glm::dvec3(1.0), grid_of(0.3, 12.0, 0.03)}};
-  const auto same = [](const GridShadow& a, const GridShadow& b) {
-    if (a.empty() != b.empty() || a.first_row != b.first_row || a.last_row != b.last_row) return false;
-    const auto equal = [](const ColumnSpan& x, const ColumnSpan& y) { return x.first == y.first && x.last == y.last; };
-    return std::equal(a.dark.begin(), a.dark.end(), b.dark.begin(), b.dark.end(), equal) &&
-           std::equal(a.unsure.begin(), a.unsure.end(), b.unsure.begin(), b.unsure.end(), equal) &&
-           a.dark_start == b.dark_start && a.unsure_start == b.unsure_start;
-  };
   for (const Placed& p : placed) {
     SCOPED_TRACE(p.what);
     const SceneObject mesh = mesh_of(p);
@@ -265,10 +267,44 @@ TEST(MeshGridShadow, DrawsFromMemoryAreFreshDraws) {
       const glm::dvec3 d = sun(80.0 + 0.4 * t, 2.0 + 0.12 * t);
       shadow.draw(d, p.grid, 1, kept, k % 7 == 0 ? 1 : 0);
       shadow.draw(d, p.grid, 1, fresh);
-      ASSERT_TRUE(same(kept, fresh)) << "sample " << k;
+      ASSERT_TRUE(same_shadow(kept, fresh)) << "sample " << k;
       checked += kept.dark.empty() ? 0 : 1;
     }
     EXPECT_GT(checked, 300);
+  }
+}
+
+// A year's draws keep a memory per time of day (the sun a day later is
+// within half a degree): slot h draws hour h of each day in turn, through
+// the memories' restarts, as fresh draws do. Under a budget the slots not
+// started yet draw fresh, and the memories hold about the budget at most.
+TEST(MeshGridShadow, MemoriesPerTimeOfDayAreFreshDrawsWithinTheirBudget) {
+  const Placed p{"teapot", utah_teapot(8), {0.0, 0.0, 0.0}, {0.0, 74.0, 0.0}, glm::dvec3(0.4), grid_of(0.01, 12.0, 0.03)};
+  const SceneObject mesh = mesh_of(p);
+  const auto model = mesh_shadow_model(*p.model);
+  constexpr int kHours = 12;
+  std::size_t one_memory = 0;
+  for (const bool bounded : {false, true}) {
+    SCOPED_TRACE(bounded ? "bounded" : "unbounded");
+    MeshGridShadow shadow(model, mesh_transform(mesh), p.grid.center.y, margin_of(mesh, p.grid), kHours);
+    if (bounded) shadow.set_memory_budget(3 * one_memory);
+    GridShadow kept, fresh;
+    for (int day = 0; day < 40; ++day)
+      for (int h = 0; h < kHours; ++h) {
+        // Hour h's sun on this day: about 0.4 degrees a day from the last.
+        const glm::dvec3 d = sun(95.0 + 15.0 * h + 0.1 * day, 4.0 + 5.0 * h - 0.4 * day * (h % 3 == 0 ? 1.0 : -0.5));
+        if (!(d.y > 0.0)) continue;
+        shadow.draw(d, p.grid, 1, kept, h);
+        shadow.draw(d, p.grid, 1, fresh);
+        ASSERT_TRUE(same_shadow(kept, fresh)) << "day " << day << ", hour " << h;
+      }
+    if (!bounded) {
+      EXPECT_GT(shadow.memory_bytes(), 0u);
+      one_memory = shadow.memory_bytes() / kHours;
+    } else {
+      EXPECT_GT(shadow.memory_bytes(), 0u);
+      EXPECT_LE(shadow.memory_bytes(), 4 * one_memory + one_memory / 2);
+    }
   }
 }
 

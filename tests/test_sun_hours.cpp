@@ -1098,6 +1098,34 @@ json stacked_spokes(int boxes, double spacing) {
           {"grid", {{"center", {0, 0, 0}}, {"size", {6.4, 6.4}}, {"spacing", spacing}}}};
 }
 
+// Samples more than six minutes apart over more than a day draw their
+// mesh shadows from a memory per time of day: as many as a day holds
+// steps, where it holds a whole number of at least 32.
+TEST(SunHoursFootprints, AYearsMeshShadowsKeepAMemoryPerTimeOfDay) {
+  EXPECT_EQ(mesh_memory_day_slots(600.0, 52560), 144u);  // a year at ten minutes
+  EXPECT_EQ(mesh_memory_day_slots(600.0, 144), 0u);      // one day: none a day later
+  EXPECT_EQ(mesh_memory_day_slots(300.0, 105120), 0u);   // five minutes: a memory from the last sample
+  EXPECT_EQ(mesh_memory_day_slots(420.0, 10000), 0u);    // seven: a day is not a whole number of steps
+  EXPECT_EQ(mesh_memory_day_slots(2700.0, 1000), 32u);   // 45 minutes: 32 a day
+  EXPECT_EQ(mesh_memory_day_slots(3600.0, 1000), 0u);    // an hour: fewer than a block's
+  // Teapots (open: their exact shadows) over four days at ten minutes,
+  // in memories per time of day on every thread: the pure ray cast's
+  // tally at every point.
+  const json body = {
+      {"scene",
+       {{"objects",
+         {{{"type", "plane"}, {"center", {0, 0, 0}}, {"size", {40, 40}}},
+          {{"type", "mesh"}, {"model", "teapot"}, {"position", {-1.5, 0, 0.5}}, {"scale", 0.5}},
+          {{"type", "mesh"}, {"model", "teapot"}, {"position", {1.5, 0, -0.5}}, {"rotation_deg", {0, 120, 0}}, {"scale", 0.4}}}}}},
+      {"site", {{"latitude", 51.5}, {"longitude", -0.12}}},
+      {"period", {{"start", "2026-05-01T00:00:00Z"}, {"end", "2026-05-05T00:00:00Z"}, {"step_minutes", 10}}},
+      {"grid", {{"center", {0, 0.01, 0}}, {"size", {10, 10}}, {"spacing", 0.1}}}};
+  const SunHoursRequest q = parsed(body);
+  const SunHoursResult exact = cast(q), footprints = cast_by_footprints(q);
+  expect_same_tallies(footprints, exact, "teapots over four days at ten minutes");
+  EXPECT_LT(double(footprints.pairs_ray_cast), 0.05 * double(footprints.pairs));
+}
+
 TEST(SunHoursStop, IsAskedWithinOneSample) {
   const SunHoursRequest q = parsed(stacked_spokes(50, 0.025));  // 256 x 256 points, 50 boxes
   SunHoursResult result;

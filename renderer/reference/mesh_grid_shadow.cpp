@@ -389,7 +389,9 @@ namespace {
 // room, so a draw re-judges only those with too little of it.
 constexpr double kDrift = 0.06;
 constexpr int kBuckets = 32;
-constexpr std::uint8_t kSteady = 255;  // not tracked: settled with the whole drift to spare
+constexpr std::uint8_t kSteady = 63;  // not tracked: settled with the whole drift to spare
+// A memory's triangle in one byte: its sign + 1 (two bits), its bucket.
+constexpr std::uint8_t pack(int sign, std::uint8_t bucket) { return std::uint8_t((sign + 1) | (bucket << 2)); }
 
 }  // namespace
 
@@ -398,18 +400,22 @@ struct MeshGridShadow::Memory {
   glm::dvec3 dm{0.0};                 // the direction judged at
   glm::dvec3 last{0.0};               // the last draw's, judged or not
   std::vector<std::int8_t> leaf_sign;  // then, per leaf (kMixed: per triangle)
-  std::vector<std::int8_t> sign;       // then, per triangle of a mixed leaf
-  std::vector<std::int8_t> now;        // this draw, per tracked triangle re-judged
-  std::vector<std::uint8_t> bucket;    // per triangle: its room's bucket, or kSteady
+  // Per triangle, pack(its sign then (a mixed leaf's), its room's bucket
+  // or kSteady): a memory per time of day of a year's draws is a memory
+  // per slot, a hundred of them a model.
+  std::vector<std::uint8_t> state;
   std::vector<std::uint32_t> tracked, tracked_start;  // tracked triangles by bucket
   struct Kept {
-    glm::dvec3 p, q;  // its part above the cut, in the world
+    std::uint32_t a, b;  // the edge's corners (its part above the cut is drawn again)
     std::int32_t times;
     std::uint32_t bucket;  // the lower of its triangles'
   };
-  std::vector<Kept> outline;        // the outline edges then
-  std::vector<std::uint32_t> stamp; // per edge: the draw that last judged it
-  std::uint32_t clock = 0;
+  std::vector<Kept> outline;  // the outline edges then
+  std::size_t counted = 0;    // bytes counted in the placement's memory_held_
+  std::size_t bytes() const {
+    return leaf_sign.capacity() + state.capacity() +
+           4 * (tracked.capacity() + tracked_start.capacity()) + sizeof(Kept) * outline.capacity();
+  }
 };
 
 MeshGridShadow::~MeshGridShadow() = default;
@@ -455,6 +461,7 @@ MeshGridShadow::MeshGridShadow(std::shared_ptr<const MeshShadowModel> model, con
     }
   }
   for (int i = 0; i < slots; ++i) memory_.push_back(std::make_unique<Memory>());
+  memory_held_ = std::make_unique<std::atomic<std::size_t>>(0);
 }
 
 namespace {
@@ -510,10 +517,19 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const bool far = glm::length(dm - memory->last) > 0.5 * kDrift;
     memory->last = dm;
     if (far) memory = nullptr;
+    // A slot not started yet starts only while the placement's memories
+    // hold less than their budget (past it, its draws are fresh ones).
+    else if (!memory->valid && memory_budget_ > 0 && memory_held_->load(std::memory_order_relaxed) >= memory_budget_)
+      memory = nullptr;
   }
-  std::vector<std::int8_t>& sign = memory ? memory->sign : own_sign;
   std::vector<std::int8_t>& leaf_sign = memory ? memory->leaf_sign : own_leaf_sign;
-  if (sign.size() < m.triangles.size()) sign.resize(m.triangles.size());
+  if (!memory && own_sign.size() < m.triangles.size()) own_sign.resize(m.triangles.size());
+  if (memory && memory->state.size() < m.triangles.size()) memory->state.resize(m.triangles.size(), pack(0, kSteady));
+  // A triangle's sign as its mixed leaf judged it, and its bucket.
+  const auto triangle_sign = [&](std::uint32_t t) {
+    return memory ? int(memory->state[t] & 3) - 1 : int(own_sign[t]);
+  };
+  const auto bucket_of = [&](std::uint32_t t) { return std::uint8_t(memory->state[t] >> 2); };
   if (leaf_sign.size() < m.leaves.size()) leaf_sign.resize(m.leaves.size());
   constexpr std::int8_t kMixed = 2;
   double work = double(m.leaves.size());
@@ -623,7 +639,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const glm::dvec3 p = a_up ? corner(a) : cut_point(a, b);
     const glm::dvec3 q = b_up ? corner(b) : cut_point(a, b);
     outline(slide(p), slide(q), times);
-    if (keep >= 0) memory->outline.push_back({p, q, times, std::uint32_t(keep)});
+    if (keep >= 0) memory->outline.push_back({a, b, times, std::uint32_t(keep)});
   };
   // A triangle seen edge on or without area, wherever it is: Embree's
   // depth test on it is noise (below the plane too), so every point whose
@@ -682,7 +698,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
 
   const auto sign_of = [&](std::uint32_t t, std::uint32_t leaf) {
     const int s = leaf_sign[leaf];
-    return s == kMixed ? int(sign[t]) : s;
+    return s == kMixed ? triangle_sign(t) : s;
   };
   // The net of the triangles that run an edge, each by `signs(t, leaf)`.
   const auto net = [&](const MeshShadowModel::Edge& e, const auto& signs) {
@@ -748,22 +764,29 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     // Since the memory's direction the sun has turned by `drift`: the
     // tracked triangles with no more room than that are judged again, the
     // edges they run too; everything else is as it was.
-    if (++memory->clock == 0) std::fill(memory->stamp.begin(), memory->stamp.end(), 0u), memory->clock = 1;
+    // This draw's signs of the re-judged triangles, and per edge the draw
+    // that last judged it: scratch of the thread's own, not the memory's.
+    thread_local std::vector<std::int8_t> now;
+    thread_local std::vector<std::uint32_t> stamp;
+    thread_local std::uint32_t clock = 0;
+    if (now.size() < m.triangles.size()) now.resize(m.triangles.size());
+    if (stamp.size() < m.edges.size()) stamp.resize(m.edges.size(), 0u);
+    if (++clock == 0) std::fill(stamp.begin(), stamp.end(), 0u), clock = 1;
     const std::uint32_t* first = memory->tracked.data() + memory->tracked_start[0];
     const std::uint32_t* last = memory->tracked.data() + memory->tracked_start[std::size_t(turned) + 1];
     for (const std::uint32_t* t = first; t != last; ++t)
-      memory->now[*t] = judge_triangle(*t, glm::dot(glm::dvec3(m.normals[*t]), dm), node_low_[m.node_of[*t]],
+      now[*t] = judge_triangle(*t, glm::dot(glm::dvec3(m.normals[*t]), dm), node_low_[m.node_of[*t]],
                                        node_high_[m.node_of[*t]]);
     const auto sign_now = [&](std::uint32_t t, std::uint32_t leaf) {
-      return memory->bucket[t] <= turned ? int(memory->now[t]) : sign_of(t, leaf);
+      return bucket_of(t) <= turned ? int(now[t]) : sign_of(t, leaf);
     };
     for (const Memory::Kept& k : memory->outline)
-      if (k.bucket > std::uint32_t(turned)) outline(slide(k.p), slide(k.q), k.times);
+      if (k.bucket > std::uint32_t(turned)) edge_outline(k.a, k.b, k.times);
     for (const std::uint32_t* t = first; t != last; ++t)
       for (const std::uint32_t index : m.triangle_edges[*t]) {
         if (index == MeshShadowModel::kNoEdge || (index & MeshShadowModel::kManyEdge)) continue;
-        if (memory->stamp[index] == memory->clock) continue;
-        memory->stamp[index] = memory->clock;
+        if (stamp[index] == clock) continue;
+        stamp[index] = clock;
         const MeshShadowModel::Edge& e = m.edges[index];
         work += 0.25;
         const int times = net(e, sign_now);
@@ -776,17 +799,14 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     if (memory) {
       memory->valid = true;
       memory->dm = dm;
-      memory->bucket.assign(m.triangles.size(), kSteady);
-      memory->now.resize(m.triangles.size());
-      memory->stamp.resize(m.edges.size());
+      memory->state.assign(m.triangles.size(), pack(0, kSteady));
       memory->tracked.clear();
       memory->outline.clear();
     }
-    const auto bucket = [&](std::uint32_t t) { return memory->bucket[t]; };
     const auto judge = [&](const MeshShadowModel::Edge& e) {
       const int times = net(e, sign_of);
       if (times == 0) return;
-      edge_outline(e.a, e.b, times, memory ? int(std::min(bucket(e.triangle[0]), bucket(e.triangle[1]))) : -1);
+      edge_outline(e.a, e.b, times, memory ? int(std::min(bucket_of(e.triangle[0]), bucket_of(e.triangle[1]))) : -1);
     };
     // Whether all of a node's normals face the sun (+1), all face away (-1),
     // clear of square by kEdgeOn (with a memory, by the drift it allows
@@ -854,11 +874,14 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       const MeshShadowModel::Leaf& leaf = m.leaves[l];
       leaf_sign[l] = kMixed;
       for (std::uint32_t t = leaf.first; t < leaf.last; ++t) {
-        sign[t] = 0;
-        if (m.normals[t] == glm::vec3(0.0f)) continue;  // no area: no_area's
+        if (!memory) own_sign[t] = 0;
+        if (m.normals[t] == glm::vec3(0.0f)) continue;  // no area: no_area's (a memory's: pack(0, kSteady))
         const double facing_t = glm::dot(glm::dvec3(m.normals[t]), dm);
-        sign[t] = judge_triangle(t, facing_t, node_low_[n], node_high_[n]);
-        if (!memory) continue;
+        const std::int8_t s = judge_triangle(t, facing_t, node_low_[n], node_high_[n]);
+        if (!memory) {
+          own_sign[t] = s;
+          continue;
+        }
         // Its room: how far the sun may turn before it may come edge on, or
         // its slab reach the plane (at `height` from it, the slab is the
         // numerator k over the cosine: while the cosine stays above
@@ -872,8 +895,8 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
                             plane_y_ - std::max({corner_y_[v[0]], corner_y_[v[1]], corner_y_[v[2]]}));
           room = height <= margin_ ? -1.0 : std::min(room, cosine - k / height);
         }
-        memory->bucket[t] = room <= 0.0 ? std::uint8_t(0)
-                                         : std::uint8_t(std::min<double>(kBuckets, std::ceil(room / bucket_width)));
+        memory->state[t] = pack(s, room <= 0.0 ? std::uint8_t(0)
+                                                : std::uint8_t(std::min<double>(kBuckets, std::ceil(room / bucket_width))));
         memory->tracked.push_back(t);
       }
       work += 0.25 * double(leaf.open_last - leaf.open_first + leaf.shut_last - leaf.shut_first);
@@ -889,11 +912,14 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       // The tracked triangles by bucket (a counting sort).
       std::vector<std::uint32_t>& start = memory->tracked_start;
       start.assign(kBuckets + 2, 0);
-      for (const std::uint32_t t : memory->tracked) ++start[std::size_t(memory->bucket[t]) + 1];
+      for (const std::uint32_t t : memory->tracked) ++start[std::size_t(bucket_of(t)) + 1];
       for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
       std::vector<std::uint32_t> next(start.begin(), start.end() - 1), sorted(memory->tracked.size());
-      for (const std::uint32_t t : memory->tracked) sorted[next[memory->bucket[t]]++] = t;
+      for (const std::uint32_t t : memory->tracked) sorted[next[bucket_of(t)]++] = t;
       memory->tracked.swap(sorted);
+      const std::size_t bytes = memory->bytes();
+      memory_held_->fetch_add(bytes - memory->counted, std::memory_order_relaxed);  // (modulo 2^64: a shrink too)
+      memory->counted = bytes;
     }
   }
 

@@ -34,6 +34,7 @@
 // out of the count and their whole shadows are unsure, wherever they are.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -93,6 +94,11 @@ class MeshGridShadow {
   /// With `slots` memories (see draw).
   MeshGridShadow(std::shared_ptr<const MeshShadowModel> model, const glm::dmat4& to_world, double plane_y,
                  double margin, int slots = 0);
+  /// The memories hold about `bytes` at most between them (0, as at
+  /// first: no bound); past it, slots not started yet draw fresh.
+  void set_memory_budget(std::size_t bytes) { memory_budget_ = bytes; }
+  /// Bytes the memories hold now.
+  std::size_t memory_bytes() const { return memory_held_->load(); }
   ~MeshGridShadow();
   MeshGridShadow(MeshGridShadow&&) noexcept;
   /// The shadow along the unit sun direction d (d.y > 0) on the rows of
@@ -130,6 +136,8 @@ class MeshGridShadow {
   Aabb reach_;
   struct Memory;  // what a slot keeps between draws (mesh_grid_shadow.cpp)
   mutable std::vector<std::unique_ptr<Memory>> memory_;
+  std::size_t memory_budget_ = 0;
+  std::unique_ptr<std::atomic<std::size_t>> memory_held_;  // bytes the memories hold
 };
 
 }  // namespace umbra

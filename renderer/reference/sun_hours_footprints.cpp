@@ -410,6 +410,9 @@ constexpr int kMostDrawn = 65536;
 constexpr std::size_t kMostShadowTriangles = std::size_t(8) << 20;
 // The most bytes the models' mesh shadows kept between requests hold.
 constexpr std::size_t kKeptShadowBytes = std::size_t(256) << 20;
+// At most about this many bytes of the mesh shadows' memories in one walk
+// (MeshGridShadow::draw's slots: a year's draws keep one per time of day).
+constexpr std::size_t kMeshMemoryBytes = std::size_t(256) << 20;
 // The largest model given a mesh shadow (about 100 bytes a triangle and
 // 0.7 s a million to find, in the plan, before any budget): larger open
 // models draw their clusters' footprints, their pairs there ray cast.
@@ -574,6 +577,7 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
       facts.kept.cores.clear();
     }
   std::size_t shadow_triangles = 0;
+  std::vector<std::pair<MeshGridShadow*, std::size_t>> budgeted;  // each mesh shadow, its triangles
   std::vector<Caster> casters;
   for (const SceneObject& o : scene.objects) {
     Caster caster;
@@ -591,7 +595,9 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
       const std::shared_ptr<const MeshShadowModel>& shadow = facts->second.kept.shadow;
       if (shadow && shadow_triangles + mesh_shadow_model_triangles(*shadow) <= kMostShadowTriangles) {
         shadow_triangles += mesh_shadow_model_triangles(*shadow);
-        caster.mesh_shadow = std::make_shared<MeshGridShadow>(shadow, to_world, grid.center.y, caster.margin, slots);
+        auto mesh_shadow = std::make_shared<MeshGridShadow>(shadow, to_world, grid.center.y, caster.margin, slots);
+        budgeted.emplace_back(mesh_shadow.get(), mesh_shadow_model_triangles(*shadow));
+        caster.mesh_shadow = std::move(mesh_shadow);
         if (!caster.mesh_shadow->reach().empty()) casters.push_back(std::move(caster));
         continue;
       }
@@ -630,6 +636,10 @@ std::vector<Caster> casters_of(const Scene& scene, const SunGrid& grid, double* 
     }
     casters.push_back(std::move(caster));
   }
+  // The memories' bytes, shared by the mesh shadows as their triangles.
+  for (const auto& [mesh_shadow, triangles] : budgeted)
+    mesh_shadow->set_memory_budget(std::max<std::size_t>(
+        1, std::size_t(double(kMeshMemoryBytes) * double(triangles) / double(std::max<std::size_t>(1, shadow_triangles)))));
   return casters;
 }
 
@@ -848,6 +858,13 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
   return out;
 }
 
+std::size_t mesh_memory_day_slots(double step_seconds, std::size_t samples) {
+  if (!(step_seconds > 360.0)) return 0;
+  const double per_day = 86400.0 / step_seconds;
+  if (per_day < 32.0 || std::abs(per_day - std::round(per_day)) > 1e-6 || double(samples) <= per_day) return 0;
+  return std::size_t(std::round(per_day));
+}
+
 void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid& grid,
                          const std::vector<SunSample>& samples, SunHoursResult& result,
                          const std::function<bool()>& stop_requested, std::atomic<std::uint64_t>* pairs_done) {
@@ -868,14 +885,21 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   const int threads = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
                                                           unsigned((grid.rows + kStripe - 1) / kStripe))));
   // A mesh's shadows are drawn in runs of consecutive samples, each run
-  // by one thread with a memory of its own (MeshGridShadow::draw): as many
-  // runs a block as there are threads for each mesh, at most kMeshRuns.
-  constexpr int kMeshRuns = 4;
+  // by one thread with a memory of its own (MeshGridShadow::draw): enough
+  // runs a block for about two per thread, at most kMeshRuns a mesh (each
+  // run's first draw starts its memory afresh), claimed by whichever
+  // thread is free (meshes' draws differ in cost: ten teapots on sixteen
+  // threads left six idle while each drew a block alone).
+  constexpr int kMeshRuns = 8;
+  // A year's samples, ten minutes apart, draw in a memory per time of day
+  // instead: slots kMeshRuns + k mod day_slots (at least a block's).
+  const std::size_t day_slots =
+      samples.size() >= 2 ? mesh_memory_day_slots(samples[1].utc_unix_s - samples[0].utc_unix_s, samples.size()) : 0;
 
   // Each object that a ray from the plane can reach: the solids of its
   // footprints, and the proof of a hit its kind offers
   // (ShapeKind::surely_meets).
-  const std::vector<Caster> casters = casters_of(scene, grid, nullptr, std::min(threads, kMeshRuns));
+  const std::vector<Caster> casters = casters_of(scene, grid, nullptr, kMeshRuns + int(day_slots));
 
   // Per point, in one place (the walk visits millions of points a
   // sample, each a cache miss per array it touches): the sample it was last
@@ -953,7 +977,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
         1e-6 * (1.0 + std::max({std::abs(x0), std::abs(x1), std::abs(z0), std::abs(z1), grid_magnitude}));
     return x1 < grid_low.x - slack || x0 > grid_high.x + slack || z1 < grid_low.z - slack || z0 > grid_high.z + slack;
   };
-  const std::size_t runs = std::size_t(std::clamp(threads / int(std::max<std::size_t>(1, meshes)), 1, kMeshRuns));
+  const std::size_t runs = std::clamp<std::size_t>((2 * std::size_t(threads) + meshes - 1) / std::max<std::size_t>(1, meshes), 1, kMeshRuns);
   const std::size_t block = std::clamp<std::size_t>(16384 / std::max<std::size_t>(1, drawn.size()), 1, 32);
   // A block's mesh shadows are held at once: each draw gathers at most its
   // share of about 256 MB (16 bytes an entry; a fallback past it, see
@@ -972,6 +996,8 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
       if (r % kStripe == 0) r += (threads - 1) * kStripe;
     }
   };
+  // Per block, the mesh runs claimed so far.
+  std::vector<std::atomic<std::uint32_t>> claimed((ups.size() + block - 1) / block);
   Barrier barrier(threads);
   std::atomic<std::uint64_t> cast{0};
   StopPoll poll(stop_requested);
@@ -1001,9 +1027,12 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
           if (w.core && !pays(*w.caster, *shadow)) shadow.reset();
         }
       // The meshes' shadows: run j of mesh m is the j-th of `runs` stretches
-      // of the block's samples, always by the same thread, in order.
+      // of the block's samples, drawn in order in memory slot j, or each in
+      // its time of day's where the block spans less than a day (no two of
+      // its samples share one: a slot is one thread's at a time).
+      const bool by_day = day_slots > 0 && ups[first + count - 1].k - ups[first].k < day_slots;
       if (!poll.stopped())
-        for (std::size_t item = std::size_t(t); item < meshes * runs; item += std::size_t(threads)) {
+        for (std::size_t item; (item = claimed[first / block].fetch_add(1, std::memory_order_relaxed)) < meshes * runs;) {
           const std::size_t m = item / runs, j = item % runs;
           const Drawn& w = mesh_drawn[m];
           for (std::size_t e = count * j / runs; e < count * (j + 1) / runs; ++e) {
@@ -1011,7 +1040,9 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
             GridShadow& mesh = mesh_shadows[e * meshes + m];
             mesh.first_row = 0, mesh.last_row = -1;
             if (d.y > 0.0 && !misses_grid(w.box, d))
-              w.caster->mesh_shadow->draw(d, grid, 1, mesh, int(j), most_gathered);
+              w.caster->mesh_shadow->draw(d, grid, 1, mesh,
+                                          by_day ? kMeshRuns + int(ups[first + e].k % day_slots) : int(j),
+                                          most_gathered);
             if (poll.after(since, std::uint64_t(mesh.work))) break;
           }
         }

@@ -125,6 +125,15 @@ struct FootprintShares {
 /// first direction is judged.
 FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions);
 
+/// How many memories per time of day the walk's mesh shadows keep for
+/// samples `step_seconds` apart, `samples` of them: where steps are longer
+/// than six minutes (the sun turns 1.5 degrees or more, too far for a
+/// memory from one sample to the next) and the period more than a day that
+/// holds a whole number of at least 32 steps, the steps of a day (the sun
+/// at one time of day a day later is within half a degree); else 0 (the
+/// memories follow runs of consecutive samples).
+std::size_t mesh_memory_day_slots(double step_seconds, std::size_t samples);
+
 /// ray_cast_sun_hours' answer, by footprints: fills result.tally,
 /// result.samples_up, pairs, pairs_by_maps (outside every footprint, or
 /// surely dark inside one) and pairs_ray_cast (the rest: one sees_sun

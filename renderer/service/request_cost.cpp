@@ -483,9 +483,12 @@ constexpr double kMsPerFootprintVisit = 3.0e-6;
 // (ten teapots' day at one-minute steps: 450,000 units a sample, 727
 // samples in about 1.7 s on two cores), fresh where they are not (the sun
 // turns about 0.25 degrees a minute; past about six minutes a step, the
-// memory would start afresh at every sample: their year at ten, 490,000
-// units a sample, 26,736 samples in about 114 s).
-constexpr double kMsPerMeshShadowUnit = 5.0e-6, kMsPerFreshMeshShadowUnit = 8.5e-6;
+// memory would start afresh at every sample: a month at ten minutes). A
+// year at ten minutes keeps a memory per time of day instead
+// (mesh_memory_day_slots; 490,000 units a sample, 26,736 samples in about
+// 77 s; 114 s fresh).
+constexpr double kMsPerMeshShadowUnit = 5.0e-6, kMsPerDayMemoryMeshShadowUnit = 6.0e-6,
+                 kMsPerFreshMeshShadowUnit = 8.5e-6;
 constexpr double kMostMinutesForMemory = 6.0;
 // Answer text per point: JSON (hours and longest run) or CSV (x, y, z too).
 constexpr std::uint64_t kAnswerBytesPerPoint = 96;
@@ -526,15 +529,17 @@ SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t
   in_footprints.meshes_per_ray = std::min({models_in_scene, 1.0 + shares.queried_tests, in_footprints.objects_per_ray});
   // Stretches of daylight: about one a day, at least one.
   const double days = std::max(1.0, (request.period.end_unix_s - request.period.start_unix_s) / 86400.0);
+  const double mesh_shadow_ms =
+      request.period.step_minutes <= kMostMinutesForMemory ? kMsPerMeshShadowUnit
+      : mesh_memory_day_slots(request.period.step_seconds(), samples) > 0 ? kMsPerDayMemoryMeshShadowUnit
+                                                                          : kMsPerFreshMeshShadowUnit;
   const double footprints_ms = samples_up * std::max(shares.hulls, double(scene.objects.size())) * kMsPerFootprint +
                                shares.model_triangles * kMsPerModelTriangle +
                                std::min(days, samples_up) * points * kMsPerStretchPoint +
                                samples_up * (double(request.grid.rows) + shares.core_rows) * kMsPerFootprintRow +
                                f.shadow_rays * shares.candidates * kMsPerFootprintPoint +
                                f.shadow_rays * shares.depth * kMsPerFootprintVisit +
-                               samples_up * shares.mesh_shadow_work *
-                                   (request.period.step_minutes <= kMostMinutesForMemory ? kMsPerMeshShadowUnit
-                                                                                         : kMsPerFreshMeshShadowUnit);
+                               samples_up * shares.mesh_shadow_work * mesh_shadow_ms;
   const double pure_ms = ray_cast_ms(f);
   const double via_footprints_ms = footprints_ms + ray_cast_ms(in_footprints);
 
