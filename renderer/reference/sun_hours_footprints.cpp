@@ -977,8 +977,22 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
         1e-6 * (1.0 + std::max({std::abs(x0), std::abs(x1), std::abs(z0), std::abs(z1), grid_magnitude}));
     return x1 < grid_low.x - slack || x0 > grid_high.x + slack || z1 < grid_low.z - slack || z0 > grid_high.z + slack;
   };
-  const std::size_t runs = std::clamp<std::size_t>((2 * std::size_t(threads) + meshes - 1) / std::max<std::size_t>(1, meshes), 1, kMeshRuns);
-  const std::size_t block = std::clamp<std::size_t>(16384 / std::max<std::size_t>(1, drawn.size()), 1, 32);
+  // Blocks of up to 32 samples, or 128 where meshes draw from memories of
+  // consecutive samples (fewer memory starts, finer runs to deal); a
+  // memory per time of day needs a block within a day.
+  const std::size_t block = std::clamp<std::size_t>(16384 / std::max<std::size_t>(1, drawn.size()), 1,
+                                                    meshes > 0 && day_slots == 0 ? 128 : 32);
+  // The runs a mesh's block is cut into: those that end soonest when dealt
+  // to the threads, a run's first draw costing about 1.7 of the others
+  // (it starts its memory afresh; none does in a memory per time of day).
+  const double start_cost = day_slots > 0 ? 0.0 : 0.7;
+  std::size_t runs = 1;
+  double soonest = 1e300;
+  for (std::size_t r = 1; r <= std::size_t(kMeshRuns) && meshes > 0; ++r) {
+    const double rounds = std::ceil(double(meshes * r) / double(threads));
+    const double end = rounds * (start_cost + double(block) / double(r));
+    if (end < soonest * (1.0 - 1e-9)) soonest = end, runs = r;
+  }
   // A block's mesh shadows are held at once: each draw gathers at most its
   // share of about 256 MB (16 bytes an entry; a fallback past it, see
   // MeshGridShadow::draw), at least 65,536 entries.
