@@ -407,6 +407,7 @@ struct MeshGridShadow::Memory {
   std::vector<std::uint32_t> tracked, tracked_start;  // tracked triangles by bucket
   struct Kept {
     std::uint32_t a, b;  // the edge's corners (its part above the cut is drawn again)
+    std::uint32_t edge;  // its index in the model's edges
     std::int32_t times;
     std::uint32_t bucket;  // the lower of its triangles'
   };
@@ -633,13 +634,13 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   };
   // An edge (a < b), its part above the cut, counted `times`.
   // (With `keep`, also kept in the memory with that bucket.)
-  const auto edge_outline = [&](std::uint32_t a, std::uint32_t b, int times, int keep = -1) {
+  const auto edge_outline = [&](std::uint32_t a, std::uint32_t b, int times, int keep = -1, std::uint32_t edge = 0) {
     const bool a_up = height_[a] == 2, b_up = height_[b] == 2;
     if (!a_up && !b_up) return;
     const glm::dvec3 p = a_up ? corner(a) : cut_point(a, b);
     const glm::dvec3 q = b_up ? corner(b) : cut_point(a, b);
     outline(slide(p), slide(q), times);
-    if (keep >= 0) memory->outline.push_back({a, b, times, std::uint32_t(keep)});
+    if (keep >= 0) memory->outline.push_back({a, b, edge, times, std::uint32_t(keep)});
   };
   // A triangle seen edge on or without area, wherever it is: Embree's
   // depth test on it is noise (below the plane too), so every point whose
@@ -780,9 +781,18 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const auto sign_now = [&](std::uint32_t t, std::uint32_t leaf) {
       return bucket_of(t) <= turned ? int(now[t]) : sign_of(t, leaf);
     };
-    for (const Memory::Kept& k : memory->outline)
-      if (k.bucket > std::uint32_t(turned)) edge_outline(k.a, k.b, k.times);
-    for (const std::uint32_t* t = first; t != last; ++t)
+    // An edge's net changes only where one of its triangles changed sign:
+    // the kept outline stands but for those, whose edges are judged again.
+    const auto flipped = [&](std::uint32_t t) { return bucket_of(t) <= turned && int(now[t]) != triangle_sign(t); };
+    for (const Memory::Kept& k : memory->outline) {
+      if (k.bucket <= std::uint32_t(turned)) {
+        const MeshShadowModel::Edge& e = m.edges[k.edge];
+        if (flipped(e.triangle[0]) || (e.direction[1] != 0 && flipped(e.triangle[1]))) continue;
+      }
+      edge_outline(k.a, k.b, k.times);
+    }
+    for (const std::uint32_t* t = first; t != last; ++t) {
+      if (!flipped(*t)) continue;
       for (const std::uint32_t index : m.triangle_edges[*t]) {
         if (index == MeshShadowModel::kNoEdge || (index & MeshShadowModel::kManyEdge)) continue;
         if (stamp[index] == clock) continue;
@@ -792,6 +802,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
         const int times = net(e, sign_now);
         if (times != 0) edge_outline(e.a, e.b, times);
       }
+    }
     judge_many(sign_now);
     for (const std::uint32_t t : m.no_area) triangle_unsure(t);
     work += double(memory->outline.size()) * 0.25;
@@ -806,7 +817,8 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     const auto judge = [&](const MeshShadowModel::Edge& e) {
       const int times = net(e, sign_of);
       if (times == 0) return;
-      edge_outline(e.a, e.b, times, memory ? int(std::min(bucket_of(e.triangle[0]), bucket_of(e.triangle[1]))) : -1);
+      edge_outline(e.a, e.b, times, memory ? int(std::min(bucket_of(e.triangle[0]), bucket_of(e.triangle[1]))) : -1,
+                   std::uint32_t(&e - m.edges.data()));
     };
     // Whether all of a node's normals face the sun (+1), all face away (-1),
     // clear of square by kEdgeOn (with a memory, by the drift it allows
@@ -854,7 +866,7 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
         std::fill(leaf_sign.begin() + node.leaf_first, leaf_sign.begin() + node.leaf_last, std::int8_t(facing));
         const std::uint32_t first = m.leaves[node.leaf_first].open_first, last = m.leaves[node.leaf_last - 1].open_last;
         for (std::uint32_t i = first; i < last; ++i) {
-          edge_outline(m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum, memory ? kSteady : -1);
+          edge_outline(m.edges[i].a, m.edges[i].b, facing * m.edges[i].sum, memory ? kSteady : -1, i);
         }
         return;
       }
