@@ -405,17 +405,24 @@ struct MeshGridShadow::Memory {
   // per slot, a hundred of them a model.
   std::vector<std::uint8_t> state;
   std::vector<std::uint32_t> tracked, tracked_start;  // tracked triangles by bucket
+  // Per tracked triangle (in tracked's order), its sign at the last draw;
+  // the most buckets a draw has judged again since the start (a draw
+  // judges at least those again, so that a triangle judged once stays
+  // judged while the sun comes back).
+  std::vector<std::int8_t> last_sign;
+  int peak = 0;
   struct Kept {
     std::uint32_t a, b;  // the edge's corners (its part above the cut is drawn again)
     std::uint32_t edge;  // its index in the model's edges
     std::int32_t times;
     std::uint32_t bucket;  // the lower of its triangles'
   };
-  std::vector<Kept> outline;  // the outline edges then
+  std::vector<Kept> outline;  // the outline edges at the last draw
   std::size_t counted = 0;    // bytes counted in the placement's memory_held_
   std::size_t bytes() const {
     return leaf_sign.capacity() + state.capacity() +
-           4 * (tracked.capacity() + tracked_start.capacity()) + sizeof(Kept) * outline.capacity();
+           4 * (tracked.capacity() + tracked_start.capacity()) + last_sign.capacity() +
+           sizeof(Kept) * outline.capacity();
   }
 };
 
@@ -763,46 +770,62 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   const int turned = int(std::min<double>(kBuckets, std::ceil(drift / bucket_width)));
   if (memory && turned < kBuckets) {
     // Since the memory's direction the sun has turned by `drift`: the
-    // tracked triangles with no more room than that are judged again, the
-    // edges they run too; everything else is as it was.
-    // This draw's signs of the re-judged triangles, and per edge the draw
-    // that last judged it: scratch of the thread's own, not the memory's.
+    // tracked triangles with no more room than that are judged again
+    // (and those judged again since the start); the rest keep their sign.
+    // This draw's signs of the re-judged triangles, and per triangle and
+    // per edge the draw that last flipped or judged it: scratch of the
+    // thread's own, not the memory's.
     thread_local std::vector<std::int8_t> now;
-    thread_local std::vector<std::uint32_t> stamp;
+    thread_local std::vector<std::uint32_t> stamp, flip_stamp, flips;
     thread_local std::uint32_t clock = 0;
     if (now.size() < m.triangles.size()) now.resize(m.triangles.size());
+    if (flip_stamp.size() < m.triangles.size()) flip_stamp.resize(m.triangles.size(), 0u);
     if (stamp.size() < m.edges.size()) stamp.resize(m.edges.size(), 0u);
-    if (++clock == 0) std::fill(stamp.begin(), stamp.end(), 0u), clock = 1;
-    const std::uint32_t* first = memory->tracked.data() + memory->tracked_start[0];
-    const std::uint32_t* last = memory->tracked.data() + memory->tracked_start[std::size_t(turned) + 1];
-    for (const std::uint32_t* t = first; t != last; ++t)
-      now[*t] = judge_triangle(*t, glm::dot(glm::dvec3(m.normals[*t]), dm), node_low_[m.node_of[*t]],
-                                       node_high_[m.node_of[*t]]);
+    if (++clock == 0) {
+      std::fill(stamp.begin(), stamp.end(), 0u), std::fill(flip_stamp.begin(), flip_stamp.end(), 0u);
+      clock = 1;
+    }
+    const int judged = std::max(turned, memory->peak);
+    memory->peak = judged;
+    const std::uint32_t* tracked = memory->tracked.data();
+    const std::size_t count = memory->tracked_start[std::size_t(judged) + 1];
+    flips.clear();
+    for (std::size_t i = memory->tracked_start[0]; i < count; ++i) {
+      const std::uint32_t t = tracked[i];
+      const std::int8_t s = judge_triangle(t, glm::dot(glm::dvec3(m.normals[t]), dm), node_low_[m.node_of[t]],
+                                           node_high_[m.node_of[t]]);
+      now[t] = s;
+      if (s != memory->last_sign[i]) memory->last_sign[i] = s, flip_stamp[t] = clock, flips.push_back(t);
+    }
     const auto sign_now = [&](std::uint32_t t, std::uint32_t leaf) {
-      return bucket_of(t) <= turned ? int(now[t]) : sign_of(t, leaf);
+      return bucket_of(t) <= judged ? int(now[t]) : sign_of(t, leaf);
     };
-    // An edge's net changes only where one of its triangles changed sign:
-    // the kept outline stands but for those, whose edges are judged again.
-    const auto flipped = [&](std::uint32_t t) { return bucket_of(t) <= turned && int(now[t]) != triangle_sign(t); };
-    for (const Memory::Kept& k : memory->outline) {
-      if (k.bucket <= std::uint32_t(turned)) {
+    // The memory's outline is the last draw's: an edge's net changes only
+    // where one of its triangles flipped since, so the rest stands, and
+    // the edges of those are judged again (and kept, where not zero).
+    const auto flipped = [&](std::uint32_t t) { return flip_stamp[t] == clock; };
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < memory->outline.size(); ++i) {
+      const Memory::Kept k = memory->outline[i];
+      if (k.bucket <= std::uint32_t(judged)) {
         const MeshShadowModel::Edge& e = m.edges[k.edge];
         if (flipped(e.triangle[0]) || (e.direction[1] != 0 && flipped(e.triangle[1]))) continue;
       }
       edge_outline(k.a, k.b, k.times);
+      memory->outline[kept++] = k;
     }
-    for (const std::uint32_t* t = first; t != last; ++t) {
-      if (!flipped(*t)) continue;
-      for (const std::uint32_t index : m.triangle_edges[*t]) {
+    memory->outline.resize(kept);
+    for (const std::uint32_t t : flips)
+      for (const std::uint32_t index : m.triangle_edges[t]) {
         if (index == MeshShadowModel::kNoEdge || (index & MeshShadowModel::kManyEdge)) continue;
         if (stamp[index] == clock) continue;
         stamp[index] = clock;
         const MeshShadowModel::Edge& e = m.edges[index];
         work += 0.25;
         const int times = net(e, sign_now);
-        if (times != 0) edge_outline(e.a, e.b, times);
+        if (times != 0)
+          edge_outline(e.a, e.b, times, int(std::min(bucket_of(e.triangle[0]), bucket_of(e.triangle[1]))), index);
       }
-    }
     judge_many(sign_now);
     for (const std::uint32_t t : m.no_area) triangle_unsure(t);
     work += double(memory->outline.size()) * 0.25;
@@ -929,6 +952,10 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       std::vector<std::uint32_t> next(start.begin(), start.end() - 1), sorted(memory->tracked.size());
       for (const std::uint32_t t : memory->tracked) sorted[next[bucket_of(t)]++] = t;
       memory->tracked.swap(sorted);
+      memory->last_sign.resize(memory->tracked.size());
+      for (std::size_t i = 0; i < memory->tracked.size(); ++i)
+        memory->last_sign[i] = std::int8_t(triangle_sign(memory->tracked[i]));
+      memory->peak = 0;
       const std::size_t bytes = memory->bytes();
       memory_held_->fetch_add(bytes - memory->counted, std::memory_order_relaxed);  // (modulo 2^64: a shrink too)
       memory->counted = bytes;
