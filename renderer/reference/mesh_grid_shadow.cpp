@@ -908,11 +908,17 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
       const std::uint32_t l = node.leaf_first;
       const MeshShadowModel::Leaf& leaf = m.leaves[l];
       leaf_sign[l] = kMixed;
+      // The one sign all its triangles with area take, if they do (kMixed
+      // until the first).
+      std::int8_t one_sign = kMixed;
+      bool uniform = true;
       for (std::uint32_t t = leaf.first; t < leaf.last; ++t) {
         if (!memory) own_sign[t] = 0;
         if (m.normals[t] == glm::vec3(0.0f)) continue;  // no area: no_area's (a memory's: pack(0, kSteady))
         const double facing_t = glm::dot(glm::dvec3(m.normals[t]), dm);
         const std::int8_t s = judge_triangle(t, facing_t, node_low_[n], node_high_[n]);
+        uniform = uniform && (one_sign == kMixed || s == one_sign);
+        one_sign = s;
         if (!memory) {
           own_sign[t] = s;
           continue;
@@ -933,6 +939,16 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
         memory->state[t] = pack(s, room <= 0.0 ? std::uint8_t(0)
                                                 : std::uint8_t(std::min<double>(kBuckets, std::ceil(room / bucket_width))));
         memory->tracked.push_back(t);
+      }
+      // A leaf whose triangles all turned out one way (its cone only came
+      // near square) is one sign, as a settled one: its shut edges cancel,
+      // and so do the groups' edges to a leaf of that sign. (Its triangles
+      // keep their own signs too: a memory tracks them.)
+      if (uniform) {
+        leaf_sign[l] = one_sign == kMixed ? std::int8_t(0) : one_sign;
+        work += 0.25 * double(leaf.open_last - leaf.open_first);
+        for (std::uint32_t i = leaf.open_first; i < leaf.open_last; ++i) judge(m.edges[i]);
+        return;
       }
       work += 0.25 * double(leaf.open_last - leaf.open_first + leaf.shut_last - leaf.shut_first);
       for (std::uint32_t i = leaf.open_first; i < leaf.open_last; ++i) judge(m.edges[i]);
