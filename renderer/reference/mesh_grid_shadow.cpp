@@ -183,8 +183,14 @@ std::shared_ptr<const MeshShadowModel> mesh_shadow_model(const TriangleModel& mo
     if (glm::length(sum) == 0.0) return cone;
     const glm::dvec3 axis = glm::normalize(sum);
     double low = 1.0;
+    // Each normal made unit in double first: a float normal can be a few
+    // 1e-8 longer than 1, and a spread's sine taken from a cosine that
+    // much too high comes out up to sqrt(2e-8) too small, more than
+    // kEdgeOn for a tight cone (the red team's fold: a triangle 1e-4 from
+    // edge on settled with its leaf).
     for (std::size_t i = first; i < last; ++i)
-      if (input[i].normal != glm::vec3(0.0f)) low = std::min(low, glm::dot(glm::dvec3(input[i].normal), axis));
+      if (input[i].normal != glm::vec3(0.0f))
+        low = std::min(low, glm::dot(glm::normalize(glm::dvec3(input[i].normal)), axis));
     // A hair lower: the dot products' rounding.
     low -= 1e-9;
     if (low <= 0.05) return cone;
@@ -978,6 +984,10 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
     }
   }
 
+  // Judged once more now that all is gathered: a draw that reached `most`
+  // only with its last items overflows as one that reached it sooner
+  // (fresh draws and draws from memory gather in different orders).
+  overflow = overflow || crossings.size() + unsure.size() >= most;
   if (overflow) {
     // The whole box slid: every point a ray of this mesh could meet.
     crossings.clear(), unsure.clear();
