@@ -265,7 +265,8 @@ TEST(MeshGridShadow, DrawsFromMemoryAreFreshDraws) {
     for (int k = 0; k < 400; ++k) {
       const double t = k < 300 ? k : 300 - 3 * (k - 300);
       const glm::dvec3 d = sun(80.0 + 0.4 * t, 2.0 + 0.12 * t);
-      shadow.draw(d, p.grid, 1, kept, k % 7 == 0 ? 1 : 0);
+      // (Some draws far from their slot's last start its memory at once.)
+      shadow.draw(d, p.grid, 1, kept, k % 7 == 0 ? 1 : 0, 0, k % 3 == 0);
       shadow.draw(d, p.grid, 1, fresh);
       ASSERT_TRUE(same_shadow(kept, fresh)) << "sample " << k;
       checked += kept.dark.empty() ? 0 : 1;
@@ -294,7 +295,7 @@ TEST(MeshGridShadow, MemoriesPerTimeOfDayAreFreshDrawsWithinTheirBudget) {
         // Hour h's sun on this day: about 0.4 degrees a day from the last.
         const glm::dvec3 d = sun(95.0 + 15.0 * h + 0.1 * day, 4.0 + 5.0 * h - 0.4 * day * (h % 3 == 0 ? 1.0 : -0.5));
         if (!(d.y > 0.0)) continue;
-        shadow.draw(d, p.grid, 1, kept, h);
+        shadow.draw(d, p.grid, 1, kept, h, 0, /*start_when_far=*/h % 2 == 0);
         shadow.draw(d, p.grid, 1, fresh);
         ASSERT_TRUE(same_shadow(kept, fresh)) << "day " << day << ", hour " << h;
       }

@@ -495,7 +495,7 @@ struct Unsure {
 }  // namespace
 
 void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step, GridShadow& out, int slot,
-                          std::size_t most_gathered) const {
+                          std::size_t most_gathered, bool start_when_far) const {
   out.first_row = 0, out.last_row = -1;
   out.dark_start.clear(), out.unsure_start.clear(), out.dark.clear(), out.unsure.clear();
   out.work = 0.0;
@@ -525,15 +525,21 @@ void MeshGridShadow::draw(const glm::dvec3& d, const SunGrid& grid, int row_step
   crossings.clear(), unsure.clear();
   Memory* memory = slot >= 0 && std::size_t(slot) < memory_.size() ? memory_[std::size_t(slot)].get() : nullptr;
   // Samples further apart than half the drift (a year's, ten minutes
-  // apart) would each start a memory afresh, which costs more than a
-  // fresh draw: those draw fresh.
+  // apart, in one slot) would each start a memory afresh, which costs more
+  // than a fresh draw: those draw fresh, unless the caller's next draws in
+  // the slot will be near this one (the first of a run of minutes, or a
+  // time of day's first day): those start the memory now.
   if (memory) {
     const bool far = glm::length(dm - memory->last) > 0.5 * kDrift;
     memory->last = dm;
-    if (far) memory = nullptr;
-    // A slot not started yet starts only while the placement's memories
-    // hold less than their budget (past it, its draws are fresh ones).
-    else if (!memory->valid && memory_budget_ > 0 && memory_held_->load(std::memory_order_relaxed) >= memory_budget_)
+    if (far && !start_when_far)
+      memory = nullptr;
+    else if (far)
+      memory->valid = false;  // starts afresh below
+    // A slot that holds nothing yet starts only while the placement's
+    // memories hold less than their budget (past it, its draws are fresh).
+    if (memory && memory->counted == 0 && memory_budget_ > 0 &&
+        memory_held_->load(std::memory_order_relaxed) >= memory_budget_)
       memory = nullptr;
   }
   std::vector<std::int8_t>& leaf_sign = memory ? memory->leaf_sign : own_leaf_sign;

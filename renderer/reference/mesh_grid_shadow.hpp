@@ -108,12 +108,15 @@ class MeshGridShadow {
   /// few degrees re-judge only the triangles that may have turned since
   /// (a day's samples a minute apart: a tenth of them); the spans are the
   /// same either way. A slot is one thread's at a time; without one,
-  /// draw is safe from any number of threads. A draw that would gather
+  /// draw is safe from any number of threads. A draw far from the slot's
+  /// last (more than half the drift) draws fresh, unless `start_when_far`
+  /// (the caller's next draws there will be near this one): then it
+  /// starts the slot's memory afresh at d. A draw that would gather
   /// more than `most_gathered` row crossings and unsure entries (0: about
   /// a million, 16 bytes each), besides twice the grid's rows, takes the
   /// whole slid box of the model as unsure instead: bounded memory.
   void draw(const glm::dvec3& d, const SunGrid& grid, int row_step, GridShadow& out, int slot = -1,
-            std::size_t most_gathered = 0) const;
+            std::size_t most_gathered = 0, bool start_when_far = false) const;
   /// The world box of the model's corners: a shadow whose slide of it
   /// misses the grid holds no point of it.
   const Aabb& reach() const { return reach_; }

@@ -895,6 +895,10 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   // instead: slots kMeshRuns + k mod day_slots (at least a block's).
   const std::size_t day_slots =
       samples.size() >= 2 ? mesh_memory_day_slots(samples[1].utc_unix_s - samples[0].utc_unix_s, samples.size()) : 0;
+  // Samples at most six minutes apart: a run's next draws are near its
+  // first, which starts the run's memory at once (else a run's first
+  // draw, far from the slot's last, would draw fresh and its second start).
+  const bool close_steps = samples.size() >= 2 && samples[1].utc_unix_s - samples[0].utc_unix_s <= 360.0;
 
   // Each object that a ray from the plane can reach: the solids of its
   // footprints, and the proof of a hit its kind offers
@@ -983,9 +987,10 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   const std::size_t block = std::clamp<std::size_t>(16384 / std::max<std::size_t>(1, drawn.size()), 1,
                                                     meshes > 0 && day_slots == 0 ? 128 : 32);
   // The runs a mesh's block is cut into: those that end soonest when dealt
-  // to the threads, a run's first draw costing about 1.7 of the others
-  // (it starts its memory afresh; none does in a memory per time of day).
-  const double start_cost = day_slots > 0 ? 0.0 : 0.7;
+  // to the threads, a run's first draw costing about 3.3 of the others
+  // (it starts its memory afresh: the teapot's 1.0 ms against 0.3; none
+  // does in a memory per time of day).
+  const double start_cost = day_slots > 0 ? 0.0 : 2.3;
   std::size_t runs = 1;
   double soonest = 1e300;
   for (std::size_t r = 1; r <= std::size_t(kMeshRuns) && meshes > 0; ++r) {
@@ -1056,7 +1061,7 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
             if (d.y > 0.0 && !misses_grid(w.box, d))
               w.caster->mesh_shadow->draw(d, grid, 1, mesh,
                                           by_day ? kMeshRuns + int(ups[first + e].k % day_slots) : int(j),
-                                          most_gathered);
+                                          most_gathered, by_day || close_steps);
             if (poll.after(since, std::uint64_t(mesh.work))) break;
           }
         }
