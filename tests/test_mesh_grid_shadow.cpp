@@ -309,20 +309,6 @@ TEST(MeshGridShadow, MemoriesPerTimeOfDayAreFreshDrawsWithinTheirBudget) {
   }
 }
 
-// A model of loose triangles, three corners each.
-std::shared_ptr<const TriangleModel> soup_model(const std::vector<glm::vec3>& corners) {
-  ModelPart part;
-  for (std::size_t i = 0; i < corners.size(); ++i) {
-    part.positions.push_back(corners[i]);
-    part.normals.push_back({0, 1, 0});
-    part.indices.push_back(std::uint32_t(i));
-  }
-  auto model = std::make_shared<TriangleModel>();
-  model->parts.push_back(part);
-  finish_model(*model);
-  return model;
-}
-
 // The red team's fold: two triangles 0.017 degrees apart, 20 m up, the sun
 // 1e-4 from edge on to one of them. Their float normals are a few 1e-8
 // longer than 1, and a leaf's cone found from them told too small a spread:
@@ -335,7 +321,7 @@ TEST(MeshGridShadow, ATightFoldsLeafIsNotSettledWithAnEdgeOnTriangle) {
       {5.5868926f, 6.22802544f, 2.2347095f},    {3.82012844f, -3.05340815f, -1.04082572f},
       {-3.82012844f, 3.05340815f, 1.04082572f}, {-5.58691263f, -6.22887707f, -2.23228502f}};
   const glm::dvec3 d(0.65939967862722071, 0.7076872944114605, 0.2537139277905433);
-  Placed p{"fold", soup_model(corners), {0.0, 20.0, 0.0}, glm::dvec3(0.0), glm::dvec3(1.0), grid_of(0.0, 0.2, 0.0002)};
+  Placed p{"fold", model_of(corners), {0.0, 20.0, 0.0}, glm::dvec3(0.0), glm::dvec3(1.0), grid_of(0.0, 0.2, 0.0002)};
   const double slid = 20.0 / d.y;
   p.grid.center = {-slid * d.x, 0.0, -slid * d.z};
   const SceneObject mesh = mesh_of(p);
@@ -359,7 +345,7 @@ TEST(MeshGridShadow, ADrawsFallBackDoesNotDependOnTheOrderItGathers) {
       {0, 1, -4},  {0, 1, 4},    {0.4f, 2, -4}, {0, 1, 4},  {0, 1, -4},   {-0.8f, 1.3f, 4},
       {0, 1, -4},  {0, 1, 4},    {0.6f, 1.4f, 4},   // the fin: three triangles on one edge
       {-3, 1, -4}, {-3, 1.5f, 0}, {-3, 2, 4}};      // no area (its corners in a line)
-  const auto model = mesh_shadow_model(*soup_model(corners));
+  const auto model = mesh_shadow_model(*model_of(corners));
   const SunGrid grid = grid_of(0.0, 10.0, 0.05);
   const glm::dvec3 d = glm::normalize(glm::dvec3(0.3, 1.0, 0.2));
   int fell_back = 0;
