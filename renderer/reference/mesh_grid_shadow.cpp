@@ -454,6 +454,9 @@ MeshGridShadow::MeshGridShadow(std::shared_ptr<const MeshShadowModel> model, con
     height_[i] = p.y < plane_y - margin ? 0 : (p.y < plane_y + margin ? 1 : 2);
     reach_.extend(p);
   }
+  // The columns' lengths are the placement's scales: placements are
+  // translate x turn x scale (mesh_transform), never sheared (a shear
+  // would stretch more than these tell).
   const glm::dmat3 linear(to_world);
   const double x = glm::length(linear[0]), y = glm::length(linear[1]), z = glm::length(linear[2]);
   stretch_ = std::min({x, y, z}) > 0.0 ? std::max({x, y, z}) / std::min({x, y, z}) : 1e300;
