@@ -859,7 +859,7 @@ FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const 
 }
 
 std::size_t mesh_memory_day_slots(double step_seconds, std::size_t samples) {
-  if (!(step_seconds > 360.0)) return 0;
+  if (!(step_seconds > kMeshMemoryMostStepSeconds)) return 0;
   const double per_day = 86400.0 / step_seconds;
   if (per_day < 32.0 || std::abs(per_day - std::round(per_day)) > 1e-6 || double(samples) <= per_day) return 0;
   return std::size_t(std::round(per_day));
@@ -885,20 +885,20 @@ void footprint_sun_hours(const RayScene& rays, const Scene& scene, const SunGrid
   const int threads = int(std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(),
                                                           unsigned((grid.rows + kStripe - 1) / kStripe))));
   // A mesh's shadows are drawn in runs of consecutive samples, each run
-  // by one thread with a memory of its own (MeshGridShadow::draw): enough
-  // runs a block for about two per thread, at most kMeshRuns a mesh (each
-  // run's first draw starts its memory afresh), claimed by whichever
-  // thread is free (meshes' draws differ in cost: ten teapots on sixteen
-  // threads left six idle while each drew a block alone).
+  // by one thread with a memory of its own (MeshGridShadow::draw): at most
+  // kMeshRuns a mesh and block (each run's first draw starts its memory
+  // afresh; `runs` below), claimed by whichever thread is free (meshes'
+  // draws differ in cost: ten teapots on sixteen threads left six idle
+  // while each drew a block alone).
   constexpr int kMeshRuns = 8;
   // A year's samples, ten minutes apart, draw in a memory per time of day
   // instead: slots kMeshRuns + k mod day_slots (at least a block's).
-  const std::size_t day_slots =
-      samples.size() >= 2 ? mesh_memory_day_slots(samples[1].utc_unix_s - samples[0].utc_unix_s, samples.size()) : 0;
-  // Samples at most six minutes apart: a run's next draws are near its
-  // first, which starts the run's memory at once (else a run's first
-  // draw, far from the slot's last, would draw fresh and its second start).
-  const bool close_steps = samples.size() >= 2 && samples[1].utc_unix_s - samples[0].utc_unix_s <= 360.0;
+  const double step_seconds = samples.size() >= 2 ? samples[1].utc_unix_s - samples[0].utc_unix_s : 0.0;
+  const std::size_t day_slots = samples.size() >= 2 ? mesh_memory_day_slots(step_seconds, samples.size()) : 0;
+  // Samples near each other: a run's next draws are near its first, which
+  // starts the run's memory at once (else a run's first draw, far from the
+  // slot's last, would draw fresh and its second start).
+  const bool close_steps = samples.size() >= 2 && step_seconds <= kMeshMemoryMostStepSeconds;
 
   // Each object that a ray from the plane can reach: the solids of its
   // footprints, and the proof of a hit its kind offers

@@ -125,6 +125,12 @@ struct FootprintShares {
 /// first direction is judged.
 FootprintShares footprint_shares(const Scene& scene, const SunGrid& grid, const std::vector<glm::dvec3>& directions);
 
+/// Samples at most this far apart (seconds) draw their mesh shadows from a
+/// memory of the last sample (the sun turns about 1.5 degrees in six
+/// minutes, half a memory's drift); further apart, from a memory per time
+/// of day (mesh_memory_day_slots) or fresh.
+inline constexpr double kMeshMemoryMostStepSeconds = 360.0;
+
 /// How many memories per time of day the walk's mesh shadows keep for
 /// samples `step_seconds` apart, `samples` of them: where steps are longer
 /// than six minutes (the sun turns 1.5 degrees or more, too far for a

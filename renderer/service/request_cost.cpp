@@ -481,15 +481,15 @@ constexpr double kMsPerFootprintVisit = 3.0e-6;
 // an edge slid), per sample. The plan draws each fresh; the walk draws
 // from a memory that re-judges only what turned where samples are close
 // (ten teapots' day at one-minute steps: 450,000 units a sample, 727
-// samples in about 1.7 s on two cores), fresh where they are not (the sun
-// turns about 0.25 degrees a minute; past about six minutes a step, the
-// memory would start afresh at every sample: a month at ten minutes). A
+// samples in about 1.7 s on two cores when set, 1.2-1.4 s since), fresh
+// where they are not (the sun turns about 0.25 degrees a minute; past
+// kMeshMemoryMostStepSeconds, six minutes a step, a memory would start
+// afresh at every sample: a month at ten minutes). A
 // year at ten minutes keeps a memory per time of day instead
-// (mesh_memory_day_slots; 490,000 units a sample, 26,736 samples in about
-// 77 s; 114 s fresh).
+// (mesh_memory_day_slots; 490,000 units a sample, 26,736 samples in
+// 59-77 s; 114 s fresh).
 constexpr double kMsPerMeshShadowUnit = 5.0e-6, kMsPerDayMemoryMeshShadowUnit = 6.0e-6,
                  kMsPerFreshMeshShadowUnit = 8.5e-6;
-constexpr double kMostMinutesForMemory = 6.0;
 // Answer text per point: JSON (hours and longest run) or CSV (x, y, z too).
 constexpr std::uint64_t kAnswerBytesPerPoint = 96;
 // include_samples: a sample's instant, azimuth and elevation as JSON text.
@@ -530,7 +530,7 @@ SunHoursCost estimate_sun_hours_cost(const SunHoursRequest& request, std::size_t
   // Stretches of daylight: about one a day, at least one.
   const double days = std::max(1.0, (request.period.end_unix_s - request.period.start_unix_s) / 86400.0);
   const double mesh_shadow_ms =
-      request.period.step_minutes <= kMostMinutesForMemory ? kMsPerMeshShadowUnit
+      request.period.step_seconds() <= kMeshMemoryMostStepSeconds ? kMsPerMeshShadowUnit
       : mesh_memory_day_slots(request.period.step_seconds(), samples) > 0 ? kMsPerDayMemoryMeshShadowUnit
                                                                           : kMsPerFreshMeshShadowUnit;
   const double footprints_ms = samples_up * std::max(shares.hulls, double(scene.objects.size())) * kMsPerFootprint +
