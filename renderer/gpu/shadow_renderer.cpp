@@ -137,6 +137,7 @@ ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_by
   glNamedFramebufferReadBuffer(unbind_framebuffer_.id(), GL_NONE);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
+  conservative_on_cpu_ = gl_renderer().find("llvmpipe") != std::string::npos;
 }
 
 std::string ShadowRenderer::gl_renderer() const {
@@ -385,22 +386,85 @@ void ShadowRenderer::run_sliver_pass(const DisplayPassPlan& pass) {
 
 void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
   SceneGeometry& g = scene();
-  if (g.triangle_objects) return;
-  const Mesh& mesh = g.mesh;
-  std::vector<std::uint32_t> objects;
-  for (const ObjectRange& r : mesh.object_ranges) {
-    const std::size_t first = r.first_index / 3, count = r.index_count / 3;
-    if (objects.size() < first + count) objects.resize(first + count, 0);
-    std::fill(objects.begin() + std::ptrdiff_t(first), objects.begin() + std::ptrdiff_t(first + count),
-              std::uint32_t(r.object));
+  if (!g.triangle_objects) {
+    const Mesh& mesh = g.mesh;
+    std::vector<std::uint32_t>& objects = g.triangle_object_ids;
+    for (const ObjectRange& r : mesh.object_ranges) {
+      const std::size_t first = r.first_index / 3, count = r.index_count / 3;
+      if (objects.size() < first + count) objects.resize(first + count, 0);
+      std::fill(objects.begin() + std::ptrdiff_t(first), objects.begin() + std::ptrdiff_t(first + count),
+                std::uint32_t(r.object));
+    }
+    make_buffer_texture(g.triangle_objects_buffer, g.triangle_objects, GL_R32UI, objects.data(),
+                        objects.size() * sizeof(std::uint32_t));
+    const std::vector<glm::vec4> facts = object_facts(scene_objects, mesh.origin);
+    make_buffer_texture(g.object_facts_buffer, g.object_facts, GL_RGBA32F, facts.data(),
+                        facts.size() * sizeof(glm::vec4));
+    g.conservative_objects = conservative_objects(scene_objects);
   }
-  make_buffer_texture(g.triangle_objects_buffer, g.triangle_objects, GL_R32UI, objects.data(),
-                      objects.size() * sizeof(std::uint32_t));
-  const std::vector<glm::vec4> facts = object_facts(scene_objects, mesh.origin);
-  make_buffer_texture(g.object_facts_buffer, g.object_facts, GL_RGBA32F, facts.data(), facts.size() * sizeof(glm::vec4));
+  if (conservative_on_cpu_ && g.positions.empty() && g.triangle_object_ids.size() <= kMostConservativeTriangles) {
+    // The scene's CPU copy dropped its vertices once uploaded: read back
+    // (a copy, on llvmpipe) what the maps are drawn from.
+    const auto buffer_bytes = [](GLuint buffer) {
+      GLint64 bytes = 0;
+      glGetNamedBufferParameteri64v(buffer, GL_BUFFER_SIZE, &bytes);
+      return std::size_t(bytes);
+    };
+    std::vector<Vertex> vertices(buffer_bytes(g.vertices.id()) / sizeof(Vertex));
+    glGetNamedBufferSubData(g.vertices.id(), 0, GLsizeiptr(vertices.size() * sizeof(Vertex)), vertices.data());
+    g.positions.resize(vertices.size());
+    for (std::size_t i = 0; i < vertices.size(); ++i)
+      g.positions[i] = glm::vec3(vertices[i].position[0], vertices[i].position[1], vertices[i].position[2]);
+    g.position_indices.resize(buffer_bytes(g.indices.id()) / sizeof(std::uint32_t));
+    glGetNamedBufferSubData(g.indices.id(), 0, GLsizeiptr(g.position_indices.size() * sizeof(std::uint32_t)),
+                            g.position_indices.data());
+  }
 }
 
-void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan) {
+bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const FrameBlock& block,
+                                              const ShadowLayerDraw& layer) {
+  const SceneGeometry& g = scene();
+  const ShadowView& v = plan.light.views.at(std::size_t(layer.layer));
+  ConservativeView view;
+  view.view = block.light_view[layer.layer];
+  view.projection = block.light_projection[layer.layer];
+  view.perspective = plan.light.perspective;
+  view.near_plane = v.near_plane;
+  view.far_plane = v.far_plane;
+  view.texel_size = v.texel_size;
+  view.tan_half = v.tan_half;
+  view.layer_size = plan.light.layer_size;
+  view.size = certified_map_size(plan.light.layer_size);
+  view.cull_closed_back = plan.shadow.cull_closed_back;
+  std::size_t triangles = 0;
+  for (const DrawRange& d : layer.draws) triangles += d.count / 3;
+  // A scene of more triangles keeps no copy of them here (use_certificate_buffers).
+  if (triangles > kMostConservativeTriangles || (triangles > 0 && g.positions.empty())) return false;
+  const ConservativeMaps maps(g.positions, g.position_indices, g.conservative_objects, g.triangle_object_ids, layer.draws, view);
+  // What the certificate reads: the clear's rectangle (the whole layer, or
+  // its casters' rectangle and a texel around).
+  const int side = view.size;
+  int x0 = 0, y0 = 0, x1 = side, y1 = side;
+  if (!layer.clear_whole) {
+    const double scale = double(side) / double(plan.light.layer_size);
+    x0 = std::max(0, int(std::floor(layer.x0 * scale)) - 1);
+    y0 = std::max(0, int(std::floor(layer.y0 * scale)) - 1);
+    x1 = std::min(side, int(std::ceil(layer.x1 * scale)) + 1);
+    y1 = std::min(side, int(std::ceil(layer.y1 * scale)) + 1);
+  }
+  const GLint at = GLint(layer.layer);
+  draw_conservative_bands(maps, x0, y0, x1, y1, kConservativeBandBytes, [&](const ConservativeBand& band) {
+    glTextureSubImage3D(certify_.nearest_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
+                        GL_DEPTH_COMPONENT, GL_FLOAT, band.nearest_depth.data());
+    glTextureSubImage3D(certify_.nearest_owner.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
+                        GL_RED_INTEGER, GL_UNSIGNED_INT, band.nearest_owner.data());
+    glTextureSubImage3D(certify_.others_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
+                        GL_DEPTH_COMPONENT, GL_FLOAT, band.others_depth.data());
+  });
+  return true;
+}
+
+void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const FrameBlock& block) {
   const ShadowPlan& light = plan.light;
   const int size = light.layer_size;
   resize_shadow_map(size, int(light.views.size()));
@@ -457,6 +521,7 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan) {
     glUseProgram(centre);
     glProgramUniform1i(centre, kUniformLocationLayer, at);
     draw_scene(layer.draws);
+    if (conservative_on_cpu_ && upload_conservative_maps(plan, block, layer)) continue;
     attach(certify_.nearest_depth.id(), certify_.nearest_owner.id(), at);
     glViewport(0, 0, coarse, coarse);
     clear(certify_.nearest_depth.id(), coarse, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
@@ -814,7 +879,7 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
   if (plan.shadow.needed && !plan.shadow.reused) {
     // A reused map (typically only the camera moved) leaves shadow_ms 0.
     const auto start = Clock::now();
-    plan.shadow.certify ? run_certified_shadow_pass(plan) : run_shadow_pass(plan);
+    plan.shadow.certify ? run_certified_shadow_pass(plan, block) : run_shadow_pass(plan);
     glFinish();
     result.timings.shadow_ms = elapsed_ms(start);
     check_watch("the shadow pass");

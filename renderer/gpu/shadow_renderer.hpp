@@ -16,13 +16,16 @@
 #include "core/byte_bounded_lru.hpp"
 #include "gpu/objects.hpp"
 #include "gpu/program.hpp"
+#include "gpu/shader_interface.hpp"
 #include "core/light_math.hpp"
 #include "core/render_result.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
+#include "plan/conservative_maps.hpp"
 #include "plan/frame_plan.hpp"
 
 namespace umbra {
+
 
 /// When a frame must give up: render() checks it between the chunks that a
 /// deep or long mesh's draws are split into (see draw_scene_indices) and between
@@ -82,6 +85,10 @@ class ShadowRenderer {
   std::uint64_t released_gl_bytes() const { return released_gl_bytes_; }
 
   std::string gl_renderer() const;
+  /// Filter "exact"'s conservative maps drawn on the CPU
+  /// (plan/conservative_maps.hpp; the default on llvmpipe) or by the
+  /// shaders (certify.geom; the default on a GPU). Tests draw both.
+  void set_conservative_maps_on_cpu(bool on_cpu) { conservative_on_cpu_ = on_cpu; }
   std::string gl_version() const;
 
  private:
@@ -100,6 +107,14 @@ class ShadowRenderer {
     // (RGBA32F), as buffer textures.
     gl::Buffer triangle_objects_buffer, object_facts_buffer;
     gl::Texture triangle_objects, object_facts;
+    // ... and on the CPU: each triangle's object, each object's facts as
+    // the conservative maps drawn there take them, and (only where they
+    // are drawn there: conservative_on_cpu_, at most
+    // kMostConservativeTriangles) the positions and indices, read back.
+    std::vector<std::uint32_t> triangle_object_ids;
+    std::vector<ConservativeObject> conservative_objects;
+    std::vector<glm::vec3> positions;
+    std::vector<std::uint32_t> position_indices;
   };
   // Filter "exact"'s maps of the light's view (certify.frag), one array
   // layer per view, beside the shadow map (which holds the centre depths).
@@ -176,7 +191,11 @@ class ShadowRenderer {
   void drop_certificate_targets();
   // The current scene's buffer textures for `scene` (its content).
   void use_certificate_buffers(const Scene& scene);
-  void run_certified_shadow_pass(const FramePlan& plan);
+  void run_certified_shadow_pass(const FramePlan& plan, const FrameBlock& block);
+  // One layer's nearest and others maps drawn on the CPU
+  // (plan/conservative_maps.hpp) and uploaded; false when the layer holds
+  // more triangles than that path takes (the shaders draw it then).
+  bool upload_conservative_maps(const FramePlan& plan, const FrameBlock& block, const ShadowLayerDraw& layer);
   void run_sliver_pass(const DisplayPassPlan& pass);
   // Draws with u_triangle_base set to each draw's first triangle (the
   // certified programs name triangles by it).
@@ -211,6 +230,9 @@ class ShadowRenderer {
   // ones took.
   static constexpr double kMainChunkFragments = 1 << 20;
   static constexpr double kShadowChunkFragments = 1 << 25;
+  // The conservative maps drawn on the CPU go up in bands of rows of at
+  // most this many bytes, one per core at a time.
+  static constexpr std::size_t kConservativeBandBytes = std::size_t(4) << 20;
   // The frame's watch, and the chunking state of the pass being drawn.
   FrameWatch watch_;
   double pass_pixels_ = 0.0;          // the pass's viewport
@@ -251,6 +273,10 @@ class ShadowRenderer {
   static constexpr std::size_t kCachedScenes = 8;
   std::uint64_t scene_cache_bytes_;
   std::uint64_t released_gl_bytes_ = 0;  // see released_gl_bytes()
+  // The GL is a software rasteriser (llvmpipe): filter "exact"'s
+  // conservative maps are drawn by plan/conservative_maps.cpp, ten times
+  // faster there than through its geometry shader.
+  bool conservative_on_cpu_ = false;
   bool map_allocated_ = false;           // this frame allocated its shadow map (RenderResult)
   // scenes_.evict_to, counting what goes in released_gl_bytes_.
   void evict_scenes_to(std::uint64_t max_bytes, std::size_t keep);

@@ -1,0 +1,251 @@
+#include "plan/conservative_maps.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+#include "core/shapes/shape.hpp"
+
+namespace umbra {
+
+std::vector<ConservativeObject> conservative_objects(const Scene& scene) {
+  std::vector<ConservativeObject> objects;
+  objects.reserve(scene.objects.size());
+  for (const SceneObject& o : scene.objects)
+    objects.push_back({tessellation_error(o).distance, o.type == SceneObject::Type::Mesh, shape_kind(o.type).closed(o)});
+  return objects;
+}
+
+namespace {
+
+// certify.geom's to_texels, in double.
+glm::dvec3 to_texels(const glm::dvec4& clip, double size) {
+  const glm::dvec3 ndc = glm::dvec3(clip) / clip.w;
+  return {(ndc.x * 0.5 + 0.5) * size, (ndc.y * 0.5 + 0.5) * size, ndc.z * 0.5 + 0.5};
+}
+
+// certify.geom, step for step (its comments say why each step holds).
+bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const ConservativeObject& object,
+            std::uint32_t owner, ConservativeMaps::Setup& s) {
+  const double size = double(view.size);
+  glm::dvec4 poly[4];
+  int n = 0;
+  if (view.perspective) {
+    const double w_min = 0.5 * view.near_plane;
+    for (int i = 0; i < 3; ++i) {
+      const glm::dvec4 a = in_clip[i], b = in_clip[(i + 1) % 3];
+      const bool a_in = a.w >= w_min, b_in = b.w >= w_min;
+      if (a_in) poly[n++] = a;
+      if (a_in != b_in) poly[n++] = a + (b - a) * ((w_min - a.w) / (b.w - a.w));
+    }
+    if (n < 3) return false;
+  } else {
+    for (int i = 0; i < 3; ++i) poly[i] = in_clip[i];
+    n = 3;
+  }
+  glm::dvec3 p[4];
+  glm::dvec2 lo(1e300), hi(-1e300);
+  double min_depth = 1e300;
+  for (int i = 0; i < n; ++i) {
+    p[i] = to_texels(poly[i], size);
+    lo = glm::min(lo, glm::dvec2(p[i]));
+    hi = glm::max(hi, glm::dvec2(p[i]));
+    min_depth = std::min(min_depth, p[i].z);
+  }
+  if (!(hi.x >= -1.0 && hi.y >= -1.0 && lo.x <= size + 1.0 && lo.y <= size + 1.0)) return false;
+  double area = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const glm::dvec2 a(p[i]), b(p[(i + 1) % n]);
+    area += a.x * b.y - b.x * a.y;
+  }
+  const double extent = std::max(std::max(std::abs(lo.x), std::abs(lo.y)), std::max(std::abs(hi.x), std::abs(hi.y)));
+  if (view.cull_closed_back && object.closed && !object.model) {
+    double perimeter = 0.0, fan_area = 0.0;
+    for (int i = 0; i < n; ++i) perimeter += glm::length(glm::dvec2(p[(i + 1) % n]) - glm::dvec2(p[i]));
+    for (int i = 1; i + 1 < n; ++i) {
+      const glm::dvec2 e1 = glm::dvec2(p[i]) - glm::dvec2(p[0]), e2 = glm::dvec2(p[i + 1]) - glm::dvec2(p[0]);
+      fan_area += e1.x * e2.y - e1.y * e2.x;
+    }
+    const double fan_rounding = 4e-6 * std::max(1.0, extent) * perimeter + 1e-6 * perimeter * perimeter;
+    if (fan_area < -fan_rounding) return false;
+  }
+  const bool has_area = std::abs(area) > 1e-4 * std::max(1.0, extent);
+  s.edge_count = has_area ? n : 0;
+  for (int i = 0; i < 4; ++i) {
+    const int k = area >= 0.0 ? i : n - 1 - i;
+    s.corner[i] = i < n ? glm::dvec2(p[k]) : glm::dvec2(0.0);
+  }
+  glm::dvec3 a = p[0], b = p[1], c = p[2];
+  glm::dvec2 ab = glm::dvec2(b) - glm::dvec2(a), ac = glm::dvec2(c) - glm::dvec2(a);
+  double det = ab.x * ac.y - ab.y * ac.x;
+  if (n == 4) {
+    const glm::dvec2 ad = glm::dvec2(p[3]) - glm::dvec2(a);
+    const double det2 = ac.x * ad.y - ac.y * ad.x;
+    if (std::abs(det2) > std::abs(det)) {
+      b = p[2];
+      c = p[3];
+      ab = glm::dvec2(b) - glm::dvec2(a);
+      ac = glm::dvec2(c) - glm::dvec2(a);
+      det = det2;
+    }
+  }
+  s.plane_valid = std::abs(det) > 1e-6 * std::max(1.0, glm::dot(ab, ab) + glm::dot(ac, ac));
+  if (s.plane_valid) {
+    const double dzb = b.z - a.z, dzc = c.z - a.z;
+    s.plane = {(dzb * ac.y - dzc * ab.y) / det, (dzc * ab.x - dzb * ac.x) / det, a.z};
+  } else {
+    s.plane = {0.0, 0.0, a.z};
+  }
+  s.origin = glm::dvec2(a);
+  s.min_depth = min_depth;
+  s.owner = owner;
+  const double coarse_texels = double(view.layer_size) / size;
+  double texel_world = 0.0, window_per_world = 0.0;
+  if (view.perspective) {
+    double nearest_w = 1e300;
+    for (int i = 0; i < n; ++i) nearest_w = std::min(nearest_w, poly[i].w);
+    texel_world = view.texel_size.x * nearest_w * coarse_texels / (1.0 + 2.0 * view.tan_half);
+    window_per_world = view.near_plane * view.far_plane / ((view.far_plane - view.near_plane) * nearest_w * nearest_w);
+  } else {
+    texel_world = std::min(view.texel_size.x, view.texel_size.y) * coarse_texels;
+    window_per_world = 1.0 / (view.far_plane - view.near_plane);
+  }
+  s.swell = object.swell > 0.0 ? object.swell / texel_world : 0.0;
+  s.depth_swell = object.swell * window_per_world;
+  const double margin = 0.5 + s.swell + 1.0 / 32.0 + 1e-6 * extent;
+  s.lo = glm::clamp(lo - margin, glm::dvec2(-1.0), glm::dvec2(size + 1.0));
+  s.hi = glm::clamp(hi + margin, glm::dvec2(-1.0), glm::dvec2(size + 1.0));
+  return true;
+}
+
+// The float no greater than `d`: a depth rounded towards the light.
+float float_at_most(double d) {
+  float f = float(d);
+  if (double(f) > d) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+
+}  // namespace
+
+ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
+                                   const std::vector<ConservativeObject>& objects,
+                                   const std::vector<std::uint32_t>& triangle_objects,
+                                   const std::vector<DrawRange>& draws, const ConservativeView& view) {
+  const glm::dmat4 to_clip = glm::dmat4(view.projection) * glm::dmat4(view.view);
+  for (const DrawRange& draw : draws) {
+    for (std::size_t i = draw.first; i + 2 < draw.first + draw.count; i += 3) {
+      const std::size_t triangle = i / 3;
+      const std::uint32_t object = triangle_objects.at(triangle);
+      const ConservativeObject& facts = objects.at(object);
+      glm::dvec4 clip[3];
+      for (int k = 0; k < 3; ++k) clip[k] = to_clip * glm::dvec4(glm::dvec3(positions.at(indices.at(i + std::size_t(k)))), 1.0);
+      const std::uint32_t owner = facts.model ? (std::uint32_t(triangle) | kModelTriangleOwner) : object;
+      Setup s;
+      if (set_up(clip, view, facts, owner, s)) setups_.push_back(s);
+    }
+  }
+}
+
+// certify.frag over the band: each texel whose centre lies in a setup's box
+// and on the inner side of each of its edges (grown as the shader grows
+// them) takes the least depth of its plane over the texel's square; the
+// nearest map keeps the least depth and its owner, the others map the
+// least depth of every other owner.
+void ConservativeMaps::draw(ConservativeBand& band) const {
+  const std::size_t w = std::size_t(std::max(0, band.width())), h = std::size_t(std::max(0, band.height()));
+  band.nearest_depth.assign(w * h, 1.0f);
+  band.nearest_owner.assign(w * h, kNoOwner);
+  band.others_depth.assign(w * h, 1.0f);
+  if (w == 0 || h == 0) return;
+  struct Edge {
+    double nx, ny, k;  // keeps nx * cx + ny * cy + k <= 0
+  };
+  for (const Setup& s : setups_) {
+    // Centres within the box: lo <= i + 0.5 <= hi.
+    const int i0 = std::max(band.x0, int(std::ceil(s.lo.x - 0.5))), i1 = std::min(band.x1 - 1, int(std::floor(s.hi.x - 0.5)));
+    const int j0 = std::max(band.y0, int(std::ceil(s.lo.y - 0.5))), j1 = std::min(band.y1 - 1, int(std::floor(s.hi.y - 0.5)));
+    if (i0 > i1 || j0 > j1) continue;
+    // certify.frag drops a centre where dot(n, c - a) - (|n.x| + |n.y|) / 2
+    // exceeds its rounding, (|n.x| + |n.y|) (1e-3 + 1e-6 (|d.x| + |d.y|)) +
+    // swell |n|; |d| is bounded here by the box's size, so more is kept.
+    const double reach = (s.hi.x - s.lo.x) + (s.hi.y - s.lo.y) + 2.0;
+    Edge edges[4];
+    for (int e = 0; e < s.edge_count; ++e) {
+      const glm::dvec2 a = s.corner[e], b = s.corner[(e + 1) % s.edge_count];
+      const double nx = b.y - a.y, ny = a.x - b.x, l1 = std::abs(nx) + std::abs(ny);
+      const double rounding = l1 * (1e-3 + 1e-6 * reach) + s.swell * std::sqrt(nx * nx + ny * ny);
+      edges[e] = {nx, ny, -nx * a.x - ny * a.y - 0.5 * l1 - rounding};
+    }
+    const double slope = 0.5 * (std::abs(s.plane.x) + std::abs(s.plane.y));
+    for (int j = j0; j <= j1; ++j) {
+      const double cy = double(j) + 0.5;
+      // The row's span of centres on the inner side of every edge, widened
+      // by a millionth of a texel for this double arithmetic.
+      double from = double(i0) + 0.5, to = double(i1) + 0.5;
+      bool empty = false;
+      for (int e = 0; e < s.edge_count && !empty; ++e) {
+        const Edge& g = edges[e];
+        const double k = g.ny * cy + g.k;
+        if (g.nx > 0.0) {
+          to = std::min(to, -k / g.nx + 1e-6);
+        } else if (g.nx < 0.0) {
+          from = std::max(from, -k / g.nx - 1e-6);
+        } else if (k > 0.0) {
+          empty = true;
+        }
+      }
+      if (empty || from > to) continue;
+      const int a = std::max(i0, int(std::ceil(from - 0.5))), b = std::min(i1, int(std::floor(to - 0.5)));
+      const std::size_t row = std::size_t(j - band.y0) * w;
+      const double dy = cy - s.origin.y;
+      for (int i = a; i <= b; ++i) {
+        double depth = s.min_depth, rounding = 1e-6;
+        if (s.plane_valid) {
+          const double dx = double(i) + 0.5 - s.origin.x;
+          depth = std::max(depth, s.plane.z + s.plane.x * dx + s.plane.y * dy - slope);
+          rounding += 4e-7 * (std::abs(s.plane.x * dx) + std::abs(s.plane.y * dy) + slope + std::abs(s.plane.z));
+        }
+        const float d = float_at_most(std::clamp(depth - rounding - s.depth_swell, 0.0, 1.0));
+        const std::size_t at = row + std::size_t(i - band.x0);
+        if (s.owner == band.nearest_owner[at]) {
+          band.nearest_depth[at] = std::min(band.nearest_depth[at], d);
+        } else if (d < band.nearest_depth[at]) {
+          band.others_depth[at] = band.nearest_depth[at];
+          band.nearest_depth[at] = d;
+          band.nearest_owner[at] = s.owner;
+        } else {
+          band.others_depth[at] = std::min(band.others_depth[at], d);
+        }
+      }
+    }
+  }
+}
+
+void draw_conservative_bands(const ConservativeMaps& maps, int x0, int y0, int x1, int y1, std::size_t band_bytes,
+                             const std::function<void(const ConservativeBand&)>& take) {
+  if (x1 <= x0 || y1 <= y0) return;
+  const std::size_t row_bytes = std::size_t(x1 - x0) * (2 * sizeof(float) + sizeof(std::uint32_t));
+  const int rows = int(std::clamp<std::size_t>(band_bytes / row_bytes, 1, std::size_t(y1 - y0)));
+  const int threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  // Bands of about equal rows, at least one per thread where the rows allow.
+  const int count = std::max((y1 - y0 + rows - 1) / rows, std::min(threads, y1 - y0));
+  std::vector<ConservativeBand> bands(std::size_t(std::min(count, threads)));
+  for (int first = 0; first < count; first += int(bands.size())) {
+    const int batch = std::min(int(bands.size()), count - first);
+    for (int b = 0; b < batch; ++b) {
+      ConservativeBand& band = bands[std::size_t(b)];
+      band.x0 = x0;
+      band.x1 = x1;
+      band.y0 = y0 + int(std::int64_t(y1 - y0) * (first + b) / count);
+      band.y1 = y0 + int(std::int64_t(y1 - y0) * (first + b + 1) / count);
+    }
+    std::vector<std::thread> pool;
+    for (int b = 1; b < batch; ++b) pool.emplace_back([&maps, &bands, b] { maps.draw(bands[std::size_t(b)]); });
+    maps.draw(bands[0]);
+    for (std::thread& t : pool) t.join();
+    for (int b = 0; b < batch; ++b) take(bands[std::size_t(b)]);
+  }
+}
+
+}  // namespace umbra

@@ -1,0 +1,118 @@
+// Filter "exact"'s two conservative maps of a light's view, drawn on the CPU
+// (docs/certified-shadows.md, "The maps"): for each texel the least window
+// depth that any triangle reaches anywhere in the texel's square, with that
+// triangle's owner (the nearest map), and the least depth of every other
+// owner (the others map).
+//
+// certify.geom and certify.frag draw the same maps through the GL's
+// pipeline: a geometry shader's quad per triangle, an edge test and a
+// written depth per fragment. llvmpipe runs all of that on the CPU, about
+// ten times slower than this loop over each row's span; on a GPU the
+// shaders are the faster. Both follow one recipe, step for step, with the
+// same margins; here the arithmetic is double, so every value is at least
+// as safe as the shaders'.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "core/scene.hpp"
+#include "plan/frame_plan.hpp"
+
+namespace umbra {
+
+/// One view of the light as the shaders have it.
+struct ConservativeView {
+  /// The layer's light_view (relative to the mesh origin) and projection,
+  /// the float matrices of the uniform block, so that the maps hold what the
+  /// main pass projects its points with.
+  glm::mat4 view{1.0f};
+  glm::mat4 projection{1.0f};
+  bool perspective = false;
+  /// ShadowView's near and far planes (world units), texel size (world
+  /// units; a point light's per unit of distance) and, for a point light,
+  /// tan of half its field of view.
+  double near_plane = 0.0, far_plane = 1.0;
+  glm::dvec2 texel_size{0.0};
+  double tan_half = 0.0;
+  int layer_size = 0;  ///< the layer's texels per side
+  int size = 0;        ///< the conservative maps' (certified_map_size)
+  /// ShadowPassPlan::cull_closed_back.
+  bool cull_closed_back = false;
+};
+
+/// What the maps need of each object: how far its true surface reaches past
+/// its faces (ShapeKind::tessellation_error), and whether it is a model
+/// (each triangle its own owner) or closed.
+struct ConservativeObject {
+  double swell = 0.0;
+  bool model = false;
+  bool closed = false;
+};
+std::vector<ConservativeObject> conservative_objects(const Scene& scene);
+
+/// The owner of a model's triangle (certificate.glsl's owner_of): its index
+/// with the top bit set; an analytic shape's triangles are owned by the object.
+inline constexpr std::uint32_t kModelTriangleOwner = 0x80000000u;
+/// A texel no triangle touches: depth 1 (far), this owner.
+inline constexpr std::uint32_t kNoOwner = 0xFFFFFFFFu;
+
+/// Rows [y0, y1) x columns [x0, x1) of both maps, row-major.
+struct ConservativeBand {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  std::vector<float> nearest_depth;
+  std::vector<std::uint32_t> nearest_owner;
+  std::vector<float> others_depth;
+  int width() const { return x1 - x0; }
+  int height() const { return y1 - y0; }
+};
+
+/// The triangles of one layer's draws, set up once for every band.
+class ConservativeMaps {
+ public:
+  /// `positions` and `indices`: the scene's (Mesh: relative to its origin);
+  /// `triangle_objects`: each triangle's object (by index / 3).
+  ConservativeMaps(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
+                   const std::vector<ConservativeObject>& objects,
+                   const std::vector<std::uint32_t>& triangle_objects, const std::vector<DrawRange>& draws,
+                   const ConservativeView& view);
+  /// Fills `band` (its rectangle set by the caller, within the maps).
+  void draw(ConservativeBand& band) const;
+  std::size_t triangles() const { return setups_.size(); }
+
+  // One triangle (or, clipped by a point light's near plane, a quadrilateral)
+  // as certify.geom hands it to certify.frag: corners in texels of the maps,
+  // counter-clockwise; the window depth of its plane; its box grown by half a
+  // texel, its swell and a rounding margin.
+  struct Setup {
+    glm::dvec2 corner[4];
+    int edge_count = 0;  ///< 0: too thin for its edge normals; the box alone
+    bool plane_valid = false;
+    glm::dvec3 plane{0.0};  ///< depth = z + x (tx - origin.x) + y (ty - origin.y)
+    glm::dvec2 origin{0.0};
+    double min_depth = 0.0;
+    double swell = 0.0, depth_swell = 0.0;
+    glm::dvec2 lo{0.0}, hi{0.0};
+    std::uint32_t owner = 0;
+  };
+
+ private:
+  std::vector<Setup> setups_;
+};
+
+/// The most triangles a layer's maps are drawn from here: their setups take
+/// about 170 bytes each (44 MB at this count); heavier layers are drawn by
+/// the shaders.
+inline constexpr std::size_t kMostConservativeTriangles = 262144;
+
+/// Draws [x0, x1) x [y0, y1) of the maps in bands of rows of at most
+/// `band_bytes`, as many at once as the machine has cores, and hands each
+/// band to `take` on the calling thread, top band first (the GL's thread
+/// uploads them).
+void draw_conservative_bands(const ConservativeMaps& maps, int x0, int y0, int x1, int y1, std::size_t band_bytes,
+                             const std::function<void(const ConservativeBand&)>& take);
+
+}  // namespace umbra
