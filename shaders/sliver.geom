@@ -15,6 +15,7 @@ layout(triangles) in;
 layout(triangle_strip, max_vertices = 12) out;
 
 layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
+layout(location = UNIFORM_LOCATION_CULL_BACK) uniform int u_cull_back;
 
 flat out uint g_object;
 
@@ -26,6 +27,25 @@ void main() {
   // An edge's part nearer the camera than half its near plane is clipped
   // away: the main pass and the reference both start at the near plane.
   float w_min = 0.5 * u.camera_axis_near.w;
+  // A closed mesh's face turned from the camera, where the main pass culls
+  // such faces (the camera outside every closed mesh): each of its edges
+  // is either an edge of a face turned to the camera too (the outline),
+  // drawn there, or lies behind a face of its own mesh turned to the camera
+  // (a ray from outside reaches a face turned away only from inside), so
+  // no other object is drawn in front of the face yet behind the edge.
+  // Only a face clearly clockwise on the screen (fan area below its float
+  // rounding, as certify.geom judges faces for the light) with every corner
+  // in front of the camera.
+  if (u_cull_back != 0 && has_flag(object_facts(g_object), OBJECT_FLAG_CLOSED) && gl_in[0].gl_Position.w > w_min &&
+      gl_in[1].gl_Position.w > w_min && gl_in[2].gl_Position.w > w_min) {
+    vec2 s[3];
+    for (int i = 0; i < 3; ++i) s[i] = (gl_in[i].gl_Position.xy / gl_in[i].gl_Position.w * 0.5 + 0.5) * u.image_size;
+    vec2 e1 = s[1] - s[0], e2 = s[2] - s[0];
+    float perimeter = length(e1) + length(e2) + length(s[2] - s[1]);
+    float extent = max(max(max(abs(s[0].x), abs(s[0].y)), max(abs(s[1].x), abs(s[1].y))), max(abs(s[2].x), abs(s[2].y)));
+    float rounding = 4e-6 * max(1.0, extent) * perimeter + 1e-6 * perimeter * perimeter;
+    if (e1.x * e2.y - e1.y * e2.x < -rounding) return;
+  }
   for (int i = 0; i < 3; ++i) {
     vec4 a = gl_in[i].gl_Position, b = gl_in[(i + 1) % 3].gl_Position;
     if (a.w < w_min && b.w < w_min) continue;

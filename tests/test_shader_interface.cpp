@@ -175,6 +175,7 @@ TEST(FramePrelude, DefinesEachSharedFactAsTheCxxConstant) {
       {"UNIFORM_LOCATION_PROOF_OBJECT", kUniformLocationProofObject},
       {"UNIFORM_LOCATION_PROOF_MARGIN", kUniformLocationProofMargin},
       {"UNIFORM_LOCATION_PROOF_ROUNDING", kUniformLocationProofRounding},
+      {"UNIFORM_LOCATION_CULL_BACK", kUniformLocationCullBack},
       {"UNIFORM_BUFFER_FRAME_BLOCK", kUniformBufferFrameBlock},
   };
   for (const auto& [name, value] : facts)
@@ -262,8 +263,8 @@ TEST(ShaderFiles, NameNoNumberOfTheirOwnForALocationOrBinding) {
   // certificate.glsl's two buffer textures, certify.geom's u_layer and u_triangle_base, certify.frag's
   // u_triangle_base, o_triangle, u_layer, o_owner and u_nearest_owner, scene.frag's o_certificate,
   // o_unlit, u_triangle_base, u_proof_object, u_proof_margin, u_proof_rounding and four maps; the sliver
-  // pass's a_position, u_triangle_base, u_certificates and o_sliver.
-  EXPECT_EQ(declarations, 32);
+  // pass's a_position, u_triangle_base, u_cull_back, u_certificates and o_sliver.
+  EXPECT_EQ(declarations, 33);
 }
 
 }  // namespace

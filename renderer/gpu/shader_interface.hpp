@@ -82,6 +82,10 @@ inline constexpr int kUniformLocationTriangleBase = 1;
 inline constexpr int kUniformLocationProofObject = 2;
 inline constexpr int kUniformLocationProofMargin = 3;
 inline constexpr int kUniformLocationProofRounding = 4;
+/// The sliver pass's u_cull_back (UNIFORM_LOCATION_CULL_BACK): 1 where the
+/// main pass culled closed meshes' back faces (DisplayPassPlan::
+/// sliver_skips_closed_back): their edges are drawn by the front faces.
+inline constexpr int kUniformLocationCullBack = 5;
 inline constexpr int kTextureUnitCertifyNearest = 1;
 inline constexpr int kTextureUnitCertifyNearestOwner = 2;
 inline constexpr int kTextureUnitCertifyOthers = 3;

@@ -378,6 +378,7 @@ void ShadowRenderer::run_sliver_pass(const DisplayPassPlan& pass) {
   glDisable(GL_CLIP_DISTANCE0);
   glBindTextureUnit(kTextureUnitCertificates, display_.certificate.id());
   glUseProgram(display_.sliver_program->id());
+  glProgramUniform1i(display_.sliver_program->id(), kUniformLocationCullBack, pass.sliver_skips_closed_back ? 1 : 0);
   draw_scene(pass.sliver_draws);
   glBindTextureUnit(kTextureUnitCertificates, 0);
   glDepthMask(GL_TRUE);

@@ -512,6 +512,7 @@ DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const 
     pass.background_certificate = PixelCertificates::kUncertain;
   else
     pass.sliver_draws = scene_draw_ranges(mesh, CullMode::None, {});
+  pass.sliver_skips_closed_back = closed_cull == CullMode::Back;
   return pass;
 }
 

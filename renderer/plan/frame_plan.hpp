@@ -207,8 +207,12 @@ struct DisplayPassPlan {
   /// "no object, uncertain".
   std::uint32_t background_certificate = 0;
   /// ... and then draws every triangle's edges (the sliver pass: sliver.geom),
-  /// no face culled.
+  /// no face culled by the GL (the pass draws each edge as a quad) ...
   std::vector<DrawRange> sliver_draws;
+  /// ... but, where the main pass culls closed meshes' back faces, the
+  /// geometry shader skips those faces (their edges are front faces' or
+  /// hidden by their own mesh).
+  bool sliver_skips_closed_back = false;
   glm::vec4 clear_color{0.0f};
   /// The frame's main-pass variant (display_variant); each step's program
   /// is it or one derived from it (program_variant). `variant.shadows`:
