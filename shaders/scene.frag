@@ -566,11 +566,15 @@ uint verdict_by_maps(Seen s) {
   // (llvmpipe: 1/256) before it decides which centres it covers, so a
   // triangle that covers a centre truly holds only the points a little
   // inside: the square must keep kSnapTexels inside the centres' square.
+  // The centre map is drawn at the conservative maps' size too (its pass
+  // costs a quarter; only the band along shadow edges that it leaves to the
+  // ray cast widens): the square and the snap in its texels.
   const float kSnapTexels = 1.0 / 32.0;
-  vec2 c0 = floor(lo - 0.5);
-  if (any(lessThan(lo, c0 + 0.5 + kSnapTexels)) || any(greaterThan(hi, c0 + 1.5 - kSnapTexels)))
+  vec2 centre_lo = lo * coarse, centre_hi = hi * coarse;
+  vec2 c0 = floor(centre_lo - 0.5);
+  if (any(lessThan(centre_lo, c0 + 0.5 + kSnapTexels)) || any(greaterThan(centre_hi, c0 + 1.5 - kSnapTexels)))
     return CERTIFICATE_UNCERTAIN;
-  vec3 centres = vec3((c0 + 1.0) / u.map_size, float(v.layer));
+  vec3 centres = vec3((c0 + 1.0) / u.certified_map_size, float(v.layer));
   uvec4 triangles = textureGather(u_centre_triangle, centres);
   vec4 depths = textureGather(u_shadow_map, centres);
   uint triangle = triangles.x;

@@ -200,9 +200,10 @@ std::uint64_t ShadowRenderer::depth_preview_bytes() const {
 
 std::uint64_t ShadowRenderer::certify_bytes() const {
   if (certify_.size == 0) return 0;
-  const std::uint64_t fine = std::uint64_t(certify_.size) * std::uint64_t(certify_.size);
+  // The centre map's depth and triangle, the nearest map's depth and
+  // owner, the others' depth: five 32-bit maps of the coarse size.
   const std::uint64_t coarse = std::uint64_t(certified_map_size(certify_.size)) * std::uint64_t(certified_map_size(certify_.size));
-  return (fine + 3 * coarse) * std::uint64_t(certify_.layers) * 4;
+  return 5 * coarse * std::uint64_t(certify_.layers) * 4;
 }
 
 std::uint64_t ShadowRenderer::cached_bytes() const {
@@ -239,6 +240,7 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
     shadow_.kept = {};
     released_gl_bytes_ += certify_bytes();
     certify_.framebuffer.reset();
+    certify_.centre_depth.reset();
     certify_.centre_triangle.reset();
     certify_.nearest_depth.reset();
     certify_.nearest_owner.reset();
@@ -326,7 +328,8 @@ void ShadowRenderer::resize_certify_maps(int size, int layers) {
   if (certify_.size == size && certify_.layers >= layers) return;
   released_gl_bytes_ += certify_bytes();
   const int coarse = certified_map_size(size);
-  certify_.centre_triangle = texel_array(GL_R32UI, size, layers);
+  certify_.centre_depth = texel_array(GL_DEPTH_COMPONENT32F, coarse, layers);
+  certify_.centre_triangle = texel_array(GL_R32UI, coarse, layers);
   certify_.nearest_depth = texel_array(GL_DEPTH_COMPONENT32F, coarse, layers);
   certify_.nearest_owner = texel_array(GL_R32UI, coarse, layers);
   certify_.others_depth = texel_array(GL_DEPTH_COMPONENT32F, coarse, layers);
@@ -515,10 +518,10 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const Fram
       const int x1 = std::min(side, int(std::ceil(layer.x1 * scale)) + 1), y1 = std::min(side, int(std::ceil(layer.y1 * scale)) + 1);
       glClearTexSubImage(texture, 0, x0, y0, at, x1 - x0, y1 - y0, 1, format, type, value);
     };
-    attach(shadow_.depth_map.id(), certify_.centre_triangle.id(), at);
-    glViewport(0, 0, size, size);
-    clear(shadow_.depth_map.id(), size, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
-    clear(certify_.centre_triangle.id(), size, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
+    attach(certify_.centre_depth.id(), certify_.centre_triangle.id(), at);
+    glViewport(0, 0, coarse, coarse);
+    clear(certify_.centre_depth.id(), coarse, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
+    clear(certify_.centre_triangle.id(), coarse, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
     glUseProgram(centre);
     glProgramUniform1i(centre, kUniformLocationLayer, at);
     draw_scene(layer.draws);
@@ -694,7 +697,9 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
                       pass.cell_indices.data(), GL_STREAM_DRAW);
   }
   glUseProgram(program(DisplayProgram::Frame));
-  if (pass.variant.shadows) glBindTextureUnit(kTextureUnitShadowMap, shadow_.depth_map.id());
+  // A certified frame's shadow map is its centre map (run_certified_shadow_pass).
+  if (pass.variant.shadows)
+    glBindTextureUnit(kTextureUnitShadowMap, pass.certificates ? certify_.centre_depth.id() : shadow_.depth_map.id());
   const GLenum color_only = GL_COLOR_ATTACHMENT0;
   if (pass.certificates) {
     add_certificate_targets();

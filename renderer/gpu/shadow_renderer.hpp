@@ -121,6 +121,8 @@ class ShadowRenderer {
   struct CertifyMaps {
     gl::ProgramVariants centre{"shadow_depth.vert", "certify.frag", 2};
     gl::ProgramVariants conservative{"shadow_depth.vert", "certify.geom", "certify.frag", 4};
+    // The centre map, at the conservative maps' size (certified_map_size):
+    gl::Texture centre_depth;     // DEPTH_COMPONENT32F: depth at each texel centre
     gl::Texture centre_triangle;  // R32UI: triangle + 1 at each texel centre, 0 none
     gl::Texture nearest_depth;    // DEPTH_COMPONENT32F: conservative nearest depth
     gl::Texture nearest_owner;    // R32UI: its owner
