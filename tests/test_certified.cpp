@@ -119,7 +119,7 @@ TEST(CertifiedPaths, EachPathEqualsTheExactReference) {
   for (const Way way : {Way{CertifiedPath::Maps, true}, Way{CertifiedPath::Maps, false}, Way{CertifiedPath::Proofs, true},
                         Way{CertifiedPath::RayCast, true}}) {
     const CertifiedPath path = way.path;
-    renderer.set_conservative_maps_on_cpu(way.maps_on_cpu);
+    renderer.set_certified_passes_on_cpu(way.maps_on_cpu);
     std::size_t proved = 0, pixels = 0;
     for (RenderRequest r : requests) {
       r.output = Output::Shadow;

@@ -137,7 +137,7 @@ ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_by
   glNamedFramebufferReadBuffer(unbind_framebuffer_.id(), GL_NONE);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
-  conservative_on_cpu_ = gl_renderer().find("llvmpipe") != std::string::npos;
+  certified_passes_on_cpu_ = gl_renderer().find("llvmpipe") != std::string::npos;
 }
 
 std::string ShadowRenderer::gl_renderer() const {
@@ -406,7 +406,7 @@ void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
                         facts.size() * sizeof(glm::vec4));
     g.conservative_objects = conservative_objects(scene_objects);
   }
-  if (conservative_on_cpu_ && g.positions.empty() && g.triangle_object_ids.size() <= kMostConservativeTriangles) {
+  if (certified_passes_on_cpu_ && g.positions.empty() && g.triangle_object_ids.size() <= kMostConservativeTriangles) {
     // The scene's CPU copy dropped its vertices once uploaded: read back
     // (a copy, on llvmpipe) what the maps are drawn from.
     const auto buffer_bytes = [](GLuint buffer) {
@@ -422,6 +422,7 @@ void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
     g.position_indices.resize(buffer_bytes(g.indices.id()) / sizeof(std::uint32_t));
     glGetNamedBufferSubData(g.indices.id(), 0, GLsizeiptr(g.position_indices.size() * sizeof(std::uint32_t)),
                             g.position_indices.data());
+    g.sliver_edges.emplace(g.positions, g.position_indices, g.triangle_object_ids);
   }
 }
 
@@ -525,7 +526,7 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const Fram
     glUseProgram(centre);
     glProgramUniform1i(centre, kUniformLocationLayer, at);
     draw_scene(layer.draws);
-    if (conservative_on_cpu_ && upload_conservative_maps(plan, block, layer)) continue;
+    if (certified_passes_on_cpu_ && upload_conservative_maps(plan, block, layer)) continue;
     attach(certify_.nearest_depth.id(), certify_.nearest_owner.id(), at);
     glViewport(0, 0, coarse, coarse);
     clear(certify_.nearest_depth.id(), coarse, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
@@ -787,7 +788,7 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
   }
   glDisable(GL_STENCIL_TEST);
   glDisable(GL_CLIP_DISTANCE0);
-  if (pass.certificates) run_sliver_pass(pass);
+  if (pass.certificates && !slivers_on_cpu_) run_sliver_pass(pass);
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
   glClearDepth(1.0);
   glDepthFunc(GL_LESS);
@@ -841,12 +842,19 @@ PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back) {
   glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0 + kFragOutputCertificate);
   glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_INT, c.codes.data());
   flip_rows(c.codes, w, h);
-  c.slivers.resize(std::size_t(w) * std::size_t(h));
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, display_.sliver_framebuffer.id());
-  glNamedFramebufferReadBuffer(display_.sliver_framebuffer.id(), GL_COLOR_ATTACHMENT0);
-  glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_BYTE, c.slivers.data());
-  flip_rows(c.slivers, w, h);
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
+  if (slivers_on_cpu_) {
+    std::vector<std::uint32_t> drawn(c.codes.size());
+    for (std::size_t i = 0; i < drawn.size(); ++i) drawn[i] = c.codes[i] >> 3;  // PixelCertificates: object + 1
+    const SceneGeometry& g = scene();
+    g.sliver_edges->mark(g.positions, sliver_view_projection_, sliver_near_plane_, w, h, drawn, c.slivers);
+  } else {
+    c.slivers.resize(std::size_t(w) * std::size_t(h));
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, display_.sliver_framebuffer.id());
+    glNamedFramebufferReadBuffer(display_.sliver_framebuffer.id(), GL_COLOR_ATTACHMENT0);
+    glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_BYTE, c.slivers.data());
+    flip_rows(c.slivers, w, h);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
+  }
   if (read_back.unlit) {
     c.unlit.width = w;
     c.unlit.height = h;
@@ -880,6 +888,10 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
   result.shadow_reused = plan.shadow.reused;
   result.shadow_views = plan.shadow_views;
   const FrameBlock block = frame_block(request, plan.light, scene().mesh, plan.casters.by_view);
+  slivers_on_cpu_ = plan.display.certificates && !plan.display.sliver_draws.empty() && certified_passes_on_cpu_ &&
+                    scene().sliver_edges.has_value();
+  sliver_view_projection_ = glm::dmat4(block.camera_view_projection);
+  sliver_near_plane_ = request.camera.near_plane;
   glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
   if (plan.display.certificates) use_certificate_buffers(request.scene);
   if (plan.shadow.needed && !plan.shadow.reused) {

@@ -22,6 +22,7 @@
 #include "core/request.hpp"
 #include "core/scene.hpp"
 #include "plan/conservative_maps.hpp"
+#include "plan/sliver_marks.hpp"
 #include "plan/frame_plan.hpp"
 
 namespace umbra {
@@ -85,10 +86,11 @@ class ShadowRenderer {
   std::uint64_t released_gl_bytes() const { return released_gl_bytes_; }
 
   std::string gl_renderer() const;
-  /// Filter "exact"'s conservative maps drawn on the CPU
-  /// (plan/conservative_maps.hpp; the default on llvmpipe) or by the
-  /// shaders (certify.geom; the default on a GPU). Tests draw both.
-  void set_conservative_maps_on_cpu(bool on_cpu) { conservative_on_cpu_ = on_cpu; }
+  /// Filter "exact"'s conservative maps and sliver marks drawn on the CPU
+  /// (plan/conservative_maps.hpp, plan/sliver_marks.hpp; the default on
+  /// llvmpipe) or by the shaders (certify.geom, sliver.geom; the default on
+  /// a GPU). Tests draw both.
+  void set_certified_passes_on_cpu(bool on_cpu) { certified_passes_on_cpu_ = on_cpu; }
   std::string gl_version() const;
 
  private:
@@ -109,12 +111,14 @@ class ShadowRenderer {
     gl::Texture triangle_objects, object_facts;
     // ... and on the CPU: each triangle's object, each object's facts as
     // the conservative maps drawn there take them, and (only where they
-    // are drawn there: conservative_on_cpu_, at most
+    // are drawn there: certified_passes_on_cpu_, at most
     // kMostConservativeTriangles) the positions and indices, read back.
     std::vector<std::uint32_t> triangle_object_ids;
     std::vector<ConservativeObject> conservative_objects;
     std::vector<glm::vec3> positions;
     std::vector<std::uint32_t> position_indices;
+    // Their edges, paired (with the positions).
+    std::optional<SliverEdges> sliver_edges;
   };
   // Filter "exact"'s maps of the light's view (certify.frag), one array
   // layer per view, beside the shadow map (which holds the centre depths).
@@ -278,7 +282,12 @@ class ShadowRenderer {
   // The GL is a software rasteriser (llvmpipe): filter "exact"'s
   // conservative maps are drawn by plan/conservative_maps.cpp, ten times
   // faster there than through its geometry shader.
-  bool conservative_on_cpu_ = false;
+  bool certified_passes_on_cpu_ = false;
+  // This frame's sliver marks are drawn on the CPU (read_certificates), with
+  // the camera's matrix and near plane as the main pass had them.
+  bool slivers_on_cpu_ = false;
+  glm::dmat4 sliver_view_projection_{1.0};
+  double sliver_near_plane_ = 0.0;
   bool map_allocated_ = false;           // this frame allocated its shadow map (RenderResult)
   // scenes_.evict_to, counting what goes in released_gl_bytes_.
   void evict_scenes_to(std::uint64_t max_bytes, std::size_t keep);

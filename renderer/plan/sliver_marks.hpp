@@ -1,0 +1,69 @@
+// Filter "exact"'s sliver marks drawn on the CPU (docs/certified-shadows.md,
+// "The sliver pass"): the pixels whose centre lies within kSliverPixels of
+// an object's outline edge, where the main pass drew another object (or
+// none). The CPU casts them.
+//
+// sliver.geom draws every triangle's three edges as quads, a geometry
+// shader's work per triangle that llvmpipe runs slowly (columns: 11 ms).
+// Only an edge where the object's surface ends on the screen can be the
+// place where the raster's snapped triangles miss a centre the true ones
+// cover: along an edge whose two triangles lie on opposite sides of it on
+// the screen, the snapped pair shares the snapped edge and covers both
+// sides. So here only the other edges are drawn: an edge of one triangle
+// (the object's border), of three or more, or of two on one side (the
+// outline, where the surface turns from the camera), or of a triangle
+// that reaches behind the camera. The marks ignore depth: an outline
+// hidden behind another object adds a few casts (a band 1/16 pixel wide
+// crosses a pixel centre every 16 pixels), never a missed one.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace umbra {
+
+/// Far above the rasteriser's snap (1/256 pixel), far below a pixel: the
+/// half-width of the band around an edge (sliver.geom's kSliverPixels).
+inline constexpr double kSliverPixels = 1.0 / 32.0;
+/// A shared edge is skipped only where both triangles' third corners lie
+/// at least this far (pixels) from its line, on either side: far above the
+/// snap, so the snapped pair lies on either side too.
+inline constexpr double kSliverSidePixels = 1.0 / 16.0;
+
+/// The edges of a scene's triangles, paired once per scene: two triangles
+/// of one object share an edge where its corners' positions are the same.
+class SliverEdges {
+ public:
+  /// `positions` and `indices` as the scene's buffers (relative to the
+  /// mesh origin); `triangle_objects`: each triangle's object.
+  SliverEdges(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
+              const std::vector<std::uint32_t>& triangle_objects);
+
+  /// Marks (1) in `marks` (width x height, row 0 at the top) the pixels
+  /// whose centre lies within kSliverPixels of a drawn edge (or of its
+  /// ends) where `drawn_objects` (object + 1 per pixel, 0 none; row 0 at
+  /// the top) is not the edge's object. `view_projection`: the camera's,
+  /// of positions relative to the mesh origin (GL's clip space, window y
+  /// up); edges are cut at half the camera's near plane (`near_plane`), as
+  /// the main pass and the reference start there.
+  void mark(const std::vector<glm::vec3>& positions, const glm::dmat4& view_projection, double near_plane, int width,
+            int height, const std::vector<std::uint32_t>& drawn_objects, std::vector<std::uint8_t>& marks) const;
+
+  std::size_t edges() const { return edges_.size(); }
+
+  struct Edge {
+    std::uint32_t a = 0, b = 0;  ///< corners (vertex indices)
+    std::uint32_t object = 0;
+    /// The third corners of the two triangles sharing it, or kOpen in
+    /// `second_third` where it is not shared by exactly two.
+    std::uint32_t first_third = 0, second_third = 0;
+  };
+  static constexpr std::uint32_t kOpen = 0xFFFFFFFFu;
+
+ private:
+  std::vector<Edge> edges_;
+};
+
+}  // namespace umbra

@@ -1,0 +1,137 @@
+// The sliver marks drawn on the CPU (plan/sliver_marks.hpp): what the
+// certificate needs of them (docs/certified-shadows.md, "The sliver pass")
+// is every pixel centre within kSliverPixels of an object's outline on the
+// screen, where another object was drawn. Checked on random boxes, thin
+// ones among them, whose outline is the convex hull of their corners'
+// images; and that edges inside the outline are left out.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "core/request.hpp"
+#include "core/scene.hpp"
+#include "plan/sliver_marks.hpp"
+
+namespace umbra {
+namespace {
+
+struct SceneTriangles {
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices, objects;
+  glm::dvec3 origin{0.0};
+};
+
+SceneTriangles triangles_of(const Scene& scene) {
+  const Mesh mesh = tessellate(scene);
+  SceneTriangles t;
+  t.origin = mesh.origin;
+  for (const Vertex& v : mesh.vertices) t.positions.emplace_back(v.position[0], v.position[1], v.position[2]);
+  t.indices = mesh.indices;
+  t.objects.resize(mesh.indices.size() / 3);
+  for (const ObjectRange& r : mesh.object_ranges)
+    for (std::uint32_t i = r.first_index / 3; i < (r.first_index + r.index_count) / 3; ++i) t.objects[i] = std::uint32_t(r.object);
+  return t;
+}
+
+// The convex hull of points (Andrew's monotone chain), counter-clockwise.
+std::vector<glm::dvec2> hull_of(std::vector<glm::dvec2> p) {
+  std::sort(p.begin(), p.end(), [](const glm::dvec2& a, const glm::dvec2& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+  std::vector<glm::dvec2> h(2 * p.size());
+  std::size_t k = 0;
+  const auto cross = [](glm::dvec2 o, glm::dvec2 a, glm::dvec2 b) { return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x); };
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+    h[k++] = p[i];
+  }
+  for (std::size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && cross(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
+    h[k++] = p[i - 1];
+  }
+  h.resize(k - 1);
+  return h;
+}
+
+double distance_to_segment(glm::dvec2 x, glm::dvec2 a, glm::dvec2 b) {
+  const glm::dvec2 ab = b - a;
+  const double t = std::clamp(glm::dot(x - a, ab) / std::max(1e-300, glm::dot(ab, ab)), 0.0, 1.0);
+  return glm::length(x - (a + t * ab));
+}
+
+TEST(SliverMarks, EveryCentreNearABoxsOutlineIsMarkedAndNoneInside) {
+  std::mt19937 random(5);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const int width = 160, height = 90;
+  std::size_t checked = 0, inner_marks = 0;
+  for (int scene_index = 0; scene_index < 60; ++scene_index) {
+    SceneObject box;
+    box.type = SceneObject::Type::Box;
+    box.center = {unit(random) * 2 - 1, unit(random) * 2, unit(random) * 2 - 1};
+    // Thin ones: a needle or a sheet a small part of a pixel across.
+    box.size = {0.002 + unit(random), 0.002 + unit(random), 0.002 + unit(random)};
+    if (scene_index % 3 == 0) box.size.y = 0.004;
+    if (scene_index % 3 == 1) box.size.x = box.size.z = 0.003;
+    box.rotation_y_deg = unit(random) * 90.0;
+    Scene scene;
+    scene.objects.push_back(box);
+    const SceneTriangles t = triangles_of(scene);
+    const SliverEdges edges(t.positions, t.indices, t.objects);
+    const glm::dvec3 eye(unit(random) * 8 - 4, 1 + unit(random) * 4, 5 + unit(random) * 3);
+    const glm::dmat4 view_projection = glm::perspective(glm::radians(40.0), double(width) / height, 0.1, 100.0) *
+                                       glm::lookAt(eye, box.center, glm::dvec3(0, 1, 0)) *
+                                       glm::translate(glm::dmat4(1.0), t.origin);
+    const std::vector<std::uint32_t> nothing_drawn(std::size_t(width) * height, 0);
+    std::vector<std::uint8_t> marks;
+    edges.mark(t.positions, view_projection, 0.1, width, height, nothing_drawn, marks);
+    std::vector<glm::dvec2> corners;
+    for (const glm::vec3& p : t.positions) {
+      const glm::dvec4 c = view_projection * glm::dvec4(glm::dvec3(p), 1.0);
+      corners.push_back((glm::dvec2(c) / c.w * 0.5 + 0.5) * glm::dvec2(width, height));
+    }
+    const std::vector<glm::dvec2> hull = hull_of(corners);
+    for (int j = 0; j < height; ++j)
+      for (int i = 0; i < width; ++i) {
+        const glm::dvec2 x(i + 0.5, j + 0.5);
+        double d = 1e300;
+        for (std::size_t k = 0; k < hull.size(); ++k) d = std::min(d, distance_to_segment(x, hull[k], hull[(k + 1) % hull.size()]));
+        const bool marked = marks[std::size_t(height - 1 - j) * width + std::size_t(i)] != 0;
+        if (d <= kSliverPixels * 0.999) {
+          ++checked;
+          EXPECT_TRUE(marked) << "scene " << scene_index << ": pixel " << i << ", " << j << " is " << d
+                              << " px from the outline and not marked";
+        }
+        // A band twice as wide as the marks' holds every edge inside the
+        // outline that is drawn as if it were one.
+        if (marked && d > 3.0 * kSliverPixels) ++inner_marks;
+      }
+  }
+  EXPECT_GT(checked, 50u);
+  EXPECT_EQ(inner_marks, 0u) << "marks away from every outline: an edge inside it was drawn";
+}
+
+// Where the object itself was drawn, nothing is marked; where another one
+// (or none) was, its outline is.
+TEST(SliverMarks, OnlyPixelsWhereAnotherObjectWasDrawnAreMarked) {
+  SceneObject box;
+  box.type = SceneObject::Type::Box;
+  box.size = {1, 1, 1};
+  Scene scene;
+  scene.objects.push_back(box);
+  const SceneTriangles t = triangles_of(scene);
+  const SliverEdges edges(t.positions, t.indices, t.objects);
+  const glm::dmat4 view_projection = glm::perspective(glm::radians(40.0), 2.0, 0.1, 100.0) *
+                                     glm::lookAt(glm::dvec3(2, 2, 3), glm::dvec3(0), glm::dvec3(0, 1, 0)) *
+                                     glm::translate(glm::dmat4(1.0), t.origin);
+  std::vector<std::uint8_t> marks;
+  edges.mark(t.positions, view_projection, 0.1, 80, 40, std::vector<std::uint32_t>(80 * 40, 1), marks);
+  EXPECT_EQ(std::count(marks.begin(), marks.end(), 1), 0);
+  edges.mark(t.positions, view_projection, 0.1, 80, 40, std::vector<std::uint32_t>(80 * 40, 2), marks);
+  EXPECT_GT(std::count(marks.begin(), marks.end(), 1), 0);
+}
+
+}  // namespace
+}  // namespace umbra
