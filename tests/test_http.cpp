@@ -142,21 +142,26 @@ TEST(Http, RenderReturnsAPngFrameWithServerTiming) {
 }
 
 // Filter "exact": Umbra-Certified says how many pixels were ray cast and
-// how the frame was certified (docs/api.md "Umbra-Certified"): the default
-// scene by the maps, a 100,000-triangle model by the ray cast alone (on
-// llvmpipe, where the server prices the paths; the maps elsewhere); the PNGs are the same
-// shadow term as the exact output's either way.
+// how the frame was certified (docs/api.md "Umbra-Certified"): on llvmpipe,
+// where the server prices the paths, a box close up at 960 x 540 by the
+// maps, and the default scene at 160 x 90 by proving the floor and casting
+// the rest (a small image costs less to cast than to map); the maps
+// elsewhere. The PNGs are the same shadow term as the exact output's either
+// way.
 TEST(Http, TheCertifiedHeaderNamesThePathTaken) {
   const std::regex header("uncertain=[0-9.]+%, ray_cast=[0-9]+, pixels=([0-9]+), path=(maps|proofs|ray-cast)");
-  for (const auto& [body, path] : {std::pair{std::string(R"({"width": 160, "height": 90, "output": "shadow", "shadow": {"filter": "exact"}})"), "maps"},
-                                   std::pair{std::string(R"({"scene": "teapot", "width": 160, "height": 90, "output": "shadow", "shadow": {"filter": "exact"}})"), "ray-cast"}}) {
+  const std::string close_up =
+      R"({"width": 960, "height": 540, "output": "shadow", "shadow": {"filter": "exact"}, "scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [20, 20]}, {"type": "box", "center": [0, 0.5, 0], "size": [1, 1, 1], "rotation_y_deg": 20}]}, "camera": {"position": [1.25, 0.22, 1.45], "target": [0.45, 0.0, 0.45], "near": 0.01}, "light": {"position": [-3, 2, -2], "target": [0, 0, 0]}})";
+  for (const auto& [body, path, pixels] :
+       {std::tuple{close_up, "maps", "518400"},
+        std::tuple{std::string(R"({"width": 160, "height": 90, "output": "shadow", "shadow": {"filter": "exact"}})"), "proofs", "14400"}}) {
     auto res = client().Post("/api/render", body, "application/json");
     ASSERT_TRUE(res);
     ASSERT_EQ(res->status, 200) << res->body;
     const std::string certified = res->get_header_value("Umbra-Certified");
     std::smatch m;
     ASSERT_TRUE(std::regex_match(certified, m, header)) << certified;
-    EXPECT_EQ(m[1], "14400");
+    EXPECT_EQ(m[1], pixels);
     // Elsewhere than llvmpipe, always the maps.
     const bool llvmpipe =
         json::parse(client().Get("/api/health")->body)["gl_renderer"].get<std::string>().find("llvmpipe") != std::string::npos;

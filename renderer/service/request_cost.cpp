@@ -1,5 +1,7 @@
 #include "service/request_cost.hpp"
 
+#include "plan/conservative_maps.hpp"
+
 #include "reference/sun_hours_footprints.hpp"
 
 #include <algorithm>
@@ -75,6 +77,15 @@ constexpr double kMsPerMeshTexel = 5.0e-7;
 // the torus knot (16,386) 1.15 us, `columns` (11,342) 1.3 us: the larger
 // end, so that the maps are not chosen where they cost more.
 constexpr double kMsPerConservativeTriangle = 1.0e-3;
+// The same drawn on the CPU (plan/conservative_maps.cpp, 2 cores,
+// bench/results/certified.md, 2026-11-27): per view, each texel of the
+// centre map and of the conservative maps (a quarter of the layer's) about
+// 2e-6 ms with its upload, each triangle's setup 2e-4 ms; the main pass's
+// certificate 4e-4 ms more a triangle than the proofs' program (the
+// 102,400-triangle teapot: maps 86 ms, proofs 44, ray cast 68).
+constexpr double kMsPerCertifiedMapTexel = 2.0e-6;
+constexpr double kMsPerCertifiedViewTriangle = 2.0e-4;
+constexpr double kMsPerCertificateTriangle = 4.0e-4;
 // The exact output's ray cast measured over ray_cast_ms, in the certified
 // bench (bench/results/certified.md, 960x540, 2 cores): 0.29..0.76 over 16
 // scenes, median 0.4.
@@ -330,14 +341,20 @@ ExactFilterPaths exact_filter_paths(const RenderRequest& request, const CostFact
   const double ray_cast = ray_cast_ms(as_exact) * kRayCastShare;
   const int views = std::max(0, f.draws - 1);  // the camera's draw aside
   const double quads = double(f.triangles) * kMsPerConservativeTriangle;
+  const bool on_cpu = f.triangles <= kMostConservativeTriangles;
   Scene objects;
   for (const SceneObject& o : request.scene.objects)
     if (o.type != SceneObject::Type::Plane) objects.objects.push_back(o);
   const CameraMatrices camera = camera_matrices(request.camera, request.width, request.height);
   const double cover = depth_complexity(objects, camera.projection * camera.view);
   ExactFilterPaths paths;
-  paths.maps_ms = 2.0 * double(views) * quads + quads + ray_cast / 20.0;
-  paths.proofs_ms = quads + ray_cast * std::min(1.0, 3.0 * cover);
+  const double triangles = double(f.triangles);
+  const double maps = on_cpu ? f.shadow_texels / 4.0 * kMsPerCertifiedMapTexel +
+                                   triangles * (double(views) * kMsPerCertifiedViewTriangle + kMsPerCertificateTriangle)
+                             : 2.0 * double(views) * quads;
+  const double slivers = on_cpu ? 0.0 : quads;
+  paths.maps_ms = maps + slivers + ray_cast / 20.0;
+  paths.proofs_ms = slivers + ray_cast * std::min(1.0, 3.0 * cover);
   paths.ray_cast_ms = ray_cast;
   return paths;
 }

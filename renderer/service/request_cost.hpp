@@ -122,14 +122,21 @@ RequestCost estimate_cost(const RenderRequest& request);
 /// Filter "exact" on the reference machine (llvmpipe): what each way of
 /// certifying a frame (CertifiedPath, plan/frame_plan.hpp) costs beyond
 /// the main pass they share (docs/certified-shadows.md, "Choosing the
-/// path"). A geometry shader's quad per triangle (kMsPerConservativeTriangle)
-/// is paid twice per view by the maps and once by the sliver pass; the ray
-/// cast is priced as the exact output's (ray_cast_ms, whose calibration
-/// leans high) times kRayCastShare, what the bench scenes measured of it.
-/// - maps: the conservative passes, the sliver pass, and the ray cast of
-///   the pixels the maps leave (a twentieth of the frame's, about the bench
-///   scenes' median);
-/// - proofs: the sliver pass, and the ray cast of the pixels that are not
+/// path"). There the conservative maps and the sliver marks are drawn on
+/// the CPU (ShadowRenderer::set_certified_passes_on_cpu) for scenes of up
+/// to kMostConservativeTriangles: the maps cost each view's centre pass and
+/// CPU fill (a quarter of the layer's texels) and a setup per triangle, and
+/// the main pass's certificate a little per triangle (a model's many small
+/// ones cost most); the sliver marks next to nothing. A heavier scene's
+/// passes are a geometry shader's quad per triangle
+/// (kMsPerConservativeTriangle), twice per view for the maps and once for
+/// the sliver pass. The ray cast is priced as the exact output's
+/// (ray_cast_ms, whose calibration leans high) times kRayCastShare, what
+/// the bench scenes measured of it.
+/// - maps: the maps, the sliver marks, and the ray cast of the pixels the
+///   maps leave (a twentieth of the frame's, about the bench scenes'
+///   median);
+/// - proofs: the sliver marks, and the ray cast of the pixels that are not
 ///   proved plane parts: the objects' share of the camera's image (their
 ///   bounds' depth complexity, planes aside) and twice as much again for
 ///   the bands about their shadows, at most all;
