@@ -178,9 +178,10 @@ TEST(ConservativeMaps, BandsMakeTheWholeMap) {
   std::mt19937 random(3);
   std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
   Triangles t;
+  // Most of the map, but not its left and bottom edges.
+  const auto at = [&] { return 0.6f + 0.4f * unit(random); };
   for (int k = 0; k < 30; ++k)
-    add_triangle(t, {unit(random), unit(random), unit(random)}, {unit(random), unit(random), unit(random)},
-                 {unit(random), unit(random), unit(random)}, std::uint32_t(k % 3));
+    add_triangle(t, {at(), at(), unit(random)}, {at(), at(), unit(random)}, {at(), at(), unit(random)}, std::uint32_t(k % 3));
   const ConservativeView view = orthographic_view(64);
   const ConservativeMaps maps(t.positions, t.indices, {{0, false, true}, {0, false, true}, {0, true, false}}, t.objects,
                               {{0, t.indices.size(), CullMode::None}}, view);
@@ -190,6 +191,17 @@ TEST(ConservativeMaps, BandsMakeTheWholeMap) {
   whole.x1 = 60;
   whole.y1 = 61;
   maps.draw(whole);
+  // Nothing outside touched() is marked.
+  int tx0 = 0, ty0 = 0, tx1 = 0, ty1 = 0;
+  maps.touched(tx0, ty0, tx1, ty1);
+  std::size_t outside = 0;
+  for (int j = 3; j < 61; ++j)
+    for (int i = 5; i < 60; ++i) {
+      if (i >= tx0 && i < tx1 && j >= ty0 && j < ty1) continue;
+      ++outside;
+      ASSERT_EQ(whole.nearest_owner[std::size_t(j - 3) * 55 + std::size_t(i - 5)], kNoOwner) << i << ", " << j;
+    }
+  EXPECT_GT(outside, 0u);
   std::size_t rows = 0;
   draw_conservative_bands(maps, 5, 3, 60, 61, 55 * 12 * 7, [&](const ConservativeBand& band) {
     EXPECT_EQ(band.y0, 3 + int(rows));

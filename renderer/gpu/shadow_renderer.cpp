@@ -458,6 +458,31 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
     y1 = std::min(side, int(std::ceil(layer.y1 * scale)) + 1);
   }
   const GLint at = GLint(layer.layer);
+  // Drawn where a triangle may reach; far, with no owner, in the rest of
+  // the rectangle (up to four strips around it).
+  int tx0 = 0, ty0 = 0, tx1 = 0, ty1 = 0;
+  maps.touched(tx0, ty0, tx1, ty1);
+  tx0 = std::clamp(tx0, x0, x1);
+  tx1 = std::clamp(tx1, tx0, x1);
+  ty0 = std::clamp(ty0, y0, y1);
+  ty1 = std::clamp(ty1, ty0, y1);
+  const auto clear = [&](int cx0, int cy0, int cx1, int cy1) {
+    if (cx1 <= cx0 || cy1 <= cy0) return;
+    const GLuint no_owner = kNoOwner;
+    const float far = 1.0f;
+    for (const GLuint depth : {certify_.nearest_depth.id(), certify_.others_depth.id()})
+      glClearTexSubImage(depth, 0, cx0, cy0, at, cx1 - cx0, cy1 - cy0, 1, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
+    glClearTexSubImage(certify_.nearest_owner.id(), 0, cx0, cy0, at, cx1 - cx0, cy1 - cy0, 1, GL_RED_INTEGER,
+                       GL_UNSIGNED_INT, &no_owner);
+  };
+  clear(x0, y0, x1, ty0);    // below
+  clear(x0, ty1, x1, y1);    // above
+  clear(x0, ty0, tx0, ty1);  // left
+  clear(tx1, ty0, x1, ty1);  // right
+  x0 = tx0;
+  y0 = ty0;
+  x1 = tx1;
+  y1 = ty1;
   draw_conservative_bands(maps, x0, y0, x1, y1, kConservativeBandBytes, [&](const ConservativeBand& band) {
     glTextureSubImage3D(certify_.nearest_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
                         GL_DEPTH_COMPONENT, GL_FLOAT, band.nearest_depth.data());

@@ -147,6 +147,19 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
   }
 }
 
+void ConservativeMaps::touched(int& x0, int& y0, int& x1, int& y1) const {
+  x0 = y0 = std::numeric_limits<int>::max();
+  x1 = y1 = std::numeric_limits<int>::min();
+  for (const Setup& s : setups_) {
+    // Centres within the box, as draw() takes them.
+    x0 = std::min(x0, int(std::ceil(s.lo.x - 0.5)));
+    y0 = std::min(y0, int(std::ceil(s.lo.y - 0.5)));
+    x1 = std::max(x1, int(std::floor(s.hi.x - 0.5)) + 1);
+    y1 = std::max(y1, int(std::floor(s.hi.y - 0.5)) + 1);
+  }
+  if (setups_.empty()) x0 = y0 = x1 = y1 = 0;
+}
+
 // certify.frag over the band: each texel whose centre lies in a setup's box
 // and on the inner side of each of its edges (grown as the shader grows
 // them) takes the least depth of its plane over the texel's square; the

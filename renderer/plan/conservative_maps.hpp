@@ -82,6 +82,9 @@ class ConservativeMaps {
   /// Fills `band` (its rectangle set by the caller, within the maps).
   void draw(ConservativeBand& band) const;
   std::size_t triangles() const { return setups_.size(); }
+  /// The texels any triangle may mark, [x0, x1) x [y0, y1) (empty when
+  /// x0 >= x1): the rest of the maps stays far, with no owner.
+  void touched(int& x0, int& y0, int& x1, int& y1) const;
 
   // One triangle (or, clipped by a point light's near plane, a quadrilateral)
   // as certify.geom hands it to certify.frag: corners in texels of the maps,
