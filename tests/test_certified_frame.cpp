@@ -1,6 +1,8 @@
 // Filter "exact"'s CPU half without GL: which pixels it ray casts.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <algorithm>
 
 #include "reference/certified_frame.hpp"
@@ -54,6 +56,34 @@ TEST(PixelsToRayCast, BothSidesOfAChangeOfObjectOrOfFacing) {
   EXPECT_TRUE(cast[1]);
   EXPECT_TRUE(cast[6]);
   EXPECT_FALSE(cast[7]);
+}
+
+// The ring grows each change of surface by ring - 1 pixels every way (a
+// square), as a brute force over random codes finds it.
+TEST(PixelsToRayCast, TheRingIsASquareAroundEachChange) {
+  std::mt19937 random(3);
+  const int w = 13, h = 11;
+  for (int round = 0; round < 20; ++round) {
+    std::vector<std::uint32_t> codes(std::size_t(w * h));
+    for (std::uint32_t& c : codes) c = code(random() % 7 == 0 ? 2 : 1, true, random() % 11 == 0 ? kUncertain : kLit);
+    const auto surface = [&](int x, int y) { return codes[std::size_t(y * w + x)] >> 2; };
+    std::vector<std::uint8_t> change(codes.size(), 0);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}})
+          if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h && surface(x, y) != surface(x + dx, y + dy))
+            change[std::size_t(y * w + x)] = 1;
+    for (int ring = 1; ring <= 4; ++ring) {
+      const std::vector<std::uint8_t> cast = to_cast(codes, w, h, ring);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          bool expected = (codes[std::size_t(y * w + x)] & 3u) == kUncertain;
+          for (int v = std::max(0, y - ring + 1); v <= std::min(h - 1, y + ring - 1); ++v)
+            for (int u = std::max(0, x - ring + 1); u <= std::min(w - 1, x + ring - 1); ++u) expected |= change[std::size_t(v * w + u)] != 0;
+          ASSERT_EQ(cast[std::size_t(y * w + x)] != 0, expected) << "ring " << ring << " at " << x << ", " << y;
+        }
+    }
+  }
 }
 
 TEST(PixelsToRayCast, RefusesCodesOfAnotherSize) {

@@ -76,13 +76,16 @@ std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificat
         }
       }
     }
-    for (int x = 0; x < width; ++x) {
-      int last = -1 - r;
-      for (int y = 0; y < height + r; ++y) {
-        if (y < height && rows[at(x, y)]) last = y;
-        const int target = y - r;
-        if (target >= 0 && target < height) edge[at(x, target)] = last >= target - r ? 1 : 0;
-      }
+    // The columns, a row at a time (the image is row-major): each
+    // column's last edge row seen.
+    std::vector<int> last(std::size_t(width), -1 - r);
+    for (int y = 0; y < height + r; ++y) {
+      if (y < height)
+        for (int x = 0; x < width; ++x)
+          if (rows[at(x, y)]) last[std::size_t(x)] = y;
+      const int target = y - r;
+      if (target >= 0 && target < height)
+        for (int x = 0; x < width; ++x) edge[at(x, target)] = last[std::size_t(x)] >= target - r ? 1 : 0;
     }
   }
   for (std::size_t i = 0; i < codes.size(); ++i)
