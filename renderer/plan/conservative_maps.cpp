@@ -244,6 +244,13 @@ void draw_conservative_bands(const ConservativeMaps& maps, int x0, int y0, int x
   // Bands of about equal rows, at least one per thread where the rows allow.
   const int count = std::max((y1 - y0 + rows - 1) / rows, std::min(threads, y1 - y0));
   std::vector<ConservativeBand> bands(std::size_t(std::min(count, threads)));
+  // Allocated here, not on the threads (draw() assigns within capacity).
+  const std::size_t most = std::size_t(x1 - x0) * std::size_t((y1 - y0 + count - 1) / count + 1);
+  for (ConservativeBand& band : bands) {
+    band.nearest_depth.reserve(most);
+    band.nearest_owner.reserve(most);
+    band.others_depth.reserve(most);
+  }
   for (int first = 0; first < count; first += int(bands.size())) {
     const int batch = std::min(int(bands.size()), count - first);
     for (int b = 0; b < batch; ++b) {

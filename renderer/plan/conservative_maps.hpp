@@ -107,9 +107,15 @@ class ConservativeMaps {
 };
 
 /// The most triangles a layer's maps are drawn from here: their setups take
-/// about 170 bytes each (44 MB at this count); heavier layers are drawn by
-/// the shaders.
+/// 176 bytes each (46 MB at this count); heavier layers are drawn by the
+/// shaders.
 inline constexpr std::size_t kMostConservativeTriangles = 262144;
+/// What the CPU's certified passes hold per triangle at most: a setup (176
+/// bytes) beside the scene's copies kept for them (positions, indices and
+/// objects, about 52 bytes; the sliver edges, about 30), rounded up; while
+/// the copies are first made, the vertices read back and the edges' halves
+/// (about 230 bytes) are alive instead of the setups.
+inline constexpr std::uint64_t kCertifiedCpuBytesPerTriangle = 300;
 
 /// Draws [x0, x1) x [y0, y1) of the maps in bands of rows of at most
 /// `band_bytes`, as many at once as the machine has cores, and hands each

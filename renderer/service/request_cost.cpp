@@ -462,6 +462,8 @@ RequestCost estimate_cost(const RenderRequest& request) {
     // unlit colours read back, the reference's records of the cast pixels.
     bytes += std::uint64_t(f.shadow_texels) * 4 * sizeof(float) + pixels * (8 + 4 + 3);
     bytes += pixels * sizeof(ExactPixel) + f.bvh_triangles * kBvhBytesPerTriangle;
+    // On llvmpipe, the passes drawn on the CPU.
+    if (f.triangles <= kMostConservativeTriangles) bytes += f.triangles * kCertifiedCpuBytesPerTriangle;
   }
   cost.peak_bytes = bytes;
   return cost;
