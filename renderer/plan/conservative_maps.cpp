@@ -261,7 +261,12 @@ void draw_conservative_bands(const ConservativeMaps& maps, int x0, int y0, int x
       band.y1 = y0 + int(std::int64_t(y1 - y0) * (first + b + 1) / count);
     }
     std::vector<std::thread> pool;
-    for (int b = 1; b < batch; ++b) pool.emplace_back([&maps, &bands, b] { maps.draw(bands[std::size_t(b)]); });
+    try {
+      for (int b = 1; b < batch; ++b) pool.emplace_back([&maps, &bands, b] { maps.draw(bands[std::size_t(b)]); });
+    } catch (...) {  // no thread to be had: those started are joined first
+      for (std::thread& t : pool) t.join();
+      throw;
+    }
     maps.draw(bands[0]);
     for (std::thread& t : pool) t.join();
     for (int b = 0; b < batch; ++b) take(bands[std::size_t(b)]);
