@@ -133,5 +133,24 @@ TEST(SliverMarks, OnlyPixelsWhereAnotherObjectWasDrawnAreMarked) {
   EXPECT_GT(std::count(marks.begin(), marks.end(), 1), 0);
 }
 
+
+// An edge whose end lies just in front of half the near plane projects
+// 1e10 pixels away: it is walked over the image only (a red-team pass found
+// the pixel range converted to int before it was clamped).
+TEST(SliverMarks, AnEdgeReachingFarOffTheImageIsWalkedOverItOnly) {
+  // The edge from (1e5, 0, -5.0001e-5) to (-1, 0, -5) lies on the image's
+  // middle row of centres (41 rows: row 20's centres at window y 20.5);
+  // its first end, just past half the near plane (1e-4), 1e11 pixels right.
+  const std::vector<glm::vec3> positions = {{1e5f, 0.0f, -5.0001e-5f}, {-1.0f, 0.0f, -5.0f}, {0.0f, 1.0f, -5.0f}};
+  const SliverEdges edges(positions, {0, 1, 2}, {0});
+  const int width = 80, height = 41;
+  const glm::dmat4 view_projection = glm::perspective(glm::radians(40.0), double(width) / height, 1e-4, 100.0);
+  std::vector<std::uint8_t> marks;
+  edges.mark(positions, view_projection, 1e-4, width, height, std::vector<std::uint32_t>(std::size_t(width * height), 0),
+             marks);
+  const auto row = marks.begin() + std::ptrdiff_t(20 * width);
+  EXPECT_GT(std::count(row, row + width, 1), width / 2);
+}
+
 }  // namespace
 }  // namespace umbra

@@ -913,12 +913,13 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
   result.shadow_reused = plan.shadow.reused;
   result.shadow_views = plan.shadow_views;
   const FrameBlock block = frame_block(request, plan.light, scene().mesh, plan.casters.by_view);
+  glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
+  if (plan.display.certificates) use_certificate_buffers(request.scene);
+  // After use_certificate_buffers, which pairs the edges on a scene's first frame.
   slivers_on_cpu_ = plan.display.certificates && !plan.display.sliver_draws.empty() && certified_passes_on_cpu_ &&
                     scene().sliver_edges.has_value();
   sliver_view_projection_ = glm::dmat4(block.camera_view_projection);
   sliver_near_plane_ = request.camera.near_plane;
-  glNamedBufferSubData(frame_block_.id(), 0, sizeof block, &block);
-  if (plan.display.certificates) use_certificate_buffers(request.scene);
   if (plan.shadow.needed && !plan.shadow.reused) {
     // A reused map (typically only the camera moved) leaves shadow_ms 0.
     const auto start = Clock::now();

@@ -37,13 +37,18 @@ void mark_band(glm::dvec2 pa, glm::dvec2 pb, std::uint32_t object, int width, in
   const int extent = major_x ? width : height, other_extent = major_x ? height : width;
   const double lo = std::min(pa[axis], pb[axis]) - r, hi = std::max(pa[axis], pb[axis]) + r;
   if (!(hi >= 0.0 && lo <= double(extent))) return;
-  const int first = std::max(0, int(std::ceil(lo - 0.5))), last = std::min(extent - 1, int(std::floor(hi - 0.5)));
+  // Clamped in double before the conversion: an end clipped at half the
+  // near plane can lie 1e10 pixels away, past int's range.
+  const int first = int(std::max(0.0, std::ceil(lo - 0.5)));
+  const int last = int(std::min(double(extent - 1), std::floor(hi - 0.5)));
   for (int k = first; k <= last; ++k) {
     const double c = double(k) + 0.5;
     // |(X - pa) . n| <= r over the column: X[other] in [m - h, m + h].
     const double m = pa[other] - (c - pa[axis]) * n[axis] / n[other];
     const double h = r / std::abs(n[other]);
-    const int j0 = std::max(0, int(std::ceil(m - h - 0.5))), j1 = std::min(other_extent - 1, int(std::floor(m + h - 0.5)));
+    const double lo_j = std::ceil(m - h - 0.5), hi_j = std::floor(m + h - 0.5);
+    if (!(hi_j >= 0.0 && lo_j <= double(other_extent - 1))) continue;
+    const int j0 = int(std::max(0.0, lo_j)), j1 = int(std::min(double(other_extent - 1), hi_j));
     for (int j = j0; j <= j1; ++j) {
       glm::dvec2 x(0.0);
       x[axis] = c;
