@@ -336,6 +336,23 @@ TEST(CertifiedFrame, AnObjectThinnerThanAPixelAtTheRastersSnapIsFound) {
     EXPECT_EQ(compare_with_reference(request(body)).differing, 0u) << body;
 }
 
+// A fourth red-team pass (2026-11-27): outlines at the image's border,
+// where the ring had no neighbour past the edge to compare with (a box's
+// edge on the border row that the snapped triangle covers, 59 pixels; a
+// curved shape whose true surface bulges onto the image from faces just
+// off it, a column of 90), and an edge whose end, just in front of half
+// the near plane, projects 1e11 pixels off (its sliver marks were lost:
+// 160 pixels).
+TEST(CertifiedFrame, OutlinesAtTheBorderAndEdgesFarOffTheImageEqualTheReference) {
+  for (const char* body : {
+           R"({"camera":{"far":100,"fov_y_deg":27.151159195093175,"near":0.2718606537082838,"position":[0,1.7088566664853133,10.0],"target":[0,1.7088566664853133,0]},"height":90,"light":{"orbit_deg_per_s":0,"position":[1.8009895872010304,1.1847302681967435,4.00578474653917],"projection":"perspective","target":[0,0,0]},"scene":{"objects":[{"center":[0.5539861847206742,0.5505032950747535,3.280797806944702],"size":[1.812361372143863,0.34055861095907913,2.3099809982202104],"type":"box"}]},"shadow":{"map_size":2048},"width":160})",
+           R"({"width":160,"height":90,"scene":{"objects":[{"type":"cylinder","center":[33.44370924586052,0,-25.689352180858744],"radius":20.0,"height":60}]},"light":{"position":[196.89042094403533,10,-154.0589567032069],"target":[-0.5112912796144323,0,-24.99477107771524]},"camera":{"position":[0,0,0],"target":[-0.020451651184577292,0,-0.9997908431086096],"fov_y_deg":30.0,"near":0.1,"far":200}})",
+           R"({"width":160,"height":90,"scene":{"objects":[{"type":"plane","center":[0,0,0],"size":[20,20]},{"type":"box","center":[0,2.6676409015316582,5.0],"size":[2000.0,0.004,0.004]}]},"light":{"position":[0,10,-10],"target":[0,0,0]},"camera":{"position":[0.0,2.0,10.0],"target":[-0.009996,2.0,9.0],"up":[-0.001339281803063316,1.000099920016,1.3387460903420907e-05],"fov_y_deg":30.0,"near":1e-05,"far":100}})",
+           R"({"camera":{"far":100,"fov_y_deg":27.151159195093175,"near":0.2718606537082838,"position":[0,1.7088566664853133,10.0],"target":[0,1.7088566664853133,0]},"height":90,"light":{"orbit_deg_per_s":0,"position":[1.8009895872010304,1.1847302681967435,4.00578474653917],"projection":"perspective","target":[0,0,0]},"scene":{"objects":[{"center":[-0.3312164633223429,1.3716355070583361,0.34604927999617097],"size":[2.0063459214156105,0.012775240407136838,12.739440317626048],"type":"box"},{"center":[-0.32519277566704724,1.384410747465473,0.34604927999617097],"size":[1.2452211061056928,0.012775240407136838,12.739440317626048],"type":"box"},{"center":[1.0694737955145472,0.2099446841156743,3.280797806944702],"size":[1.2775942879492859,0.34055861095907913,2.3099809982202104],"type":"box"},{"center":[0.5539861847206742,0.5505032950747535,3.280797806944702],"size":[1.812361372143863,0.34055861095907913,2.3099809982202104],"type":"box"},{"center":[0.009452310705142616,0.2099446841156743,1.3213707313555205],"height":0.34055861095907913,"radius":0.13246611169076405,"type":"cylinder"}]},"shadow":{"map_size":2048},"width":160})",
+       })
+    EXPECT_EQ(compare_with_reference(request(body)).differing, 0u) << body;
+}
+
 // The comparison above can fail: a certificate that calls every pixel lit
 // gives frames that differ from the reference wherever it is dark.
 // The colour output: certified pixels as the map frame shades them; the
@@ -369,14 +386,14 @@ TEST(CertifiedFrame, AWrongCertificateShowsInTheImage) {
   ASSERT_TRUE(settled.certified.has_value());
   EXPECT_EQ(settled.image.pixels, exact.pixels);
   // The same frame with every verdict forged to "lit" and no object changes:
-  // nothing is cast, every shadow is lost.
+  // nothing but the border is cast, every shadow inside is lost.
   RenderResult forged;
   forged.image = Image{r.width, r.height, 1, std::vector<std::uint8_t>(exact.pixels.size(), 255)};
   forged.certificates = PixelCertificates{};
   forged.certificates->codes.assign(exact.pixels.size(), (1u << 3) | 4u | PixelCertificates::kCertainlyLit);
   settle_certified_frame(forged, r);
   ASSERT_TRUE(forged.certified.has_value());
-  EXPECT_EQ(forged.certified->ray_cast, 0u);
+  EXPECT_EQ(forged.certified->ray_cast, std::size_t(2 * (r.width + r.height) - 4));
   EXPECT_NE(forged.image.pixels, exact.pixels);
 }
 

@@ -18,7 +18,6 @@ std::uint32_t code(std::uint32_t object_plus_one, bool facing, std::uint32_t ver
   return (object_plus_one << 3) | (facing ? 4u : 0u) | verdict;
 }
 
-std::size_t count(const std::vector<std::uint8_t>& v) { return std::size_t(std::count(v.begin(), v.end(), 1)); }
 
 // pixels_to_ray_cast of these codes, without sliver marks.
 std::vector<std::uint8_t> to_cast(const std::vector<std::uint32_t>& codes, int width, int height, int ring) {
@@ -27,35 +26,61 @@ std::vector<std::uint8_t> to_cast(const std::vector<std::uint32_t>& codes, int w
   return pixels_to_ray_cast(c, width, height, ring);
 }
 
+// The pixels `ring` or more from the image's border (those nearer it are
+// always cast: PixelsToRayCast.TheBorderIsAChangeOfSurface).
+std::size_t count_inside(const std::vector<std::uint8_t>& cast, int width, int height, int ring) {
+  std::size_t n = 0;
+  for (int y = ring; y < height - ring; ++y)
+    for (int x = ring; x < width - ring; ++x) n += cast[std::size_t(y * width + x)] != 0;
+  return n;
+}
+
 TEST(PixelsToRayCast, OnlyUncertainPixelsOfOneSurface) {
   std::vector<std::uint32_t> codes(8 * 6, code(1, true, kLit));
   codes[2 * 8 + 3] = code(1, true, kUncertain);
   codes[4 * 8 + 5] = code(1, true, kDark);
   const std::vector<std::uint8_t> cast = to_cast(codes, 8, 6, 1);
-  EXPECT_EQ(count(cast), 1u);
+  EXPECT_EQ(count_inside(cast, 8, 6, 1), 1u);
   EXPECT_EQ(cast[2 * 8 + 3], 1);
 }
 
 TEST(PixelsToRayCast, BothSidesOfAChangeOfObjectOrOfFacing) {
-  // Columns 0-3 see object 1, 4-7 object 2: columns 3 and 4 are cast.
-  std::vector<std::uint32_t> codes(8 * 4);
-  for (int y = 0; y < 4; ++y)
-    for (int x = 0; x < 8; ++x) codes[y * 8 + x] = code(x < 4 ? 1 : 2, true, kLit);
-  std::vector<std::uint8_t> cast = to_cast(codes, 8, 4, 1);
-  EXPECT_EQ(count(cast), 8u);
-  for (int y = 0; y < 4; ++y) EXPECT_TRUE(cast[y * 8 + 3] && cast[y * 8 + 4]);
+  // Columns 0-7 see object 1, 8-15 object 2: columns 7 and 8 are cast.
+  const int w = 16, h = 8;
+  std::vector<std::uint32_t> codes(w * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) codes[y * w + x] = code(x < 8 ? 1 : 2, true, kLit);
+  std::vector<std::uint8_t> cast = to_cast(codes, w, h, 1);
+  EXPECT_EQ(count_inside(cast, w, h, 1), 2u * (h - 2));
+  for (int y = 0; y < h; ++y) EXPECT_TRUE(cast[y * w + 7] && cast[y * w + 8]);
   // A crease: one object, its faces turned to both sides of the light.
-  for (int y = 0; y < 4; ++y)
-    for (int x = 0; x < 8; ++x) codes[y * 8 + x] = code(1, x < 4, x < 4 ? kLit : kDark);
-  cast = to_cast(codes, 8, 4, 1);
-  EXPECT_EQ(count(cast), 8u);
-  // Ring 3: two more columns each side.
-  cast = to_cast(codes, 8, 4, 3);
-  EXPECT_EQ(count(cast), 4u * 6u);
-  EXPECT_FALSE(cast[0]);
-  EXPECT_TRUE(cast[1]);
-  EXPECT_TRUE(cast[6]);
-  EXPECT_FALSE(cast[7]);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) codes[y * w + x] = code(1, x < 8, x < 8 ? kLit : kDark);
+  cast = to_cast(codes, w, h, 1);
+  EXPECT_EQ(count_inside(cast, w, h, 1), 2u * (h - 2));
+  // Ring 3: two more columns each side (columns 5 to 10).
+  cast = to_cast(codes, w, h, 3);
+  EXPECT_EQ(count_inside(cast, w, h, 3), 6u * (h - 6));
+  EXPECT_FALSE(cast[4 * w + 4]);
+  EXPECT_TRUE(cast[4 * w + 5]);
+  EXPECT_TRUE(cast[4 * w + 10]);
+  EXPECT_FALSE(cast[4 * w + 11]);
+}
+
+// Outside the image is another surface (what lies past the border is not
+// drawn): the pixels within `ring` of the border are cast, one surface
+// everywhere or not.
+TEST(PixelsToRayCast, TheBorderIsAChangeOfSurface) {
+  const int w = 10, h = 7;
+  const std::vector<std::uint32_t> codes(w * h, code(1, true, kLit));
+  for (int ring = 1; ring <= 3; ++ring) {
+    const std::vector<std::uint8_t> cast = to_cast(codes, w, h, ring);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const bool near_border = x < ring || y < ring || x >= w - ring || y >= h - ring;
+        EXPECT_EQ(cast[std::size_t(y * w + x)] != 0, near_border) << "ring " << ring << " at " << x << ", " << y;
+      }
+  }
 }
 
 // The ring grows each change of surface by ring - 1 pixels every way (a
@@ -77,7 +102,8 @@ TEST(PixelsToRayCast, TheRingIsASquareAroundEachChange) {
       const std::vector<std::uint8_t> cast = to_cast(codes, w, h, ring);
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
-          bool expected = (codes[std::size_t(y * w + x)] & 3u) == kUncertain;
+          bool expected = (codes[std::size_t(y * w + x)] & 3u) == kUncertain || x < ring || y < ring ||
+                          x >= w - ring || y >= h - ring;
           for (int v = std::max(0, y - ring + 1); v <= std::min(h - 1, y + ring - 1); ++v)
             for (int u = std::max(0, x - ring + 1); u <= std::min(w - 1, x + ring - 1); ++u) expected |= change[std::size_t(v * w + u)] != 0;
           ASSERT_EQ(cast[std::size_t(y * w + x)] != 0, expected) << "ring " << ring << " at " << x << ", " << y;
@@ -100,7 +126,7 @@ TEST(PixelsToRayCast, PixelsTheSliverPassMarked) {
   c.slivers.assign(c.codes.size(), 0);
   c.slivers[3 * 8 + 2] = 1;
   const std::vector<std::uint8_t> cast = pixels_to_ray_cast(c, 8, 6, 1);
-  EXPECT_EQ(count(cast), 1u);
+  EXPECT_EQ(count_inside(cast, 8, 6, 1), 1u);
   EXPECT_EQ(cast[3 * 8 + 2], 1);
 }
 

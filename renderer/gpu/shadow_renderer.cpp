@@ -171,7 +171,14 @@ bool ShadowRenderer::use_scene(const Scene& scene) {
   g.mesh = std::move(mesh);
   for (const SceneObject& o : scene.objects)
     g.deep_layers.push_back(o.type == SceneObject::Type::Mesh ? mesh_deepest_layers(o) : 0.0);
-  const std::uint64_t bytes = std::uint64_t(vertex_count) * sizeof(Vertex) + std::uint64_t(index_count) * sizeof(std::uint32_t);
+  std::uint64_t bytes = std::uint64_t(vertex_count) * sizeof(Vertex) + std::uint64_t(index_count) * sizeof(std::uint32_t);
+  // Where filter "exact"'s passes are drawn on the CPU, what a certified
+  // frame keeps of the scene there (use_certificate_buffers): positions,
+  // indices, each triangle's object, its paired edges (about 1.5 a
+  // triangle). Counted whether or not such a frame comes.
+  if (certified_passes_on_cpu_ && index_count / 3 <= kMostConservativeTriangles)
+    bytes += std::uint64_t(vertex_count) * sizeof(glm::vec3) + std::uint64_t(index_count) * sizeof(std::uint32_t) +
+             std::uint64_t(index_count / 3) * (sizeof(std::uint32_t) + 2 * sizeof(SliverEdges::Edge));
   scenes_.insert(std::move(key), std::move(g), bytes);
   evict_scenes_to(scene_cache_bytes_, 1);
   return true;
@@ -349,6 +356,10 @@ void ShadowRenderer::add_certificate_targets() {
   if (display_.certificate) return;
   display_.certificate = gl::create_texture(GL_TEXTURE_2D);
   glTextureStorage2D(display_.certificate.id(), 1, GL_R32UI, display_.width, display_.height);
+  // Nearest: an integer texture with any other filter is incomplete, and
+  // the sliver pass's texelFetch of it would read 0 (no object) everywhere.
+  glTextureParameteri(display_.certificate.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTextureParameteri(display_.certificate.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   display_.unlit = gl::create_renderbuffer();
   glNamedRenderbufferStorage(display_.unlit.id(), GL_RGBA8, display_.width, display_.height);
   glNamedFramebufferTexture(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputCertificate,
@@ -382,6 +393,9 @@ void ShadowRenderer::run_sliver_pass(const DisplayPassPlan& pass) {
   glBindTextureUnit(kTextureUnitCertificates, display_.certificate.id());
   glUseProgram(display_.sliver_program->id());
   glProgramUniform1i(display_.sliver_program->id(), kUniformLocationCullBack, pass.sliver_skips_closed_back ? 1 : 0);
+  // Its triangles are the scene's: the last display step may have been a
+  // proved part's, which draws without a triangle base.
+  set_triangle_base_ = true;
   draw_scene(pass.sliver_draws);
   glBindTextureUnit(kTextureUnitCertificates, 0);
   glDepthMask(GL_TRUE);

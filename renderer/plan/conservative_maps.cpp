@@ -181,7 +181,10 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
     if (i0 > i1 || j0 > j1) continue;
     // certify.frag drops a centre where dot(n, c - a) - (|n.x| + |n.y|) / 2
     // exceeds its rounding, (|n.x| + |n.y|) (1e-3 + 1e-6 (|d.x| + |d.y|)) +
-    // swell |n|; |d| is bounded here by the box's size, so more is kept.
+    // swell |n|, the first two terms for float. Here |d| is taken as the
+    // clamped box's size, which can be less than the shader's (a corner far
+    // off the layer): still far above this double arithmetic's rounding, so
+    // the 1e-3 texel alone would do.
     const double reach = (s.hi.x - s.lo.x) + (s.hi.y - s.lo.y) + 2.0;
     Edge edges[4];
     for (int e = 0; e < s.edge_count; ++e) {

@@ -113,15 +113,19 @@ void SliverEdges::mark(const std::vector<glm::vec3>& positions, const glm::dmat4
     if (e.second_third != kOpen) {
       const glm::dvec4 c1 = clip[e.first_third], c2 = clip[e.second_third];
       if (a.w > w_min && b.w > w_min && c1.w > w_min && c2.w > w_min) {
-        const glm::dvec2 pa = window(a), pb = window(b);
-        const glm::dvec2 along = pb - pa;
-        const double length = glm::length(along);
-        if (length > 1e-6) {
-          const glm::dvec2 n = glm::dvec2(-along.y, along.x) / length;
-          const double s1 = glm::dot(window(c1) - pa, n), s2 = glm::dot(window(c2) - pa, n);
-          if ((s1 >= kSliverSidePixels && s2 <= -kSliverSidePixels) || (s1 <= -kSliverSidePixels && s2 >= kSliverSidePixels))
-            continue;  // inside the surface on the screen: the snapped pair covers both sides
-        }
+        const glm::dvec2 pa = window(a), pb = window(b), p1 = window(c1), p2 = window(c2);
+        // Each third corner's side of the edge, kept by the snapped corners:
+        // moving a, b and c by up to d changes the cross product (b - a) x
+        // (c - a) by at most 2 d (|b - a| + |c - a| + |c - b|) + 4 d^2.
+        const auto side = [&](const glm::dvec2& c) {
+          const glm::dvec2 ab = pb - pa, ac = c - pa;
+          const double cross = ab.x * ac.y - ab.y * ac.x;
+          const double d = kSnapPixelsBound;
+          const double moved = 2.0 * d * (glm::length(ab) + glm::length(ac) + glm::length(c - pb)) + 4.0 * d * d;
+          return cross > moved ? 1 : cross < -moved ? -1 : 0;
+        };
+        const int s1 = side(p1), s2 = side(p2);
+        if (s1 != 0 && s1 == -s2) continue;  // inside the surface on the screen: the snapped pair covers both sides
       }
     }
     // The part in front of half the near plane (sliver.geom's cut).

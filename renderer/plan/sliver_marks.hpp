@@ -8,13 +8,14 @@
 // Only an edge where the object's surface ends on the screen can be the
 // place where the raster's snapped triangles miss a centre the true ones
 // cover: along an edge whose two triangles lie on opposite sides of it on
-// the screen, the snapped pair shares the snapped edge and covers both
-// sides. So here only the other edges are drawn: an edge of one triangle
+// the screen, even once snapped (kSnapPixelsBound), the snapped pair
+// shares the snapped edge and covers both sides. So here only the other edges are drawn: an edge of one triangle
 // (the object's border), of three or more, or of two on one side (the
 // outline, where the surface turns from the camera), or of a triangle
 // that reaches behind the camera. The marks ignore depth: an outline
 // hidden behind another object adds a few casts (a band 1/16 pixel wide
-// crosses a pixel centre every 16 pixels), never a missed one.
+// crosses a pixel centre every 16 pixels), never a missed one. (The image's
+// border is cast whole: pixels_to_ray_cast.)
 #pragma once
 
 #include <cstdint>
@@ -28,9 +29,10 @@ namespace umbra {
 /// half-width of the band around an edge (sliver.geom's kSliverPixels).
 inline constexpr double kSliverPixels = 1.0 / 32.0;
 /// A shared edge is skipped only where both triangles' third corners lie
-/// at least this far (pixels) from its line, on either side: far above the
-/// snap, so the snapped pair lies on either side too.
-inline constexpr double kSliverSidePixels = 1.0 / 16.0;
+/// on either side of it with room for the rasteriser to move every corner
+/// by this much (pixels; llvmpipe snaps by 1/256, four times less): the
+/// snapped pair lies on either side too.
+inline constexpr double kSnapPixelsBound = 1.0 / 64.0;
 
 /// The edges of a scene's triangles, paired once per scene: two triangles
 /// of one object share an edge where its corners' positions are the same.

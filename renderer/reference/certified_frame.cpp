@@ -54,6 +54,13 @@ std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificat
   // other face), then grown by ring - 1 each way (a separable max: a row
   // pass, then a column pass).
   std::vector<std::uint8_t> edge(codes.size(), 0);
+  // Outside the image is another surface: nothing past the border shows
+  // whether the raster and the reference part there (an outline on the
+  // border row that the snapped triangle covers and the true one misses; a
+  // curved shape whose true surface bulges onto the image from faces just
+  // off it), so the border pixels count as beside a change.
+  for (int x = 0; x < width; ++x) edge[at(x, 0)] = edge[at(x, height - 1)] = 1;
+  for (int y = 0; y < height; ++y) edge[at(0, y)] = edge[at(width - 1, y)] = 1;
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       const std::uint32_t o = surface_code(codes[at(x, y)]);
