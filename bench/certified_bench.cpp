@@ -209,6 +209,10 @@ struct SceneRow {
   std::string scene;
   std::string skipped;  // why, if not measured
   double pcf_ms = NAN, exact_ms = NAN, raycast_ms = NAN, settle_ms = NAN, uncertain = NAN;
+  // The exact filter's other stages, medians on their own: the maps
+  // (shadow), the main pass (main), the read-back (with the CPU's sliver
+  // marks, where it finds them).
+  double exact_shadow_ms = NAN, exact_main_ms = NAN, exact_readback_ms = NAN;
   std::string path;  // Umbra-Certified's path of the rounds (several: joined with "/")
   Compare at_own_time;
   long sweep_worst = -1;
@@ -235,7 +239,7 @@ SceneRow measure_scene(Poster& poster, const std::string& name, const json& base
   }
   row.at_own_time = compare(exact_filter0.body, exact0.body);
 
-  std::vector<double> pcf, exact, raycast, settle, uncertain;
+  std::vector<double> pcf, exact, raycast, settle, uncertain, exact_shadow, exact_main, exact_readback;
   for (int i = 1; i <= frames; ++i) {
     const double t = t0 + i * kTimeStep;
     const Answer p = poster.post(with(base, "shadow", false, t));
@@ -245,6 +249,9 @@ SceneRow measure_scene(Poster& poster, const std::string& name, const json& base
     if (e.status == 200) {
       exact.push_back(e.ms({"shadow", "main", "readback", "settle"}));
       settle.push_back(e.ms({"settle"}));
+      exact_shadow.push_back(e.ms({"shadow"}));
+      exact_main.push_back(e.ms({"main"}));
+      exact_readback.push_back(e.ms({"readback"}));
       uncertain.push_back(e.uncertain_percent());
       if (row.path.find(e.path()) == std::string::npos) row.path += (row.path.empty() ? "" : "/") + e.path();
     }
@@ -258,6 +265,9 @@ SceneRow measure_scene(Poster& poster, const std::string& name, const json& base
   row.exact_ms = median(exact);
   row.raycast_ms = median(raycast);
   row.settle_ms = median(settle);
+  row.exact_shadow_ms = median(exact_shadow);
+  row.exact_main_ms = median(exact_main);
+  row.exact_readback_ms = median(exact_readback);
   row.uncertain = median(uncertain);
 
   if (sweep) {
@@ -661,7 +671,9 @@ int main(int argc, char** argv) {
         "scene as it is (default filter, pcf) with output `shadow`, the same with `\"shadow\": {\"filter\": "
         "\"exact\"}` with output `shadow`, and output `exact`. Times are the medians, from `Server-Timing`: pcf ms "
         "= shadow + main + readback; exact ms = shadow + main + readback + settle (settle: the CPU ray cast of the "
-        "pixels the maps left uncertain; its median on its own is the settle column); raycast ms = the `exact` output's raycast stage (the full CPU ray cast). "
+        "pixels the maps left uncertain; its median on its own is the settle column, and so are the other stages': "
+        "shadow holds the maps, main the main pass, readback the read-back and, where the CPU finds them, the sliver "
+        "marks); raycast ms = the `exact` output's raycast stage (the full CPU ray cast). "
         "uncertain % = median share of pixels ray cast, and path how the server certified the frames (maps, proofs: "
         "no maps, the floor's proofs and the rest ray cast, ray-cast: every pixel), from `Umbra-Certified`.\n"
      << "- Accuracy: filter exact's `shadow` PNG against the `exact` PNG (decoded, 8-bit grey) at the scene's own "
@@ -670,15 +682,16 @@ int main(int argc, char** argv) {
      << umbra::kOrbitTurnSeconds << " / " << umbra::kOrbitSweepTimes << " s, k = 0.." << umbra::kOrbitSweepTimes - 1
      << " (" << (sweep ? "measured" : "not measured: --no-sweep") << ").\n"
      << "- The machine is shared and noisy: the times are indicative.\n\n"
-     << "| scene | pcf ms | exact-filter ms | of which settle ms | raycast ms | exact/pcf | exact/raycast | path | uncertain % | "
-        "differing px | wrong px | MAE | sweep worst differing px |\n"
-     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+     << "| scene | pcf ms | exact-filter ms | of which settle ms | exact stages ms: shadow / main / readback | raycast ms | "
+        "exact/pcf | exact/raycast | path | uncertain % | differing px | wrong px | MAE | sweep worst differing px |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const SceneRow& r : rows) {
     if (!r.skipped.empty()) {
-      md << "| " << r.scene << " | skipped: " << r.skipped << " | | | | | | | | | | | |\n";
+      md << "| " << r.scene << " | skipped: " << r.skipped << " | | | | | | | | | | | | |\n";
       continue;
     }
     md << "| " << r.scene << " | " << cell(r.pcf_ms, "%.2f") << " | " << cell(r.exact_ms, "%.2f") << " | " << cell(r.settle_ms, "%.2f") << " | "
+       << cell(r.exact_shadow_ms, "%.1f") << " / " << cell(r.exact_main_ms, "%.1f") << " / " << cell(r.exact_readback_ms, "%.1f") << " | "
        << cell(r.raycast_ms, "%.2f") << " | " << cell(r.exact_ms / r.pcf_ms, "%.2f") << " | "
        << cell(r.exact_ms / r.raycast_ms, "%.3f") << " | " << r.path << " | " << cell(r.uncertain, "%.4f") << " | "
        << r.at_own_time.differing << " | " << r.at_own_time.wrong << " | " << fmt("%.2e", r.at_own_time.mae) << " | "
@@ -743,6 +756,8 @@ int main(int argc, char** argv) {
       row["skipped"] = r.skipped;
     } else {
       row.update({{"pcf_ms", r.pcf_ms}, {"exact_filter_ms", r.exact_ms}, {"settle_ms", r.settle_ms},
+                  {"exact_shadow_ms", r.exact_shadow_ms}, {"exact_main_ms", r.exact_main_ms},
+                  {"exact_readback_ms", r.exact_readback_ms},
                   {"raycast_ms", r.raycast_ms}, {"uncertain_percent", r.uncertain}, {"path", r.path},
                   {"differing_px", r.at_own_time.differing}, {"wrong_px", r.at_own_time.wrong},
                   {"mae", r.at_own_time.mae}, {"pixels", r.at_own_time.pixels},
