@@ -177,7 +177,25 @@ void main() {
   lo = clamp(lo - margin, vec2(-1.0), vec2(u.certified_map_size + 1.0));
   hi = clamp(hi + margin, vec2(-1.0), vec2(u.certified_map_size + 1.0));
   vec2 corners[4] = vec2[4](lo, vec2(hi.x, lo.y), vec2(lo.x, hi.y), hi);
+  // Outputs are undefined after EmitVertex (GLSL 4.50, 8.15): every vertex
+  // writes the flat ones again, so that whichever vertex provokes them
+  // carries them.
+  vec2 corner[4] = g_corner;
+  int edge_count = g_edge_count, plane_valid = g_plane_valid;
+  vec3 plane = g_plane;
+  vec2 origin = g_origin;
+  float min_depth_here = g_min_depth, swell = g_swell, depth_swell = g_depth_swell;
+  uint owner = g_owner;
   for (int i = 0; i < 4; ++i) {
+    g_corner = corner;
+    g_edge_count = edge_count;
+    g_plane_valid = plane_valid;
+    g_plane = plane;
+    g_origin = origin;
+    g_min_depth = min_depth_here;
+    g_swell = swell;
+    g_depth_swell = depth_swell;
+    g_owner = owner;
     // Depth is written by the fragment shader; z 0 keeps the quad from
     // being clipped by the view's near and far planes.
     gl_Position = vec4(corners[i] / u.certified_map_size * 2.0 - 1.0, 0.0, 1.0);

@@ -23,7 +23,8 @@ flat out uint g_object;
 const float kSliverPixels = 1.0 / 32.0;
 
 void main() {
-  g_object = object_of(u_triangle_base + gl_PrimitiveIDIn);
+  // Written again before each EmitVertex, after which outputs are undefined.
+  const uint object = object_of(u_triangle_base + gl_PrimitiveIDIn);
   // An edge's part nearer the camera than half its near plane is clipped
   // away: the main pass and the reference both start at the near plane.
   float w_min = 0.5 * u.camera_axis_near.w;
@@ -36,7 +37,7 @@ void main() {
   // Only a face clearly clockwise on the screen (fan area below its float
   // rounding, as certify.geom judges faces for the light) with every corner
   // in front of the camera.
-  if (u_cull_back != 0 && has_flag(object_facts(g_object), OBJECT_FLAG_CLOSED) && gl_in[0].gl_Position.w > w_min &&
+  if (u_cull_back != 0 && has_flag(object_facts(object), OBJECT_FLAG_CLOSED) && gl_in[0].gl_Position.w > w_min &&
       gl_in[1].gl_Position.w > w_min && gl_in[2].gl_Position.w > w_min) {
     vec2 s[3];
     for (int i = 0; i < 3; ++i) s[i] = (gl_in[i].gl_Position.xy / gl_in[i].gl_Position.w * 0.5 + 0.5) * u.image_size;
@@ -62,6 +63,7 @@ void main() {
     vec2 corners[4] = vec2[4](pa - e - f, pa - e + f, pb + e - f, pb + e + f);
     float depths[4] = float[4](na.z, na.z, nb.z, nb.z);
     for (int k = 0; k < 4; ++k) {
+      g_object = object;
       gl_Position = vec4(corners[k] / u.image_size * 2.0 - 1.0, depths[k], 1.0);
       EmitVertex();
     }
