@@ -96,6 +96,20 @@ gl::Texture texel_array(GLenum format, int size, int layers) {
   return texture;
 }
 
+// The texels of a layer's certified maps (all at certified_map_size) that
+// the certificate reads: the whole layer, or its casters' rectangle scaled
+// to them and grown by a texel.
+struct TexelBox {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+TexelBox certified_read_box(const ShadowLayerDraw& layer, int layer_size) {
+  const int side = certified_map_size(layer_size);
+  if (layer.clear_whole) return {0, 0, side, side};
+  const double scale = double(side) / double(layer_size);
+  return {std::max(0, int(std::floor(layer.x0 * scale)) - 1), std::max(0, int(std::floor(layer.y0 * scale)) - 1),
+          std::min(side, int(std::ceil(layer.x1 * scale)) + 1), std::min(side, int(std::ceil(layer.y1 * scale)) + 1)};
+}
+
 // A buffer texture of `format` holding `bytes` from `data`.
 void make_buffer_texture(gl::Buffer& buffer, gl::Texture& texture, GLenum format, const void* data, std::size_t bytes) {
   buffer = gl::create_buffer();
@@ -460,17 +474,7 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
   // A scene of more triangles keeps no copy of them here (use_certificate_buffers).
   if (triangles > kMostConservativeTriangles || (triangles > 0 && g.positions.empty())) return false;
   const ConservativeMaps maps(g.positions, g.position_indices, g.conservative_objects, g.triangle_object_ids, layer.draws, view);
-  // What the certificate reads: the clear's rectangle (the whole layer, or
-  // its casters' rectangle and a texel around).
-  const int side = view.size;
-  int x0 = 0, y0 = 0, x1 = side, y1 = side;
-  if (!layer.clear_whole) {
-    const double scale = double(side) / double(plan.light.layer_size);
-    x0 = std::max(0, int(std::floor(layer.x0 * scale)) - 1);
-    y0 = std::max(0, int(std::floor(layer.y0 * scale)) - 1);
-    x1 = std::min(side, int(std::ceil(layer.x1 * scale)) + 1);
-    y1 = std::min(side, int(std::ceil(layer.y1 * scale)) + 1);
-  }
+  const auto [x0, y0, x1, y1] = certified_read_box(layer, plan.light.layer_size);
   const GLint at = GLint(layer.layer);
   // Drawn where a triangle may reach; far, with no owner, in the rest of
   // the rectangle (up to four strips around it).
@@ -493,11 +497,7 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
   clear(x0, ty1, x1, y1);    // above
   clear(x0, ty0, tx0, ty1);  // left
   clear(tx1, ty0, x1, ty1);  // right
-  x0 = tx0;
-  y0 = ty0;
-  x1 = tx1;
-  y1 = ty1;
-  draw_conservative_bands(maps, x0, y0, x1, y1, kConservativeBandBytes, [&](const ConservativeBand& band) {
+  draw_conservative_bands(maps, tx0, ty0, tx1, ty1, kConservativeBandBytes, [&](const ConservativeBand& band) {
     glTextureSubImage3D(certify_.nearest_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
                         GL_DEPTH_COMPONENT, GL_FLOAT, band.nearest_depth.data());
     glTextureSubImage3D(certify_.nearest_owner.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
@@ -511,13 +511,12 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
 void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const FrameBlock& block) {
   const ShadowPlan& light = plan.light;
   const int size = light.layer_size;
-  resize_shadow_map(size, int(light.views.size()));
+  // Every map is the certify_ maps' (the centre map's depth too): the
+  // shadow map is neither drawn nor read, and keeps what it holds.
   resize_certify_maps(size, int(light.views.size()));
-  shadow_.kept.holds_plan = false;
   begin_pass(plan.shadow.object_draw_ms, double(size), double(size), kShadowChunkFragments);
   const GLuint framebuffer = certify_.framebuffer.id();
   glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
-  glViewport(0, 0, size, size);
   glClearDepth(1.0);
   glDisable(GL_CLIP_DISTANCE0);
   glBindTextureUnit(kTextureUnitTriangleObjects, scene().triangle_objects.id());
@@ -546,35 +545,28 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const Fram
     const GLint at = GLint(layer.layer);
     const GLuint none = 0, no_owner = 0xFFFFFFFFu;
     const float far = 1.0f;
-    // The whole layer, or only the rectangle the certificate reads, in a
-    // map of `side` texels (the layer's or the coarse maps').
-    const auto clear = [&](GLuint texture, int side, GLenum format, GLenum type, const void* value) {
-      if (layer.clear_whole) {
-        glClearTexSubImage(texture, 0, 0, 0, at, side, side, 1, format, type, value);
-        return;
-      }
-      const double scale = double(side) / double(size);
-      const int x0 = std::max(0, int(std::floor(layer.x0 * scale)) - 1), y0 = std::max(0, int(std::floor(layer.y0 * scale)) - 1);
-      const int x1 = std::min(side, int(std::ceil(layer.x1 * scale)) + 1), y1 = std::min(side, int(std::ceil(layer.y1 * scale)) + 1);
-      glClearTexSubImage(texture, 0, x0, y0, at, x1 - x0, y1 - y0, 1, format, type, value);
+    // Only what the certificate reads of the layer.
+    const TexelBox read = certified_read_box(layer, size);
+    const auto clear = [&](GLuint texture, GLenum format, GLenum type, const void* value) {
+      glClearTexSubImage(texture, 0, read.x0, read.y0, at, read.x1 - read.x0, read.y1 - read.y0, 1, format, type, value);
     };
     attach(certify_.centre_depth.id(), certify_.centre_triangle.id(), at);
     glViewport(0, 0, coarse, coarse);
-    clear(certify_.centre_depth.id(), coarse, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
-    clear(certify_.centre_triangle.id(), coarse, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
+    clear(certify_.centre_depth.id(), GL_DEPTH_COMPONENT, GL_FLOAT, &far);
+    clear(certify_.centre_triangle.id(), GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
     glUseProgram(centre);
     glProgramUniform1i(centre, kUniformLocationLayer, at);
     draw_scene(layer.draws);
     if (certified_passes_on_cpu_ && upload_conservative_maps(plan, block, layer)) continue;
     attach(certify_.nearest_depth.id(), certify_.nearest_owner.id(), at);
     glViewport(0, 0, coarse, coarse);
-    clear(certify_.nearest_depth.id(), coarse, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
-    clear(certify_.nearest_owner.id(), coarse, GL_RED_INTEGER, GL_UNSIGNED_INT, &no_owner);
+    clear(certify_.nearest_depth.id(), GL_DEPTH_COMPONENT, GL_FLOAT, &far);
+    clear(certify_.nearest_owner.id(), GL_RED_INTEGER, GL_UNSIGNED_INT, &no_owner);
     glUseProgram(nearest);
     glProgramUniform1i(nearest, kUniformLocationLayer, at);
     draw_scene(layer.draws);
     attach(certify_.others_depth.id(), 0, at);
-    clear(certify_.others_depth.id(), coarse, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
+    clear(certify_.others_depth.id(), GL_DEPTH_COMPONENT, GL_FLOAT, &far);
     glBindTextureUnit(kTextureUnitCertifyNearestOwner, certify_.nearest_owner.id());
     glUseProgram(others);
     glProgramUniform1i(others, kUniformLocationLayer, at);
@@ -881,12 +873,8 @@ PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back) {
   glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0 + kFragOutputCertificate);
   glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_INT, c.codes.data());
   flip_rows(c.codes, w, h);
-  if (slivers_on_cpu_) {
-    std::vector<std::uint32_t> drawn(c.codes.size());
-    for (std::size_t i = 0; i < drawn.size(); ++i) drawn[i] = c.codes[i] >> 3;  // PixelCertificates: object + 1
-    const SceneGeometry& g = scene();
-    g.sliver_edges->mark(g.positions, sliver_view_projection_, sliver_near_plane_, w, h, drawn, c.slivers);
-  } else {
+  // Marks found on the CPU are added by render_frame.
+  if (!slivers_on_cpu_) {
     c.slivers.resize(std::size_t(w) * std::size_t(h));
     glBindFramebuffer(GL_READ_FRAMEBUFFER, display_.sliver_framebuffer.id());
     glNamedFramebufferReadBuffer(display_.sliver_framebuffer.id(), GL_COLOR_ATTACHMENT0);
@@ -932,8 +920,6 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
   // After use_certificate_buffers, which pairs the edges on a scene's first frame.
   slivers_on_cpu_ = plan.display.certificates && !plan.display.sliver_draws.empty() && certified_passes_on_cpu_ &&
                     scene().sliver_edges.has_value();
-  sliver_view_projection_ = glm::dmat4(block.camera_view_projection);
-  sliver_near_plane_ = request.camera.near_plane;
   if (plan.shadow.needed && !plan.shadow.reused) {
     // A reused map (typically only the camera moved) leaves shadow_ms 0.
     const auto start = Clock::now();
@@ -955,7 +941,18 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
 
   const auto readback_start = Clock::now();
   result.image = read_pixels(plan.read_back);
-  if (plan.read_back.certificates) result.certificates = read_certificates(plan.read_back);
+  if (plan.read_back.certificates) {
+    result.certificates = read_certificates(plan.read_back);
+    if (slivers_on_cpu_) {
+      // With the camera's matrix and near plane as the main pass had them.
+      PixelCertificates& c = *result.certificates;
+      std::vector<std::uint32_t> drawn(c.codes.size());
+      for (std::size_t i = 0; i < drawn.size(); ++i) drawn[i] = c.codes[i] >> 3;  // PixelCertificates: object + 1
+      const SceneGeometry& g = scene();
+      g.sliver_edges->mark(g.positions, glm::dmat4(block.camera_view_projection), request.camera.near_plane,
+                           plan.read_back.width, plan.read_back.height, drawn, c.slivers);
+    }
+  }
   result.timings.readback_ms = elapsed_ms(readback_start);
   result.shadow_map_allocated = map_allocated_;
   return result;

@@ -27,7 +27,6 @@
 
 namespace umbra {
 
-
 /// When a frame must give up: render() checks it between the chunks that a
 /// deep or long mesh's draws are split into (see draw_scene_indices) and between
 /// passes.
@@ -121,7 +120,8 @@ class ShadowRenderer {
     std::optional<SliverEdges> sliver_edges;
   };
   // Filter "exact"'s maps of the light's view (certify.frag), one array
-  // layer per view, beside the shadow map (which holds the centre depths).
+  // layer per view, all at certified_map_size; a certified frame neither
+  // draws nor reads the shadow map.
   struct CertifyMaps {
     gl::ProgramVariants centre{"shadow_depth.vert", "certify.frag", 2};
     gl::ProgramVariants conservative{"shadow_depth.vert", "certify.geom", "certify.frag", 4};
@@ -283,11 +283,9 @@ class ShadowRenderer {
   // conservative maps are drawn by plan/conservative_maps.cpp, ten times
   // faster there than through its geometry shader.
   bool certified_passes_on_cpu_ = false;
-  // This frame's sliver marks are drawn on the CPU (read_certificates), with
-  // the camera's matrix and near plane as the main pass had them.
+  // This frame's sliver marks are found on the CPU (render_frame), not by
+  // the sliver pass.
   bool slivers_on_cpu_ = false;
-  glm::dmat4 sliver_view_projection_{1.0};
-  double sliver_near_plane_ = 0.0;
   bool map_allocated_ = false;           // this frame allocated its shadow map (RenderResult)
   // scenes_.evict_to, counting what goes in released_gl_bytes_.
   void evict_scenes_to(std::uint64_t max_bytes, std::size_t keep);

@@ -119,6 +119,10 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
   return true;
 }
 
+// The texels whose centres (i + 0.5) lie in [lo, hi].
+int first_centre(double lo) { return int(std::ceil(lo - 0.5)); }
+int last_centre(double hi) { return int(std::floor(hi - 0.5)); }
+
 // The float no greater than `d`: a depth rounded towards the light.
 float float_at_most(double d) {
   float f = float(d);
@@ -152,10 +156,10 @@ void ConservativeMaps::touched(int& x0, int& y0, int& x1, int& y1) const {
   x1 = y1 = std::numeric_limits<int>::min();
   for (const Setup& s : setups_) {
     // Centres within the box, as draw() takes them.
-    x0 = std::min(x0, int(std::ceil(s.lo.x - 0.5)));
-    y0 = std::min(y0, int(std::ceil(s.lo.y - 0.5)));
-    x1 = std::max(x1, int(std::floor(s.hi.x - 0.5)) + 1);
-    y1 = std::max(y1, int(std::floor(s.hi.y - 0.5)) + 1);
+    x0 = std::min(x0, first_centre(s.lo.x));
+    y0 = std::min(y0, first_centre(s.lo.y));
+    x1 = std::max(x1, last_centre(s.hi.x) + 1);
+    y1 = std::max(y1, last_centre(s.hi.y) + 1);
   }
   if (setups_.empty()) x0 = y0 = x1 = y1 = 0;
 }
@@ -175,9 +179,9 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
     double nx, ny, k;  // keeps nx * cx + ny * cy + k <= 0
   };
   for (const Setup& s : setups_) {
-    // Centres within the box: lo <= i + 0.5 <= hi.
-    const int i0 = std::max(band.x0, int(std::ceil(s.lo.x - 0.5))), i1 = std::min(band.x1 - 1, int(std::floor(s.hi.x - 0.5)));
-    const int j0 = std::max(band.y0, int(std::ceil(s.lo.y - 0.5))), j1 = std::min(band.y1 - 1, int(std::floor(s.hi.y - 0.5)));
+    // Centres within the box.
+    const int i0 = std::max(band.x0, first_centre(s.lo.x)), i1 = std::min(band.x1 - 1, last_centre(s.hi.x));
+    const int j0 = std::max(band.y0, first_centre(s.lo.y)), j1 = std::min(band.y1 - 1, last_centre(s.hi.y));
     if (i0 > i1 || j0 > j1) continue;
     // certify.frag drops a centre where dot(n, c - a) - (|n.x| + |n.y|) / 2
     // exceeds its rounding, (|n.x| + |n.y|) (1e-3 + 1e-6 (|d.x| + |d.y|)) +
@@ -212,7 +216,7 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
         }
       }
       if (empty || from > to) continue;
-      const int a = std::max(i0, int(std::ceil(from - 0.5))), b = std::min(i1, int(std::floor(to - 0.5)));
+      const int a = std::max(i0, first_centre(from)), b = std::min(i1, last_centre(to));
       const std::size_t row = std::size_t(j - band.y0) * w;
       const double dy = cy - s.origin.y;
       for (int i = a; i <= b; ++i) {

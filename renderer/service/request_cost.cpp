@@ -1,7 +1,5 @@
 #include "service/request_cost.hpp"
 
-#include "plan/conservative_maps.hpp"
-
 #include "reference/sun_hours_footprints.hpp"
 
 #include <algorithm>
@@ -17,6 +15,7 @@
 #include "core/light_math.hpp"
 #include "core/mesh_instance.hpp"
 #include "core/model.hpp"
+#include "plan/conservative_maps.hpp"
 #include "plan/draw_cost.hpp"
 #include "reference/ray_cast.hpp"
 #include "core/scene.hpp"
