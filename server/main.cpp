@@ -143,6 +143,16 @@ int main(int argc, char** argv) {
   // pages of frames and PNGs. Two arenas keep resident memory close to
   // what is in use; the few large allocations per request do not contend.
   mallopt(M_ARENA_MAX, 2);
+  // glibc maps blocks above a threshold afresh and gives back free memory at
+  // the heap's top past another; left alone it moves both with what was
+  // freed last, so a frame's few-megabyte buffers (the image, a certified
+  // frame's codes and marks) were often mapped anew, and their first
+  // touches page-faulted (about 1 ms of a 960x540 certified frame on
+  // llvmpipe). Fixed, as the speed benchmark fixes them: the heap keeps
+  // what a frame frees while requests come, and the idle trim below gives
+  // it back once they stop.
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 64 << 20);
   try {
     umbra::RenderService renderer(limits);
     const umbra::RendererInfo& info = renderer.info();
