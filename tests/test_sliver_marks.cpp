@@ -7,12 +7,16 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <map>
 #include <cmath>
 #include <random>
 #include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/builtin_models.hpp"
+#include "core/render_result.hpp"
 #include "core/request.hpp"
 #include "core/scene.hpp"
 #include "plan/sliver_marks.hpp"
@@ -131,6 +135,79 @@ TEST(SliverMarks, OnlyPixelsWhereAnotherObjectWasDrawnAreMarked) {
   EXPECT_EQ(std::count(marks.begin(), marks.end(), 1), 0);
   edges.mark(t.positions, view_projection, 0.1, 80, 40, std::vector<std::uint32_t>(80 * 40, 2), marks);
   EXPECT_GT(std::count(marks.begin(), marks.end(), 1), 0);
+  // The certificates' codes, read through their object shift.
+  const unsigned shift = PixelCertificates::kObjectShift;
+  edges.mark(t.positions, view_projection, 0.1, 80, 40, std::vector<std::uint32_t>(80 * 40, (1u << shift) | 6u), marks,
+             shift);
+  EXPECT_EQ(std::count(marks.begin(), marks.end(), 1), 0);
+  edges.mark(t.positions, view_projection, 0.1, 80, 40, std::vector<std::uint32_t>(80 * 40, (2u << shift) | 1u), marks,
+             shift);
+  EXPECT_GT(std::count(marks.begin(), marks.end(), 1), 0);
+}
+
+// A torus knot folds on the screen everywhere. Its outline there is where
+// a face turned to the camera meets one turned away, found here by brute
+// force in double: every centre near such an edge is marked.
+TEST(SliverMarks, EveryCentreNearAFoldedMeshsOutlineIsMarked) {
+  SceneObject knot;
+  knot.type = SceneObject::Type::Mesh;
+  knot.model = torus_knot(1.0, 0.3, 64, 12);
+  knot.model_id = "knot";
+  Scene scene;
+  scene.objects.push_back(knot);
+  const SceneTriangles t = triangles_of(scene);
+  const SliverEdges edges(t.positions, t.indices, t.objects);
+  const int width = 200, height = 120;
+  std::mt19937 random(9);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::size_t checked = 0;
+  for (int view = 0; view < 6; ++view) {
+    const double angle = unit(random) * 6.283, elevation = unit(random) * 2.0 - 1.0;
+    const glm::dvec3 eye = 7.0 * glm::dvec3(std::cos(angle) * std::cos(elevation), std::sin(elevation),
+                                            std::sin(angle) * std::cos(elevation));
+    const glm::dmat4 view_projection = glm::perspective(glm::radians(40.0), double(width) / height, 0.1, 100.0) *
+                                       glm::lookAt(eye, glm::dvec3(0.0), glm::dvec3(0, 1, 0)) *
+                                       glm::translate(glm::dmat4(1.0), t.origin);
+    std::vector<std::uint8_t> marks;
+    edges.mark(t.positions, view_projection, 0.1, width, height, std::vector<std::uint32_t>(std::size_t(width) * height, 0),
+               marks);
+    std::vector<glm::dvec2> window;
+    for (const glm::vec3& p : t.positions) {
+      const glm::dvec4 c = view_projection * glm::dvec4(glm::dvec3(p), 1.0);
+      window.push_back((glm::dvec2(c) / c.w * 0.5 + 0.5) * glm::dvec2(width, height));
+    }
+    // Each edge's faces' signed areas on the screen (counter-clockwise:
+    // turned to the camera), by its corners' positions.
+    std::map<std::array<float, 6>, std::vector<double>> areas_of_edge;
+    std::map<std::array<float, 6>, std::pair<glm::dvec2, glm::dvec2>> ends_of_edge;
+    for (std::size_t k = 0; k + 2 < t.indices.size(); k += 3) {
+      const std::uint32_t* v = &t.indices[k];
+      const glm::dvec2 e1 = window[v[1]] - window[v[0]], e2 = window[v[2]] - window[v[0]];
+      for (int i = 0; i < 3; ++i) {
+        const glm::vec3 pa = t.positions[v[i]], pb = t.positions[v[(i + 1) % 3]];
+        std::array<float, 6> key{pa.x, pa.y, pa.z, pb.x, pb.y, pb.z};
+        key = std::min(key, std::array<float, 6>{pb.x, pb.y, pb.z, pa.x, pa.y, pa.z});
+        areas_of_edge[key].push_back(e1.x * e2.y - e1.y * e2.x);
+        ends_of_edge[key] = {window[v[i]], window[v[(i + 1) % 3]]};
+      }
+    }
+    std::vector<std::pair<glm::dvec2, glm::dvec2>> outline;
+    for (const auto& [key, areas] : areas_of_edge) {
+      const bool front = std::any_of(areas.begin(), areas.end(), [](double a) { return a > -1e-6; });
+      const bool back = std::any_of(areas.begin(), areas.end(), [](double a) { return a < 1e-6; });
+      if (front && back) outline.push_back(ends_of_edge[key]);
+    }
+    for (int j = 0; j < height; ++j)
+      for (int i = 0; i < width; ++i)
+        for (const auto& [a, b] : outline)
+          if (distance_to_segment(glm::dvec2(i + 0.5, j + 0.5), a, b) <= kSliverPixels * 0.999) {
+            ++checked;
+            EXPECT_TRUE(marks[std::size_t(height - 1 - j) * width + std::size_t(i)])
+                << "view " << view << ": pixel " << i << ", " << j << " is near the outline and not marked";
+            break;
+          }
+  }
+  EXPECT_GT(checked, 100u);
 }
 
 

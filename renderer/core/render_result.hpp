@@ -67,6 +67,7 @@ struct PixelCertificates {
   /// what was drawn (the sliver pass): the reference may see that object.
   std::vector<std::uint8_t> slivers;
   static constexpr std::uint32_t kCertainlyLit = 0, kCertainlyDark = 1, kUncertain = 2;
+  static constexpr unsigned kObjectShift = 3;  ///< codes[i] >> kObjectShift: object + 1
 };
 
 /// How filter "exact" settled a frame's pixels.

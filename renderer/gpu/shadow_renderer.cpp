@@ -946,11 +946,10 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
     if (slivers_on_cpu_) {
       // With the camera's matrix and near plane as the main pass had them.
       PixelCertificates& c = *result.certificates;
-      std::vector<std::uint32_t> drawn(c.codes.size());
-      for (std::size_t i = 0; i < drawn.size(); ++i) drawn[i] = c.codes[i] >> 3;  // PixelCertificates: object + 1
       const SceneGeometry& g = scene();
       g.sliver_edges->mark(g.positions, glm::dmat4(block.camera_view_projection), request.camera.near_plane,
-                           plan.read_back.width, plan.read_back.height, drawn, c.slivers);
+                           plan.read_back.width, plan.read_back.height, c.codes, c.slivers,
+                           PixelCertificates::kObjectShift);
     }
   }
   result.timings.readback_ms = elapsed_ms(readback_start);

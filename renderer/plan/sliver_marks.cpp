@@ -22,9 +22,9 @@ struct HalfEdge {
 
 // Marks the centres within kSliverPixels of the segment pa pb (window
 // pixels, y up), its ends included, where another object than `object`
-// was drawn.
+// was drawn (drawn_objects[i] >> drawn_shift: object + 1, 0 none).
 void mark_band(glm::dvec2 pa, glm::dvec2 pb, std::uint32_t object, int width, int height,
-               const std::vector<std::uint32_t>& drawn_objects, std::vector<std::uint8_t>& marks) {
+               const std::vector<std::uint32_t>& drawn_objects, unsigned drawn_shift, std::vector<std::uint8_t>& marks) {
   const double r = kSliverPixels * (1.0 + 1e-9) + 1e-9;  // a hair more, for this arithmetic
   const glm::dvec2 along = pb - pa;
   const double length = glm::length(along);
@@ -57,7 +57,7 @@ void mark_band(glm::dvec2 pa, glm::dvec2 pb, std::uint32_t object, int width, in
       if (s < -r || s > length + r || std::abs(glm::dot(x - pa, n)) > r) continue;
       const int px = int(x.x), py = int(x.y);
       const std::size_t at = std::size_t(height - 1 - py) * std::size_t(width) + std::size_t(px);
-      if (drawn_objects[at] != object + 1) marks[at] = 1;
+      if ((drawn_objects[at] >> drawn_shift) != object + 1) marks[at] = 1;
     }
   }
 }
@@ -100,39 +100,52 @@ SliverEdges::SliverEdges(const std::vector<glm::vec3>& positions, const std::vec
 
 void SliverEdges::mark(const std::vector<glm::vec3>& positions, const glm::dmat4& view_projection, double near_plane,
                        int width, int height, const std::vector<std::uint32_t>& drawn_objects,
-                       std::vector<std::uint8_t>& marks) const {
+                       std::vector<std::uint8_t>& marks, unsigned drawn_shift) const {
   marks.assign(std::size_t(width) * std::size_t(height), 0);
   if (drawn_objects.size() != marks.size()) return;
-  std::vector<glm::dvec4> clip(positions.size());
-  for (std::size_t i = 0; i < positions.size(); ++i) clip[i] = view_projection * glm::dvec4(glm::dvec3(positions[i]), 1.0);
   const glm::dvec2 size(width, height);
   const auto window = [&](const glm::dvec4& c) { return (glm::dvec2(c) / c.w * 0.5 + 0.5) * size; };
   const double w_min = 0.5 * near_plane;
+  // Each corner once: its clip position, and its window position where it
+  // lies in front of half the near plane (most edges need only those).
+  std::vector<glm::dvec4> clip(positions.size());
+  std::vector<glm::dvec2> seen(positions.size());
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    clip[i] = view_projection * glm::dvec4(glm::dvec3(positions[i]), 1.0);
+    if (clip[i].w > w_min) seen[i] = window(clip[i]);
+  }
   for (const Edge& e : edges_) {
     glm::dvec4 a = clip[e.a], b = clip[e.b];
-    if (e.second_third != kOpen) {
-      const glm::dvec4 c1 = clip[e.first_third], c2 = clip[e.second_third];
-      if (a.w > w_min && b.w > w_min && c1.w > w_min && c2.w > w_min) {
-        const glm::dvec2 pa = window(a), pb = window(b), p1 = window(c1), p2 = window(c2);
-        // Each third corner's side of the edge, kept by the snapped corners:
-        // moving a, b and c by up to d changes the cross product (b - a) x
-        // (c - a) by at most 2 d (|b - a| + |c - a| + |c - b|) + 4 d^2.
-        const auto side = [&](const glm::dvec2& c) {
-          const glm::dvec2 ab = pb - pa, ac = c - pa;
-          const double cross = ab.x * ac.y - ab.y * ac.x;
-          const double d = kSnapPixelsBound;
-          const double moved = 2.0 * d * (glm::length(ab) + glm::length(ac) + glm::length(c - pb)) + 4.0 * d * d;
-          return cross > moved ? 1 : cross < -moved ? -1 : 0;
-        };
-        const int s1 = side(p1), s2 = side(p2);
-        if (s1 != 0 && s1 == -s2) continue;  // inside the surface on the screen: the snapped pair covers both sides
-      }
+    if (e.second_third != kOpen && a.w > w_min && b.w > w_min && clip[e.first_third].w > w_min &&
+        clip[e.second_third].w > w_min) {
+      const glm::dvec2 pa = seen[e.a], pb = seen[e.b];
+      // Each third corner's side of the edge, kept by the snapped corners:
+      // moving a, b and c by up to d changes the cross product (b - a) x
+      // (c - a) by at most 2 d (|b - a| + |c - a| + |c - b|) + 4 d^2.
+      // The lengths' sum is at most their L1 norms' (no square roots):
+      // a cross product past that bound settles the side; only one
+      // between the two needs the Euclidean lengths.
+      const auto side = [&](const glm::dvec2& c) {
+        const glm::dvec2 ab = pb - pa, ac = c - pa, bc = c - pb;
+        const double cross = ab.x * ac.y - ab.y * ac.x;
+        const double d = kSnapPixelsBound;
+        const auto l1 = [](const glm::dvec2& v) { return std::abs(v.x) + std::abs(v.y); };
+        if (std::abs(cross) > 2.0 * d * (l1(ab) + l1(ac) + l1(bc)) + 4.0 * d * d) return cross > 0.0 ? 1 : -1;
+        const double moved = 2.0 * d * (glm::length(ab) + glm::length(ac) + glm::length(bc)) + 4.0 * d * d;
+        return cross > moved ? 1 : cross < -moved ? -1 : 0;
+      };
+      const int s1 = side(seen[e.first_third]), s2 = side(seen[e.second_third]);
+      if (s1 != 0 && s1 == -s2) continue;  // inside the surface on the screen: the snapped pair covers both sides
     }
     // The part in front of half the near plane (sliver.geom's cut).
     if (a.w < w_min && b.w < w_min) continue;
+    if (a.w > w_min && b.w > w_min) {
+      mark_band(seen[e.a], seen[e.b], e.object, width, height, drawn_objects, drawn_shift, marks);
+      continue;
+    }
     if (a.w < w_min) a = a + (b - a) * ((w_min - a.w) / (b.w - a.w));
     if (b.w < w_min) b = b + (a - b) * ((w_min - b.w) / (a.w - b.w));
-    mark_band(window(a), window(b), e.object, width, height, drawn_objects, marks);
+    mark_band(window(a), window(b), e.object, width, height, drawn_objects, drawn_shift, marks);
   }
 }
 

@@ -12,7 +12,10 @@
 // shares the snapped edge and covers both sides. So here only the other edges are drawn: an edge of one triangle
 // (the object's border), of three or more, or of two on one side (the
 // outline, where the surface turns from the camera), or of a triangle
-// that reaches behind the camera. The marks ignore depth: an outline
+// that reaches behind the camera. (sliver.geom also skips closed meshes'
+// faces turned from the camera; here that would drop nothing more: two
+// consistently wound faces turned the same way lie on either side of
+// their shared edge on the screen.) The marks ignore depth: an outline
 // hidden behind another object adds a few casts (a band 1/16 pixel wide
 // crosses a pixel centre every 16 pixels), never a missed one. (The image's
 // border is cast whole: pixels_to_ray_cast.)
@@ -45,13 +48,15 @@ class SliverEdges {
 
   /// Marks (1) in `marks` (width x height, row 0 at the top) the pixels
   /// whose centre lies within kSliverPixels of a drawn edge (or of its
-  /// ends) where `drawn_objects` (object + 1 per pixel, 0 none; row 0 at
-  /// the top) is not the edge's object. `view_projection`: the camera's,
-  /// of positions relative to the mesh origin (GL's clip space, window y
-  /// up); edges are cut at half the camera's near plane (`near_plane`), as
-  /// the main pass and the reference start there.
+  /// ends) where `drawn_objects` (object + 1 per pixel, 0 none, in the bits
+  /// from `drawn_shift` up; row 0 at the top) is not the edge's object.
+  /// `view_projection`: the camera's, of positions relative to the mesh
+  /// origin (GL's clip space, window y up); edges are cut at half the
+  /// camera's near plane (`near_plane`), as the main pass and the reference
+  /// start there.
   void mark(const std::vector<glm::vec3>& positions, const glm::dmat4& view_projection, double near_plane, int width,
-            int height, const std::vector<std::uint32_t>& drawn_objects, std::vector<std::uint8_t>& marks) const;
+            int height, const std::vector<std::uint32_t>& drawn_objects, std::vector<std::uint8_t>& marks,
+            unsigned drawn_shift = 0) const;
 
   std::size_t edges() const { return edges_.size(); }
 
