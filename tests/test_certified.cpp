@@ -44,6 +44,14 @@ std::size_t differing_pixels(const Image& a, const Image& b) {
 // service would choose (small images are cheaper to ray cast than to
 // map), drawn both ways: on the CPU and by the shaders. `differing` sums
 // the three.
+// One renderer, in one context made current once, for the tests that
+// drive a ShadowRenderer themselves after the service's frames.
+ShadowRenderer& own_renderer() {
+  static gl::EglContext context;
+  static ShadowRenderer renderer;
+  return renderer;
+}
+
 Comparison compare_with_reference(RenderRequest r) {
   r.output = Output::Shadow;
   r.shadow.filter = ShadowFilter::Exact;
@@ -54,8 +62,7 @@ Comparison compare_with_reference(RenderRequest r) {
   c.path = certified.certified_path;
   c.pixels = exact.pixels.size();
   c.differing = differing_pixels(certified.image, exact);
-  static gl::EglContext context;
-  static ShadowRenderer renderer;
+  ShadowRenderer& renderer = own_renderer();
   for (const bool on_cpu : {true, false}) {
     renderer.set_certified_passes_on_cpu(on_cpu);
     RenderResult maps = renderer.render(r, {}, CertifiedPath::Maps);
@@ -251,6 +258,57 @@ TEST(CertifiedFrame, UnderASunBelowTheHorizonEveryPixelEqualsTheReference) {
   EXPECT_EQ(c.differing, 0u);
   EXPECT_GT(c.share.ray_cast, 0u);
   EXPECT_LT(c.share.ray_cast, c.pixels / 4);
+}
+
+// The certified maps are kept while only the camera (or the output)
+// changes: such a frame draws no maps and still equals the reference; a
+// frame of another scene or light, or a plain frame between, draws or
+// keeps its own.
+TEST(CertifiedFrame, KeptMapsServeOnlyFramesOfTheirSceneAndLight) {
+  ShadowRenderer& renderer = own_renderer();
+  renderer.set_certified_passes_on_cpu(true);
+  const std::string scene = R"("scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [12, 12]},
+      {"type": "box", "center": [0, 0.6, 0], "size": [1, 1.2, 0.8], "rotation_y_deg": 20},
+      {"type": "cylinder", "center": [1.5, 1, -1], "radius": 0.05, "height": 2},
+      {"type": "sphere", "center": [-1.4, 0.5, 0.6], "radius": 0.5}]})";
+  // The same bounds (so the same views), one more box within them.
+  const std::string other_scene = R"("scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [12, 12]},
+      {"type": "box", "center": [0, 0.6, 0], "size": [1, 1.2, 0.8], "rotation_y_deg": 20},
+      {"type": "cylinder", "center": [1.5, 1, -1], "radius": 0.05, "height": 2},
+      {"type": "sphere", "center": [-1.4, 0.5, 0.6], "radius": 0.5},
+      {"type": "box", "center": [0.8, 0.3, 0.6], "size": [0.3, 0.3, 0.3]}]})";
+  const auto body = [](const std::string& objects, const char* camera, const char* light) {
+    return std::string(R"({"width": 240, "height": 135, "output": "shadow", "shadow": {"filter": "exact"},)") +
+           R"("camera": {"position": )" + camera + R"(, "target": [0, 0.5, 0]}, "light": {"position": )" + light +
+           R"(, "target": [0, 0, 0], "projection": "perspective"}, )" + objects + "}";
+  };
+  struct Frame {
+    std::string body;
+    bool reused;
+  };
+  const char* light = "[3, 6, 2]";
+  const std::vector<Frame> frames = {
+      {body(scene, "[4, 3, 6]", light), false},
+      {body(scene, "[-5, 2, 4]", light), true},           // the camera moved
+      {body(other_scene, "[-5, 2, 4]", light), false},    // another scene
+      {body(scene, "[2, 5, 5]", light), false},           // back: the maps hold the other scene now
+      {body(scene, "[2, 5, 5]", "[-3, 6, 2]"), false},    // the light moved
+      {body(scene, "[6, 1.5, 1]", "[-3, 6, 2]"), true},
+  };
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    RenderRequest r = request(frames[i].body);
+    if (i == 5) {
+      // A plain frame between leaves the certified maps as they are.
+      RenderRequest pcf = r;
+      pcf.shadow.filter = ShadowFilter::Pcf;
+      renderer.render(pcf, {});
+    }
+    RenderResult result = renderer.render(r, {}, CertifiedPath::Maps);
+    EXPECT_EQ(result.shadow_reused, frames[i].reused) << "frame " << i;
+    EXPECT_EQ(result.timings.shadow_ms == 0.0, frames[i].reused) << "frame " << i;
+    settle_certified_frame(result, r);
+    EXPECT_EQ(differing_pixels(result.image, exact_image(cast_exact_pixels(r), r.width, r.height)), 0u) << "frame " << i;
+  }
 }
 
 // A curved occluder's faces are chords: its true surface, which the

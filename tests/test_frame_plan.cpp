@@ -634,5 +634,67 @@ TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {
   EXPECT_FALSE(plan_frame(r, mesh, "scene", KeptShadowMap{}).display.certificates);
 }
 
+TEST(FramePlan, ACameraOnlyChangeReusesTheCertifiedMaps) {
+  RenderRequest r = test::builtin_request("three-cubes");
+  r.shadow.filter = ShadowFilter::Exact;
+  r.light.projection = LightProjection::Perspective;  // its views do not follow the camera
+  const Mesh mesh = tessellate(r.scene);
+  const FramePlan first = plan_frame(r, mesh, "scene", KeptShadowMap{});
+  ASSERT_TRUE(first.shadow.certify);
+  ASSERT_FALSE(first.shadow.layers.empty());
+  const KeptCertifiedMaps kept = first.shadow.certified_kept_after;
+  EXPECT_TRUE(kept.holds_plan);
+  EXPECT_FALSE(first.shadow.kept_after.holds_plan) << "the shadow map is not drawn";
+
+  RenderRequest moved = r;
+  moved.camera.position += glm::dvec3(0.3, -0.2, 0.1);
+  moved.output = Output::Shadow;
+  const FramePlan second = plan_frame(moved, mesh, "scene", KeptShadowMap{}, CertifiedPath::Maps, kept);
+  EXPECT_TRUE(second.shadow.certify);
+  EXPECT_TRUE(second.shadow.reused);
+  EXPECT_TRUE(second.shadow.layers.empty()) << "no shadow pass";
+  EXPECT_EQ(second.shadow_views, first.shadow_views);
+  EXPECT_TRUE(second.display.certificates);
+  // The certificate reads the maps around the same casters they were drawn
+  // around.
+  ASSERT_EQ(second.casters.by_view.size(), first.casters.by_view.size());
+  for (std::size_t v = 0; v < first.casters.by_view.size(); ++v) {
+    EXPECT_EQ(second.casters.by_view[v].min, first.casters.by_view[v].min);
+    EXPECT_EQ(second.casters.by_view[v].max, first.casters.by_view[v].max);
+  }
+
+  // What the maps depend on changed: drawn again.
+  const auto reused = [&](const RenderRequest& q, const std::string& key, const KeptCertifiedMaps& k,
+                          CertifiedPath path = CertifiedPath::Maps) {
+    return plan_frame(q, mesh, key, KeptShadowMap{}, path, k).shadow.reused;
+  };
+  EXPECT_FALSE(reused(moved, "another scene", kept));
+  RenderRequest lit_elsewhere = moved;
+  lit_elsewhere.light.position += glm::dvec3(1.0, 0.0, 0.0);
+  EXPECT_FALSE(reused(lit_elsewhere, "scene", kept));
+  RenderRequest fixed = moved;
+  fixed.shadow.fit = FrustumFit::Fixed;
+  EXPECT_FALSE(reused(fixed, "scene", kept));
+  // Maps of a fixed frustum are cleared and drawn whole, a fitted one's
+  // around its casters: the same views drawn for the other fit do not serve.
+  KeptCertifiedMaps other_fit = kept;
+  other_fit.fit = FrustumFit::Fixed;
+  EXPECT_FALSE(reused(moved, "scene", other_fit));
+  KeptCertifiedMaps other_planes = kept;
+  other_planes.planes.assign(other_planes.planes.size(), true);
+  if (other_planes.planes != kept.planes) EXPECT_FALSE(reused(moved, "scene", other_planes));
+  KeptCertifiedMaps cut_short = kept;
+  cut_short.holds_plan = false;
+  EXPECT_FALSE(reused(moved, "scene", cut_short));
+  // Frames that read no maps reuse none.
+  EXPECT_FALSE(reused(moved, "scene", kept, CertifiedPath::Proofs));
+  EXPECT_TRUE(plan_frame(moved, mesh, "scene", KeptShadowMap{}, CertifiedPath::Proofs, kept).shadow.layers.empty());
+  RenderRequest pcf = moved;
+  pcf.shadow.filter = ShadowFilter::Pcf;
+  const FramePlan pcf_plan = plan_frame(pcf, mesh, "scene", KeptShadowMap{}, CertifiedPath::Maps, kept);
+  EXPECT_FALSE(pcf_plan.shadow.reused);
+  EXPECT_FALSE(pcf_plan.shadow.certify);
+}
+
 }  // namespace
 }  // namespace umbra

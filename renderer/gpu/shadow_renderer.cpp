@@ -267,6 +267,7 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
     certify_.nearest_owner.reset();
     certify_.others_depth.reset();
     certify_.size = certify_.layers = 0;
+    certify_.kept = {};
   }
   if (cached_bytes() > max_bytes) {
     released_gl_bytes_ += display_bytes();
@@ -348,6 +349,7 @@ void ShadowRenderer::resize_display(int width, int height) {
 void ShadowRenderer::resize_certify_maps(int size, int layers) {
   if (certify_.size == size && certify_.layers >= layers) return;
   released_gl_bytes_ += certify_bytes();
+  certify_.kept.holds_plan = false;
   const int coarse = certified_map_size(size);
   certify_.centre_depth = texel_array(GL_DEPTH_COMPONENT32F, coarse, layers);
   certify_.centre_triangle = texel_array(GL_R32UI, coarse, layers);
@@ -514,6 +516,8 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const Fram
   // Every map is the certify_ maps' (the centre map's depth too): the
   // shadow map is neither drawn nor read, and keeps what it holds.
   resize_certify_maps(size, int(light.views.size()));
+  // Until the last layer is drawn, the maps hold no plan (a frame cut short).
+  certify_.kept.holds_plan = false;
   begin_pass(plan.shadow.object_draw_ms, double(size), double(size), kShadowChunkFragments);
   const GLuint framebuffer = certify_.framebuffer.id();
   glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
@@ -574,6 +578,7 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const Fram
     glBindTextureUnit(kTextureUnitCertifyNearestOwner, 0);
   }
   set_triangle_base_ = false;
+  certify_.kept = plan.shadow.certified_kept_after;
 }
 
 void ShadowRenderer::resize_depth_preview(int size, int bits) {
@@ -665,6 +670,7 @@ void ShadowRenderer::abandon_frame() {
   glFinish();
   set_triangle_base_ = false;
   shadow_.kept.holds_plan = false;
+  certify_.kept.holds_plan = false;
   // What run_display_pass and run_depth_preview set, as the constructor
   // and the end of each pass leave it.
   glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
@@ -910,7 +916,7 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
   map_allocated_ = false;
   result.scene_uploaded = use_scene(request.scene);
   check_watch("the scene's upload");
-  const FramePlan plan = plan_frame(request, scene().mesh, current_scene_key(), shadow_.kept, path);
+  const FramePlan plan = plan_frame(request, scene().mesh, current_scene_key(), shadow_.kept, path, certify_.kept);
   if (plan.display.certificates) result.certified_path = to_string(plan.certified_path);
   result.shadow_reused = plan.shadow.reused;
   result.shadow_views = plan.shadow_views;

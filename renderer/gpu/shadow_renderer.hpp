@@ -88,8 +88,12 @@ class ShadowRenderer {
   /// Filter "exact"'s conservative maps and sliver marks drawn on the CPU
   /// (plan/conservative_maps.hpp, plan/sliver_marks.hpp; the default on
   /// llvmpipe) or by the shaders (certify.geom, sliver.geom; the default on
-  /// a GPU). Tests draw both.
-  void set_certified_passes_on_cpu(bool on_cpu) { certified_passes_on_cpu_ = on_cpu; }
+  /// a GPU). Tests draw both: the kept certified maps are dropped, so the
+  /// next certified frame draws its maps the way asked.
+  void set_certified_passes_on_cpu(bool on_cpu) {
+    certified_passes_on_cpu_ = on_cpu;
+    certify_.kept.holds_plan = false;
+  }
   std::string gl_version() const;
 
  private:
@@ -133,6 +137,8 @@ class ShadowRenderer {
     gl::Texture others_depth;     // DEPTH_COMPONENT32F: nearest of every other owner
     gl::Framebuffer framebuffer;
     int size = 0, layers = 0;
+    // What the maps hold now (plan_frame decides whether they serve a frame).
+    KeptCertifiedMaps kept;
   };
   // Depth-only framebuffer seen from the light, one array layer per view.
   struct ShadowPass {

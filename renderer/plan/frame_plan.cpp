@@ -406,7 +406,8 @@ CasterTexels certified_caster_table(const RenderRequest& request, const ShadowPl
 // shape, the faces turned to the light are enough (where a ray leaves it
 // last), unless the light is inside it (cull_closed_back).
 ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const ShadowPlan& light, const Mesh& mesh,
-                                          const std::vector<bool>& planes, const CasterTexels& casters) {
+                                          const std::vector<bool>& planes, const CasterTexels& casters,
+                                          const std::string& scene_key) {
   ShadowPassPlan pass;
   pass.needed = true;
   pass.certify = true;
@@ -454,6 +455,12 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
     pass.layers.push_back(std::move(draw));
   }
   pass.kept_after.holds_plan = false;
+  KeptCertifiedMaps& kept = pass.certified_kept_after;
+  kept.holds_plan = true;
+  kept.plan = light;
+  kept.scene_key = scene_key;
+  kept.planes = planes;
+  kept.fit = request.shadow.fit;
   return pass;
 }
 
@@ -665,6 +672,12 @@ bool clears_whole_layer(const TexelRect& rect, int layer_size) {
   return size.x * size.y > 0.4 * double(layer_size) * double(layer_size);
 }
 
+bool certified_maps_serve(const KeptCertifiedMaps& kept, const RenderRequest& request, const ShadowPlan& light,
+                          const std::vector<bool>& planes, const std::string& scene_key) {
+  return kept.holds_plan && kept.scene_key == scene_key && kept.planes == planes && kept.fit == request.shadow.fit &&
+         plan_covers(kept.plan, light);
+}
+
 bool shadow_map_serves(const KeptShadowMap& kept, const RenderRequest& request, const ShadowPlan& light,
                        const std::vector<bool>& planes, const std::string& scene_key) {
   // A map cleared only around its casters serves frames whose filter
@@ -733,25 +746,36 @@ const char* to_string(CertifiedPath path) {
 }
 
 FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::string& scene_key,
-                     const KeptShadowMap& kept, CertifiedPath path) {
+                     const KeptShadowMap& kept, CertifiedPath path, const KeptCertifiedMaps& kept_certified) {
   FramePlan plan;
   plan.light = plan_shadow(request);
   plan.depth_output = request.output == Output::Depth;
   plan.shadow.needed = needs_shadow_map(request, plan.light);
   plan.casting_planes = casting_planes(request, plan.light, mesh);
   if (certified_frame(request, plan.light)) {
-    // Nothing is reused. A plane that can shadow nothing (plane_can_shadow:
-    // every other object lies on its light's side) is left out of the maps,
-    // as from any frame's: it lies in front of no point but its own.
-    // A sun below the horizon: no map, every surface dark (CERTIFICATES
-    // without a lookup).
-    plan.casters = certified_caster_table(request, plan.light, mesh, plan.casting_planes);
+    // A plane that can shadow nothing (plane_can_shadow: every other object
+    // lies on its light's side) is left out of the maps, as from any
+    // frame's: it lies in front of no point but its own. A sun below the
+    // horizon: no map, every surface dark (CERTIFICATES without a lookup).
     // A sun below the horizon needs no map whatever the path.
     plan.certified_path = plan.shadow.needed ? path : CertifiedPath::Maps;
-    if (plan.certified_path != CertifiedPath::Maps) {
-      plan.shadow = ShadowPassPlan{};
-    } else if (plan.shadow.needed) {
-      plan.shadow = plan_certified_shadow_pass(request, plan.light, mesh, plan.casting_planes, plan.casters);
+    const bool maps = plan.certified_path == CertifiedPath::Maps && plan.shadow.needed;
+    // Only the camera moved (or the output changed): the kept certified
+    // maps serve, read with the views they were drawn for.
+    const bool reused =
+        maps && certified_maps_serve(kept_certified, request, plan.light, plan.casting_planes, scene_key);
+    if (reused) plan.light = kept_certified.plan;
+    plan.casters = certified_caster_table(request, plan.light, mesh, plan.casting_planes);
+    if (!maps) {
+      if (plan.certified_path != CertifiedPath::Maps) plan.shadow = ShadowPassPlan{};
+    } else {
+      if (reused) {
+        plan.shadow.certify = true;
+        plan.shadow.reused = true;
+      } else {
+        plan.shadow =
+            plan_certified_shadow_pass(request, plan.light, mesh, plan.casting_planes, plan.casters, scene_key);
+      }
       plan.shadow_views = describe_views(plan.light);
     }
     plan.display = plan_certified_display_pass(request, plan.light, mesh, plan.casting_planes, plan.certified_path);

@@ -79,6 +79,16 @@ struct KeptShadowMap {
   bool automatic_bias = false;
 };
 
+/// What filter "exact"'s maps (ShadowPassPlan::certify: the centre map and
+/// the two conservative maps, apart from the shadow map) hold.
+struct KeptCertifiedMaps {
+  bool holds_plan = false;  ///< false: nothing to reuse (none drawn, reallocated, or a frame cut short)
+  ShadowPlan plan;
+  std::string scene_key;     ///< the scene's content key
+  std::vector<bool> planes;  ///< casting_planes() they were drawn with
+  FrustumFit fit = FrustumFit::Scene;
+};
+
 /// Indices [first, first + count) of an index buffer (the scene's or the
 /// cells'), drawn as triangles with `cull` (closed meshes only; everything
 /// else two-sided).
@@ -107,14 +117,16 @@ struct ShadowPassPlan {
   /// The frame reads or shows a shadow map (a shadow lookup, or the depth
   /// output).
   bool needed = false;
-  /// The kept map serves this frame: no shadow pass runs.
+  /// The kept map (the kept certified maps, with `certify`) serves this
+  /// frame: no shadow pass runs.
   bool reused = false;
   /// Filter "exact": the layers are drawn as the certificate reads them
   /// (docs/certified-shadows.md): the map itself (every object; closed
   /// meshes' faces turned from the light culled) with each texel's triangle beside it, and
   /// two conservative maps: the nearest depth any triangle reaches
   /// anywhere in each texel, with its owner, and the nearest of all other
-  /// owners. Such a map is never kept for reuse.
+  /// owners. These maps are kept apart from the shadow map
+  /// (certified_kept_after).
   bool certify = false;
   /// ... and the faces of closed shapes that turn from the light are left
   /// out (docs/certified-shadows.md, "Faces turned from the light"): the
@@ -132,6 +144,8 @@ struct ShadowPassPlan {
   std::vector<double> object_draw_ms;
   /// What the map holds once drawn (holds_plan true).
   KeptShadowMap kept_after;
+  /// With `certify`: what the certified maps hold once drawn.
+  KeptCertifiedMaps certified_kept_after;
 };
 
 /// The program a display step draws with: the frame's main-pass variant
@@ -280,9 +294,11 @@ struct FramePlan {
 /// whose content key is `scene_key`, with `kept` in the shadow map.
 /// `path`: how a filter "exact" frame under a light that is up is
 /// certified (the caller's choice, by exact_filter_paths in
-/// service/request_cost.hpp).
+/// service/request_cost.hpp); `kept_certified`: what the certified maps
+/// hold.
 FramePlan plan_frame(const RenderRequest& request, const Mesh& mesh, const std::string& scene_key,
-                     const KeptShadowMap& kept, CertifiedPath path = CertifiedPath::Maps);
+                     const KeptShadowMap& kept, CertifiedPath path = CertifiedPath::Maps,
+                     const KeptCertifiedMaps& kept_certified = {});
 
 // The steps plan_frame is made of, exposed for tests.
 
@@ -323,6 +339,14 @@ bool clears_whole_layer(const TexelRect& rect, int layer_size);
 /// views `light`, the planes `planes`, of the scene `scene_key`.
 bool shadow_map_serves(const KeptShadowMap& kept, const RenderRequest& request, const ShadowPlan& light,
                        const std::vector<bool>& planes, const std::string& scene_key);
+
+/// Whether the certified maps `kept` holds serve a certified frame of
+/// `request` with the views `light`, the planes `planes`, of the scene
+/// `scene_key`: they depend on nothing else of the request (not the
+/// camera), and the frame then reads them with the views they were drawn
+/// for.
+bool certified_maps_serve(const KeptCertifiedMaps& kept, const RenderRequest& request, const ShadowPlan& light,
+                          const std::vector<bool>& planes, const std::string& scene_key);
 
 /// The draws of the objects `objects` marks (one flag per scene object;
 /// empty: all) in `part` of the mesh: closed meshes with `closed_cull`, then
