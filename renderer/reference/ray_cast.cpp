@@ -303,14 +303,17 @@ glm::dmat4 inverse_view_projection(const RenderRequest& request) {
   return glm::inverse(camera.projection * camera.view);
 }
 
-// Calls row(y) for every y in [0, height) on all hardware threads, asking
-// stop_requested (if given) before each row; throws CastStopped once it
-// answered true.
+// Calls row(y) for every y in [0, height) on the hardware threads (no more
+// threads than rows), each taking the next row left: rows cost what their
+// pixels hold (sky, a floor, a model's edge), so a fixed share per thread
+// would leave threads idle. Asks stop_requested (if given) before each
+// row; throws CastStopped once it answered true.
 void for_each_row(int height, const std::function<bool()>& stop_requested, const std::function<void(int)>& row) {
   std::atomic<bool> stopped{false};
+  std::atomic<int> next{0};
   std::mutex asking;  // stop_requested need not be thread-safe
-  const auto rows = [&](int first, int step) {
-    for (int y = first; y < height; y += step) {
+  const auto rows = [&] {
+    for (int y; (y = next.fetch_add(1)) < height;) {
       if (stop_requested) {
         std::lock_guard<std::mutex> lock(asking);
         if (stopped || stop_requested()) stopped = true;
@@ -319,10 +322,10 @@ void for_each_row(int height, const std::function<bool()>& stop_requested, const
       row(y);
     }
   };
-  const int threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  const int threads = std::min(int(std::max(1u, std::thread::hardware_concurrency())), std::max(1, height));
   std::vector<std::thread> pool;
-  for (int i = 1; i < threads; ++i) pool.emplace_back(rows, i, threads);
-  rows(0, threads);
+  for (int i = 1; i < threads; ++i) pool.emplace_back(rows);
+  rows();
   for (auto& t : pool) t.join();
   if (stopped) throw CastStopped();
 }
@@ -394,9 +397,11 @@ std::vector<ExactPixel> ExactView::pixels_at(const std::vector<std::size_t>& ind
     if (i >= size)
       throw std::invalid_argument("ExactView::pixels_at: pixel " + std::to_string(i) + " of " + std::to_string(size));
   std::vector<ExactPixel> pixels(indices.size());
-  // Chunks of consecutive indices, so that threads share no cache line and
-  // the stop is asked about as often as between rows.
-  constexpr std::size_t kChunk = 256;
+  // Chunks of consecutive indices, so that threads share no cache line
+  // (64 pixels: 2.5 KB) and the stop is asked about often; small, because
+  // a certified frame's few thousand uncertain pixels are spread over all
+  // the threads.
+  constexpr std::size_t kChunk = 64;
   const int chunks = int((indices.size() + kChunk - 1) / kChunk);
   for_each_row(chunks, stop_requested, [&](int chunk) {
     const std::size_t end = std::min(indices.size(), std::size_t(chunk + 1) * kChunk);
