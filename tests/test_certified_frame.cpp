@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <tuple>
 
 #include <algorithm>
 
@@ -85,10 +86,13 @@ TEST(PixelsToRayCast, TheBorderIsAChangeOfSurface) {
 
 // The ring grows each change of surface by ring - 1 pixels every way (a
 // square), as a brute force over random codes finds it.
+// Against a brute force, on images small and tall enough to be split into
+// several bands of rows (one a thread), rings past the image's size.
 TEST(PixelsToRayCast, TheRingIsASquareAroundEachChange) {
   std::mt19937 random(3);
-  const int w = 13, h = 11;
-  for (int round = 0; round < 20; ++round) {
+  for (const auto& [w, h, rounds] : {std::tuple{13, 11, 20}, std::tuple{1, 40, 4}, std::tuple{40, 1, 4},
+                                     std::tuple{37, 130, 3}, std::tuple{120, 97, 2}})
+  for (int round = 0; round < rounds; ++round) {
     std::vector<std::uint32_t> codes(std::size_t(w * h));
     for (std::uint32_t& c : codes) c = code(random() % 7 == 0 ? 2 : 1, true, random() % 11 == 0 ? kUncertain : kLit);
     const auto surface = [&](int x, int y) { return codes[std::size_t(y * w + x)] >> 2; };
@@ -98,7 +102,7 @@ TEST(PixelsToRayCast, TheRingIsASquareAroundEachChange) {
         for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}})
           if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h && surface(x, y) != surface(x + dx, y + dy))
             change[std::size_t(y * w + x)] = 1;
-    for (int ring = 1; ring <= 4; ++ring) {
+    for (const int ring : {1, 2, 3, 4, 9, 200}) {
       const std::vector<std::uint8_t> cast = to_cast(codes, w, h, ring);
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {

@@ -3,8 +3,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <functional>
 #include <stdexcept>
+#include <thread>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
@@ -68,6 +72,63 @@ void dilate_row(const std::uint8_t* src, std::uint8_t* dst, int n, int r, std::v
   for (int x = 0; x < n; ++x) dst[x] = cur[x] | cur[std::size_t(x) + tail];
 }
 
+// Calls band(y0, y1) for bands of rows covering [0, height), at once on
+// the hardware threads: the passes below touch every pixel of every
+// certified frame, and a GPU machine's cores are many and slow.
+void for_each_band(int height, const std::function<void(int, int)>& band) {
+  const int threads = std::clamp(height / 32, 1, int(std::max(1u, std::thread::hardware_concurrency())));
+  const auto rows = [&](int i) { band(int(std::int64_t(height) * i / threads), int(std::int64_t(height) * (i + 1) / threads)); };
+  std::vector<std::thread> pool;
+  for (int i = 1; i < threads; ++i) pool.emplace_back(rows, i);
+  rows(0);
+  for (std::thread& t : pool) t.join();
+}
+
+// Row y of `edge` (width w, `height` rows): 1 where the pixel's surface
+// differs from a 4-neighbour's, and along the image's border. Reads the
+// rows above and below, writes row y only. Branch-free loops, which the
+// compiler vectorises; `right` is scratch of w bytes.
+void mark_changes(const std::uint32_t* codes, std::size_t w, int height, int y, std::uint8_t* edge,
+                  std::vector<std::uint8_t>& right) {
+  const std::uint32_t* c = codes + std::size_t(y) * w;
+  std::uint8_t* e = edge + std::size_t(y) * w;
+  right.resize(w);
+  for (std::size_t x = 0; x + 1 < w; ++x) right[x] = std::uint8_t(surface_code(c[x] ^ c[x + 1]) != 0);
+  if (w > 1) {
+    e[0] = right[0];
+    for (std::size_t x = 1; x + 1 < w; ++x) e[x] = std::uint8_t(right[x] | right[x - 1]);
+    e[w - 1] = right[w - 2];
+  }
+  if (y > 0) {
+    const std::uint32_t* above = c - w;
+    for (std::size_t x = 0; x < w; ++x) e[x] |= std::uint8_t(surface_code(c[x] ^ above[x]) != 0);
+  }
+  if (y + 1 < height) {
+    const std::uint32_t* below = c + w;
+    for (std::size_t x = 0; x < w; ++x) e[x] |= std::uint8_t(surface_code(c[x] ^ below[x]) != 0);
+  }
+  // Outside the image is another surface: nothing past the border shows
+  // whether the raster and the reference part there (an outline on the
+  // border row that the snapped triangle covers and the true one misses; a
+  // curved shape whose true surface bulges onto the image from faces just
+  // off it), so the border pixels count as beside a change.
+  if (y == 0 || y == height - 1) std::fill(e, e + w, std::uint8_t(1));
+  e[0] = e[w - 1] = 1;
+}
+
+// Adds to row y of `cast` the pixels the certificates leave uncertain and
+// those the sliver pass marked.
+void add_uncertain(const PixelCertificates& certificates, std::size_t w, int y, std::uint8_t* cast) {
+  const std::size_t first = std::size_t(y) * w;
+  std::uint8_t* __restrict e = cast + first;
+  const std::uint32_t* __restrict c = certificates.codes.data() + first;
+  for (std::size_t x = 0; x < w; ++x) e[x] |= std::uint8_t(verdict(c[x]) == PixelCertificates::kUncertain);
+  if (!certificates.slivers.empty()) {
+    const std::uint8_t* __restrict marked = certificates.slivers.data() + first;
+    for (std::size_t x = 0; x < w; ++x) e[x] |= std::uint8_t(marked[x] != 0);
+  }
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificates, int width, int height,
@@ -84,68 +145,46 @@ std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificat
   // Pixels beside a change of object, or of the side of the light the
   // surface turns to (a crease: the reference's camera ray may meet the
   // other face), then grown by ring - 1 each way (a separable max: a row
-  // pass, then a column pass). The loops are branch-free, a row at a time,
-  // so that they vectorise: this runs on every certified frame.
-  std::vector<std::uint8_t> right(w, 0);  // right[x]: x and x + 1 differ
-  for (std::size_t y = 0; y < std::size_t(height); ++y) {
-    const std::uint32_t* c = codes.data() + y * w;
-    std::uint8_t* e = edge.data() + y * w;
-    for (std::size_t x = 0; x + 1 < w; ++x) right[x] = std::uint8_t(surface_code(c[x] ^ c[x + 1]) != 0);
-    e[0] |= right[0] & std::uint8_t(w > 1);
-    for (std::size_t x = 1; x + 1 < w; ++x) e[x] |= std::uint8_t(right[x] | right[x - 1]);
-    if (w > 1) e[w - 1] |= right[w - 2];
-    if (y + 1 < std::size_t(height)) {
-      const std::uint32_t* below = c + w;
-      std::uint8_t* e_below = e + w;
-      for (std::size_t x = 0; x < w; ++x) {
-        const std::uint8_t differs = std::uint8_t(surface_code(c[x] ^ below[x]) != 0);
-        e[x] |= differs;
-        e_below[x] |= differs;
-      }
-    }
-  }
-  // Outside the image is another surface: nothing past the border shows
-  // whether the raster and the reference part there (an outline on the
-  // border row that the snapped triangle covers and the true one misses; a
-  // curved shape whose true surface bulges onto the image from faces just
-  // off it), so the border pixels count as beside a change.
-  std::fill(edge.begin(), edge.begin() + std::ptrdiff_t(w), std::uint8_t(1));
-  std::fill(edge.end() - std::ptrdiff_t(w), edge.end(), std::uint8_t(1));
-  for (std::size_t y = 0; y < std::size_t(height); ++y) edge[y * w] = edge[y * w + w - 1] = 1;
+  // pass, then a column pass), then the uncertain and marked pixels. In
+  // bands of rows at once; each band writes its own rows only.
   // A ring wider than the image covers it: every pixel is within it.
   const int r = std::min(std::max(0, ring - 1), std::max(width, height));
-  if (r > 0) {
-    std::vector<std::uint8_t> rows(codes.size());
-    std::vector<std::uint8_t> a, b;
-    for (std::size_t y = 0; y < std::size_t(height); ++y)
-      dilate_row(edge.data() + y * w, rows.data() + y * w, width, r, a, b);
-    // The columns, a row at a time: count[x] is how many rows of the
-    // window [t - r, t + r] have rows[x] set.
-    std::vector<std::uint32_t> count(w, 0);
-    for (int y = 0; y < height + r; ++y) {
-      if (y < height) {
-        const std::uint8_t* add = rows.data() + std::size_t(y) * w;
-        for (std::size_t x = 0; x < w; ++x) count[x] += add[x];
+  if (r == 0) {
+    for_each_band(height, [&](int y0, int y1) {
+      std::vector<std::uint8_t> right;
+      for (int y = y0; y < y1; ++y) {
+        mark_changes(codes.data(), w, height, y, edge.data(), right);
+        add_uncertain(certificates, w, y, edge.data());
       }
-      const int leaving = y - 2 * r - 1;
-      if (leaving >= 0) {
-        const std::uint8_t* sub = rows.data() + std::size_t(leaving) * w;
-        for (std::size_t x = 0; x < w; ++x) count[x] -= sub[x];
-      }
-      const int target = y - r;
-      if (target >= 0 && target < height) {
-        std::uint8_t* e = edge.data() + std::size_t(target) * w;
-        for (std::size_t x = 0; x < w; ++x) e[x] = std::uint8_t(count[x] != 0);
-      }
+    });
+    return edge;
+  }
+  std::vector<std::uint8_t> rows(codes.size());
+  for_each_band(height, [&](int y0, int y1) {
+    std::vector<std::uint8_t> right, a, b;
+    for (int y = y0; y < y1; ++y) {
+      mark_changes(codes.data(), w, height, y, edge.data(), right);
+      dilate_row(edge.data() + std::size_t(y) * w, rows.data() + std::size_t(y) * w, width, r, a, b);
     }
-  }
-  std::uint8_t* __restrict e = edge.data();
-  const std::uint32_t* __restrict c = codes.data();
-  for (std::size_t i = 0; i < codes.size(); ++i) e[i] |= std::uint8_t(verdict(c[i]) == PixelCertificates::kUncertain);
-  if (!slivers.empty()) {
-    const std::uint8_t* __restrict marked = slivers.data();
-    for (std::size_t i = 0; i < codes.size(); ++i) e[i] |= std::uint8_t(marked[i] != 0);
-  }
+  });
+  // The columns: count[x] is how many rows of the window [t - r, t + r]
+  // have rows[x] set, slid down the band.
+  for_each_band(height, [&](int t0, int t1) {
+    std::vector<std::uint32_t> count(w, 0);
+    const auto add = [&](int y, std::uint32_t sign) {
+      if (y < 0 || y >= height) return;
+      const std::uint8_t* row = rows.data() + std::size_t(y) * w;
+      for (std::size_t x = 0; x < w; ++x) count[x] += sign * row[x];
+    };
+    for (int y = t0 - r; y < t0 + r; ++y) add(y, 1u);
+    for (int t = t0; t < t1; ++t) {
+      add(t + r, 1u);
+      std::uint8_t* e = edge.data() + std::size_t(t) * w;
+      for (std::size_t x = 0; x < w; ++x) e[x] = std::uint8_t(count[x] != 0);
+      add_uncertain(certificates, w, t, edge.data());
+      add(t - r, std::uint32_t(-1));
+    }
+  });
   return edge;
 }
 
