@@ -6,7 +6,6 @@
 #include <limits>
 #include <mutex>
 #include <string>
-#include <thread>
 
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
@@ -15,6 +14,7 @@
 #include "core/light_math.hpp"
 #include "core/lights/light_kind.hpp"
 #include "reference/mesh_ray_cast.hpp"
+#include "reference/worker_pool.hpp"
 #include "core/scene.hpp"
 #include "core/shapes/shape.hpp"
 
@@ -303,30 +303,21 @@ glm::dmat4 inverse_view_projection(const RenderRequest& request) {
   return glm::inverse(camera.projection * camera.view);
 }
 
-// Calls row(y) for every y in [0, height) on the hardware threads (no more
-// threads than rows), each taking the next row left: rows cost what their
-// pixels hold (sky, a floor, a model's edge), so a fixed share per thread
-// would leave threads idle. Asks stop_requested (if given) before each
-// row; throws CastStopped once it answered true.
+// Calls row(y) for every y in [0, height) on the workers (worker_pool.hpp),
+// each taking the next row left: rows cost what their pixels hold (sky, a
+// floor, a model's edge), so a fixed share per thread would leave threads
+// idle. Asks stop_requested (if given) before each row; throws CastStopped
+// once it answered true.
 void for_each_row(int height, const std::function<bool()>& stop_requested, const std::function<void(int)>& row) {
   std::atomic<bool> stopped{false};
-  std::atomic<int> next{0};
   std::mutex asking;  // stop_requested need not be thread-safe
-  const auto rows = [&] {
-    for (int y; (y = next.fetch_add(1)) < height;) {
-      if (stop_requested) {
-        std::lock_guard<std::mutex> lock(asking);
-        if (stopped || stop_requested()) stopped = true;
-      }
-      if (stopped) return;
-      row(y);
+  run_on_workers(height, [&](int y) {
+    if (stop_requested) {
+      std::lock_guard<std::mutex> lock(asking);
+      if (stopped || stop_requested()) stopped = true;
     }
-  };
-  const int threads = std::min(int(std::max(1u, std::thread::hardware_concurrency())), std::max(1, height));
-  std::vector<std::thread> pool;
-  for (int i = 1; i < threads; ++i) pool.emplace_back(rows);
-  rows();
-  for (auto& t : pool) t.join();
+    if (!stopped) row(y);
+  });
   if (stopped) throw CastStopped();
 }
 
