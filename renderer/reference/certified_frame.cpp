@@ -83,37 +83,54 @@ void for_each_band(int height, const std::function<void(int, int)>& band) {
   });
 }
 
-// Row y of `edge` (width w, `height` rows): 1 where the pixel's surface
-// differs from a 4-neighbour's, and along the image's border. Reads the
-// rows above and below, writes row y only. Branch-free loops, which the
-// compiler vectorises; `right` is scratch of w bytes.
-void mark_changes(const std::uint32_t* codes, std::size_t w, int height, int y, std::uint8_t* edge,
-                  std::vector<std::uint8_t>& right) {
-  const std::uint32_t* c = codes + std::size_t(y) * w;
-  std::uint8_t* e = edge + std::size_t(y) * w;
-  right.resize(w);
-  for (std::size_t x = 0; x + 1 < w; ++x) right[x] = std::uint8_t(surface_code(c[x] ^ c[x + 1]) != 0);
-  if (w > 1) {
-    e[0] = right[0];
-    for (std::size_t x = 1; x + 1 < w; ++x) e[x] = std::uint8_t(right[x] | right[x - 1]);
-    e[w - 1] = right[w - 2];
+// Down a band of rows, each row of `edge` (width w, `height` rows): 1
+// where the pixel's surface differs from a 4-neighbour's, and along the
+// image's border. Writes the band's rows only; each pair of rows is
+// compared once (the row below's comparison is the next row's above).
+// Branch-free loops, which the compiler vectorises.
+class ChangeFinder {
+ public:
+  ChangeFinder(const std::uint32_t* codes, std::size_t w, int height, int first_row)
+      : codes_(codes), w_(w), height_(height), right_(w, 0), above_(w, 0), below_(w, 0) {
+    if (first_row > 0) compare_with_next(first_row - 1, above_);
   }
-  if (y > 0) {
-    const std::uint32_t* above = c - w;
-    for (std::size_t x = 0; x < w; ++x) e[x] |= std::uint8_t(surface_code(c[x] ^ above[x]) != 0);
+
+  // Row y: the band's rows in order, from first_row.
+  void row(int y, std::uint8_t* edge) {
+    const std::uint32_t* c = codes_ + std::size_t(y) * w_;
+    std::uint8_t* e = edge + std::size_t(y) * w_;
+    if (y + 1 < height_)
+      compare_with_next(y, below_);
+    else
+      std::fill(below_.begin(), below_.end(), std::uint8_t(0));
+    for (std::size_t x = 0; x + 1 < w_; ++x) right_[x] = std::uint8_t(surface_code(c[x] ^ c[x + 1]) != 0);
+    const std::uint8_t *above = above_.data(), *below = below_.data(), *right = right_.data();
+    e[0] = std::uint8_t(above[0] | below[0] | (w_ > 1 ? right[0] : 0));
+    for (std::size_t x = 1; x < w_; ++x) e[x] = std::uint8_t(above[x] | below[x] | right[x] | right[x - 1]);
+    if (w_ > 1) e[w_ - 1] = std::uint8_t(above[w_ - 1] | below[w_ - 1] | right[w_ - 2]);
+    // Outside the image is another surface: nothing past the border shows
+    // whether the raster and the reference part there (an outline on the
+    // border row that the snapped triangle covers and the true one misses;
+    // a curved shape whose true surface bulges onto the image from faces
+    // just off it), so the border pixels count as beside a change.
+    if (y == 0 || y == height_ - 1) std::fill(e, e + w_, std::uint8_t(1));
+    e[0] = e[w_ - 1] = 1;
+    above_.swap(below_);
   }
-  if (y + 1 < height) {
-    const std::uint32_t* below = c + w;
-    for (std::size_t x = 0; x < w; ++x) e[x] |= std::uint8_t(surface_code(c[x] ^ below[x]) != 0);
+
+ private:
+  // out[x]: rows y and y + 1 see different surfaces at x.
+  void compare_with_next(int y, std::vector<std::uint8_t>& out) const {
+    const std::uint32_t* c = codes_ + std::size_t(y) * w_;
+    const std::uint32_t* next = c + w_;
+    for (std::size_t x = 0; x < w_; ++x) out[x] = std::uint8_t(surface_code(c[x] ^ next[x]) != 0);
   }
-  // Outside the image is another surface: nothing past the border shows
-  // whether the raster and the reference part there (an outline on the
-  // border row that the snapped triangle covers and the true one misses; a
-  // curved shape whose true surface bulges onto the image from faces just
-  // off it), so the border pixels count as beside a change.
-  if (y == 0 || y == height - 1) std::fill(e, e + w, std::uint8_t(1));
-  e[0] = e[w - 1] = 1;
-}
+
+  const std::uint32_t* codes_;
+  std::size_t w_;
+  int height_;
+  std::vector<std::uint8_t> right_, above_, below_;
+};
 
 // Adds to row y of `cast` the pixels the certificates leave uncertain and
 // those the sliver pass marked.
@@ -150,9 +167,9 @@ std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificat
   const int r = std::min(std::max(0, ring - 1), std::max(width, height));
   if (r == 0) {
     for_each_band(height, [&](int y0, int y1) {
-      std::vector<std::uint8_t> right;
+      ChangeFinder changes(codes.data(), w, height, y0);
       for (int y = y0; y < y1; ++y) {
-        mark_changes(codes.data(), w, height, y, edge.data(), right);
+        changes.row(y, edge.data());
         add_uncertain(certificates, w, y, edge.data());
       }
     });
@@ -160,9 +177,10 @@ std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificat
   }
   std::vector<std::uint8_t> rows(codes.size());
   for_each_band(height, [&](int y0, int y1) {
-    std::vector<std::uint8_t> right, a, b;
+    ChangeFinder changes(codes.data(), w, height, y0);
+    std::vector<std::uint8_t> a, b;
     for (int y = y0; y < y1; ++y) {
-      mark_changes(codes.data(), w, height, y, edge.data(), right);
+      changes.row(y, edge.data());
       dilate_row(edge.data() + std::size_t(y) * w, rows.data() + std::size_t(y) * w, width, r, a, b);
     }
   });
