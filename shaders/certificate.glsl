@@ -19,9 +19,8 @@ vec4 object_facts(uint object) { return texelFetch(u_object_facts, int(object));
 
 bool has_flag(vec4 facts, int flag) { return (int(facts.z) & flag) != 0; }
 
-// `facts`: the triangle's object's.
-uint owner_of(int triangle, vec4 facts) {
-  return has_flag(facts, OBJECT_FLAG_MODEL) ? (uint(triangle) | 0x80000000u) : object_of(triangle);
+// `object` and `facts`: the triangle's object and its facts (the caller
+// has fetched them already).
+uint owner_of(int triangle, uint object, vec4 facts) {
+  return has_flag(facts, OBJECT_FLAG_MODEL) ? (uint(triangle) | 0x80000000u) : object;
 }
-
-uint owner_of(int triangle) { return owner_of(triangle, object_facts(object_of(triangle))); }

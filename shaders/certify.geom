@@ -91,7 +91,8 @@ void main() {
   }
   float extent = max(max(abs(lo.x), abs(lo.y)), max(abs(hi.x), abs(hi.y)));
   int triangle = u_triangle_base + gl_PrimitiveIDIn;
-  vec4 facts = object_facts(object_of(triangle));
+  uint object = object_of(triangle);
+  vec4 facts = object_facts(object);
 #if CULL_CLOSED_BACK
   // A face of a closed shape (box, sphere, cylinder: convex) that turns
   // from the light: whatever of the shape lies on a point's ray to the
@@ -149,7 +150,7 @@ void main() {
   }
   g_origin = a.xy;
   g_min_depth = min_depth;
-  g_owner = owner_of(triangle, facts);
+  g_owner = owner_of(triangle, object, facts);
   // A curved shape's faces are chords: its true surface, which the
   // reference casts against, reaches up to its tessellation distance
   // beyond them (ShapeKind::tessellation_error). Measured where that is

@@ -540,7 +540,7 @@ uint verdict_by_maps(Seen s) {
   lo = at - spread;
   hi = at + spread;
   if (!near) return CERTIFICATE_LIT;
-  uint own = owner_of(s.triangle);
+  uint own = owner_of(s.triangle, s.object, s.facts);
   // Lit: in every texel of the conservative maps (half as fine as the
   // layer: certified_map_size) that the ray can cross (at most 2 x 2, read
   // at once), everything but the point's own owner lies behind it
