@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <thread>
 
@@ -123,10 +124,18 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
 int first_centre(double lo) { return int(std::ceil(lo - 0.5)); }
 int last_centre(double hi) { return int(std::floor(hi - 0.5)); }
 
-// The float no greater than `d`: a depth rounded towards the light.
+// The float no greater than `d` (in [0, 1]): a depth rounded towards the
+// light. Where float(d) rounded up, it is above d >= 0, so positive: the
+// next float below is one less in its bits (std::nextafter's value, without
+// a library call per texel).
 float float_at_most(double d) {
   float f = float(d);
-  if (double(f) > d) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  if (double(f) > d) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &f, sizeof bits);
+    --bits;
+    std::memcpy(&f, &bits, sizeof f);
+  }
   return f;
 }
 
