@@ -172,6 +172,27 @@ TEST(ConservativeMaps, OnlyAClosedShapesFacesTurnedFromTheLightAreLeftOut) {
             2u);
 }
 
+// One object's triangles, overlapping, leave the others map far (the
+// renderer clears it rather than copying it); a second object's make it
+// hold something.
+TEST(ConservativeMaps, OneOwnerLeavesTheOthersMapFar) {
+  Triangles t;
+  add_triangle(t, {-0.5f, -0.5f, 0.2f}, {0.5f, -0.5f, 0.2f}, {0.0f, 0.5f, 0.2f}, 0);
+  add_triangle(t, {-0.6f, -0.4f, 0.1f}, {0.4f, -0.6f, 0.3f}, {0.1f, 0.6f, 0.0f}, 0);
+  const ConservativeView view = orthographic_view(32);
+  const std::vector<ConservativeObject> objects = {{0.0, false, true}, {0.0, false, true}};
+  ConservativeBand one;
+  one.x1 = one.y1 = view.size;
+  ConservativeMaps(t.positions, t.indices, objects, t.objects, {{0, 6, CullMode::None}}, view).draw(one);
+  EXPECT_TRUE(one.others_all_far());
+  EXPECT_TRUE(std::any_of(one.nearest_depth.begin(), one.nearest_depth.end(), [](float d) { return d < 1.0f; }));
+  t.objects[1] = 1;
+  ConservativeBand two;
+  two.x1 = two.y1 = view.size;
+  ConservativeMaps(t.positions, t.indices, objects, t.objects, {{0, 6, CullMode::None}}, view).draw(two);
+  EXPECT_FALSE(two.others_all_far());
+}
+
 // Bands drawn apart, as many at once as there are cores, make the map
 // drawn whole.
 TEST(ConservativeMaps, BandsMakeTheWholeMap) {

@@ -504,8 +504,15 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
                         GL_DEPTH_COMPONENT, GL_FLOAT, band.nearest_depth.data());
     glTextureSubImage3D(certify_.nearest_owner.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
                         GL_RED_INTEGER, GL_UNSIGNED_INT, band.nearest_owner.data());
-    glTextureSubImage3D(certify_.others_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
-                        GL_DEPTH_COMPONENT, GL_FLOAT, band.others_depth.data());
+    // One owner in the band (a layer a single object reaches): a clear
+    // writes the far depths faster than a copy of them.
+    const float far = 1.0f;
+    if (band.others_all_far())
+      glClearTexSubImage(certify_.others_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
+                         GL_DEPTH_COMPONENT, GL_FLOAT, &far);
+    else
+      glTextureSubImage3D(certify_.others_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
+                          GL_DEPTH_COMPONENT, GL_FLOAT, band.others_depth.data());
   });
   return true;
 }

@@ -251,6 +251,10 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
   }
 }
 
+bool ConservativeBand::others_all_far() const {
+  return std::all_of(others_depth.begin(), others_depth.end(), [](float d) { return d == 1.0f; });
+}
+
 void draw_conservative_bands(const ConservativeMaps& maps, int x0, int y0, int x1, int y1, std::size_t band_bytes,
                              const std::function<void(const ConservativeBand&)>& take) {
   if (x1 <= x0 || y1 <= y0) return;

@@ -68,6 +68,9 @@ struct ConservativeBand {
   std::vector<float> others_depth;
   int width() const { return x1 - x0; }
   int height() const { return y1 - y0; }
+  /// No texel has a second owner (a layer that one object reaches): the
+  /// others map is far everywhere, to be cleared rather than copied.
+  bool others_all_far() const;
 };
 
 /// The triangles of one layer's draws, set up once for every band.
