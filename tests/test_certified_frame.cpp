@@ -85,14 +85,17 @@ TEST(PixelsToRayCast, TheBorderIsAChangeOfSurface) {
 }
 
 // The ring grows each change of surface by ring - 1 pixels every way (a
-// square), as a brute force over random codes finds it.
-// Against a brute force, on images small and tall enough to be split into
-// several bands of rows (one a thread), rings past the image's size.
+// square), as a brute force over random codes finds it: on images small,
+// and tall enough to be split into several bands of rows (one a thread),
+// and with rings past the image's size.
 TEST(PixelsToRayCast, TheRingIsASquareAroundEachChange) {
   std::mt19937 random(3);
-  for (const auto& [w, h, rounds] : {std::tuple{13, 11, 20}, std::tuple{1, 40, 4}, std::tuple{40, 1, 4},
-                                     std::tuple{37, 130, 3}, std::tuple{120, 97, 2}})
-  for (int round = 0; round < rounds; ++round) {
+  for (const std::tuple<int, int, int>& size : {std::tuple{13, 11, 20}, std::tuple{1, 40, 4}, std::tuple{40, 1, 4},
+                                                std::tuple{37, 130, 3}, std::tuple{120, 97, 2}})
+  for (int round = 0; round < std::get<2>(size); ++round) {
+    // Plain variables: lambdas below capture them (clang 14 refuses
+    // structured bindings there).
+    const int w = std::get<0>(size), h = std::get<1>(size);
     std::vector<std::uint32_t> codes(std::size_t(w * h));
     for (std::uint32_t& c : codes) c = code(random() % 7 == 0 ? 2 : 1, true, random() % 11 == 0 ? kUncertain : kLit);
     const auto surface = [&](int x, int y) { return codes[std::size_t(y * w + x)] >> 2; };
