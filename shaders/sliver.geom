@@ -18,6 +18,8 @@ layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
 layout(location = UNIFORM_LOCATION_CULL_BACK) uniform int u_cull_back;
 
 flat out uint g_object;
+// 1 for a model's edge: marked over the model itself too (sliver.frag).
+flat out uint g_model;
 
 // Far above the snap (1/512 pixel), far below a pixel.
 const float kSliverPixels = 1.0 / 32.0;
@@ -25,6 +27,8 @@ const float kSliverPixels = 1.0 / 32.0;
 void main() {
   // Written again before each EmitVertex, after which outputs are undefined.
   const uint object = object_of(u_triangle_base + gl_PrimitiveIDIn);
+  const vec4 facts = object_facts(object);
+  const uint model = has_flag(facts, OBJECT_FLAG_MODEL) ? 1u : 0u;
   // An edge's part nearer the camera than half its near plane is clipped
   // away: the main pass and the reference both start at the near plane.
   float w_min = 0.5 * u.camera_axis_near.w;
@@ -37,7 +41,7 @@ void main() {
   // Only a face clearly clockwise on the screen (fan area below its float
   // rounding, as certify.geom judges faces for the light) with every corner
   // in front of the camera.
-  if (u_cull_back != 0 && has_flag(object_facts(object), OBJECT_FLAG_CLOSED) && gl_in[0].gl_Position.w > w_min &&
+  if (u_cull_back != 0 && has_flag(facts, OBJECT_FLAG_CLOSED) && gl_in[0].gl_Position.w > w_min &&
       gl_in[1].gl_Position.w > w_min && gl_in[2].gl_Position.w > w_min) {
     vec2 s[3];
     for (int i = 0; i < 3; ++i) s[i] = (gl_in[i].gl_Position.xy / gl_in[i].gl_Position.w * 0.5 + 0.5) * u.image_size;
@@ -64,6 +68,7 @@ void main() {
     float depths[4] = float[4](na.z, na.z, nb.z, nb.z);
     for (int k = 0; k < 4; ++k) {
       g_object = object;
+      g_model = model;
       gl_Position = vec4(corners[k] / u.image_size * 2.0 - 1.0, depths[k], 1.0);
       EmitVertex();
     }

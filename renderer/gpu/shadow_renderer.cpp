@@ -452,7 +452,9 @@ void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
     g.position_indices.resize(buffer_bytes(g.indices.id()) / sizeof(std::uint32_t));
     glGetNamedBufferSubData(g.indices.id(), 0, GLsizeiptr(g.position_indices.size() * sizeof(std::uint32_t)),
                             g.position_indices.data());
-    g.sliver_edges.emplace(g.positions, g.position_indices, g.triangle_object_ids);
+    std::vector<bool> models;
+    for (const ConservativeObject& o : g.conservative_objects) models.push_back(o.model);
+    g.sliver_edges.emplace(g.positions, g.position_indices, g.triangle_object_ids, models);
   }
 }
 

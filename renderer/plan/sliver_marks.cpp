@@ -22,8 +22,9 @@ struct HalfEdge {
 
 // Marks the centres within kSliverPixels of the segment pa pb (window
 // pixels, y up), its ends included, where another object than `object`
-// was drawn (drawn_objects[i] >> drawn_shift: object + 1, 0 none).
-void mark_band(glm::dvec2 pa, glm::dvec2 pb, std::uint32_t object, int width, int height,
+// was drawn (drawn_objects[i] >> drawn_shift: object + 1, 0 none), or
+// wherever with `over_itself` (a model's edge).
+void mark_band(glm::dvec2 pa, glm::dvec2 pb, std::uint32_t object, bool over_itself, int width, int height,
                const std::vector<std::uint32_t>& drawn_objects, unsigned drawn_shift, std::vector<std::uint8_t>& marks) {
   const double r = kSliverPixels * (1.0 + 1e-9) + 1e-9;  // a hair more, for this arithmetic
   const glm::dvec2 along = pb - pa;
@@ -57,7 +58,7 @@ void mark_band(glm::dvec2 pa, glm::dvec2 pb, std::uint32_t object, int width, in
       if (s < -r || s > length + r || std::abs(glm::dot(x - pa, n)) > r) continue;
       const int px = int(x.x), py = int(x.y);
       const std::size_t at = std::size_t(height - 1 - py) * std::size_t(width) + std::size_t(px);
-      if ((drawn_objects[at] >> drawn_shift) != object + 1) marks[at] = 1;
+      if (over_itself || (drawn_objects[at] >> drawn_shift) != object + 1) marks[at] = 1;
     }
   }
 }
@@ -65,7 +66,7 @@ void mark_band(glm::dvec2 pa, glm::dvec2 pb, std::uint32_t object, int width, in
 }  // namespace
 
 SliverEdges::SliverEdges(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
-                         const std::vector<std::uint32_t>& triangle_objects) {
+                         const std::vector<std::uint32_t>& triangle_objects, const std::vector<bool>& model_objects) {
   std::vector<HalfEdge> halves;
   halves.reserve(indices.size());
   for (std::size_t t = 0; t < triangle_objects.size() && 3 * t + 2 < indices.size(); ++t) {
@@ -96,6 +97,7 @@ SliverEdges::SliverEdges(const std::vector<glm::vec3>& positions, const std::vec
     }
     i = j;
   }
+  for (Edge& e : edges_) e.model = e.object < model_objects.size() && model_objects[e.object];
 }
 
 void SliverEdges::mark(const std::vector<glm::vec3>& positions, const glm::dmat4& view_projection, double near_plane,
@@ -140,12 +142,12 @@ void SliverEdges::mark(const std::vector<glm::vec3>& positions, const glm::dmat4
     // The part in front of half the near plane (sliver.geom's cut).
     if (a.w < w_min && b.w < w_min) continue;
     if (a.w > w_min && b.w > w_min) {
-      mark_band(seen[e.a], seen[e.b], e.object, width, height, drawn_objects, drawn_shift, marks);
+      mark_band(seen[e.a], seen[e.b], e.object, e.model, width, height, drawn_objects, drawn_shift, marks);
       continue;
     }
     if (a.w < w_min) a = a + (b - a) * ((w_min - a.w) / (b.w - a.w));
     if (b.w < w_min) b = b + (a - b) * ((w_min - b.w) / (a.w - b.w));
-    mark_band(window(a), window(b), e.object, width, height, drawn_objects, drawn_shift, marks);
+    mark_band(window(a), window(b), e.object, e.model, width, height, drawn_objects, drawn_shift, marks);
   }
 }
 

@@ -43,13 +43,18 @@ class SliverEdges {
  public:
   /// `positions` and `indices` as the scene's buffers (relative to the
   /// mesh origin); `triangle_objects`: each triangle's object.
+  /// `model_objects`: per object, whether it is a model (a triangle mesh
+  /// that need not be convex); missing ones are not.
   SliverEdges(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
-              const std::vector<std::uint32_t>& triangle_objects);
+              const std::vector<std::uint32_t>& triangle_objects, const std::vector<bool>& model_objects = {});
 
   /// Marks (1) in `marks` (width x height, row 0 at the top) the pixels
   /// whose centre lies within kSliverPixels of a drawn edge (or of its
   /// ends) where `drawn_objects` (object + 1 per pixel, 0 none, in the bits
-  /// from `drawn_shift` up; row 0 at the top) is not the edge's object.
+  /// from `drawn_shift` up; row 0 at the top) is not the edge's object, or
+  /// whatever was drawn there where the edge is a model's: a model's
+  /// outline can pass over a farther part of the same model, which the
+  /// raster may show where the reference's ray meets the outline.
   /// `view_projection`: the camera's, of positions relative to the mesh
   /// origin (GL's clip space, window y up); edges are cut at half the
   /// camera's near plane (`near_plane`), as the main pass and the reference
@@ -66,6 +71,7 @@ class SliverEdges {
     /// The third corners of the two triangles sharing it, or kOpen in
     /// `second_third` where it is not shared by exactly two.
     std::uint32_t first_third = 0, second_third = 0;
+    bool model = false;  ///< the object is a model: marked over itself too
   };
   static constexpr std::uint32_t kOpen = 0xFFFFFFFFu;
 
