@@ -651,7 +651,7 @@ void main() {
   // Which side of the light the surface turns to: the reference's camera
   // ray may meet the face beside a crease instead (the CPU casts where
   // this or the object changes between pixels).
-  o_certificate = ((seen.object + 1u) << 3) | (n_dot_l > 0.0 ? 4u : 0u) | verdict;
+  o_certificate = ((seen.object + 1u) << CERTIFICATE_OBJECT_SHIFT) | (n_dot_l > 0.0 ? 4u : 0u) | verdict;
   // The ray cast settles an uncertain pixel: drawn lit here, and unlit in
   // o_unlit, for the CPU to pick from.
   float visibility = verdict == CERTIFICATE_DARK ? 0.0 : 1.0;
@@ -664,7 +664,7 @@ void main() {
   // only it knows: how it faces the camera and the light, and how far its
   // exact point may lie (within the margin the plan allowed for).
   uint verdict = verdict_by_proof(n_dot_l);
-  o_certificate = ((u_proof_object + 1u) << 3) | (n_dot_l > 0.0 ? 4u : 0u) | verdict;
+  o_certificate = ((u_proof_object + 1u) << CERTIFICATE_OBJECT_SHIFT) | (n_dot_l > 0.0 ? 4u : 0u) | verdict;
   float visibility = verdict == CERTIFICATE_DARK ? 0.0 : 1.0;
 #elif DIRECT_LIGHT
   float visibility = n_dot_l > 0.0 ? 1.0 : 0.0;
@@ -678,7 +678,8 @@ void main() {
   // With the light up, a frame drawn without maps (DisplayPassPlan::
   // certificates, FramePlan: the ray cast is cheaper than the maps) leaves
   // every pixel but the proved plane parts' to the ray cast.
-  o_certificate = ((object_of(u_triangle_base + gl_PrimitiveID) + 1u) << 3) | (n_dot_l > 0.0 ? 4u : 0u) |
+  o_certificate = ((object_of(u_triangle_base + gl_PrimitiveID) + 1u) << CERTIFICATE_OBJECT_SHIFT) |
+                  (n_dot_l > 0.0 ? 4u : 0u) |
                   (DIRECT_LIGHT == 1 ? CERTIFICATE_UNCERTAIN : CERTIFICATE_DARK);
 #endif
 

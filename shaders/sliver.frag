@@ -10,8 +10,8 @@ flat in uint g_model;
 layout(location = FRAG_OUTPUT_COLOR) out uint o_sliver;
 
 void main() {
-  // PixelCertificates: (object + 1) << 3 | facing << 2 | verdict.
-  uint drawn = texelFetch(u_certificates, ivec2(gl_FragCoord.xy), 0).r >> 3;
+  // PixelCertificates: (object + 1) << CERTIFICATE_OBJECT_SHIFT | facing << 2 | verdict.
+  uint drawn = texelFetch(u_certificates, ivec2(gl_FragCoord.xy), 0).r >> CERTIFICATE_OBJECT_SHIFT;
   // A model need not be convex: its outline can pass in front of a
   // farther part of itself, which the raster may show where the
   // reference's ray meets the outline. An analytic shape is convex: where

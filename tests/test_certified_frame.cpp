@@ -16,7 +16,7 @@ constexpr std::uint32_t kLit = PixelCertificates::kCertainlyLit, kDark = PixelCe
                         kUncertain = PixelCertificates::kUncertain;
 
 std::uint32_t code(std::uint32_t object_plus_one, bool facing, std::uint32_t verdict) {
-  return (object_plus_one << 3) | (facing ? 4u : 0u) | verdict;
+  return (object_plus_one << PixelCertificates::kObjectShift) | (facing ? 4u : 0u) | verdict;
 }
 
 

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "core/light_math.hpp"
+#include "core/render_result.hpp"
 #include "core/shader_facts.hpp"
 #include "gpu/embedded_shaders.hpp"
 #include "gpu/shader_interface.hpp"
@@ -177,6 +178,7 @@ TEST(FramePrelude, DefinesEachSharedFactAsTheCxxConstant) {
       {"UNIFORM_LOCATION_PROOF_ROUNDING", kUniformLocationProofRounding},
       {"UNIFORM_LOCATION_CULL_BACK", kUniformLocationCullBack},
       {"UNIFORM_BUFFER_FRAME_BLOCK", kUniformBufferFrameBlock},
+      {"CERTIFICATE_OBJECT_SHIFT", int(PixelCertificates::kObjectShift)},
   };
   for (const auto& [name, value] : facts)
     EXPECT_NE(prelude.find(std::string("#define ") + name + " " + std::to_string(value) + "\n"), std::string::npos)

@@ -184,6 +184,7 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define CERTIFICATE_LIT " << PixelCertificates::kCertainlyLit << "u\n"
     << "#define CERTIFICATE_DARK " << PixelCertificates::kCertainlyDark << "u\n"
     << "#define CERTIFICATE_UNCERTAIN " << PixelCertificates::kUncertain << "u\n"
+    << "#define CERTIFICATE_OBJECT_SHIFT " << PixelCertificates::kObjectShift << "\n"
     << "#define OBJECT_FLAG_MODEL " << kObjectFlagModel << "\n"
     << "#define OBJECT_FLAG_CLOSED " << kObjectFlagClosed << "\n"
     << "#define CERTIFY_CENTRE " << int(CertifyPass::Centre) << "\n"

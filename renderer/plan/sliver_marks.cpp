@@ -141,13 +141,14 @@ void SliverEdges::mark(const std::vector<glm::vec3>& positions, const glm::dmat4
     }
     // The part in front of half the near plane (sliver.geom's cut).
     if (a.w < w_min && b.w < w_min) continue;
-    if (a.w > w_min && b.w > w_min) {
-      mark_band(seen[e.a], seen[e.b], e.object, e.model, width, height, drawn_objects, drawn_shift, marks);
-      continue;
+    glm::dvec2 pa = seen[e.a], pb = seen[e.b];
+    if (!(a.w > w_min && b.w > w_min)) {
+      if (a.w < w_min) a = a + (b - a) * ((w_min - a.w) / (b.w - a.w));
+      if (b.w < w_min) b = b + (a - b) * ((w_min - b.w) / (a.w - b.w));
+      pa = window(a);
+      pb = window(b);
     }
-    if (a.w < w_min) a = a + (b - a) * ((w_min - a.w) / (b.w - a.w));
-    if (b.w < w_min) b = b + (a - b) * ((w_min - b.w) / (a.w - b.w));
-    mark_band(window(a), window(b), e.object, e.model, width, height, drawn_objects, drawn_shift, marks);
+    mark_band(pa, pb, e.object, e.model, width, height, drawn_objects, drawn_shift, marks);
   }
 }
 
