@@ -91,22 +91,18 @@ void main() {
   }
   float extent = max(max(abs(lo.x), abs(lo.y)), max(abs(hi.x), abs(hi.y)));
   int triangle = u_triangle_base + gl_PrimitiveIDIn;
-  uint object = object_of(triangle);
-  vec4 facts = object_facts(object);
-#if CULL_CLOSED_BACK
-  // A face of a closed shape (box, sphere, cylinder: convex) that turns
-  // from the light: whatever of the shape lies on a point's ray to the
-  // light, the ray leaves the shape last through a face turned to it, which
-  // lies nearer the light in the same texel (the light is outside every
-  // closed object: ShadowPassPlan::cull_closed_back). Only a face clearly
-  // clockwise on the layer: its area taken from edge vectors (a fan from
-  // the first corner, so that rounding scales with the edges, not with the
-  // corners' distance from the layer's origin, as the shoelace sum's
-  // products' does: a red-team pass saw a face turned to the light come
-  // out clockwise that way), below minus its rounding: each corner's texel
-  // coordinates off by up to about 4e-7 of the extent (the projection's
-  // float steps) times the perimeter, and the products' own rounding
-  // (2^-24 of the edges' lengths multiplied), both with tenfold headroom.
+  uvec2 ids = triangle_ids(triangle);
+  vec4 facts = object_facts(ids.x);
+  // Which way the face turns on the layer (counter-clockwise: its outward
+  // side to the light), only where it is clear: its area taken from edge
+  // vectors (a fan from the first corner, so that rounding scales with the
+  // edges, not with the corners' distance from the layer's origin, as the
+  // shoelace sum's products' does: a red-team pass saw a face turned to
+  // the light come out clockwise that way), beyond its rounding: each
+  // corner's texel coordinates off by up to about 4e-7 of the extent (the
+  // projection's float steps) times the perimeter, and the products' own
+  // rounding (2^-24 of the edges' lengths multiplied), both with tenfold
+  // headroom.
   float perimeter = 0.0, fan_area = 0.0;
   for (int i = 0; i < n; ++i) perimeter += length(p[(i + 1) % n].xy - p[i].xy);
   for (int i = 1; i + 1 < n; ++i) {
@@ -114,6 +110,12 @@ void main() {
     fan_area += e1.x * e2.y - e1.y * e2.x;
   }
   float fan_rounding = 4e-6 * max(1.0, extent) * perimeter + 1e-6 * perimeter * perimeter;
+#if CULL_CLOSED_BACK
+  // A face of a closed shape (box, sphere, cylinder: convex) that turns
+  // from the light: whatever of the shape lies on a point's ray to the
+  // light, the ray leaves the shape last through a face turned to it, which
+  // lies nearer the light in the same texel (the light is outside every
+  // closed object: ShadowPassPlan::cull_closed_back).
   if (has_flag(facts, OBJECT_FLAG_CLOSED) && !has_flag(facts, OBJECT_FLAG_MODEL) && fan_area < -fan_rounding)
     return;
 #endif
@@ -150,7 +152,8 @@ void main() {
   }
   g_origin = a.xy;
   g_min_depth = min_depth;
-  g_owner = owner_of(triangle, object, facts);
+  // A model's face is its patch's only where it clearly turns to the light.
+  g_owner = owner_of(triangle, ids, facts, fan_area > fan_rounding);
   // A curved shape's faces are chords: its true surface, which the
   // reference casts against, reaches up to its tessellation distance
   // beyond them (ShapeKind::tessellation_error). Measured where that is

@@ -32,6 +32,7 @@ struct Seen {
   vec3 geometric_normal;  // its triangle's plane, facing the camera
   int triangle;
   uint object;
+  uint facing_owner;      // the triangle's owner where it turns to the light (triangle_ids)
   vec4 facts;             // object_facts
   float reach;            // world units: the exact point lies within this of p
   float n_dot_l_rate;     // |d(N.L)/dx| + |d(N.L)/dy| across the pixel
@@ -41,14 +42,15 @@ struct Seen {
 
 // The pixel's Seen: v_position on `triangle` of `object`. Called outside
 // any branch (derivatives).
-Seen seen_here(int triangle, uint object, vec3 geometric_normal, float n_dot_l) {
+Seen seen_here(int triangle, uvec2 ids, vec3 geometric_normal, float n_dot_l) {
   Seen seen;
   seen.p = v_position;
   vec3 to_eye = u.camera_position.xyz - v_position;
   seen.geometric_normal = dot(geometric_normal, to_eye) < 0.0 ? -geometric_normal : geometric_normal;
   seen.triangle = triangle;
-  seen.object = object;
-  seen.facts = object_facts(object);
+  seen.object = ids.x;
+  seen.facing_owner = ids.y;
+  seen.facts = object_facts(ids.x);
   seen.n_dot_l_rate = fwidth(n_dot_l);
   // The exact surface along this pixel's camera ray: within the shape's
   // tessellation distance of the face (further along a ray that meets the
@@ -540,7 +542,10 @@ uint verdict_by_maps(Seen s) {
   lo = at - spread;
   hi = at + spread;
   if (!near) return CERTIFICATE_LIT;
-  uint own = owner_of(s.triangle, s.object, s.facts);
+  // A model's patch is the point's owner only seen from outside: seen from
+  // within, the light lies on the inward side of the face, where the
+  // patch's other triangles are (verdict_by_facing made it turn to the light).
+  uint own = owner_of(s.triangle, uvec2(s.object, s.facing_owner), s.facts, gl_FrontFacing);
   // Lit: in every texel of the conservative maps (half as fine as the
   // layer: certified_map_size) that the ray can cross (at most 2 x 2, read
   // at once), everything but the point's own owner lies behind it
@@ -645,7 +650,7 @@ void main() {
   vec3 geometric_normal = normalize(cross(dFdx(v_position), dFdy(v_position)));
   if (dot(geometric_normal, normal) < 0.0) geometric_normal = -geometric_normal;
 #if FILTER == FILTER_EXACT
-  Seen seen = seen_here(u_triangle_base + gl_PrimitiveID, object_of(u_triangle_base + gl_PrimitiveID), geometric_normal,
+  Seen seen = seen_here(u_triangle_base + gl_PrimitiveID, triangle_ids(u_triangle_base + gl_PrimitiveID), geometric_normal,
                         n_dot_l);
   uint verdict = left_to_the_ray_cast(seen) ? CERTIFICATE_UNCERTAIN : certify(seen, n_dot_l, to_light);
   // Which side of the light the surface turns to: the reference's camera

@@ -13,6 +13,7 @@
 #include "core/render_result.hpp"
 #include "core/shader_facts.hpp"
 #include "gpu/embedded_shaders.hpp"
+#include "plan/conservative_maps.hpp"
 #include "gpu/shader_interface.hpp"
 #include "plan/frame_plan.hpp"
 
@@ -183,6 +184,9 @@ TEST(FramePrelude, DefinesEachSharedFactAsTheCxxConstant) {
   for (const auto& [name, value] : facts)
     EXPECT_NE(prelude.find(std::string("#define ") + name + " " + std::to_string(value) + "\n"), std::string::npos)
         << name << " is not " << value << " in:\n" << prelude;
+  // The owner of a model's triangle alone, as the CPU's maps name it.
+  EXPECT_NE(prelude.find("#define CERTIFICATE_TRIANGLE_OWNER " + std::to_string(kModelTriangleOwner) + "u\n"),
+            std::string::npos);
   EXPECT_NE(prelude.find("layout(std140, binding = UNIFORM_BUFFER_FRAME_BLOCK) uniform FrameBlock"), std::string::npos);
   // The block comes after the #define it names.
   EXPECT_LT(prelude.find("#define UNIFORM_BUFFER_FRAME_BLOCK"), prelude.find("uniform FrameBlock"));

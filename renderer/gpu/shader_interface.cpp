@@ -10,6 +10,7 @@
 
 #include "core/render_result.hpp"
 #include "core/shapes/shape.hpp"
+#include "plan/conservative_maps.hpp"
 #include "plan/frame_plan.hpp"
 
 namespace umbra {
@@ -185,6 +186,7 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define CERTIFICATE_DARK " << PixelCertificates::kCertainlyDark << "u\n"
     << "#define CERTIFICATE_UNCERTAIN " << PixelCertificates::kUncertain << "u\n"
     << "#define CERTIFICATE_OBJECT_SHIFT " << PixelCertificates::kObjectShift << "\n"
+    << "#define CERTIFICATE_TRIANGLE_OWNER " << kModelTriangleOwner << "u\n"
     << "#define OBJECT_FLAG_MODEL " << kObjectFlagModel << "\n"
     << "#define OBJECT_FLAG_CLOSED " << kObjectFlagClosed << "\n"
     << "#define CERTIFY_CENTRE " << int(CertifyPass::Centre) << "\n"

@@ -429,8 +429,16 @@ void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
       std::fill(objects.begin() + std::ptrdiff_t(first), objects.begin() + std::ptrdiff_t(first + count),
                 std::uint32_t(r.object));
     }
-    make_buffer_texture(g.triangle_objects_buffer, g.triangle_objects, GL_R32UI, objects.data(),
-                        objects.size() * sizeof(std::uint32_t));
+    // Beside each triangle's object, its owner where it turns to the light.
+    g.facing_owners = light_facing_owners(scene_objects, mesh);
+    g.facing_owners.resize(objects.size(), 0);
+    std::vector<std::uint32_t> ids(2 * objects.size());
+    for (std::size_t t = 0; t < objects.size(); ++t) {
+      ids[2 * t] = objects[t];
+      ids[2 * t + 1] = g.facing_owners[t];
+    }
+    make_buffer_texture(g.triangle_objects_buffer, g.triangle_objects, GL_RG32UI, ids.data(),
+                        ids.size() * sizeof(std::uint32_t));
     const std::vector<glm::vec4> facts = object_facts(scene_objects, mesh.origin);
     make_buffer_texture(g.object_facts_buffer, g.object_facts, GL_RGBA32F, facts.data(),
                         facts.size() * sizeof(glm::vec4));
@@ -477,7 +485,8 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
   for (const DrawRange& d : layer.draws) triangles += d.count / 3;
   // A scene of more triangles keeps no copy of them here (use_certificate_buffers).
   if (triangles > kMostConservativeTriangles || (triangles > 0 && g.positions.empty())) return false;
-  const ConservativeMaps maps(g.positions, g.position_indices, g.conservative_objects, g.triangle_object_ids, layer.draws, view);
+  const ConservativeMaps maps(g.positions, g.position_indices, g.conservative_objects, g.triangle_object_ids, layer.draws, view,
+                              g.facing_owners);
   const auto [x0, y0, x1, y1] = certified_read_box(layer, plan.light.layer_size);
   const GLint at = GLint(layer.layer);
   // Drawn where a triangle may reach; far, with no owner, in the rest of

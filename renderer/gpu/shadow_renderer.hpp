@@ -108,7 +108,8 @@ class ShadowRenderer {
     // estimate bounds by their bounds).
     std::vector<double> deep_layers;
     // Filter "exact" (certificate.glsl), made when a certified frame first
-    // draws the scene: each triangle's object (R32UI), each object's facts
+    // draws the scene: each triangle's object and its owner where it turns
+    // to the light (RG32UI: light_facing_owners), each object's facts
     // (RGBA32F), as buffer textures.
     gl::Buffer triangle_objects_buffer, object_facts_buffer;
     gl::Texture triangle_objects, object_facts;
@@ -117,6 +118,7 @@ class ShadowRenderer {
     // are drawn there: certified_passes_on_cpu_, at most
     // kMostConservativeTriangles) the positions and indices, read back.
     std::vector<std::uint32_t> triangle_object_ids;
+    std::vector<std::uint32_t> facing_owners;  // light_facing_owners
     std::vector<ConservativeObject> conservative_objects;
     std::vector<glm::vec3> positions;
     std::vector<std::uint32_t> position_indices;

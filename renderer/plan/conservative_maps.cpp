@@ -6,6 +6,7 @@
 #include <limits>
 #include <thread>
 
+#include "core/convex_patches.hpp"
 #include "core/shapes/shape.hpp"
 
 namespace umbra {
@@ -18,6 +19,35 @@ std::vector<ConservativeObject> conservative_objects(const Scene& scene) {
   return objects;
 }
 
+std::vector<std::uint32_t> light_facing_owners(const Scene& scene, const Mesh& mesh) {
+  std::size_t triangles = 0;
+  for (const ObjectRange& r : mesh.object_ranges) triangles = std::max(triangles, std::size_t(r.first_index + r.index_count) / 3);
+  std::vector<std::uint32_t> owners(triangles, 0);
+  std::vector<std::pair<const TriangleModel*, std::vector<std::uint32_t>>> patches_of;  // per model, once
+  for (const ObjectRange& r : mesh.object_ranges) {
+    const SceneObject& o = scene.objects.at(r.object);
+    const std::size_t first = r.first_index / 3, count = r.index_count / 3;
+    if (o.type != SceneObject::Type::Mesh) {
+      std::fill_n(owners.begin() + std::ptrdiff_t(first), count, std::uint32_t(r.object));
+      continue;
+    }
+    for (std::size_t t = 0; t < count; ++t) owners[first + t] = std::uint32_t(first + t) | kModelTriangleOwner;
+    if (!o.model || triangles >= kMostPatchOwnedTriangles) continue;
+    auto known = std::find_if(patches_of.begin(), patches_of.end(), [&](const auto& k) { return k.first == o.model.get(); });
+    if (known == patches_of.end()) known = patches_of.insert(patches_of.end(), {o.model.get(), convex_patches(*o.model)});
+    const std::vector<std::uint32_t>& head = known->second;
+    if (head.size() != count) continue;  // not this range's triangles: keep them their own
+    // A patch of one keeps the triangle's own owner; the others name their
+    // first triangle, as numbered in the scene.
+    std::vector<std::uint8_t> shared(count, 0);
+    for (std::size_t t = 0; t < count; ++t)
+      if (head[t] != t) shared[t] = shared[head[t]] = 1;
+    for (std::size_t t = 0; t < count; ++t)
+      if (shared[t]) owners[first + t] = std::uint32_t(first + head[t]) | kModelPatchOwner;
+  }
+  return owners;
+}
+
 namespace {
 
 // certify.geom's to_texels, in double.
@@ -27,8 +57,10 @@ glm::dvec3 to_texels(const glm::dvec4& clip, double size) {
 }
 
 // certify.geom, step for step (its comments say why each step holds).
+// `owner`: the triangle's own; `facing_owner`: its owner where it clearly
+// turns its outward side to the light (a model's patch).
 bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const ConservativeObject& object,
-            std::uint32_t owner, ConservativeMaps::Setup& s) {
+            std::uint32_t owner, std::uint32_t facing_owner, ConservativeMaps::Setup& s) {
   const double size = double(view.size);
   glm::dvec4 poly[4];
   int n = 0;
@@ -61,7 +93,10 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
     area += a.x * b.y - b.x * a.y;
   }
   const double extent = std::max(std::max(std::abs(lo.x), std::abs(lo.y)), std::max(std::abs(hi.x), std::abs(hi.y)));
-  if (view.cull_closed_back && object.closed && !object.model) {
+  // Which way the face turns on the layer, where it is clear (certify.geom).
+  const bool cull = view.cull_closed_back && object.closed && !object.model;
+  bool turns_to_light = false;
+  if (cull || facing_owner != owner) {
     double perimeter = 0.0, fan_area = 0.0;
     for (int i = 0; i < n; ++i) perimeter += glm::length(glm::dvec2(p[(i + 1) % n]) - glm::dvec2(p[i]));
     for (int i = 1; i + 1 < n; ++i) {
@@ -69,7 +104,8 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
       fan_area += e1.x * e2.y - e1.y * e2.x;
     }
     const double fan_rounding = 4e-6 * std::max(1.0, extent) * perimeter + 1e-6 * perimeter * perimeter;
-    if (fan_area < -fan_rounding) return false;
+    if (cull && fan_area < -fan_rounding) return false;
+    turns_to_light = fan_area > fan_rounding;
   }
   const bool has_area = std::abs(area) > 1e-4 * std::max(1.0, extent);
   s.edge_count = has_area ? n : 0;
@@ -100,7 +136,7 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
   }
   s.origin = glm::dvec2(a);
   s.min_depth = min_depth;
-  s.owner = owner;
+  s.owner = turns_to_light ? facing_owner : owner;
   const double coarse_texels = double(view.layer_size) / size;
   double texel_world = 0.0, window_per_world = 0.0;
   if (view.perspective) {
@@ -144,7 +180,8 @@ float float_at_most(double d) {
 ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
                                    const std::vector<ConservativeObject>& objects,
                                    const std::vector<std::uint32_t>& triangle_objects,
-                                   const std::vector<DrawRange>& draws, const ConservativeView& view) {
+                                   const std::vector<DrawRange>& draws, const ConservativeView& view,
+                                   const std::vector<std::uint32_t>& facing_owners) {
   const glm::dmat4 to_clip = glm::dmat4(view.projection) * glm::dmat4(view.view);
   for (const DrawRange& draw : draws) {
     for (std::size_t i = draw.first; i + 2 < draw.first + draw.count; i += 3) {
@@ -154,8 +191,9 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
       glm::dvec4 clip[3];
       for (int k = 0; k < 3; ++k) clip[k] = to_clip * glm::dvec4(glm::dvec3(positions.at(indices.at(i + std::size_t(k)))), 1.0);
       const std::uint32_t owner = facts.model ? (std::uint32_t(triangle) | kModelTriangleOwner) : object;
+      const std::uint32_t facing_owner = facts.model && !facing_owners.empty() ? facing_owners.at(triangle) : owner;
       Setup s;
-      if (set_up(clip, view, facts, owner, s)) setups_.push_back(s);
+      if (set_up(clip, view, facts, owner, facing_owner, s)) setups_.push_back(s);
     }
   }
 }

@@ -54,9 +54,24 @@ struct ConservativeObject {
 };
 std::vector<ConservativeObject> conservative_objects(const Scene& scene);
 
-/// The owner of a model's triangle (certificate.glsl's owner_of): its index
-/// with the top bit set; an analytic shape's triangles are owned by the object.
+/// Owners (certificate.glsl's owner_of): an analytic shape's triangles are
+/// owned by the object; a model's triangle that turns its outward side to
+/// the light with margin by its convex patch (core/convex_patches.hpp), any
+/// other by itself alone: its index (the scene's) with the top bit set.
 inline constexpr std::uint32_t kModelTriangleOwner = 0x80000000u;
+/// A model's convex patch of two or more triangles: its first triangle's
+/// index with the top two bits set. Scenes of kMostPatchOwnedTriangles or
+/// more triangles get no patches, so that the two never name one owner.
+inline constexpr std::uint32_t kModelPatchOwner = 0xC0000000u;
+inline constexpr std::size_t kMostPatchOwnedTriangles = std::size_t(1) << 30;
+
+/// Per triangle of `mesh` (by index / 3): its owner where it turns its
+/// outward side to the light: a shape's object, a model's triangle's patch
+/// (kModelPatchOwner | first triangle; the triangle's own owner for a patch
+/// of one). Patches found once per model (convex_patches, each instance's
+/// triangles numbered from its range's first).
+std::vector<std::uint32_t> light_facing_owners(const Scene& scene, const Mesh& mesh);
+
 /// A texel no triangle touches: depth 1 (far), this owner.
 inline constexpr std::uint32_t kNoOwner = 0xFFFFFFFFu;
 
@@ -77,11 +92,13 @@ struct ConservativeBand {
 class ConservativeMaps {
  public:
   /// `positions` and `indices`: the scene's (Mesh: relative to its origin);
-  /// `triangle_objects`: each triangle's object (by index / 3).
+  /// `triangle_objects`: each triangle's object (by index / 3);
+  /// `facing_owners`: light_facing_owners, taken for a model's triangle
+  /// that clearly turns to the light (empty: every model triangle its own).
   ConservativeMaps(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
                    const std::vector<ConservativeObject>& objects,
                    const std::vector<std::uint32_t>& triangle_objects, const std::vector<DrawRange>& draws,
-                   const ConservativeView& view);
+                   const ConservativeView& view, const std::vector<std::uint32_t>& facing_owners = {});
   /// Fills `band` (its rectangle set by the caller, within the maps).
   void draw(ConservativeBand& band) const;
   std::size_t triangles() const { return setups_.size(); }
@@ -114,10 +131,11 @@ class ConservativeMaps {
 /// shaders.
 inline constexpr std::size_t kMostConservativeTriangles = 262144;
 /// What the CPU's certified passes hold per triangle at most: a setup (176
-/// bytes) beside the scene's copies kept for them (positions, indices and
-/// objects, about 52 bytes; the sliver edges, about 30), rounded up; while
-/// the copies are first made, the vertices read back and the edges' halves
-/// (about 230 bytes) are alive instead of the setups.
+/// bytes) beside the scene's copies kept for them (positions, indices,
+/// objects and facing owners, about 56 bytes; the sliver edges, about 30),
+/// rounded up; while the copies are first made, the vertices read back and
+/// the edges' halves (about 230 bytes) are alive instead of the setups, and
+/// before that convex_patches' work (about 120 bytes).
 inline constexpr std::uint64_t kCertifiedCpuBytesPerTriangle = 300;
 
 /// Draws [x0, x1) x [y0, y1) of the maps in bands of rows of at most
