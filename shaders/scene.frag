@@ -504,6 +504,7 @@ layout(binding = TEXTURE_UNIT_CERTIFY_NEAREST) uniform sampler2DArray u_nearest;
 layout(binding = TEXTURE_UNIT_CERTIFY_NEAREST_OWNER) uniform usampler2DArray u_nearest_owner;
 layout(binding = TEXTURE_UNIT_CERTIFY_OTHERS) uniform sampler2DArray u_others;
 layout(binding = TEXTURE_UNIT_CERTIFY_CENTRE_TRIANGLE) uniform usampler2DArray u_centre_triangle;
+layout(binding = TEXTURE_UNIT_CERTIFY_COVER) uniform sampler2DArray u_cover;
 
 // The verdict on a point that faces the light with margin: the maps'
 // proof of light or of shadow, or none.
@@ -562,6 +563,11 @@ uint verdict_by_maps(Seen s) {
   float one_column = last.x == first.x ? 1.0 : 0.0, one_row = last.y == first.y ? 1.0 : 0.0;
   vec4 outside = vec4(one_row, max(one_row, one_column), one_column, 0.0);
   if (all(greaterThan(vec4(greaterThan(behind, vec4(z + dz))) + outside, vec4(0.5)))) return CERTIFICATE_LIT;
+  // Shadowed, by the cover map: every light ray through each texel the
+  // square meets crosses a triangle no farther than its cover depth, which
+  // lies in front of the point by more than dz.
+  vec4 cover = textureGather(u_cover, block);
+  if (all(greaterThan(vec4(lessThan(cover, vec4(z - dz))) + outside, vec4(0.5)))) return CERTIFICATE_DARK;
   // Shadowed: one triangle holds the four texel centres around the square
   // (so, being convex, the square too) and lies in front of the point by
   // more than dz even at its farthest centre (a plane is affine between

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <random>
@@ -238,6 +239,160 @@ TEST(ConservativeMaps, BandsMakeTheWholeMap) {
     rows += std::size_t(band.height());
   });
   EXPECT_EQ(rows, 58u);
+}
+
+}  // namespace
+}  // namespace umbra
+
+namespace umbra {
+namespace {
+
+// The cover map (docs/certified-shadows.md, "The cover map"): where it
+// holds a depth, every light ray through the texel's square meets a
+// triangle no farther than that. Checked at 7 x 7 points of each such
+// square, its corners and sides included: the nearest triangle holding the
+// point (window space, in double), which must exist and lie no farther.
+// Returns how many texels it proved.
+std::size_t expect_cover_holds(const Triangles& t, const std::vector<ConservativeObject>& objects,
+                               const ConservativeView& view, const char* what) {
+  std::vector<bool> models;
+  for (const ConservativeObject& o : objects) models.push_back(o.model);
+  const SliverEdges edges(t.positions, t.indices, t.objects, models);
+  const std::vector<DrawRange> draws = {{0, t.indices.size(), CullMode::None}};
+  const ConservativeMaps maps(t.positions, t.indices, objects, t.objects, draws, view, {}, &edges);
+  ConservativeBand band;
+  band.x1 = band.y1 = view.size;
+  maps.draw(band);
+  const glm::dmat4 to_clip = glm::dmat4(view.projection) * glm::dmat4(view.view);
+  std::vector<std::array<glm::dvec3, 3>> windows;
+  for (std::size_t tri = 0; tri < t.objects.size(); ++tri) {
+    std::array<glm::dvec3, 3> w;
+    for (int k = 0; k < 3; ++k) {
+      const glm::dvec4 c = to_clip * glm::dvec4(glm::dvec3(t.positions[t.indices[3 * tri + std::size_t(k)]]), 1.0);
+      const glm::dvec3 ndc = glm::dvec3(c) / c.w;
+      w[std::size_t(k)] = {(ndc.x * 0.5 + 0.5) * view.size, (ndc.y * 0.5 + 0.5) * view.size, ndc.z * 0.5 + 0.5};
+    }
+    windows.push_back(w);
+  }
+  // The nearest depth at window point (x, y) of the triangles holding it.
+  const auto first_hit = [&](double x, double y) {
+    double nearest = 1e300;
+    for (const auto& w : windows) {
+      const glm::dvec2 a(w[0]), b(w[1]), c(w[2]);
+      const double area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+      if (area == 0.0) continue;
+      const double l1 = ((b.x - x) * (c.y - y) - (b.y - y) * (c.x - x)) / area;
+      const double l2 = ((c.x - x) * (a.y - y) - (c.y - y) * (a.x - x)) / area;
+      const double l3 = 1.0 - l1 - l2;
+      if (l1 < 0.0 || l2 < 0.0 || l3 < 0.0) continue;
+      nearest = std::min(nearest, l1 * w[0].z + l2 * w[1].z + l3 * w[2].z);
+    }
+    return nearest;
+  };
+  std::size_t proved = 0, wrong = 0;
+  for (int j = 0; j < view.size; ++j)
+    for (int i = 0; i < view.size; ++i) {
+      const float cover = band.cover_depth[std::size_t(j) * std::size_t(view.size) + std::size_t(i)];
+      if (cover >= 1.0f) continue;
+      ++proved;
+      for (int a = 0; a <= 6; ++a)
+        for (int b = 0; b <= 6; ++b) {
+          const double x = i + a / 6.0, y = j + b / 6.0, hit = first_hit(x, y);
+          if (hit > double(cover) && ++wrong <= 5)
+            ADD_FAILURE() << what << ": texel " << i << ", " << j << " covers to " << cover << " but the ray at " << x
+                          << ", " << y
+                          << (hit > 1e299 ? std::string(" meets nothing") : " first meets depth " + std::to_string(hit));
+        }
+    }
+  EXPECT_EQ(wrong, 0u) << what;
+  return proved;
+}
+
+// A height field seen from the light (a sheet, tessellated, bumped): its
+// inside is covered; where `fold` > 0 its x is pushed back and forth
+// (x + fold sin(8x)), so that it folds over itself, seen from the light.
+Triangles sheet(std::mt19937& random, std::uint32_t object, float fold, float z, int n = 18) {
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  std::vector<glm::vec3> grid;
+  for (int y = 0; y <= n; ++y)
+    for (int x = 0; x <= n; ++x) {
+      const float u = -0.8f + 1.6f * float(x) / float(n), v = -0.8f + 1.6f * float(y) / float(n);
+      grid.push_back({u + fold * std::sin(8.0f * u), v, z + 0.1f * unit(random)});
+    }
+  Triangles t;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      const auto at = [&](int i, int k) { return grid[std::size_t(k * (n + 1) + i)]; };
+      add_triangle(t, at(x, y), at(x + 1, y), at(x + 1, y + 1), object);
+      add_triangle(t, at(x, y), at(x + 1, y + 1), at(x, y + 1), object);
+    }
+  return t;
+}
+
+void append(Triangles& to, const Triangles& more) {
+  const auto base = std::uint32_t(to.positions.size());
+  to.positions.insert(to.positions.end(), more.positions.begin(), more.positions.end());
+  for (std::uint32_t i : more.indices) to.indices.push_back(base + i);
+  to.objects.insert(to.objects.end(), more.objects.begin(), more.objects.end());
+}
+
+TEST(ConservativeMaps, TheCoverMapHoldsOnlyDepthsEveryRayMeets) {
+  std::mt19937 random(5);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  // The second sheet is swollen as a curved shape is (its true surface
+  // beyond its faces): more texels touched, none more covered.
+  const std::vector<ConservativeObject> objects = {{0.0, true, false}, {0.03, false, false}, {0.0, true, false}};
+  for (int scene = 0; scene < 12; ++scene) {
+    // A sheet that folds over itself in every other scene, a second one
+    // across part of it, and needles.
+    Triangles t = sheet(random, 0, scene % 2 ? 0.2f : 0.0f, 0.3f);
+    for (glm::vec3& p : t.positions) p.x = 0.6f * p.x - 0.3f;
+    // Beside it, and across its edge.
+    Triangles second = sheet(random, 1, 0.0f, -0.2f, 5);
+    for (glm::vec3& p : second.positions) p = glm::vec3(0.5f * p.x + 0.4f, 0.7f * p.y, p.z);
+    append(t, second);
+    for (int k = 0; k < 6; ++k) {
+      const glm::vec3 c(unit(random) * 0.8f, unit(random) * 0.8f, unit(random) * 0.5f);
+      add_triangle(t, c, c + glm::vec3(0.4f, 0.01f * unit(random), 0.1f), c + glm::vec3(0.4f, 0.002f, 0.0f), 2);
+    }
+    const std::size_t proved = expect_cover_holds(t, objects, orthographic_view(32 + 16 * (scene % 3)), "orthographic");
+    // Most of the sheets' inside is proved.
+    EXPECT_GT(proved, std::size_t(0.15 * 32 * 32)) << "scene " << scene;
+  }
+}
+
+TEST(ConservativeMaps, TheCoverMapHoldsForAPointLightToo) {
+  std::mt19937 random(9);
+  ConservativeView view;
+  view.perspective = true;
+  view.size = 48;
+  view.layer_size = 96;
+  view.near_plane = 0.5;
+  view.far_plane = 20.0;
+  view.tan_half = std::tan(glm::radians(45.0));
+  view.texel_size = glm::dvec2(2.0 * view.tan_half / view.layer_size);
+  view.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.5f, 20.0f);
+  view.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+  const std::vector<ConservativeObject> objects = {{0.0, true, false}, {0.0, false, false}};
+  for (int scene = 0; scene < 6; ++scene) {
+    Triangles t = sheet(random, 0, scene % 2 ? 0.2f : 0.0f, 0.0f);
+    // Tilted, in front of the light; some reach behind it (clipped).
+    for (glm::vec3& p : t.positions) p = glm::vec3(3.0f * p.x, 3.0f * p.y, -2.5f + 1.0f * p.x + 0.5f * p.z + 0.2f * float(scene));
+    const std::size_t proved = expect_cover_holds(t, objects, view, "perspective");
+    EXPECT_GT(proved, 0u) << "scene " << scene;
+  }
+}
+
+// Without the scene's edges the cover map proves nothing.
+TEST(ConservativeMaps, NoEdgesNoCover) {
+  std::mt19937 random(1);
+  const Triangles t = sheet(random, 0, 0.0f, 0.3f);
+  const ConservativeView view = orthographic_view(32);
+  ConservativeBand band;
+  band.x1 = band.y1 = view.size;
+  ConservativeMaps(t.positions, t.indices, {{0.0, true, false}}, t.objects, {{0, t.indices.size(), CullMode::None}}, view)
+      .draw(band);
+  EXPECT_TRUE(std::all_of(band.cover_depth.begin(), band.cover_depth.end(), [](float d) { return d == 1.0f; }));
 }
 
 }  // namespace

@@ -268,9 +268,9 @@ TEST(ShaderFiles, NameNoNumberOfTheirOwnForALocationOrBinding) {
   // a_position twice, a_normal, a_color, o_color twice, u_layer, u_shadow_map twice; filter "exact"'s:
   // certificate.glsl's two buffer textures, certify.geom's u_layer and u_triangle_base, certify.frag's
   // u_triangle_base, o_triangle, u_layer, o_owner and u_nearest_owner, scene.frag's o_certificate,
-  // o_unlit, u_triangle_base, u_proof_object, u_proof_margin, u_proof_rounding and four maps; the sliver
+  // o_unlit, u_triangle_base, u_proof_object, u_proof_margin, u_proof_rounding and five maps; the sliver
   // pass's a_position, u_triangle_base, u_cull_back, u_certificates and o_sliver.
-  EXPECT_EQ(declarations, 33);
+  EXPECT_EQ(declarations, 34);
 }
 
 }  // namespace

@@ -93,6 +93,7 @@ inline constexpr int kTextureUnitCertifyCentreTriangle = 4;
 inline constexpr int kTextureUnitTriangleObjects = 5;
 inline constexpr int kTextureUnitObjectFacts = 6;
 inline constexpr int kTextureUnitCertificates = 7;
+inline constexpr int kTextureUnitCertifyCover = 8;
 /// Every texture unit a shader binds, with its sampler's GLSL name and
 /// the #define that carries it.
 struct TextureUnit {
@@ -108,6 +109,8 @@ inline constexpr TextureUnit kTextureUnits[] = {
     {"u_nearest_owner", "TEXTURE_UNIT_CERTIFY_NEAREST_OWNER", kTextureUnitCertifyNearestOwner},
     {"u_others", "TEXTURE_UNIT_CERTIFY_OTHERS", kTextureUnitCertifyOthers},
     {"u_centre_triangle", "TEXTURE_UNIT_CERTIFY_CENTRE_TRIANGLE", kTextureUnitCertifyCentreTriangle},
+    // The cover map (ConservativeBand::cover_depth; far where not drawn).
+    {"u_cover", "TEXTURE_UNIT_CERTIFY_COVER", kTextureUnitCertifyCover},
     // Buffer textures of the scene: each triangle's object, each object's facts.
     {"u_triangle_objects", "TEXTURE_UNIT_TRIANGLE_OBJECTS", kTextureUnitTriangleObjects},
     {"u_object_facts", "TEXTURE_UNIT_OBJECT_FACTS", kTextureUnitObjectFacts},

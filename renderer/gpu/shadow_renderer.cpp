@@ -222,9 +222,10 @@ std::uint64_t ShadowRenderer::depth_preview_bytes() const {
 std::uint64_t ShadowRenderer::certify_bytes() const {
   if (certify_.size == 0) return 0;
   // The centre map's depth and triangle, the nearest map's depth and
-  // owner, the others' depth: five 32-bit maps of the coarse size.
+  // owner, the others' depth, the cover map: six 32-bit maps of the
+  // coarse size.
   const std::uint64_t coarse = std::uint64_t(certified_map_size(certify_.size)) * std::uint64_t(certified_map_size(certify_.size));
-  return 5 * coarse * std::uint64_t(certify_.layers) * 4;
+  return 6 * coarse * std::uint64_t(certify_.layers) * 4;
 }
 
 std::uint64_t ShadowRenderer::cached_bytes() const {
@@ -266,6 +267,7 @@ std::uint64_t ShadowRenderer::release_cached(std::uint64_t max_bytes) {
     certify_.nearest_depth.reset();
     certify_.nearest_owner.reset();
     certify_.others_depth.reset();
+    certify_.cover_depth.reset();
     certify_.size = certify_.layers = 0;
     certify_.kept = {};
   }
@@ -356,6 +358,7 @@ void ShadowRenderer::resize_certify_maps(int size, int layers) {
   certify_.nearest_depth = texel_array(GL_DEPTH_COMPONENT32F, coarse, layers);
   certify_.nearest_owner = texel_array(GL_R32UI, coarse, layers);
   certify_.others_depth = texel_array(GL_DEPTH_COMPONENT32F, coarse, layers);
+  certify_.cover_depth = texel_array(GL_R32F, coarse, layers);
   certify_.framebuffer = gl::create_framebuffer();
   certify_.size = size;
   certify_.layers = layers;
@@ -486,7 +489,7 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
   // A scene of more triangles keeps no copy of them here (use_certificate_buffers).
   if (triangles > kMostConservativeTriangles || (triangles > 0 && g.positions.empty())) return false;
   const ConservativeMaps maps(g.positions, g.position_indices, g.conservative_objects, g.triangle_object_ids, layer.draws, view,
-                              g.facing_owners);
+                              g.facing_owners, g.sliver_edges ? &*g.sliver_edges : nullptr);
   const auto [x0, y0, x1, y1] = certified_read_box(layer, plan.light.layer_size);
   const GLint at = GLint(layer.layer);
   // Drawn where a triangle may reach; far, with no owner, in the rest of
@@ -505,6 +508,7 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
       glClearTexSubImage(depth, 0, cx0, cy0, at, cx1 - cx0, cy1 - cy0, 1, GL_DEPTH_COMPONENT, GL_FLOAT, &far);
     glClearTexSubImage(certify_.nearest_owner.id(), 0, cx0, cy0, at, cx1 - cx0, cy1 - cy0, 1, GL_RED_INTEGER,
                        GL_UNSIGNED_INT, &no_owner);
+    glClearTexSubImage(certify_.cover_depth.id(), 0, cx0, cy0, at, cx1 - cx0, cy1 - cy0, 1, GL_RED, GL_FLOAT, &far);
   };
   clear(x0, y0, x1, ty0);    // below
   clear(x0, ty1, x1, y1);    // above
@@ -524,6 +528,8 @@ bool ShadowRenderer::upload_conservative_maps(const FramePlan& plan, const Frame
     else
       glTextureSubImage3D(certify_.others_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1,
                           GL_DEPTH_COMPONENT, GL_FLOAT, band.others_depth.data());
+    glTextureSubImage3D(certify_.cover_depth.id(), 0, band.x0, band.y0, at, band.width(), band.height(), 1, GL_RED,
+                        GL_FLOAT, band.cover_depth.data());
   });
   return true;
 }
@@ -594,6 +600,8 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const Fram
     glProgramUniform1i(others, kUniformLocationLayer, at);
     draw_scene(layer.draws);
     glBindTextureUnit(kTextureUnitCertifyNearestOwner, 0);
+    // The shaders draw no cover map (it proves nothing, far).
+    clear(certify_.cover_depth.id(), GL_RED, GL_FLOAT, &far);
   }
   set_triangle_base_ = false;
   certify_.kept = plan.shadow.certified_kept_after;
@@ -766,6 +774,7 @@ void ShadowRenderer::run_display_pass(const FramePlan& plan) {
     glBindTextureUnit(kTextureUnitCertifyNearestOwner, certify_.nearest_owner.id());
     glBindTextureUnit(kTextureUnitCertifyOthers, certify_.others_depth.id());
     glBindTextureUnit(kTextureUnitCertifyCentreTriangle, certify_.centre_triangle.id());
+    glBindTextureUnit(kTextureUnitCertifyCover, certify_.cover_depth.id());
     glBindTextureUnit(kTextureUnitTriangleObjects, scene().triangle_objects.id());
     glBindTextureUnit(kTextureUnitObjectFacts, scene().object_facts.id());
     set_triangle_base_ = true;

@@ -137,6 +137,7 @@ class ShadowRenderer {
     gl::Texture nearest_depth;    // DEPTH_COMPONENT32F: conservative nearest depth
     gl::Texture nearest_owner;    // R32UI: its owner
     gl::Texture others_depth;     // DEPTH_COMPONENT32F: nearest of every other owner
+    gl::Texture cover_depth;      // R32F: the cover map (drawn on the CPU only; else far)
     gl::Framebuffer framebuffer;
     int size = 0, layers = 0;
     // What the maps hold now (plan_frame decides whether they serve a frame).

@@ -79,12 +79,13 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
   }
   glm::dvec3 p[4];
   glm::dvec2 lo(1e300), hi(-1e300);
-  double min_depth = 1e300;
+  double min_depth = 1e300, max_depth = -1e300;
   for (int i = 0; i < n; ++i) {
     p[i] = to_texels(poly[i], size);
     lo = glm::min(lo, glm::dvec2(p[i]));
     hi = glm::max(hi, glm::dvec2(p[i]));
     min_depth = std::min(min_depth, p[i].z);
+    max_depth = std::max(max_depth, p[i].z);
   }
   if (!(hi.x >= -1.0 && hi.y >= -1.0 && lo.x <= size + 1.0 && lo.y <= size + 1.0)) return false;
   double area = 0.0;
@@ -136,6 +137,7 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
   }
   s.origin = glm::dvec2(a);
   s.min_depth = min_depth;
+  s.max_depth = max_depth;
   s.owner = turns_to_light ? facing_owner : owner;
   const double coarse_texels = double(view.layer_size) / size;
   double texel_world = 0.0, window_per_world = 0.0;
@@ -181,8 +183,10 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
                                    const std::vector<ConservativeObject>& objects,
                                    const std::vector<std::uint32_t>& triangle_objects,
                                    const std::vector<DrawRange>& draws, const ConservativeView& view,
-                                   const std::vector<std::uint32_t>& facing_owners) {
+                                   const std::vector<std::uint32_t>& facing_owners, const SliverEdges* edges) {
   const glm::dmat4 to_clip = glm::dmat4(view.projection) * glm::dmat4(view.view);
+  // Which triangles the maps hold (their setups'), for the folds.
+  std::vector<std::uint8_t> drawn(edges ? triangle_objects.size() : 0, 0);
   for (const DrawRange& draw : draws) {
     for (std::size_t i = draw.first; i + 2 < draw.first + draw.count; i += 3) {
       const std::size_t triangle = i / 3;
@@ -193,8 +197,80 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
       const std::uint32_t owner = facts.model ? (std::uint32_t(triangle) | kModelTriangleOwner) : object;
       const std::uint32_t facing_owner = facts.model && !facing_owners.empty() ? facing_owners.at(triangle) : owner;
       Setup s;
-      if (set_up(clip, view, facts, owner, facing_owner, s)) setups_.push_back(s);
+      if (set_up(clip, view, facts, owner, facing_owner, s)) {
+        setups_.push_back(s);
+        if (edges) drawn.at(triangle) = 1;
+      }
     }
+  }
+  if (edges) find_folds(positions, *edges, drawn, to_clip, view);
+}
+
+// The cover map's argument (docs/certified-shadows.md, "The cover map"):
+// how many of the drawn triangles a light ray meets changes, as the ray
+// moves across the layer, only where it crosses an edge whose two
+// triangles lie on one side of it there (the surface folds over, seen from
+// the light), or an edge of a drawn triangle that no other drawn triangle
+// shares. Every other edge is crossed from one triangle into the next.
+void ConservativeMaps::find_folds(const std::vector<glm::vec3>& positions, const SliverEdges& edges,
+                                  const std::vector<std::uint8_t>& drawn, const glm::dmat4& to_clip,
+                                  const ConservativeView& view) {
+  cover_ = true;
+  const double size = double(view.size);
+  const double w_min = view.perspective ? 0.5 * view.near_plane : -1e300;
+  // Each corner projected once (an edge needs four).
+  std::vector<glm::dvec4> clip(positions.size());
+  std::vector<std::uint8_t> projected(positions.size(), 0);
+  const auto clip_of = [&](std::uint32_t v) -> const glm::dvec4& {
+    if (!projected.at(v)) {
+      clip[v] = to_clip * glm::dvec4(glm::dvec3(positions[v]), 1.0);
+      projected[v] = 1;
+    }
+    return clip[v];
+  };
+  const auto is_drawn = [&](std::uint32_t t) { return t != SliverEdges::kOpen && t < drawn.size() && drawn[t]; };
+  for (const SliverEdges::Edge& e : edges.all()) {
+    if (!is_drawn(e.first_triangle) && !is_drawn(e.second_triangle)) continue;
+    glm::dvec4 a = clip_of(e.a), b = clip_of(e.b);
+    if (a.w < w_min && b.w < w_min) continue;  // wholly behind half the near plane: off the layer
+    bool fold = true;
+    if (is_drawn(e.first_triangle) && is_drawn(e.second_triangle) && a.w >= w_min && b.w >= w_min) {
+      const glm::dvec4 c = clip_of(e.first_third), d = clip_of(e.second_third);
+      if (c.w >= w_min && d.w >= w_min) {
+        const glm::dvec2 pa = glm::dvec2(to_texels(a, size)), pb = glm::dvec2(to_texels(b, size));
+        const glm::dvec2 pc = glm::dvec2(to_texels(c, size)), pd = glm::dvec2(to_texels(d, size));
+        const glm::dvec2 ab = pb - pa;
+        // Each third corner's side, settled beyond the corners' rounding
+        // (as the maps' edges allow it: 1e-3 texel and 1e-6 of the extent).
+        const double eps = 1e-3 + 1e-6 * std::max({std::abs(pa.x), std::abs(pa.y), std::abs(pb.x), std::abs(pb.y), 1.0});
+        const auto side = [&](const glm::dvec2& q) {
+          const glm::dvec2 aq = q - pa;
+          const double cross = ab.x * aq.y - ab.y * aq.x;
+          const double bound = 2.0 * eps * (std::abs(ab.x) + std::abs(ab.y) + std::abs(aq.x) + std::abs(aq.y) +
+                                            std::abs(q.x - pb.x) + std::abs(q.y - pb.y)) + 4.0 * eps * eps;
+          return cross > bound ? 1 : cross < -bound ? -1 : 0;
+        };
+        const int sc = side(pc), sd = side(pd);
+        fold = !(sc != 0 && sd != 0 && sc != sd);
+      }
+    }
+    if (!fold) continue;
+    // The part in front of half the near plane (the rest lies off the
+    // layer, as every triangle's part there does).
+    if (a.w < w_min) a = b + (a - b) * ((b.w - w_min) / (b.w - a.w));
+    if (b.w < w_min) b = a + (b - a) * ((a.w - w_min) / (a.w - b.w));
+    Fold f{glm::dvec2(to_texels(a, size)), glm::dvec2(to_texels(b, size))};
+    // Clamped to a little beyond the layer: a fold's marks off it are not kept.
+    const glm::dvec2 lo(-4.0), hi(size + 4.0);
+    if (std::max(f.a.x, f.b.x) < lo.x || std::min(f.a.x, f.b.x) > hi.x || std::max(f.a.y, f.b.y) < lo.y ||
+        std::min(f.a.y, f.b.y) > hi.y)
+      continue;
+    // Every texel whose square comes within the rounding of the fold: its
+    // centre within half a diagonal of it, and 1/32 texel, 1e-3 texel and
+    // 1e-6 of the corners' extent more (the maps' own margins).
+    const double extent = std::max({size, std::abs(f.a.x), std::abs(f.a.y), std::abs(f.b.x), std::abs(f.b.y)});
+    f.reach = 0.5 * std::sqrt(2.0) + 1.0 / 32.0 + 1e-3 + 1e-6 * extent;
+    folds_.push_back(f);
   }
 }
 
@@ -221,6 +297,11 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
   band.nearest_depth.assign(w * h, 1.0f);
   band.nearest_owner.assign(w * h, kNoOwner);
   band.others_depth.assign(w * h, 1.0f);
+  // The cover map: each texel's farthest depth of the triangles touching
+  // it (-1: none yet); scratch 1 where a triangle holds the texel's centre,
+  // 2 where a fold passes near.
+  band.cover_depth.assign(w * h, cover_ ? -std::numeric_limits<float>::infinity() : 1.0f);
+  band.scratch.assign(cover_ ? w * h : 0, 0);
   if (w == 0 || h == 0) return;
   struct Edge {
     double nx, ny, k;  // keeps nx * cx + ny * cy + k <= 0
@@ -238,43 +319,66 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
     // the 1e-3 texel alone would do.
     const double reach = (s.hi.x - s.lo.x) + (s.hi.y - s.lo.y) + 2.0;
     Edge edges[4];
+    // For the cover map: the centres the polygon itself holds (no growth,
+    // no swell: a curved shape's faces lie inside its true surface), kept
+    // inside by the corners' rounding (1e-3 texel and 1e-6 of their extent).
+    Edge inner[4];
+    double corner_extent = 1.0;
+    for (int e = 0; e < s.edge_count; ++e)
+      corner_extent = std::max({corner_extent, std::abs(s.corner[e].x), std::abs(s.corner[e].y)});
     for (int e = 0; e < s.edge_count; ++e) {
       const glm::dvec2 a = s.corner[e], b = s.corner[(e + 1) % s.edge_count];
       const double nx = b.y - a.y, ny = a.x - b.x, l1 = std::abs(nx) + std::abs(ny);
       const double rounding = l1 * (1e-3 + 1e-6 * reach) + s.swell * std::sqrt(nx * nx + ny * ny);
       edges[e] = {nx, ny, -nx * a.x - ny * a.y - 0.5 * l1 - rounding};
+      inner[e] = {nx, ny, -nx * a.x - ny * a.y + l1 * (1e-3 + 1e-6 * corner_extent)};
     }
-    const double slope = 0.5 * (std::abs(s.plane.x) + std::abs(s.plane.y));
-    for (int j = j0; j <= j1; ++j) {
-      const double cy = double(j) + 0.5;
-      // The row's span of centres on the inner side of every edge, widened
-      // by a millionth of a texel for this double arithmetic.
-      double from = double(i0) + 0.5, to = double(i1) + 0.5;
-      bool empty = false;
-      for (int e = 0; e < s.edge_count && !empty; ++e) {
-        const Edge& g = edges[e];
+    // The row's span of centres on the inner side of every edge of `of`.
+    const auto span_of = [&](const Edge* of, double cy, double& from, double& to) {
+      for (int e = 0; e < s.edge_count; ++e) {
+        const Edge& g = of[e];
         const double k = g.ny * cy + g.k;
         if (g.nx > 0.0) {
           to = std::min(to, -k / g.nx + 1e-6);
         } else if (g.nx < 0.0) {
           from = std::max(from, -k / g.nx - 1e-6);
         } else if (k > 0.0) {
-          empty = true;
+          return false;
         }
       }
-      if (empty || from > to) continue;
+      return from <= to;
+    };
+    const double slope = 0.5 * (std::abs(s.plane.x) + std::abs(s.plane.y));
+    for (int j = j0; j <= j1; ++j) {
+      const double cy = double(j) + 0.5;
+      // The row's span of centres on the inner side of every edge, widened
+      // by a millionth of a texel for this double arithmetic.
+      double from = double(i0) + 0.5, to = double(i1) + 0.5;
+      if (!span_of(edges, cy, from, to)) continue;
       const int a = std::max(i0, first_centre(from)), b = std::min(i1, last_centre(to));
       const std::size_t row = std::size_t(j - band.y0) * w;
       const double dy = cy - s.origin.y;
+      if (cover_ && s.edge_count >= 3) {
+        double in_from = from, in_to = to;
+        if (span_of(inner, cy, in_from, in_to))
+          for (int i = std::max(a, first_centre(in_from)); i <= std::min(b, last_centre(in_to)); ++i)
+            band.scratch[row + std::size_t(i - band.x0)] = 1;
+      }
       for (int i = a; i <= b; ++i) {
-        double depth = s.min_depth, rounding = 1e-6;
+        double depth = s.min_depth, farthest = s.max_depth, rounding = 1e-6;
         if (s.plane_valid) {
           const double dx = double(i) + 0.5 - s.origin.x;
-          depth = std::max(depth, s.plane.z + s.plane.x * dx + s.plane.y * dy - slope);
+          const double centre = s.plane.z + s.plane.x * dx + s.plane.y * dy;
+          depth = std::max(depth, centre - slope);
+          farthest = std::min(farthest, centre + slope);
           rounding += 4e-7 * (std::abs(s.plane.x * dx) + std::abs(s.plane.y * dy) + slope + std::abs(s.plane.z));
         }
         const float d = float_at_most(std::clamp(depth - rounding - s.depth_swell, 0.0, 1.0));
         const std::size_t at = row + std::size_t(i - band.x0);
+        // The cover map: the farthest depth of the plane over the texel's
+        // square (never past the farthest corner) and its rounding, to the
+        // nearest float here, a float step further in finish_cover.
+        if (cover_) band.cover_depth[at] = std::max(band.cover_depth[at], float(farthest + rounding));
         if (s.owner == band.nearest_owner[at]) {
           band.nearest_depth[at] = std::min(band.nearest_depth[at], d);
         } else if (d < band.nearest_depth[at]) {
@@ -287,6 +391,61 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
       }
     }
   }
+  if (cover_) finish_cover(band);
+}
+
+// Marks the texels near each fold, and leaves the cover map far wherever
+// a fold passes or no triangle holds the texel's centre.
+void ConservativeMaps::finish_cover(ConservativeBand& band) const {
+  const std::size_t w = std::size_t(band.width());
+  // Solves lo <= c x + k <= hi for x, within [x_lo, x_hi].
+  const auto clip = [](double c, double k, double lo, double hi, double& x_lo, double& x_hi) {
+    if (std::abs(c) < 1e-12) {
+      if (k < lo || k > hi) x_hi = x_lo - 1.0;
+      return;
+    }
+    double p = (lo - k) / c, q = (hi - k) / c;
+    if (p > q) std::swap(p, q);
+    x_lo = std::max(x_lo, p);
+    x_hi = std::min(x_hi, q);
+  };
+  for (const Fold& f : folds_) {
+    const double r = f.reach;
+    const int j0 = std::max(band.y0, first_centre(std::min(f.a.y, f.b.y) - r));
+    const int j1 = std::min(band.y1 - 1, last_centre(std::max(f.a.y, f.b.y) + r));
+    const glm::dvec2 d = f.b - f.a;
+    const double length = glm::length(d);
+    const glm::dvec2 u = length > 1e-12 ? d / length : glm::dvec2(1.0, 0.0), n(-u.y, u.x);
+    for (int j = j0; j <= j1; ++j) {
+      const double cy = double(j) + 0.5 - f.a.y;
+      // The centres (x, cy) within r of the line and within r past its
+      // ends along it: a rectangle around the segment, x relative to a.
+      double x_lo = -1e300, x_hi = 1e300;
+      clip(n.x, n.y * cy, -r, r, x_lo, x_hi);
+      clip(u.x, u.y * cy, -r, length + r, x_lo, x_hi);
+      if (x_lo > x_hi) continue;
+      const int i0 = std::max(band.x0, first_centre(std::max(x_lo + f.a.x, -1e9)));
+      const int i1 = std::min(band.x1 - 1, last_centre(std::min(x_hi + f.a.x, 1e9)));
+      const std::size_t row = std::size_t(j - band.y0) * w;
+      for (int i = i0; i <= i1; ++i) band.scratch[row + std::size_t(i - band.x0)] |= 2;
+    }
+  }
+  // Kept: a step up from the nearest float of the farthest depth (at
+  // least that depth), at most 1.
+  // (The step in the bits, as float_at_most's: no library call per texel.)
+  for (std::size_t at = 0; at < band.cover_depth.size(); ++at) {
+    const float d = band.cover_depth[at];
+    if (band.scratch[at] == 1 && d > 0.0f && d < 1.0f) {
+      std::uint32_t bits;
+      std::memcpy(&bits, &d, sizeof bits);
+      ++bits;
+      std::memcpy(&band.cover_depth[at], &bits, sizeof bits);
+    } else {
+      // Not proved, or at or before the light's near plane (depth <= 0:
+      // nothing a fitted view holds; left far rather than stepped).
+      band.cover_depth[at] = 1.0f;
+    }
+  }
 }
 
 bool ConservativeBand::others_all_far() const {
@@ -296,7 +455,7 @@ bool ConservativeBand::others_all_far() const {
 void draw_conservative_bands(const ConservativeMaps& maps, int x0, int y0, int x1, int y1, std::size_t band_bytes,
                              const std::function<void(const ConservativeBand&)>& take) {
   if (x1 <= x0 || y1 <= y0) return;
-  const std::size_t row_bytes = std::size_t(x1 - x0) * (2 * sizeof(float) + sizeof(std::uint32_t));
+  const std::size_t row_bytes = std::size_t(x1 - x0) * (3 * sizeof(float) + sizeof(std::uint32_t) + 1);
   const int rows = int(std::clamp<std::size_t>(band_bytes / row_bytes, 1, std::size_t(y1 - y0)));
   const int threads = int(std::max(1u, std::thread::hardware_concurrency()));
   // Bands of about equal rows, at least one per thread where the rows allow.
@@ -308,6 +467,8 @@ void draw_conservative_bands(const ConservativeMaps& maps, int x0, int y0, int x
     band.nearest_depth.reserve(most);
     band.nearest_owner.reserve(most);
     band.others_depth.reserve(most);
+    band.cover_depth.reserve(most);
+    band.scratch.reserve(most);
   }
   for (int first = 0; first < count; first += int(bands.size())) {
     const int batch = std::min(int(bands.size()), count - first);

@@ -21,6 +21,7 @@
 
 #include "core/scene.hpp"
 #include "plan/frame_plan.hpp"
+#include "plan/sliver_marks.hpp"
 
 namespace umbra {
 
@@ -81,6 +82,13 @@ struct ConservativeBand {
   std::vector<float> nearest_depth;
   std::vector<std::uint32_t> nearest_owner;
   std::vector<float> others_depth;
+  /// The cover map (drawn only here, with `folds`; the shaders leave it
+  /// far): where every light ray through the texel's square meets a
+  /// triangle, the farthest depth that any triangle touching the square
+  /// reaches in it, so that each such ray meets one no farther; 1 (far)
+  /// where that is not proved (docs/certified-shadows.md, "The cover map").
+  std::vector<float> cover_depth;
+  std::vector<std::uint8_t> scratch;  ///< draw()'s, per texel
   int width() const { return x1 - x0; }
   int height() const { return y1 - y0; }
   /// No texel has a second owner (a layer that one object reaches): the
@@ -95,13 +103,18 @@ class ConservativeMaps {
   /// `triangle_objects`: each triangle's object (by index / 3);
   /// `facing_owners`: light_facing_owners, taken for a model's triangle
   /// that clearly turns to the light (empty: every model triangle its own).
+  /// `edges`: the scene's, paired (SliverEdges over the same positions),
+  /// for the cover map's folds; null: no cover map (far everywhere).
   ConservativeMaps(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
                    const std::vector<ConservativeObject>& objects,
                    const std::vector<std::uint32_t>& triangle_objects, const std::vector<DrawRange>& draws,
-                   const ConservativeView& view, const std::vector<std::uint32_t>& facing_owners = {});
+                   const ConservativeView& view, const std::vector<std::uint32_t>& facing_owners = {},
+                   const SliverEdges* edges = nullptr);
   /// Fills `band` (its rectangle set by the caller, within the maps).
   void draw(ConservativeBand& band) const;
   std::size_t triangles() const { return setups_.size(); }
+  /// The folds the cover map leaves far around (texels of the maps).
+  std::size_t folds() const { return folds_.size(); }
   /// The texels any triangle may mark, [x0, x1) x [y0, y1) (empty when
   /// x0 >= x1): the rest of the maps stays far, with no owner.
   void touched(int& x0, int& y0, int& x1, int& y1) const;
@@ -117,13 +130,28 @@ class ConservativeMaps {
     glm::dvec3 plane{0.0};  ///< depth = z + x (tx - origin.x) + y (ty - origin.y)
     glm::dvec2 origin{0.0};
     double min_depth = 0.0;
+    double max_depth = 0.0;  ///< the farthest corner's window depth
     double swell = 0.0, depth_swell = 0.0;
     glm::dvec2 lo{0.0}, hi{0.0};
     std::uint32_t owner = 0;
   };
 
+  // A fold: an edge across which the number of triangles a light ray meets
+  // may change (its two triangles on one side of it on the layer, or not
+  // both drawn, or one alone), in texels of the maps.
+  struct Fold {
+    glm::dvec2 a{0.0}, b{0.0};
+    double reach = 0.0;  ///< texels whose centre lies this near it are marked
+  };
+
  private:
+  void finish_cover(ConservativeBand& band) const;
+  void find_folds(const std::vector<glm::vec3>& positions, const SliverEdges& edges,
+                  const std::vector<std::uint8_t>& drawn, const glm::dmat4& to_clip, const ConservativeView& view);
+
   std::vector<Setup> setups_;
+  std::vector<Fold> folds_;
+  bool cover_ = false;  ///< edges given: the cover map is drawn
 };
 
 /// The most triangles a layer's maps are drawn from here: their setups take

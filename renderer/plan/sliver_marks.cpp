@@ -17,7 +17,7 @@ std::array<std::uint32_t, 3> bits_of(const glm::vec3& p) {
 
 struct HalfEdge {
   std::array<std::uint32_t, 7> key;  // object, then the corners' bits, lesser first
-  std::uint32_t a, b, third;
+  std::uint32_t a, b, third, triangle;
 };
 
 // Marks the centres within kSliverPixels of the segment pa pb (window
@@ -83,6 +83,7 @@ SliverEdges::SliverEdges(const std::vector<glm::vec3>& positions, const std::vec
       h.a = a;
       h.b = b;
       h.third = third;
+      h.triangle = std::uint32_t(t);
       halves.push_back(h);
     }
   }
@@ -91,9 +92,11 @@ SliverEdges::SliverEdges(const std::vector<glm::vec3>& positions, const std::vec
     std::size_t j = i + 1;
     while (j < halves.size() && halves[j].key == halves[i].key) ++j;
     if (j - i == 2) {
-      edges_.push_back({halves[i].a, halves[i].b, halves[i].key[0], halves[i].third, halves[i + 1].third});
+      edges_.push_back({halves[i].a, halves[i].b, halves[i].key[0], halves[i].third, halves[i + 1].third,
+                        halves[i].triangle, halves[i + 1].triangle});
     } else {
-      for (std::size_t k = i; k < j; ++k) edges_.push_back({halves[k].a, halves[k].b, halves[k].key[0], halves[k].third, kOpen});
+      for (std::size_t k = i; k < j; ++k)
+        edges_.push_back({halves[k].a, halves[k].b, halves[k].key[0], halves[k].third, kOpen, halves[k].triangle, kOpen});
     }
     i = j;
   }

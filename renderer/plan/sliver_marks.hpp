@@ -71,9 +71,13 @@ class SliverEdges {
     /// The third corners of the two triangles sharing it, or kOpen in
     /// `second_third` where it is not shared by exactly two.
     std::uint32_t first_third = 0, second_third = 0;
+    /// The triangles (by index / 3) those corners are of (kOpen likewise).
+    std::uint32_t first_triangle = 0, second_triangle = 0;
     bool model = false;  ///< the object is a model: marked over itself too
   };
   static constexpr std::uint32_t kOpen = 0xFFFFFFFFu;
+  /// Every edge, once (ConservativeMaps' folds read them too).
+  const std::vector<Edge>& all() const { return edges_; }
 
  private:
   std::vector<Edge> edges_;
