@@ -347,8 +347,8 @@ TEST(ConservativeMaps, TheCoverMapHoldsOnlyDepthsEveryRayMeets) {
     // across part of it, and needles.
     Triangles t = sheet(random, 0, scene % 2 ? 0.2f : 0.0f, 0.3f);
     for (glm::vec3& p : t.positions) p.x = 0.6f * p.x - 0.3f;
-    // Beside it, and across its edge.
-    Triangles second = sheet(random, 1, 0.0f, -0.2f, 5);
+    // Beside it, and across its edge; in front of it or behind it.
+    Triangles second = sheet(random, 1, 0.0f, scene % 4 < 2 ? -0.2f : 0.6f, 5);
     for (glm::vec3& p : second.positions) p = glm::vec3(0.5f * p.x + 0.4f, 0.7f * p.y, p.z);
     append(t, second);
     for (int k = 0; k < 6; ++k) {
