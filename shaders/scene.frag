@@ -649,6 +649,20 @@ void main() {
 #if LIGHT_SIDE < 0
   // Drawn only where no point faces the light (scene.vert).
   float visibility = 0.0;
+#if CERTIFICATES
+  // Filter "exact": the facing rule settles such a point, dark or (within
+  // its slack, or where the exact point may lie elsewhere) uncertain, and
+  // no map is read. Never lit here: a point that turned out to face the
+  // light would need the maps' proof.
+  vec3 geometric_normal = normalize(cross(dFdx(v_position), dFdy(v_position)));
+  if (dot(geometric_normal, normal) < 0.0) geometric_normal = -geometric_normal;
+  Seen seen = seen_here(u_triangle_base + gl_PrimitiveID, triangle_ids(u_triangle_base + gl_PrimitiveID), geometric_normal,
+                        n_dot_l);
+  uint facing = verdict_by_facing(seen, n_dot_l, to_light);
+  uint verdict = left_to_the_ray_cast(seen) || facing == CERTIFICATE_LIT ? CERTIFICATE_UNCERTAIN : facing;
+  o_certificate = ((seen.object + 1u) << CERTIFICATE_OBJECT_SHIFT) | (n_dot_l > 0.0 ? 4u : 0u) | verdict;
+  visibility = verdict == CERTIFICATE_DARK ? 0.0 : 1.0;
+#endif
 #elif SHADOWS
   // The triangle's true plane, for the shadow lookup (a sphere's interpolated
   // normal is not the plane the shadow pass rasterised). Derivatives are
@@ -683,7 +697,7 @@ void main() {
   // A sun below the horizon: no direct light reaches any surface.
   float visibility = 0.0;
 #endif
-#if CERTIFICATES && !SHADOWS && PROOF == 0
+#if CERTIFICATES && !SHADOWS && PROOF == 0 && LIGHT_SIDE >= 0
   // Certified without a lookup: a sun below the horizon lights nothing, so
   // every surface is dark; the CPU casts only around changes of object.
   // With the light up, a frame drawn without maps (DisplayPassPlan::

@@ -468,18 +468,30 @@ TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds
   using Kind = DisplayStep::Kind;
   std::vector<Kind> kinds;
   for (const DisplayStep& step : pass.steps) kinds.push_back(step.kind);
-  ASSERT_EQ(kinds, (std::vector<Kind>{Kind::Objects, Kind::BoundsMarks, Kind::DarkUmbras, Kind::CertifiedNear,
-                                      Kind::ProvedLit}));
+  // The cubes (closed, seen from outside) in two parts, as in any frame
+  // with maps: where they may face the light, and where none of them can
+  // (the facing rule settles those without a map: scene.frag).
+  ASSERT_EQ(kinds, (std::vector<Kind>{Kind::ClosedFacingLight, Kind::ClosedAwayFromLight, Kind::Objects,
+                                      Kind::BoundsMarks, Kind::DarkUmbras, Kind::CertifiedNear, Kind::ProvedLit}));
   const std::size_t floor = mesh.planes.at(0).object;
-  // The floor is not among the objects drawn whole.
+  for (std::size_t i = 0; i < 2; ++i) {
+    std::size_t drawn = 0;
+    for (const DrawRange& draw : pass.steps[i].draws) drawn += draw.count;
+    EXPECT_EQ(drawn, mesh.closed_index_count);
+    EXPECT_TRUE(pass.steps[i].clip_by_light_side);
+    const DisplayVariant v = program_variant(pass.variant, pass.steps[i].program);
+    EXPECT_TRUE(v.certificates);
+    EXPECT_EQ(v.shadows, i == 0);  // the part turned from the light reads no map
+  }
+  // The floor is not among the objects drawn whole, nor the cubes now.
   std::size_t drawn = 0;
-  for (const DrawRange& draw : pass.steps[0].draws) drawn += draw.count;
-  EXPECT_EQ(drawn, mesh.closed_index_count);
+  for (const DrawRange& draw : pass.steps[2].draws) drawn += draw.count;
+  EXPECT_EQ(drawn, 0u);
   EXPECT_EQ(pass.umbras, 3u);  // one per cube
   EXPECT_GT(pass.proof_margin, 0.0f);
   EXPECT_LT(pass.proof_margin, 0.1f);
   EXPECT_FALSE(pass.cell_indices.empty());
-  for (std::size_t i = 1; i < pass.steps.size(); ++i) {
+  for (std::size_t i = 3; i < pass.steps.size(); ++i) {
     const DisplayStep& step = pass.steps[i];
     SCOPED_TRACE(i);
     EXPECT_EQ(step.object, floor);
@@ -501,9 +513,9 @@ TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds
       EXPECT_FALSE(v.shadows);
     }
   }
-  EXPECT_TRUE(pass.steps[1].stencil.marks_only);
-  EXPECT_EQ(pass.steps[4].stencil.test, StencilStep::Test::NotEqual);
-  EXPECT_EQ(pass.steps[4].stencil.mask, 0xFE);  // neither of the plane's marks
+  EXPECT_TRUE(pass.steps[3].stencil.marks_only);
+  EXPECT_EQ(pass.steps[6].stencil.test, StencilStep::Test::NotEqual);
+  EXPECT_EQ(pass.steps[6].stencil.mask, 0xFE);  // neither of the plane's marks
   // A floor 10^5 wide: its polygons' float corners round by up to
   // 2^-24 of 5 10^4, and the shadow of the bounds is grown by that too.
   const ParsedRequest parsed = parse_render_request(R"({"scene": {"objects": [{"type": "plane", "center": [0, 0, 0], "size": [100000, 100000]},
@@ -514,9 +526,10 @@ TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds
   const RenderRequest& huge = *parsed.request;
   const Mesh huge_mesh = tessellate(huge.scene);
   const FramePlan huge_plan = plan_frame(huge, huge_mesh, "scene", KeptShadowMap{});
-  ASSERT_GE(huge_plan.display.steps.size(), 2u);
-  const DisplayStep& marks = huge_plan.display.steps[1];
-  ASSERT_EQ(marks.kind, Kind::BoundsMarks);
+  const auto marks_step = std::find_if(huge_plan.display.steps.begin(), huge_plan.display.steps.end(),
+                                       [](const DisplayStep& step) { return step.kind == Kind::BoundsMarks; });
+  ASSERT_NE(marks_step, huge_plan.display.steps.end());
+  const DisplayStep& marks = *marks_step;
   double lowest_x = 1e300;
   for (std::size_t i = marks.draws[0].first; i < marks.draws[0].first + marks.draws[0].count; ++i)
     lowest_x = std::min(lowest_x, double(huge_plan.display.cell_vertices[huge_plan.display.cell_indices[i]].position[0]) +
@@ -536,7 +549,8 @@ TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds
   inside.light.projection = LightProjection::Perspective;
   inside.light.position = r.scene.objects[1].center;
   const FramePlan whole = plan_frame(inside, mesh, "scene", KeptShadowMap{});
-  ASSERT_EQ(whole.display.steps.size(), 1u);
+  ASSERT_EQ(whole.display.steps.size(), 3u);  // the cubes split by the light, then every other object
+  EXPECT_EQ(whole.display.steps[2].kind, Kind::Objects);
   EXPECT_TRUE(whole.display.cell_indices.empty());
 }
 
@@ -563,7 +577,11 @@ TEST(FramePlan, ACertifiedFrameWithoutMapsProvesTheFloorOrCastsEveryPixel) {
     EXPECT_TRUE(plan->read_back.certificates);
   }
   EXPECT_EQ(proofs.certified_path, CertifiedPath::Proofs);
-  EXPECT_EQ(proofs.display.steps.size(), maps.display.steps.size());
+  // The same steps but the split of closed meshes by the light, which
+  // only a frame with maps has (without them no pixel reads a map).
+  EXPECT_EQ(proofs.display.steps.size() + 2, maps.display.steps.size());
+  EXPECT_EQ(maps.display.steps[1].kind, DisplayStep::Kind::ClosedAwayFromLight);
+  EXPECT_EQ(proofs.display.steps[0].kind, DisplayStep::Kind::Objects);
   EXPECT_EQ(proofs.display.umbras, 3u);
   EXPECT_FALSE(proofs.display.sliver_draws.empty());
   EXPECT_EQ(proofs.display.background_certificate, 0u);
@@ -614,8 +632,10 @@ TEST(FramePlan, ACertifiedFrameDrawsItsMapsWholeAndReadsItsCertificates) {
   EXPECT_EQ(fixed_plan.shadow.layers.size(), fixed_plan.light.views.size());
   for (const ShadowLayerDraw& layer : fixed_plan.shadow.layers) EXPECT_TRUE(layer.clear_whole);
   EXPECT_TRUE(plan.display.certificates);
-  ASSERT_FALSE(plan.display.steps.empty());
-  EXPECT_EQ(plan.display.steps[0].kind, DisplayStep::Kind::Objects);
+  ASSERT_GE(plan.display.steps.size(), 3u);
+  EXPECT_EQ(plan.display.steps[0].kind, DisplayStep::Kind::ClosedFacingLight);
+  EXPECT_EQ(plan.display.steps[1].kind, DisplayStep::Kind::ClosedAwayFromLight);
+  EXPECT_EQ(plan.display.steps[2].kind, DisplayStep::Kind::Objects);
   EXPECT_EQ(plan.display.variant.filter, ShadowFilter::Exact);
   EXPECT_TRUE(plan.read_back.certificates);
   EXPECT_TRUE(plan.read_back.unlit);

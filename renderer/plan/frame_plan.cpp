@@ -464,6 +464,49 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
   return pass;
 }
 
+// The faces of a closed mesh that turn from the light get no direct light
+// (and, in a certified frame, no proof from the maps: the facing rule
+// settles them), yet llvmpipe would run the whole lookup for each of their
+// pixels (it runs both sides of a branch): `contact-line`'s box face fills a
+// third of the frame. So closed meshes are drawn in two parts (LIGHT_SIDE,
+// scene.vert): with the lookup where a point may face the light, without
+// it where none can. Their front faces only: a back face's normal would be
+// turned to the camera in scene.frag. `objects` loses those split.
+void split_closed_by_the_light(const RenderRequest& request, const Mesh& mesh, CullMode closed_cull,
+                               std::vector<bool>& objects, std::vector<DisplayStep>& steps) {
+  std::vector<bool> split;
+  if (closed_cull == CullMode::Back) split = objects_split_by_the_light(mesh, request.camera, request.width, request.height);
+  std::size_t split_count = 0, unsplit_closed = 0;
+  for (const ObjectRange& r : mesh.object_ranges) {
+    if (r.first_index >= mesh.closed_index_count || !objects[r.object] || split.empty()) continue;
+    split[r.object] ? ++split_count : ++unsplit_closed;
+  }
+  // Past kMaxRuns the closed meshes are drawn in one range: the split would
+  // then draw the unsplit ones too, or the last draw the split ones again.
+  // Counting objects, not runs, errs towards fewer draws.
+  if (split_count > kMaxRuns && unsplit_closed > 0) {
+    for (const ObjectRange& r : mesh.object_ranges)
+      if (r.first_index < mesh.closed_index_count) split[r.object] = true;
+  } else if (unsplit_closed > kMaxRuns) {
+    split.clear();
+  }
+  if (std::find(split.begin(), split.end(), true) != split.end()) {
+    for (std::size_t i = 0; i < split.size(); ++i) {
+      split[i] = split[i] && objects[i];
+      objects[i] = objects[i] && !split[i];
+    }
+    for (const auto& [kind, program] : {std::pair{DisplayStep::Kind::ClosedFacingLight, DisplayProgram::LightFacing},
+                                        std::pair{DisplayStep::Kind::ClosedAwayFromLight, DisplayProgram::LightAway}}) {
+      DisplayStep step;
+      step.kind = kind;
+      step.program = program;
+      step.draws = scene_draw_ranges(mesh, closed_cull, split, MeshPart::Closed);
+      step.clip_by_light_side = true;
+      steps.push_back(std::move(step));
+    }
+  }
+}
+
 // What every main pass has: its size, clear colour, variant and the
 // objects' draw costs in the camera's view.
 DisplayPassPlan display_pass_of(const RenderRequest& request, const ShadowPlan& light) {
@@ -506,10 +549,12 @@ DisplayPassPlan plan_certified_display_pass(const RenderRequest& request, const 
   // outside, as in any frame: then no back face is the nearest surface of
   // a camera ray, for the raster or for the reference.
   const CullMode closed_cull = closed_cull_of(request, mesh);
+  std::vector<bool> objects = drawn_objects(mesh, proved.whole_planes);
+  if (pass.variant.shadows) split_closed_by_the_light(request, mesh, closed_cull, objects, pass.steps);
   DisplayStep all;
   all.kind = DisplayStep::Kind::Objects;
   all.program = DisplayProgram::Frame;
-  all.draws = scene_draw_ranges(mesh, closed_cull, drawn_objects(mesh, proved.whole_planes));
+  all.draws = scene_draw_ranges(mesh, closed_cull, objects);
   pass.steps.push_back(std::move(all));
   append_proved_plane_steps(proved.planes, mesh, request.camera.position, pass.steps);
   // The sliver pass finds pixels to ray cast where the raster missed an
@@ -536,45 +581,7 @@ DisplayPassPlan plan_display_pass(const RenderRequest& request, const ShadowPlan
   // are culled (about a sixth of a box scene's main pass on llvmpipe).
   const CullMode closed_cull = closed_cull_of(request, mesh);
   std::vector<bool> objects = drawn_objects(mesh, cells.whole_planes);
-  // The faces of a closed mesh that turn from the light get no direct
-  // light, yet llvmpipe would run the whole shadow lookup for each of
-  // their pixels (it runs both sides of a branch): `contact-line`'s box
-  // face fills a third of the frame. So closed meshes are drawn in two
-  // parts (LIGHT_SIDE, scene.vert): with the lookup where a point may face
-  // the light, without it where none can. Their front faces only: a back
-  // face's normal would be turned to the camera in scene.frag.
-  std::vector<bool> split;
-  if (pass.variant.shadows && closed_cull == CullMode::Back)
-    split = objects_split_by_the_light(mesh, request.camera, request.width, request.height);
-  std::size_t split_count = 0, unsplit_closed = 0;
-  for (const ObjectRange& r : mesh.object_ranges) {
-    if (r.first_index >= mesh.closed_index_count || !objects[r.object] || split.empty()) continue;
-    split[r.object] ? ++split_count : ++unsplit_closed;
-  }
-  // Past kMaxRuns the closed meshes are drawn in one range: the split would
-  // then draw the unsplit ones too, or the last draw the split ones again.
-  // Counting objects, not runs, errs towards fewer draws.
-  if (split_count > kMaxRuns && unsplit_closed > 0) {
-    for (const ObjectRange& r : mesh.object_ranges)
-      if (r.first_index < mesh.closed_index_count) split[r.object] = true;
-  } else if (unsplit_closed > kMaxRuns) {
-    split.clear();
-  }
-  if (std::find(split.begin(), split.end(), true) != split.end()) {
-    for (std::size_t i = 0; i < split.size(); ++i) {
-      split[i] = split[i] && objects[i];
-      objects[i] = objects[i] && !split[i];
-    }
-    for (const auto& [kind, program] : {std::pair{DisplayStep::Kind::ClosedFacingLight, DisplayProgram::LightFacing},
-                                        std::pair{DisplayStep::Kind::ClosedAwayFromLight, DisplayProgram::LightAway}}) {
-      DisplayStep step;
-      step.kind = kind;
-      step.program = program;
-      step.draws = scene_draw_ranges(mesh, closed_cull, split, MeshPart::Closed);
-      step.clip_by_light_side = true;
-      pass.steps.push_back(std::move(step));
-    }
-  }
+  if (pass.variant.shadows) split_closed_by_the_light(request, mesh, closed_cull, objects, pass.steps);
   DisplayStep all;
   all.kind = DisplayStep::Kind::Objects;
   all.program = DisplayProgram::Frame;
