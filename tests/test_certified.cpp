@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
 #include <random>
 #include <string>
@@ -19,6 +20,7 @@
 #include "reference/ray_cast.hpp"
 #include "render_support.hpp"
 #include "scene_files.hpp"
+#include "scene_support.hpp"
 
 namespace umbra {
 namespace {
@@ -328,6 +330,39 @@ TEST(CertifiedFrame, AModelsOutlineOverAFartherPartOfItselfIsCast) {
       "camera": {"position": [4.045134425851492, 3.517411619202596, 2.938858192698505], "target": [0, 1.5, 0]}})");
   const Comparison c = compare_with_reference(r);
   EXPECT_EQ(c.differing, 0u);
+}
+
+// The raster's positions are floats relative to the scene's centre: a 3 mm
+// sphere and box 10^4 from it (a third box pulls the centre away), seen
+// from 8 mm, move on screen by pixels where no change between neighbours
+// shows. 222 pixels were wrong on every path (a red-team pass); such an
+// object's rectangle on screen is now cast whole (mark_misplaced_objects).
+// The same scene next to the centre casts only its usual share.
+TEST(CertifiedFrame, ObjectsTheRasterMayMisplaceAreCastWhole) {
+  const auto far_from_centre = [](double x) {
+    const std::string at = std::to_string(x);
+    return request(R"({"width": 640, "height": 360, "scene": {"objects": [
+        {"type": "sphere", "center": [)" + at + R"(, 0, 0], "radius": 0.0015},
+        {"type": "box", "center": [)" + std::to_string(x + 0.0005) + R"(, -0.002, 0.0005], "size": [0.002, 0.001, 0.001]},
+        {"type": "box", "center": [0, 0, 0], "size": [0.001, 0.001, 0.001]}]},
+      "light": {"position": [)" + std::to_string(x + 0.004) + R"(, 0.01, 0.003], "target": [)" + at + R"(, 0, 0]},
+      "camera": {"position": [)" + at + R"(, 0.002, 0.008], "target": [)" + at + R"(, 0, 0], "near": 0.0001, "far": 1}})");
+  };
+  const Comparison far = compare_with_reference(far_from_centre(10000.0));
+  EXPECT_EQ(far.differing, 0u);
+  EXPECT_EQ(far.share.ray_cast, far.share.pixels);  // the sphere fills the view: all of it
+  const Comparison near = compare_with_reference(far_from_centre(0.01));
+  EXPECT_EQ(near.differing, 0u);
+  EXPECT_LT(near.share.ray_cast, near.share.pixels / 2);
+  // Next to the centre the rounding is far below a pixel: nothing marked.
+  std::vector<std::uint8_t> marks(640 * 360, 0);
+  mark_misplaced_objects(far_from_centre(0.01), 640, 360, marks);
+  EXPECT_EQ(std::count(marks.begin(), marks.end(), 1), 0);
+  // Nor in a bench scene's.
+  for (const char* scene : {"three-cubes", "torus-knot"}) {
+    mark_misplaced_objects(test::builtin_request(scene), 640, 360, marks);
+    EXPECT_EQ(std::count(marks.begin(), marks.end(), 1), 0) << scene;
+  }
 }
 
 // A curved occluder's faces are chords: its true surface, which the
