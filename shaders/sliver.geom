@@ -17,9 +17,12 @@ layout(triangle_strip, max_vertices = 12) out;
 layout(location = UNIFORM_LOCATION_TRIANGLE_BASE) uniform int u_triangle_base;
 layout(location = UNIFORM_LOCATION_CULL_BACK) uniform int u_cull_back;
 
+in vec3 v_normal[];
+
 flat out uint g_object;
-// 1 for a model's edge: marked over the model itself too (sliver.frag).
-flat out uint g_model;
+// 1 for a model's edge, or a flat face's (a crease, where N.L may jump):
+// marked over the object itself too (sliver.frag).
+flat out uint g_over_itself;
 
 // Far above the snap (1/512 pixel), far below a pixel.
 const float kSliverPixels = 1.0 / 32.0;
@@ -28,7 +31,14 @@ void main() {
   // Written again before each EmitVertex, after which outputs are undefined.
   const uint object = object_of(u_triangle_base + gl_PrimitiveIDIn);
   const vec4 facts = object_facts(object);
-  const uint model = has_flag(facts, OBJECT_FLAG_MODEL) ? 1u : 0u;
+  // A face whose corners' normals are one (a box's, a cylinder's cap, a
+  // flat-shaded model's) meets its neighbours at creases: which side the
+  // raster shows at a centre within the snap of the edge matters there
+  // even where both sides are the object's (plan/sliver_marks.hpp, Edge::
+  // crease: the CPU's marks find creases exactly). A smooth shape's faces
+  // share their corners' normals: no crease.
+  const bool flat_face = v_normal[0] == v_normal[1] && v_normal[1] == v_normal[2];
+  const uint over_itself = has_flag(facts, OBJECT_FLAG_MODEL) || flat_face ? 1u : 0u;
   // An edge's part nearer the camera than half its near plane is clipped
   // away: the main pass and the reference both start at the near plane.
   float w_min = 0.5 * u.camera_axis_near.w;
@@ -68,7 +78,7 @@ void main() {
     float depths[4] = float[4](na.z, na.z, nb.z, nb.z);
     for (int k = 0; k < 4; ++k) {
       g_object = object;
-      g_model = model;
+      g_over_itself = over_itself;
       gl_Position = vec4(corners[k] / u.image_size * 2.0 - 1.0, depths[k], 1.0);
       EmitVertex();
     }

@@ -9,11 +9,14 @@
 #include <cmath>
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
+#include "assets/gltf_loader.hpp"
 #include "gpu/egl_context.hpp"
 #include "gpu/shadow_renderer.hpp"
 #include "reference/certified_frame.hpp"
@@ -363,6 +366,30 @@ TEST(CertifiedFrame, ObjectsTheRasterMayMisplaceAreCastWhole) {
     mark_misplaced_objects(test::builtin_request(scene), 640, 360, marks);
     EXPECT_EQ(std::count(marks.begin(), marks.end(), 1), 0) << scene;
   }
+}
+
+// A flat-shaded model's edges are creases: N.L jumps across them. Where a
+// face turned to the light lies between two turned away, thinner than a
+// pixel, no centre showed it, and the CPU's sliver marks left out such an
+// edge (its two faces lie on either side of it on the screen), so the
+// pixel was proved dark: 1 pixel wrong (a red-team pass's star prism).
+// Creases are now marked over the object itself.
+TEST(CertifiedFrame, AFaceThinnerThanAPixelBetweenCreasesIsCast) {
+  std::ifstream file(UMBRA_STAR_PRISM_GLTF, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  const LoadResult star = load_gltf(bytes, {});
+  ASSERT_TRUE(star.ok()) << star.error;
+  const ModelLookup find = [&](const std::string&) { return std::optional<FoundModel>(FoundModel{"star", star.model}); };
+  const RenderRequest r = request(R"({"width": 640, "height": 360, "scene": {"objects": [{"type": "mesh", "model": "star",
+        "position": [-1.2013878703601184, 1.8911850481039951, -0.7080377095532839],
+        "rotation_deg": [158.8543508939545, 44.04411644099741, 230.1696329473372],
+        "scale": [0.14275395354054904, 2.1413093031082355, 0.7137697677027451]}]},
+      "light": {"position": [-0.38920400836778285, 3.2823035983013344, -7.285259317858807], "target": [0, 1, 0]},
+      "camera": {"position": [-1.3121616967067846, 5.017419061608248, -0.7391068823288858],
+                 "target": [-1.2013878703601184, 1.8911850481039951, -0.7080377095532839]},
+      "shadow": {"map_size": 1024}})",
+                                  find);
+  EXPECT_EQ(compare_with_reference(r).differing, 0u);
 }
 
 // A curved occluder's faces are chords: its true surface, which the

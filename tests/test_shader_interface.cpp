@@ -269,8 +269,8 @@ TEST(ShaderFiles, NameNoNumberOfTheirOwnForALocationOrBinding) {
   // certificate.glsl's two buffer textures, certify.geom's u_layer and u_triangle_base, certify.frag's
   // u_triangle_base, o_triangle, u_layer, o_owner and u_nearest_owner, scene.frag's o_certificate,
   // o_unlit, u_triangle_base, u_proof_object, u_proof_margin, u_proof_rounding and five maps; the sliver
-  // pass's a_position, u_triangle_base, u_cull_back, u_certificates and o_sliver.
-  EXPECT_EQ(declarations, 34);
+  // pass's a_position, a_normal, u_triangle_base, u_cull_back, u_certificates and o_sliver.
+  EXPECT_EQ(declarations, 35);
 }
 
 }  // namespace

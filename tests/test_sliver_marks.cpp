@@ -150,6 +150,39 @@ TEST(SliverMarks, OnlyPixelsWhereAnotherObjectWasDrawnAreMarked) {
   EXPECT_GT(std::count(marks.begin(), marks.end(), 1), 0);
 }
 
+// Given the normals, a box's edges are creases (each face its own
+// normals): marked over the box itself, inside its outline too; a smooth
+// sphere's shared edges are not.
+TEST(SliverMarks, CreasesAreMarkedOverTheObjectItself) {
+  for (const SceneObject::Type type : {SceneObject::Type::Box, SceneObject::Type::Sphere}) {
+    SceneObject o;
+    o.type = type;
+    o.size = {1, 1, 1};
+    o.radius = 0.5;
+    Scene scene;
+    scene.objects.push_back(o);
+    const Mesh mesh = tessellate(scene);
+    const SceneTriangles t = triangles_of(scene);
+    std::vector<glm::vec3> normals;
+    for (const Vertex& v : mesh.vertices) normals.emplace_back(v.normal[0], v.normal[1], v.normal[2]);
+    const SliverEdges edges(t.positions, t.indices, t.objects, {}, &normals);
+    std::size_t creases = 0;
+    for (const SliverEdges::Edge& e : edges.all()) creases += e.crease ? 1 : 0;
+    const glm::dmat4 view_projection = glm::perspective(glm::radians(40.0), 2.0, 0.1, 100.0) *
+                                       glm::lookAt(glm::dvec3(2, 2, 3), glm::dvec3(0), glm::dvec3(0, 1, 0)) *
+                                       glm::translate(glm::dmat4(1.0), t.origin);
+    std::vector<std::uint8_t> marks;
+    edges.mark(t.positions, view_projection, 0.1, 160, 80, std::vector<std::uint32_t>(160 * 80, 1), marks);
+    if (type == SceneObject::Type::Box) {
+      EXPECT_EQ(creases, 12u);  // the cube's edges; the faces' diagonals are flat
+      EXPECT_GT(std::count(marks.begin(), marks.end(), 1), 0);
+    } else {
+      EXPECT_EQ(creases, 0u);
+      EXPECT_EQ(std::count(marks.begin(), marks.end(), 1), 0);
+    }
+  }
+}
+
 // A torus knot folds on the screen everywhere. Its outline there is where
 // a face turned to the camera meets one turned away, found here by brute
 // force in double: every centre near such an edge is marked.

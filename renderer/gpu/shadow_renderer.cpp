@@ -458,14 +458,17 @@ void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
     std::vector<Vertex> vertices(buffer_bytes(g.vertices.id()) / sizeof(Vertex));
     glGetNamedBufferSubData(g.vertices.id(), 0, GLsizeiptr(vertices.size() * sizeof(Vertex)), vertices.data());
     g.positions.resize(vertices.size());
-    for (std::size_t i = 0; i < vertices.size(); ++i)
+    std::vector<glm::vec3> normals(vertices.size());
+    for (std::size_t i = 0; i < vertices.size(); ++i) {
       g.positions[i] = glm::vec3(vertices[i].position[0], vertices[i].position[1], vertices[i].position[2]);
+      normals[i] = glm::vec3(vertices[i].normal[0], vertices[i].normal[1], vertices[i].normal[2]);
+    }
     g.position_indices.resize(buffer_bytes(g.indices.id()) / sizeof(std::uint32_t));
     glGetNamedBufferSubData(g.indices.id(), 0, GLsizeiptr(g.position_indices.size() * sizeof(std::uint32_t)),
                             g.position_indices.data());
     std::vector<bool> models;
     for (const ConservativeObject& o : g.conservative_objects) models.push_back(o.model);
-    g.sliver_edges.emplace(g.positions, g.position_indices, g.triangle_object_ids, models);
+    g.sliver_edges.emplace(g.positions, g.position_indices, g.triangle_object_ids, models, &normals);
   }
 }
 

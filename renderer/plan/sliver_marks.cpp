@@ -66,7 +66,8 @@ void mark_band(glm::dvec2 pa, glm::dvec2 pb, std::uint32_t object, bool over_its
 }  // namespace
 
 SliverEdges::SliverEdges(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
-                         const std::vector<std::uint32_t>& triangle_objects, const std::vector<bool>& model_objects) {
+                         const std::vector<std::uint32_t>& triangle_objects, const std::vector<bool>& model_objects,
+                         const std::vector<glm::vec3>* normals) {
   std::vector<HalfEdge> halves;
   halves.reserve(indices.size());
   for (std::size_t t = 0; t < triangle_objects.size() && 3 * t + 2 < indices.size(); ++t) {
@@ -94,6 +95,10 @@ SliverEdges::SliverEdges(const std::vector<glm::vec3>& positions, const std::vec
     if (j - i == 2) {
       edges_.push_back({halves[i].a, halves[i].b, halves[i].key[0], halves[i].third, halves[i + 1].third,
                         halves[i].triangle, halves[i + 1].triangle});
+      // The halves' corners are in the same order (lesser position first).
+      if (normals)
+        edges_.back().crease = normals->at(halves[i].a) != normals->at(halves[i + 1].a) ||
+                               normals->at(halves[i].b) != normals->at(halves[i + 1].b);
     } else {
       for (std::size_t k = i; k < j; ++k)
         edges_.push_back({halves[k].a, halves[k].b, halves[k].key[0], halves[k].third, kOpen, halves[k].triangle, kOpen});
@@ -140,7 +145,9 @@ void SliverEdges::mark(const std::vector<glm::vec3>& positions, const glm::dmat4
         return cross > moved ? 1 : cross < -moved ? -1 : 0;
       };
       const int s1 = side(seen[e.first_third]), s2 = side(seen[e.second_third]);
-      if (s1 != 0 && s1 == -s2) continue;  // inside the surface on the screen: the snapped pair covers both sides
+      // Inside the surface on the screen: the snapped pair covers both
+      // sides, and (no crease) either shows the surface as the other would.
+      if (s1 != 0 && s1 == -s2 && !e.crease) continue;
     }
     // The part in front of half the near plane (sliver.geom's cut).
     if (a.w < w_min && b.w < w_min) continue;
@@ -151,7 +158,7 @@ void SliverEdges::mark(const std::vector<glm::vec3>& positions, const glm::dmat4
       pa = window(a);
       pb = window(b);
     }
-    mark_band(pa, pb, e.object, e.model, width, height, drawn_objects, drawn_shift, marks);
+    mark_band(pa, pb, e.object, e.model || e.crease, width, height, drawn_objects, drawn_shift, marks);
   }
 }
 

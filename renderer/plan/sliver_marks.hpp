@@ -45,8 +45,11 @@ class SliverEdges {
   /// mesh origin); `triangle_objects`: each triangle's object.
   /// `model_objects`: per object, whether it is a model (a triangle mesh
   /// that need not be convex); missing ones are not.
+  /// `normals` (per vertex, as the main pass interpolates them), if given,
+  /// find the creases: see Edge::crease.
   SliverEdges(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
-              const std::vector<std::uint32_t>& triangle_objects, const std::vector<bool>& model_objects = {});
+              const std::vector<std::uint32_t>& triangle_objects, const std::vector<bool>& model_objects = {},
+              const std::vector<glm::vec3>* normals = nullptr);
 
   /// Marks (1) in `marks` (width x height, row 0 at the top) the pixels
   /// whose centre lies within kSliverPixels of a drawn edge (or of its
@@ -74,6 +77,13 @@ class SliverEdges {
     /// The triangles (by index / 3) those corners are of (kOpen likewise).
     std::uint32_t first_triangle = 0, second_triangle = 0;
     bool model = false;  ///< the object is a model: marked over itself too
+    /// Its two triangles' normals differ at an end (a box's edge, a flat-
+    /// shaded model's): N.L may jump across it, so which of the two the
+    /// raster shows at a centre within its snap matters even where they
+    /// lie on either side of it (a face thinner than a pixel, turned to the
+    /// light between two turned away, showed at no centre: a red-team
+    /// pass's star prism, 1 pixel wrong). Marked over itself, always.
+    bool crease = false;
   };
   static constexpr std::uint32_t kOpen = 0xFFFFFFFFu;
   /// Every edge, once (ConservativeMaps' folds read them too).
