@@ -143,7 +143,13 @@ void main() {
       det = det2;
     }
   }
-  g_plane_valid = abs(det) > 1e-6 * max(1.0, dot(ab, ab) + dot(ac, ac)) ? 1 : 0;
+  // A polygon that reaches past 2^16 texels (a triangle clipped next to a
+  // point light: its cut corners land millions of texels off the layer)
+  // has corners rounded by more than 1/128 texel in float, and a plane
+  // through them is no bound on the layer (a red-team pass: an open
+  // cylinder around a point light, 26 floor pixels proved lit; the CPU's
+  // double held). Its nearest corner's depth alone is.
+  g_plane_valid = abs(det) > 1e-6 * max(1.0, dot(ab, ab) + dot(ac, ac)) && extent <= 65536.0 ? 1 : 0;
   if (g_plane_valid == 1) {
     float dzb = b.z - a.z, dzc = c.z - a.z;
     g_plane = vec3((dzb * ac.y - dzc * ab.y) / det, (dzc * ab.x - dzb * ac.x) / det, a.z);

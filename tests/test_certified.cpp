@@ -374,12 +374,18 @@ TEST(CertifiedFrame, ObjectsTheRasterMayMisplaceAreCastWhole) {
 // edge (its two faces lie on either side of it on the screen), so the
 // pixel was proved dark: 1 pixel wrong (a red-team pass's star prism).
 // Creases are now marked over the object itself.
-TEST(CertifiedFrame, AFaceThinnerThanAPixelBetweenCreasesIsCast) {
-  std::ifstream file(UMBRA_STAR_PRISM_GLTF, std::ios::binary);
+// A model from a file of tests/data, as a lookup for request().
+ModelLookup model_file(const char* path) {
+  std::ifstream file(path, std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
-  const LoadResult star = load_gltf(bytes, {});
-  ASSERT_TRUE(star.ok()) << star.error;
-  const ModelLookup find = [&](const std::string&) { return std::optional<FoundModel>(FoundModel{"star", star.model}); };
+  const LoadResult loaded = load_gltf(bytes, {});
+  EXPECT_TRUE(loaded.ok()) << path << ": " << loaded.error;
+  std::shared_ptr<const TriangleModel> model = loaded.model;
+  return [model](const std::string& name) { return std::optional<FoundModel>(FoundModel{name, model}); };
+}
+
+TEST(CertifiedFrame, AFaceThinnerThanAPixelBetweenCreasesIsCast) {
+  const ModelLookup find = model_file(UMBRA_STAR_PRISM_GLTF);
   const RenderRequest r = request(R"({"width": 640, "height": 360, "scene": {"objects": [{"type": "mesh", "model": "star",
         "position": [-1.2013878703601184, 1.8911850481039951, -0.7080377095532839],
         "rotation_deg": [158.8543508939545, 44.04411644099741, 230.1696329473372],
@@ -390,6 +396,36 @@ TEST(CertifiedFrame, AFaceThinnerThanAPixelBetweenCreasesIsCast) {
       "shadow": {"map_size": 1024}})",
                                   find);
   EXPECT_EQ(compare_with_reference(r).differing, 0u);
+}
+
+// A point light inside an open cylinder whose rim dips into the floor
+// (a red-team pass: 26 and 22 floor pixels proved lit by the shaders' maps
+// where the reference is dark; the CPU's maps were right). The triangles
+// clipped next to the light have corners millions of texels off the
+// layer, and their float plane was no bound (certify.geom).
+TEST(CertifiedFrame, APointLightInsideAnOpenModel) {
+  const RenderRequest r = request(R"({"width": 640, "height": 360, "scene": {"objects": [
+        {"type": "plane", "center": [0, 0, 0], "size": [10, 10]},
+        {"type": "mesh", "model": "open-cylinder", "position": [-0.11503447066797545, 1.043457015970942, -0.3952596821313392],
+         "rotation_deg": [14.203759207350487, 259.56640798109464, 26.17875711815141], "scale": 0.9485972872463108}]},
+      "light": {"projection": "perspective", "position": [0.2984067941636264, 1.390048168312491, -0.2976937363895383],
+                "target": [0.22146292620574448, 0, -0.09731539567096426]},
+      "camera": {"position": [-3.09964336667938, 1.6228125042105885, 2.528282223051951],
+                 "target": [-0.11503447066797545, 1.043457015970942, -0.3952596821313392]},
+      "shadow": {"map_size": 512}})",
+                                  model_file(UMBRA_OPEN_CYLINDER_GLTF));
+  EXPECT_EQ(compare_with_reference(r).differing, 0u);
+  const RenderRequest smooth = request(R"({"width": 480, "height": 270, "scene": {"objects": [
+        {"type": "plane", "center": [0, 0, 0], "size": [10, 10]},
+        {"type": "mesh", "model": "open-cylinder", "position": [-0.4567945362882623, 1.1367645048904198, 0.4007564885488324],
+         "rotation_deg": [-32.87913290055407, 3.9872742758072865, -6.158440717668167], "scale": 1.0334222771731087}]},
+      "light": {"projection": "perspective", "position": [-0.5962042123332052, 1.7582708712928874, -0.3135397980370115],
+                "target": [-0.7957657248146727, 0, 0.33217454831102633]},
+      "camera": {"position": [0.38733797093154154, 4.691958281085611, 0.6153605317252144],
+                 "target": [-0.4567945362882623, 0.6200533663038654, 0.4007564885488324]},
+      "shadow": {"map_size": 512}})",
+                                       model_file(UMBRA_SMOOTH_OPEN_CYLINDER_GLTF));
+  EXPECT_EQ(compare_with_reference(smooth).differing, 0u);
 }
 
 // A curved occluder's faces are chords: its true surface, which the
