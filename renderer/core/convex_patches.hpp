@@ -26,11 +26,14 @@ inline constexpr std::size_t kMostPatchTriangles = 48;
 
 /// How far a corner may lie in front of another triangle's plane and still
 /// count as behind it: this fraction of its distance from that triangle's
-/// corner (the double rounding of the test itself is about 1e-15 of it).
-/// Sound with room to spare: a point certified lit faces the light by at
-/// least 1e-4 (scene.frag's normal slack), so its ray climbs away from the
-/// plane a hundred thousand times faster than such a corner stands above
-/// it, and the reference starts the ray 256 float steps off the surface.
+/// corner (the double rounding of the test itself is about 1e-15 of it),
+/// so at most about 2e-9 of the model's extent. Sound with room to spare,
+/// in model space, where the reference casts: it starts a shadow ray off
+/// the surface by 256 float steps of each coordinate (offset_off_surface:
+/// at least about 1e-7 of the extent), and a ray towards a light on the
+/// triangle's outward side only climbs from there. Heights above a plane
+/// compare the same after any affine map, so a placement's scale, even a
+/// different one per axis, changes nothing.
 inline constexpr double kPatchPlaneTolerance = 1e-9;
 
 /// A model of more triangles than this gets patches of one triangle each
