@@ -61,6 +61,22 @@ ConservativeView orthographic_view(int size) {
   return v;  // identity matrices: clip space is the positions' own
 }
 
+// A point light's cube face looking down -z from the origin, 48 texels a
+// side (96 in the layer), near 0.5, far 20.
+ConservativeView point_light_view() {
+  ConservativeView view;
+  view.perspective = true;
+  view.size = 48;
+  view.layer_size = 96;
+  view.near_plane = 0.5;
+  view.far_plane = 20.0;
+  view.tan_half = std::tan(glm::radians(45.0));
+  view.texel_size = glm::dvec2(2.0 * view.tan_half / view.layer_size);
+  view.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.5f, 20.0f);
+  view.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+  return view;
+}
+
 void expect_maps_hold_every_touch(const Triangles& t, const std::vector<ConservativeObject>& objects,
                                   const ConservativeView& view, const char* what) {
   const std::vector<DrawRange> draws = {{0, t.indices.size(), CullMode::None}};
@@ -133,16 +149,7 @@ TEST(ConservativeMaps, APointLightsViewHoldsEveryTouchToo) {
   std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
   const std::vector<ConservativeObject> objects = {{0.0, false, true}, {0.0, true, false}};
   for (int scene = 0; scene < 30; ++scene) {
-    ConservativeView view;
-    view.perspective = true;
-    view.size = 48;
-    view.layer_size = 96;
-    view.near_plane = 0.5;
-    view.far_plane = 20.0;
-    view.tan_half = std::tan(glm::radians(45.0));
-    view.texel_size = glm::dvec2(2.0 * view.tan_half / view.layer_size);
-    view.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.5f, 20.0f);
-    view.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+    const ConservativeView view = point_light_view();
     Triangles t;
     for (int k = 0; k < 6; ++k) {
       const glm::vec3 centre(unit(random) * 3.0f, unit(random) * 3.0f, -4.0f + unit(random) * 2.5f);
@@ -363,16 +370,7 @@ TEST(ConservativeMaps, TheCoverMapHoldsOnlyDepthsEveryRayMeets) {
 
 TEST(ConservativeMaps, TheCoverMapHoldsForAPointLightToo) {
   std::mt19937 random(9);
-  ConservativeView view;
-  view.perspective = true;
-  view.size = 48;
-  view.layer_size = 96;
-  view.near_plane = 0.5;
-  view.far_plane = 20.0;
-  view.tan_half = std::tan(glm::radians(45.0));
-  view.texel_size = glm::dvec2(2.0 * view.tan_half / view.layer_size);
-  view.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.5f, 20.0f);
-  view.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+  const ConservativeView view = point_light_view();
   const std::vector<ConservativeObject> objects = {{0.0, true, false}, {0.0, false, false}};
   for (int scene = 0; scene < 6; ++scene) {
     Triangles t = sheet(random, 0, scene % 2 ? 0.2f : 0.0f, 0.0f);
