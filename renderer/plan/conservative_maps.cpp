@@ -298,8 +298,8 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
   band.nearest_owner.assign(w * h, kNoOwner);
   band.others_depth.assign(w * h, 1.0f);
   // The cover map: each texel's farthest depth of the triangles touching
-  // it (-1: none yet); scratch 1 where a triangle holds the texel's centre,
-  // 2 where a fold passes near.
+  // it (-infinity: none yet); scratch 1 where a triangle holds the texel's
+  // centre, 2 where a fold passes near.
   band.cover_depth.assign(w * h, cover_ ? -std::numeric_limits<float>::infinity() : 1.0f);
   band.scratch.assign(cover_ ? w * h : 0, 0);
   if (w == 0 || h == 0) return;

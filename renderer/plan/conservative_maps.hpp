@@ -158,13 +158,15 @@ class ConservativeMaps {
 /// 176 bytes each (46 MB at this count); heavier layers are drawn by the
 /// shaders.
 inline constexpr std::size_t kMostConservativeTriangles = 262144;
-/// What the CPU's certified passes hold per triangle at most: a setup (176
+/// What the CPU's certified passes hold per triangle at most: a setup (184
 /// bytes) beside the scene's copies kept for them (positions, indices,
-/// objects and facing owners, about 56 bytes; the sliver edges, about 30),
-/// rounded up; while the copies are first made, the vertices read back and
-/// the edges' halves (about 230 bytes) are alive instead of the setups, and
-/// before that convex_patches' work (about 120 bytes).
-inline constexpr std::uint64_t kCertifiedCpuBytesPerTriangle = 300;
+/// objects and facing owners, about 56 bytes; the sliver edges, about 40),
+/// and while the folds are found each corner's projection (up to 3 corners
+/// of 32 bytes and a flag), rounded up; while the copies are first made,
+/// the vertices and normals read back and the edges' halves (about 270
+/// bytes) are alive instead, and before that convex_patches' work (about
+/// 120 bytes).
+inline constexpr std::uint64_t kCertifiedCpuBytesPerTriangle = 400;
 
 /// Draws [x0, x1) x [y0, y1) of the maps in bands of rows of at most
 /// `band_bytes`, as many at once as the machine has cores, and hands each
