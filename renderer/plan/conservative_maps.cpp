@@ -179,12 +179,29 @@ float float_at_most(double d) {
 
 }  // namespace
 
+// A corner is shared by about six triangles and four edges: each is
+// projected once per layer (the same double product each time).
+struct ConservativeMaps::ClipCorners {
+  const std::vector<glm::vec3>& positions;
+  glm::dmat4 to_clip;
+  std::vector<glm::dvec4> clip = std::vector<glm::dvec4>(positions.size());
+  std::vector<std::uint8_t> projected = std::vector<std::uint8_t>(positions.size(), 0);
+
+  const glm::dvec4& operator()(std::uint32_t v) {
+    if (!projected.at(v)) {
+      clip[v] = to_clip * glm::dvec4(glm::dvec3(positions[v]), 1.0);
+      projected[v] = 1;
+    }
+    return clip[v];
+  }
+};
+
 ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices,
                                    const std::vector<ConservativeObject>& objects,
                                    const std::vector<std::uint32_t>& triangle_objects,
                                    const std::vector<DrawRange>& draws, const ConservativeView& view,
                                    const std::vector<std::uint32_t>& facing_owners, const SliverEdges* edges) {
-  const glm::dmat4 to_clip = glm::dmat4(view.projection) * glm::dmat4(view.view);
+  ClipCorners clip_of{positions, glm::dmat4(view.projection) * glm::dmat4(view.view)};
   // Which triangles the maps hold (their setups'), for the folds.
   std::vector<std::uint8_t> drawn(edges ? triangle_objects.size() : 0, 0);
   for (const DrawRange& draw : draws) {
@@ -193,7 +210,7 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
       const std::uint32_t object = triangle_objects.at(triangle);
       const ConservativeObject& facts = objects.at(object);
       glm::dvec4 clip[3];
-      for (int k = 0; k < 3; ++k) clip[k] = to_clip * glm::dvec4(glm::dvec3(positions.at(indices.at(i + std::size_t(k)))), 1.0);
+      for (int k = 0; k < 3; ++k) clip[k] = clip_of(indices.at(i + std::size_t(k)));
       const std::uint32_t owner = facts.model ? (std::uint32_t(triangle) | kModelTriangleOwner) : object;
       const std::uint32_t facing_owner = facts.model && !facing_owners.empty() ? facing_owners.at(triangle) : owner;
       Setup s;
@@ -203,7 +220,7 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
       }
     }
   }
-  if (edges) find_folds(positions, *edges, drawn, to_clip, view);
+  if (edges) find_folds(clip_of, *edges, drawn, view);
 }
 
 // The cover map's argument (docs/certified-shadows.md, "The cover map"):
@@ -212,22 +229,11 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
 // triangles lie on one side of it there (the surface folds over, seen from
 // the light), or an edge of a drawn triangle that no other drawn triangle
 // shares. Every other edge is crossed from one triangle into the next.
-void ConservativeMaps::find_folds(const std::vector<glm::vec3>& positions, const SliverEdges& edges,
-                                  const std::vector<std::uint8_t>& drawn, const glm::dmat4& to_clip,
+void ConservativeMaps::find_folds(ClipCorners& clip_of, const SliverEdges& edges, const std::vector<std::uint8_t>& drawn,
                                   const ConservativeView& view) {
   cover_ = true;
   const double size = double(view.size);
   const double w_min = view.perspective ? 0.5 * view.near_plane : -1e300;
-  // Each corner projected once (an edge needs four).
-  std::vector<glm::dvec4> clip(positions.size());
-  std::vector<std::uint8_t> projected(positions.size(), 0);
-  const auto clip_of = [&](std::uint32_t v) -> const glm::dvec4& {
-    if (!projected.at(v)) {
-      clip[v] = to_clip * glm::dvec4(glm::dvec3(positions[v]), 1.0);
-      projected[v] = 1;
-    }
-    return clip[v];
-  };
   const auto is_drawn = [&](std::uint32_t t) { return t != SliverEdges::kOpen && t < drawn.size() && drawn[t]; };
   for (const SliverEdges::Edge& e : edges.all()) {
     if (!is_drawn(e.first_triangle) && !is_drawn(e.second_triangle)) continue;

@@ -146,8 +146,9 @@ class ConservativeMaps {
 
  private:
   void finish_cover(ConservativeBand& band) const;
-  void find_folds(const std::vector<glm::vec3>& positions, const SliverEdges& edges,
-                  const std::vector<std::uint8_t>& drawn, const glm::dmat4& to_clip, const ConservativeView& view);
+  struct ClipCorners;  // each corner's clip position, projected once
+  void find_folds(ClipCorners& clip_of, const SliverEdges& edges, const std::vector<std::uint8_t>& drawn,
+                  const ConservativeView& view);
 
   std::vector<Setup> setups_;
   std::vector<Fold> folds_;
