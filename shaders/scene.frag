@@ -506,11 +506,27 @@ layout(binding = TEXTURE_UNIT_CERTIFY_OTHERS) uniform sampler2DArray u_others;
 layout(binding = TEXTURE_UNIT_CERTIFY_CENTRE_TRIANGLE) uniform usampler2DArray u_centre_triangle;
 layout(binding = TEXTURE_UNIT_CERTIFY_COVER) uniform sampler2DArray u_cover;
 
+// How far (world units) the light's float view matrix may move a point
+// whose coordinates (relative to the mesh origin) reach `extent`: about
+// 1e-6 of the coordinates involved, the view's translation among them
+// (seen_here's rounding term, for the light; light_view_rounding in
+// plan/conservative_maps.hpp for the maps' corners).
+float light_rounding(float extent) {
+#if LIGHT_CUBE
+  float translation = length(u.light_position.xyz);
+#else
+  float translation = length(u.light_view[0][3].xyz);
+#endif
+  return 1e-6 * (extent + translation);
+}
+
 // The verdict on a point that faces the light with margin: the maps'
 // proof of light or of shadow, or none.
 uint verdict_by_maps(Seen s) {
   View v;
   if (!choose_view(s.p, v)) return CERTIFICATE_UNCERTAIN;
+  // Where the maps see the point: off by the light view's rounding too.
+  s.reach += light_rounding(length(s.p));
   float depth = -v.eye.z;
 #if LIGHT_PERSPECTIVE
   float texel_world = v.texel.x * depth;
@@ -591,13 +607,30 @@ uint verdict_by_maps(Seen s) {
   uint triangle = triangles.x;
   if (triangle == 0u || any(notEqual(triangles, uvec4(triangle)))) return CERTIFICATE_UNCERTAIN;
   bool model = has_flag(s.facts, OBJECT_FLAG_MODEL);
-  if (!model && object_of(int(triangle - 1u)) == s.object) return CERTIFICATE_UNCERTAIN;
+  uint occluder = object_of(int(triangle - 1u));
+  if (!model && occluder == s.object) return CERTIFICATE_UNCERTAIN;
   // The snap moves the stored depths too: by the plane's slope over the
   // snap, which the four depths bound.
   float farthest = max(max(depths.x, depths.y), max(depths.z, depths.w));
   float nearest_centre = min(min(depths.x, depths.y), min(depths.z, depths.w));
   float snap_depth = 4.0 * kSnapTexels * (farthest - nearest_centre);
-  return farthest + snap_depth < z - dz ? CERTIFICATE_DARK : CERTIFICATE_UNCERTAIN;
+  // The light view's rounding moved the triangle as the map drew it: the
+  // square must keep that much more inside the centres, and the depths
+  // that much more in front, measured where the triangle is (its nearest
+  // centre, for a point light: texels shrink towards the light).
+  float occluder_rounding = light_rounding(sqrt(3.0) * object_facts(occluder).w);
+#if LIGHT_PERSPECTIVE
+  float occluder_depth = max(linear_from_window(v, nearest_centre), v.near);
+  float occluder_texel = v.texel.x * occluder_depth / (1.0 + 2.0 * v.tan_half);
+  float occluder_window = v.near * v.far / ((v.far - v.near) * occluder_depth * occluder_depth);
+#else
+  float occluder_texel = texel_world;
+  float occluder_window = window_per_world;
+#endif
+  float moved = occluder_rounding * coarse / occluder_texel;
+  if (any(lessThan(centre_lo, c0 + 0.5 + kSnapTexels + moved)) || any(greaterThan(centre_hi, c0 + 1.5 - kSnapTexels - moved)))
+    return CERTIFICATE_UNCERTAIN;
+  return farthest + snap_depth + occluder_rounding * occluder_window < z - dz ? CERTIFICATE_DARK : CERTIFICATE_UNCERTAIN;
 }
 
 // The pixel's verdict: the facing rules, then the maps'.

@@ -445,7 +445,7 @@ void ShadowRenderer::use_certificate_buffers(const Scene& scene_objects) {
     const std::vector<glm::vec4> facts = object_facts(scene_objects, mesh.origin);
     make_buffer_texture(g.object_facts_buffer, g.object_facts, GL_RGBA32F, facts.data(),
                         facts.size() * sizeof(glm::vec4));
-    g.conservative_objects = conservative_objects(scene_objects);
+    g.conservative_objects = conservative_objects(scene_objects, mesh.origin);
   }
   if (certified_passes_on_cpu_ && g.positions.empty() && g.triangle_object_ids.size() <= kMostConservativeTriangles) {
     // The scene's CPU copy dropped its vertices once uploaded: read back

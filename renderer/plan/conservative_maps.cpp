@@ -11,12 +11,20 @@
 
 namespace umbra {
 
-std::vector<ConservativeObject> conservative_objects(const Scene& scene) {
+std::vector<ConservativeObject> conservative_objects(const Scene& scene, const glm::dvec3& mesh_origin) {
   std::vector<ConservativeObject> objects;
   objects.reserve(scene.objects.size());
-  for (const SceneObject& o : scene.objects)
-    objects.push_back({tessellation_error(o).distance, o.type == SceneObject::Type::Mesh, shape_kind(o.type).closed(o)});
+  for (const SceneObject& o : scene.objects) {
+    const Aabb b = object_bounds(o);
+    const glm::dvec3 far = b.empty() ? glm::dvec3(0.0) : glm::max(glm::abs(b.min - mesh_origin), glm::abs(b.max - mesh_origin));
+    const double extent = std::max({far.x, far.y, far.z});
+    objects.push_back({tessellation_error(o).distance, o.type == SceneObject::Type::Mesh, shape_kind(o.type).closed(o), extent});
+  }
   return objects;
+}
+
+double light_view_rounding(const ConservativeObject& object, const glm::mat4& view) {
+  return 1e-6 * (std::sqrt(3.0) * object.extent + glm::length(glm::dvec3(view[3])));
 }
 
 std::vector<std::uint32_t> light_facing_owners(const Scene& scene, const Mesh& mesh) {
@@ -150,8 +158,13 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
     texel_world = std::min(view.texel_size.x, view.texel_size.y) * coarse_texels;
     window_per_world = 1.0 / (view.far_plane - view.near_plane);
   }
-  s.swell = object.swell > 0.0 ? object.swell / texel_world : 0.0;
-  s.depth_swell = object.swell * window_per_world;
+  // The true surface reaches past the drawn triangle by the shape's
+  // tessellation distance and the light view's rounding of its corners.
+  const double rounding = light_view_rounding(object, view.view);
+  s.rounding = rounding / texel_world;
+  s.depth_rounding = rounding * window_per_world;
+  s.swell = (object.swell + rounding) / texel_world;
+  s.depth_swell = (object.swell + rounding) * window_per_world;
   const double margin = 0.5 + s.swell + 1.0 / 32.0 + 1e-6 * extent;
   s.lo = glm::clamp(lo - margin, glm::dvec2(-1.0), glm::dvec2(size + 1.0));
   s.hi = glm::clamp(hi + margin, glm::dvec2(-1.0), glm::dvec2(size + 1.0));
@@ -220,7 +233,7 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
       }
     }
   }
-  if (edges) find_folds(clip_of, *edges, drawn, view);
+  if (edges) find_folds(clip_of, *edges, drawn, objects, view);
 }
 
 // The cover map's argument (docs/certified-shadows.md, "The cover map"):
@@ -230,7 +243,7 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
 // the light), or an edge of a drawn triangle that no other drawn triangle
 // shares. Every other edge is crossed from one triangle into the next.
 void ConservativeMaps::find_folds(ClipCorners& clip_of, const SliverEdges& edges, const std::vector<std::uint8_t>& drawn,
-                                  const ConservativeView& view) {
+                                  const std::vector<ConservativeObject>& objects, const ConservativeView& view) {
   cover_ = true;
   const double size = double(view.size);
   const double w_min = view.perspective ? 0.5 * view.near_plane : -1e300;
@@ -274,8 +287,15 @@ void ConservativeMaps::find_folds(ClipCorners& clip_of, const SliverEdges& edges
     // Every texel whose square comes within the rounding of the fold: its
     // centre within half a diagonal of it, and 1/32 texel, 1e-3 texel and
     // 1e-6 of the corners' extent more (the maps' own margins).
+    // And the light view's rounding of the corners, in texels where the
+    // fold is nearest the light (set_up's texel size).
     const double extent = std::max({size, std::abs(f.a.x), std::abs(f.a.y), std::abs(f.b.x), std::abs(f.b.y)});
-    f.reach = 0.5 * std::sqrt(2.0) + 1.0 / 32.0 + 1e-3 + 1e-6 * extent;
+    const double coarse_texels = double(view.layer_size) / size;
+    const double texel_world =
+        view.perspective ? view.texel_size.x * std::max(std::min(a.w, b.w), w_min) * coarse_texels / (1.0 + 2.0 * view.tan_half)
+                         : std::min(view.texel_size.x, view.texel_size.y) * coarse_texels;
+    const double rounding = e.object < objects.size() ? light_view_rounding(objects[e.object], view.view) : 0.0;
+    f.reach = 0.5 * std::sqrt(2.0) + 1.0 / 32.0 + 1e-3 + 1e-6 * extent + rounding / texel_world;
     folds_.push_back(f);
   }
 }
@@ -337,7 +357,7 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
       const double nx = b.y - a.y, ny = a.x - b.x, l1 = std::abs(nx) + std::abs(ny);
       const double rounding = l1 * (1e-3 + 1e-6 * reach) + s.swell * std::sqrt(nx * nx + ny * ny);
       edges[e] = {nx, ny, -nx * a.x - ny * a.y - 0.5 * l1 - rounding};
-      inner[e] = {nx, ny, -nx * a.x - ny * a.y + l1 * (1e-3 + 1e-6 * corner_extent)};
+      inner[e] = {nx, ny, -nx * a.x - ny * a.y + l1 * (1e-3 + 1e-6 * corner_extent) + s.rounding * std::sqrt(nx * nx + ny * ny)};
     }
     // The row's span of centres on the inner side of every edge of `of`.
     const auto span_of = [&](const Edge* of, double cy, double& from, double& to) {
@@ -384,7 +404,7 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
         // The cover map: the farthest depth of the plane over the texel's
         // square (never past the farthest corner) and its rounding, to the
         // nearest float here, a float step further in finish_cover.
-        if (cover_) band.cover_depth[at] = std::max(band.cover_depth[at], float(farthest + rounding));
+        if (cover_) band.cover_depth[at] = std::max(band.cover_depth[at], float(farthest + rounding + s.depth_rounding));
         if (s.owner == band.nearest_owner[at]) {
           band.nearest_depth[at] = std::min(band.nearest_depth[at], d);
         } else if (d < band.nearest_depth[at]) {

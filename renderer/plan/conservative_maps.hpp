@@ -52,8 +52,18 @@ struct ConservativeObject {
   double swell = 0.0;
   bool model = false;
   bool closed = false;
+  /// The largest |coordinate| of its bounds relative to the mesh origin:
+  /// the scale of the float rounding of its corners in the light's view.
+  double extent = 0.0;
 };
-std::vector<ConservativeObject> conservative_objects(const Scene& scene);
+std::vector<ConservativeObject> conservative_objects(const Scene& scene, const glm::dvec3& mesh_origin = glm::dvec3(0.0));
+
+/// How far (world units) the maps may draw a corner of `object` from where
+/// it is: its position is a float relative to the mesh origin, moved
+/// through the light's float view matrix (`view`, relative to the origin
+/// too), so off by up to about 1e-6 of the coordinates involved, as
+/// seen_here bounds the camera's (scene.frag's light_rounding).
+double light_view_rounding(const ConservativeObject& object, const glm::mat4& view);
 
 /// Owners (certificate.glsl's owner_of): an analytic shape's triangles are
 /// owned by the object; a model's triangle that turns its outward side to
@@ -132,6 +142,9 @@ class ConservativeMaps {
     double min_depth = 0.0;
     double max_depth = 0.0;  ///< the farthest corner's window depth
     double swell = 0.0, depth_swell = 0.0;
+    /// light_view_rounding in texels and in window depth (in swell and
+    /// depth_swell too): what the cover map's own tests keep clear of.
+    double rounding = 0.0, depth_rounding = 0.0;
     glm::dvec2 lo{0.0}, hi{0.0};
     std::uint32_t owner = 0;
   };
@@ -148,7 +161,7 @@ class ConservativeMaps {
   void finish_cover(ConservativeBand& band) const;
   struct ClipCorners;  // each corner's clip position, projected once
   void find_folds(ClipCorners& clip_of, const SliverEdges& edges, const std::vector<std::uint8_t>& drawn,
-                  const ConservativeView& view);
+                  const std::vector<ConservativeObject>& objects, const ConservativeView& view);
 
   std::vector<Setup> setups_;
   std::vector<Fold> folds_;
