@@ -381,6 +381,32 @@ TEST(ConservativeMaps, TheCoverMapHoldsForAPointLightToo) {
   }
 }
 
+// Triangles whose boxes would take more than kMostTexelTouches passes
+// over the layer (swollen across it: an object whose rounding spans the
+// map) are not drawn: every texel holds depth 0, owned by no point, so the
+// maps prove nothing and the work stays one pass.
+TEST(ConservativeMaps, TooMuchToDrawProvesNothing) {
+  std::mt19937 random(2);
+  const Triangles t = sheet(random, 0, 0.0f, 0.3f, 6);  // 72 triangles
+  const ConservativeView view = orthographic_view(32);
+  const std::vector<DrawRange> draws = {{0, t.indices.size(), CullMode::None}};
+  for (const double swell : {0.0, 1.0}) {
+    const ConservativeMaps maps(t.positions, t.indices, {{swell, true, false}}, t.objects, draws, view);
+    EXPECT_EQ(maps.proves_nothing(), swell > 0.0) << swell;
+    ConservativeBand band;
+    band.x1 = band.y1 = view.size;
+    maps.draw(band);
+    if (swell > 0.0) {
+      EXPECT_TRUE(std::all_of(band.nearest_depth.begin(), band.nearest_depth.end(), [](float d) { return d == 0.0f; }));
+      EXPECT_TRUE(std::all_of(band.nearest_owner.begin(), band.nearest_owner.end(), [](std::uint32_t o) { return o == kEveryOwner; }));
+      EXPECT_TRUE(std::all_of(band.others_depth.begin(), band.others_depth.end(), [](float d) { return d == 0.0f; }));
+      int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+      maps.touched(x0, y0, x1, y1);
+      EXPECT_TRUE(x0 <= 0 && y0 <= 0 && x1 >= view.size && y1 >= view.size);
+    }
+  }
+}
+
 // Without the scene's edges the cover map proves nothing.
 TEST(ConservativeMaps, NoEdgesNoCover) {
   std::mt19937 random(1);

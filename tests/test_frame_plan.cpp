@@ -554,6 +554,33 @@ TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds
   EXPECT_TRUE(whole.display.cell_indices.empty());
 }
 
+// A layer where an object's corners move by more than kMostRoundingTexels
+// (a 5 mm box 10^4 from the scene's centre, texels of 10^-5) draws no
+// conservative maps: they would prove nothing at a swollen box's cost per
+// triangle. Built-in scenes' layers all draw theirs.
+TEST(FramePlan, ACertifiedLayerWhoseObjectsTheLightViewMovesByTexelsProvesNothing) {
+  const ParsedRequest far = parse_render_request(R"({"width": 640, "height": 360, "scene": {"objects": [
+        {"type": "box", "center": [0, 0, 0], "size": [0.02, 0.002, 0.02]},
+        {"type": "box", "center": [9534.6, 2860.3, 953.4], "size": [0.005, 0.005, 0.005]},
+        {"type": "box", "center": [-9534.6, -2860.3, -953.4], "size": [0.005, 0.005, 0.005]}]},
+      "light": {"position": [19069.2, 5720.7, 1906.9], "target": [0, 0, 0]},
+      "camera": {"position": [0.0, 0.017, 0.012], "target": [0, 0.001, 0], "near": 0.0001, "far": 0.1},
+      "shadow": {"filter": "exact", "map_size": 2048}})",
+                                                 Route::Render, {});
+  ASSERT_TRUE(far.ok()) << far.error.message;
+  const Mesh far_mesh = tessellate(far.request->scene);
+  const FramePlan far_plan = plan_frame(*far.request, far_mesh, "far", KeptShadowMap{}, CertifiedPath::Maps);
+  ASSERT_FALSE(far_plan.shadow.layers.empty());
+  for (const ShadowLayerDraw& layer : far_plan.shadow.layers) EXPECT_TRUE(layer.proves_nothing) << layer.layer;
+  for (const char* name : {"three-cubes", "torus-knot", "cube-on-plane"}) {
+    RenderRequest r = test::builtin_request(name);
+    r.shadow.filter = ShadowFilter::Exact;
+    const Mesh mesh = tessellate(r.scene);
+    const FramePlan plan = plan_frame(r, mesh, name, KeptShadowMap{}, CertifiedPath::Maps);
+    for (const ShadowLayerDraw& layer : plan.shadow.layers) EXPECT_FALSE(layer.proves_nothing) << name << " " << layer.layer;
+  }
+}
+
 // The two paths without maps (CertifiedPath): proofs keep the floor's
 // proved parts and the sliver pass; the ray cast keeps neither, and an
 // undrawn pixel (the sky) is uncertain too: nothing else would find an
@@ -702,7 +729,9 @@ TEST(FramePlan, ACameraOnlyChangeReusesTheCertifiedMaps) {
   EXPECT_FALSE(reused(moved, "scene", other_fit));
   KeptCertifiedMaps other_planes = kept;
   other_planes.planes.assign(other_planes.planes.size(), true);
-  if (other_planes.planes != kept.planes) EXPECT_FALSE(reused(moved, "scene", other_planes));
+  if (other_planes.planes != kept.planes) {
+    EXPECT_FALSE(reused(moved, "scene", other_planes));
+  }
   KeptCertifiedMaps cut_short = kept;
   cut_short.holds_plan = false;
   EXPECT_FALSE(reused(moved, "scene", cut_short));

@@ -53,6 +53,16 @@ LightState light_at(const Light& light, double time);
 /// and the exact reference's disc both use this one value.
 double sun_disc_tan_radius(const Light& light);
 
+/// How far (world units) a float view matrix relative to the mesh origin
+/// (the GL's) may move a corner whose coordinates relative to that origin
+/// reach `extent` (largest |coordinate|): about 1e-6 of the coordinates
+/// involved, `translation` (the length of the matrix's translation) among
+/// them, as seen_here (scene.frag) bounds the camera's. Filter "exact"'s
+/// maps and certificate take it in (docs/certified-shadows.md).
+inline double light_view_rounding(double extent, double translation) {
+  return 1e-6 * (1.7320508075688772 * extent + translation);
+}
+
 /// glm::lookAt, except that when `up` is (nearly) parallel to the view
 /// direction — a light straight above its target, a camera looking straight
 /// down with up = +Y — it substitutes a stable axis instead of producing NaNs:

@@ -588,6 +588,16 @@ void ShadowRenderer::run_certified_shadow_pass(const FramePlan& plan, const Fram
     glUseProgram(centre);
     glProgramUniform1i(centre, kUniformLocationLayer, at);
     draw_scene(layer.draws);
+    if (layer.proves_nothing) {
+      // Depth 0, owned by no point: no proof of light; the cover map far.
+      const float at_light = 0.0f;
+      const GLuint every_owner = kEveryOwner;
+      clear(certify_.nearest_depth.id(), GL_DEPTH_COMPONENT, GL_FLOAT, &at_light);
+      clear(certify_.others_depth.id(), GL_DEPTH_COMPONENT, GL_FLOAT, &at_light);
+      clear(certify_.nearest_owner.id(), GL_RED_INTEGER, GL_UNSIGNED_INT, &every_owner);
+      clear(certify_.cover_depth.id(), GL_RED, GL_FLOAT, &far);
+      continue;
+    }
     if (certified_passes_on_cpu_ && upload_conservative_maps(plan, block, layer)) continue;
     attach(certify_.nearest_depth.id(), certify_.nearest_owner.id(), at);
     glViewport(0, 0, coarse, coarse);

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "core/convex_patches.hpp"
+#include "core/light_math.hpp"
 #include "core/shapes/shape.hpp"
 
 namespace umbra {
@@ -24,7 +25,7 @@ std::vector<ConservativeObject> conservative_objects(const Scene& scene, const g
 }
 
 double light_view_rounding(const ConservativeObject& object, const glm::mat4& view) {
-  return 1e-6 * (std::sqrt(3.0) * object.extent + glm::length(glm::dvec3(view[3])));
+  return light_view_rounding(object.extent, glm::length(glm::dvec3(view[3])));
 }
 
 std::vector<std::uint32_t> light_facing_owners(const Scene& scene, const Mesh& mesh) {
@@ -233,6 +234,14 @@ ConservativeMaps::ConservativeMaps(const std::vector<glm::vec3>& positions, cons
       }
     }
   }
+  // The boxes' texels summed: past kMostTexelTouches passes over the
+  // layer, the maps are not drawn but hold depth 0 (they prove nothing).
+  double touches = 0.0;
+  for (const Setup& s : setups_) touches += (s.hi.x - s.lo.x + 1.0) * (s.hi.y - s.lo.y + 1.0);
+  if (touches > kMostTexelTouches * double(view.size) * double(view.size)) {
+    too_much_ = true;
+    return;
+  }
   if (edges) find_folds(clip_of, *edges, drawn, objects, view);
 }
 
@@ -301,6 +310,11 @@ void ConservativeMaps::find_folds(ClipCorners& clip_of, const SliverEdges& edges
 }
 
 void ConservativeMaps::touched(int& x0, int& y0, int& x1, int& y1) const {
+  if (too_much_) {  // every texel
+    x0 = y0 = -1;
+    x1 = y1 = std::numeric_limits<int>::max() / 2;
+    return;
+  }
   x0 = y0 = std::numeric_limits<int>::max();
   x1 = y1 = std::numeric_limits<int>::min();
   for (const Setup& s : setups_) {
@@ -329,6 +343,12 @@ void ConservativeMaps::draw(ConservativeBand& band) const {
   band.cover_depth.assign(w * h, cover_ ? -std::numeric_limits<float>::infinity() : 1.0f);
   band.scratch.assign(cover_ ? w * h : 0, 0);
   if (w == 0 || h == 0) return;
+  if (too_much_) {
+    std::fill(band.nearest_depth.begin(), band.nearest_depth.end(), 0.0f);
+    std::fill(band.nearest_owner.begin(), band.nearest_owner.end(), kEveryOwner);
+    std::fill(band.others_depth.begin(), band.others_depth.end(), 0.0f);
+    return;
+  }
   struct Edge {
     double nx, ny, k;  // keeps nx * cx + ny * cy + k <= 0
   };

@@ -83,6 +83,13 @@ inline constexpr std::size_t kMostPatchOwnedTriangles = std::size_t(1) << 30;
 /// triangles numbered from its range's first).
 std::vector<std::uint32_t> light_facing_owners(const Scene& scene, const Mesh& mesh);
 
+/// What the maps hold where drawing them would take more than
+/// kMostTexelTouches passes over the layer (the triangles' boxes summed:
+/// objects whose rounding or swell spans much of the layer, as far from
+/// the mesh origin): depth 0 everywhere, owned by no point's owner, so the
+/// maps prove nothing there and the work stays bounded.
+inline constexpr double kMostTexelTouches = 64.0;
+inline constexpr std::uint32_t kEveryOwner = 0xFFFFFFFEu;
 /// A texel no triangle touches: depth 1 (far), this owner.
 inline constexpr std::uint32_t kNoOwner = 0xFFFFFFFFu;
 
@@ -123,6 +130,9 @@ class ConservativeMaps {
   /// Fills `band` (its rectangle set by the caller, within the maps).
   void draw(ConservativeBand& band) const;
   std::size_t triangles() const { return setups_.size(); }
+  /// Drawing would have taken more than kMostTexelTouches passes over the
+  /// layer: every texel holds depth 0 and kEveryOwner instead.
+  bool proves_nothing() const { return too_much_; }
   /// The folds the cover map leaves far around (texels of the maps).
   std::size_t folds() const { return folds_.size(); }
   /// The texels any triangle may mark, [x0, x1) x [y0, y1) (empty when
@@ -166,6 +176,7 @@ class ConservativeMaps {
   std::vector<Setup> setups_;
   std::vector<Fold> folds_;
   bool cover_ = false;  ///< edges given: the cover map is drawn
+  bool too_much_ = false;  ///< kMostTexelTouches exceeded: the maps prove nothing
 };
 
 /// The most triangles a layer's maps are drawn from here: their setups take

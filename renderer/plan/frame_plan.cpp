@@ -7,6 +7,7 @@
 #include <utility>
 
 #include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 #include <glm/vector_relational.hpp>
 
 #include "core/render_result.hpp"
@@ -451,6 +452,21 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
       std::vector<bool> in_view;
       for (const TexelRect& object : casters.by_object[layer]) in_view.push_back(!object.empty());
       draw.draws = scene_draw_ranges(mesh, closed_cull, in_view);
+    }
+    // The GL's view of this layer, relative to the mesh origin (FrameBlock),
+    // and the size of the conservative maps' texels (a point light's where
+    // they are smallest, at its near plane).
+    const ShadowView& v = light.views[layer];
+    const double translation = glm::length(glm::dvec3((v.view * glm::translate(glm::dmat4(1.0), mesh.origin))[3]));
+    const double coarse = double(light.layer_size) / double(certified_map_size(light.layer_size));
+    const double texel = light.perspective ? v.texel_size.x * v.near_plane * coarse / (1.0 + 2.0 * v.tan_half)
+                                           : std::min(v.texel_size.x, v.texel_size.y) * coarse;
+    for (const ObjectRange& r : mesh.object_ranges) {
+      const Aabb& b = mesh.bounds.at(r.object);
+      if (b.empty()) continue;
+      const glm::dvec3 far = glm::max(glm::abs(b.min - mesh.origin), glm::abs(b.max - mesh.origin));
+      if (light_view_rounding(std::max({far.x, far.y, far.z}), translation) > kMostRoundingTexels * texel)
+        draw.proves_nothing = true;
     }
     pass.layers.push_back(std::move(draw));
   }

@@ -111,7 +111,15 @@ struct ShadowLayerDraw {
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
   /// The objects that reach into this view, as scene index ranges.
   std::vector<DrawRange> draws;
+  /// Filter "exact": an object's corners move in this view by more than
+  /// kMostRoundingTexels (light_view_rounding: far from the mesh origin,
+  /// over tiny texels). Its conservative maps would prove next to nothing
+  /// and cost a swollen box per triangle: they are not drawn but hold
+  /// depth 0, owned by no point (kEveryOwner), and the cover map is far.
+  bool proves_nothing = false;
 };
+/// See ShadowLayerDraw::proves_nothing.
+inline constexpr double kMostRoundingTexels = 16.0;
 
 struct ShadowPassPlan {
   /// The frame reads or shows a shadow map (a shadow lookup, or the depth
