@@ -95,6 +95,13 @@ constexpr glm::dvec3 kFloorColor{0.72, 0.66, 0.58};
 
 Aabb object_bounds(const SceneObject& o) { return shape_kind(o.type).bounds(o); }
 
+double largest_coordinate(const Aabb& box, const glm::dvec3& origin) {
+  if (box.empty()) return 0.0;
+  double largest = 0.0;
+  for (int i = 0; i < 3; ++i) largest = std::max({largest, std::abs(box.min[i] - origin[i]), std::abs(box.max[i] - origin[i])});
+  return largest;
+}
+
 Aabb scene_bounds(const Scene& scene) {
   Aabb b;
   for (const auto& o : scene.objects) b.extend(object_bounds(o));

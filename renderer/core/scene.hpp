@@ -43,6 +43,9 @@ glm::dvec3 rotate_y(const glm::dvec3& v, double degrees);
 
 /// Tight world-space bounds of one object (a rotated box's rotated corners).
 Aabb object_bounds(const SceneObject& object);
+/// The largest |coordinate| of `box` relative to `origin` (0 if empty): the
+/// scale of the float rounding of its corners there.
+double largest_coordinate(const Aabb& box, const glm::dvec3& origin);
 Aabb scene_bounds(const Scene& scene);
 
 /// A built-in scene: its objects and its own default camera and light.

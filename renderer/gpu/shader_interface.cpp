@@ -137,10 +137,7 @@ std::vector<glm::vec4> object_facts(const Scene& scene, const glm::dvec3& origin
   facts.reserve(scene.objects.size());
   for (const SceneObject& o : scene.objects) {
     const TessellationError error = tessellation_error(o);
-    const Aabb b = object_bounds(o);
-    double extent = 0.0;
-    for (int i = 0; i < 3; ++i)
-      extent = std::max({extent, std::abs(b.min[i] - origin[i]), std::abs(b.max[i] - origin[i])});
+    const double extent = largest_coordinate(object_bounds(o), origin);
     const bool model = o.type == SceneObject::Type::Mesh;
     const int flags = (model ? kObjectFlagModel : 0) | (shape_kind(o.type).closed(o) ? kObjectFlagClosed : 0);
     facts.emplace_back(float(error.distance), float(error.normal_angle), float(flags), float(extent));

@@ -15,12 +15,9 @@ namespace umbra {
 std::vector<ConservativeObject> conservative_objects(const Scene& scene, const glm::dvec3& mesh_origin) {
   std::vector<ConservativeObject> objects;
   objects.reserve(scene.objects.size());
-  for (const SceneObject& o : scene.objects) {
-    const Aabb b = object_bounds(o);
-    const glm::dvec3 far = b.empty() ? glm::dvec3(0.0) : glm::max(glm::abs(b.min - mesh_origin), glm::abs(b.max - mesh_origin));
-    const double extent = std::max({far.x, far.y, far.z});
-    objects.push_back({tessellation_error(o).distance, o.type == SceneObject::Type::Mesh, shape_kind(o.type).closed(o), extent});
-  }
+  for (const SceneObject& o : scene.objects)
+    objects.push_back({tessellation_error(o).distance, o.type == SceneObject::Type::Mesh, shape_kind(o.type).closed(o),
+                       largest_coordinate(object_bounds(o), mesh_origin)});
   return objects;
 }
 

@@ -461,13 +461,10 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
     const double coarse = double(light.layer_size) / double(certified_map_size(light.layer_size));
     const double texel = light.perspective ? v.texel_size.x * v.near_plane * coarse / (1.0 + 2.0 * v.tan_half)
                                            : std::min(v.texel_size.x, v.texel_size.y) * coarse;
-    for (const ObjectRange& r : mesh.object_ranges) {
-      const Aabb& b = mesh.bounds.at(r.object);
-      if (b.empty()) continue;
-      const glm::dvec3 far = glm::max(glm::abs(b.min - mesh.origin), glm::abs(b.max - mesh.origin));
-      if (light_view_rounding(std::max({far.x, far.y, far.z}), translation) > kMostRoundingTexels * texel)
+    for (const ObjectRange& r : mesh.object_ranges)
+      if (light_view_rounding(largest_coordinate(mesh.bounds.at(r.object), mesh.origin), translation) >
+          kMostRoundingTexels * texel)
         draw.proves_nothing = true;
-    }
     pass.layers.push_back(std::move(draw));
   }
   pass.kept_after.holds_plan = false;

@@ -38,6 +38,11 @@ double raster_rounding(const Aabb& b, const glm::dvec3& origin, const glm::dvec3
   return 1e-6 * (glm::length(far_corner) + glm::length(eye - origin));
 }
 
+// World size of a pixel at unit distance, along the image's height.
+double pixel_per_distance(const Camera& camera, int height) {
+  return 2.0 * std::tan(camera.fov_y_deg * 3.14159265358979323846 / 360.0) / height;
+}
+
 glm::dvec3 scene_origin(const Scene& scene) {
   const Aabb all = scene_bounds(scene);
   return all.empty() ? glm::dvec3(0.0) : all.center();
@@ -61,8 +66,7 @@ double outline_distance(const SceneObject& o, const Aabb& b, const Camera& camer
 
 int silhouette_ring(const RenderRequest& request) {
   const Camera& camera = request.camera;
-  // World size of a pixel at unit distance, along the image's height.
-  const double pixel_per_distance = 2.0 * std::tan(camera.fov_y_deg * 3.14159265358979323846 / 360.0) / request.height;
+  const double pixel = pixel_per_distance(camera, request.height);
   const glm::dvec3 origin = scene_origin(request.scene);
   double most = 0.0;
   for (const SceneObject& o : request.scene.objects) {
@@ -73,9 +77,9 @@ int silhouette_ring(const RenderRequest& request) {
     double distance = tessellation_error(o).distance;
     const double d = outline_distance(o, b, camera);
     const double rounding = raster_rounding(b, origin, camera.position);
-    if (rounding / (d * pixel_per_distance) > kMisplacedPixels) distance += rounding;
+    if (rounding / (d * pixel) > kMisplacedPixels) distance += rounding;
     if (distance <= 0.0) continue;
-    most = std::max(most, distance / (d * pixel_per_distance));
+    most = std::max(most, distance / (d * pixel));
   }
   // The rasterised outline and the exact one are at most `most` pixels
   // apart; a pixel between them is at most that far from a pixel whose
@@ -86,14 +90,14 @@ int silhouette_ring(const RenderRequest& request) {
 void mark_misplaced_objects(const RenderRequest& request, int width, int height, std::vector<std::uint8_t>& marks) {
   const Camera& camera = request.camera;
   const glm::dvec3 origin = scene_origin(request.scene);
-  const double pixel_per_distance = 2.0 * std::tan(camera.fov_y_deg * 3.14159265358979323846 / 360.0) / height;
+  const double pixel = pixel_per_distance(camera, height);
   const CameraMatrices m = camera_matrices(camera, width, height);
   const glm::dmat4 to_clip = m.projection * m.view;
   for (const SceneObject& o : request.scene.objects) {
     const Aabb b = object_bounds(o);
     if (b.empty()) continue;
     const double rounding = raster_rounding(b, origin, camera.position);
-    const double pixels = rounding / (outline_distance(o, b, camera) * pixel_per_distance);
+    const double pixels = rounding / (outline_distance(o, b, camera) * pixel);
     // Only an object within kMisplacedSizes roundings across can lose its
     // outline to the rounding (vanish, or a part of it): the ring widened
     // by silhouette_ring finds the rest.
