@@ -19,6 +19,7 @@
 #include "assets/gltf_loader.hpp"
 #include "gpu/egl_context.hpp"
 #include "gpu/shadow_renderer.hpp"
+#include "core/raster_outline.hpp"
 #include "reference/certified_frame.hpp"
 #include "reference/ray_cast.hpp"
 #include "render_support.hpp"

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 
+#include "core/raster_outline.hpp"
 #include "reference/certified_frame.hpp"
 #include "scene_support.hpp"
 
