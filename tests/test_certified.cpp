@@ -18,6 +18,7 @@
 
 #include "assets/gltf_loader.hpp"
 #include "gpu/egl_context.hpp"
+#include "gpu/shader_interface.hpp"
 #include "gpu/shadow_renderer.hpp"
 #include "core/raster_outline.hpp"
 #include "reference/certified_frame.hpp"
@@ -371,6 +372,95 @@ TEST(CertifiedFrame, ObjectsTheRasterMayMisplaceAreCastWhole) {
     mark_misplaced_objects(test::builtin_request(scene), 640, 360, marks);
     EXPECT_EQ(std::count(marks.begin(), marks.end(), 1), 0) << scene;
   }
+}
+
+// On a GPU the shaders list the pixels to ray cast (cast_list.comp) and
+// only the list is read back: exactly pixels_to_ray_cast's pixels, each
+// once, with its unlit colour, for rings of 1 and more; both settle to the
+// same image. Where the ring is wider than kMostListedRing, or an object
+// may be misplaced (cast whole), the CPU finds them from the certificates.
+TEST(CertifiedFrame, TheGpuListsExactlyThePixelsTheCpuFinds) {
+  std::vector<RenderRequest> requests;
+  for (const std::string& name : hard_light_scenes())
+    requests.push_back(load_scene_request(UMBRA_SCENES_DIR, name, {{"width", 320}, {"height", 180}}));
+  std::mt19937 random(20261128);
+  for (int i = 0; i < 6; ++i) requests.push_back(request(random_scene(random).dump()));
+  ShadowRenderer& renderer = own_renderer();
+  renderer.set_certified_passes_on_cpu(false);
+  int rings_above_one = 0;
+  std::size_t listed_pixels = 0, dark_listed = 0;
+  for (RenderRequest r : requests) {
+    for (const Output output : {Output::Shadow, Output::Color}) {
+      r.output = output;
+      r.shadow.filter = ShadowFilter::Exact;
+      renderer.set_pixels_listed_on_gpu(false);
+      RenderResult found = renderer.render(r, {}, CertifiedPath::Maps);
+      renderer.set_pixels_listed_on_gpu(true);
+      RenderResult listed = renderer.render(r, {}, CertifiedPath::Maps);
+      ASSERT_TRUE(found.certificates && listed.certificates);
+      ASSERT_FALSE(found.certificates->listed.has_value());
+      ASSERT_TRUE(listed.certificates->listed.has_value());
+      EXPECT_TRUE(listed.certificates->codes.empty() && listed.certificates->unlit.pixels.empty());
+      const int ring = silhouette_ring(r);
+      rings_above_one += ring > 1;
+      const std::vector<std::uint8_t> cast = pixels_to_ray_cast(*found.certificates, r.width, r.height, ring);
+      std::vector<std::uint8_t> seen(cast.size(), 0);
+      std::size_t twice = 0, wrong_unlit = 0;
+      for (const PixelCertificates::ListedPixel& p : *listed.certificates->listed) {
+        ASSERT_LT(p.index, cast.size());
+        twice += seen[p.index];
+        seen[p.index] = 1;
+        std::uint32_t unlit = 0;
+        if (output == Output::Color) {
+          const std::uint8_t* rgb = found.certificates->unlit.pixels.data() + 3 * std::size_t(p.index);
+          unlit = rgb[0] | std::uint32_t(rgb[1]) << 8 | std::uint32_t(rgb[2]) << 16;
+          dark_listed += unlit != 0;
+        }
+        wrong_unlit += p.unlit != unlit;
+      }
+      std::size_t differing = 0;
+      for (std::size_t i = 0; i < cast.size(); ++i) differing += seen[i] != cast[i];
+      EXPECT_EQ(differing, 0u) << r.scene.objects.size() << " objects, ring " << ring;
+      EXPECT_EQ(twice, 0u);
+      EXPECT_EQ(wrong_unlit, 0u);
+      listed_pixels += listed.certificates->listed->size();
+      settle_certified_frame(found, r);
+      settle_certified_frame(listed, r);
+      EXPECT_EQ(differing_pixels(found.image, listed.image), 0u);
+    }
+  }
+  EXPECT_GT(rings_above_one, 0);  // the curved shapes' scenes
+  EXPECT_GT(listed_pixels, 0u);
+  EXPECT_GT(dark_listed, 0u);
+  // A ring wider than the GPU lists: a sphere of radius 50 whose surface
+  // is 0.2 units from the camera (SilhouetteRing...CurvedOnesCloseUpMore).
+  RenderRequest close = test::builtin_request("cube-on-plane");
+  close.width = 160;
+  close.height = 90;
+  close.output = Output::Shadow;
+  close.shadow.filter = ShadowFilter::Exact;
+  SceneObject sphere;
+  sphere.type = SceneObject::Type::Sphere;
+  sphere.radius = 50.0;
+  sphere.center = close.camera.position + glm::dvec3(0.0, 0.0, -50.2);
+  close.scene.objects.push_back(sphere);
+  ASSERT_GT(silhouette_ring(close) - 1, kMostListedRing);
+  RenderResult wide = renderer.render(close, {}, CertifiedPath::Maps);
+  ASSERT_TRUE(wide.certificates);
+  EXPECT_FALSE(wide.certificates->listed.has_value());
+  // An object the raster may misplace (ObjectsTheRasterMayMisplace...).
+  RenderRequest far = request(R"({"width": 160, "height": 90, "scene": {"objects": [
+        {"type": "sphere", "center": [10000, 0, 0], "radius": 0.0015},
+        {"type": "box", "center": [0, 0, 0], "size": [0.001, 0.001, 0.001]}]},
+      "light": {"position": [10000.004, 0.01, 0.003], "target": [10000, 0, 0]},
+      "camera": {"position": [10000, 0.002, 0.008], "target": [10000, 0, 0], "near": 0.0001, "far": 1}})");
+  far.output = Output::Shadow;
+  far.shadow.filter = ShadowFilter::Exact;
+  ASSERT_FALSE(misplaced_rectangles(far, far.width, far.height).empty());
+  RenderResult misplaced = renderer.render(far, {}, CertifiedPath::Maps);
+  ASSERT_TRUE(misplaced.certificates);
+  EXPECT_FALSE(misplaced.certificates->listed.has_value());
+  renderer.set_certified_passes_on_cpu(true);
 }
 
 // The light's float view matrix moves a point by about 1e-6 of the

@@ -180,10 +180,26 @@ TEST(FramePrelude, DefinesEachSharedFactAsTheCxxConstant) {
       {"UNIFORM_LOCATION_CULL_BACK", kUniformLocationCullBack},
       {"UNIFORM_BUFFER_FRAME_BLOCK", kUniformBufferFrameBlock},
       {"CERTIFICATE_OBJECT_SHIFT", int(PixelCertificates::kObjectShift)},
+      {"CERTIFICATE_SURFACE_SHIFT", int(PixelCertificates::kSurfaceShift)},
+      {"STORAGE_BUFFER_CAST_LIST", kStorageBufferCastList},
+      {"CAST_LIST_HEADER_WORDS", int(kCastListHeaderBytes / 4)},
+      {"CAST_EDGES", int(CastPass::Edges)},
+      {"CAST_ROWS", int(CastPass::Rows)},
+      {"CAST_LIST", int(CastPass::List)},
   };
   for (const auto& [name, value] : facts)
     EXPECT_NE(prelude.find(std::string("#define ") + name + " " + std::to_string(value) + "\n"), std::string::npos)
         << name << " is not " << value << " in:\n" << prelude;
+  for (const TextureUnit& unit : kTextureUnits)
+    EXPECT_NE(prelude.find(std::string("#define ") + unit.define + " " + std::to_string(unit.unit) + "\n"), std::string::npos)
+        << unit.define;
+  for (const TextureUnit& unit : kImageUnits)
+    EXPECT_NE(prelude.find(std::string("#define ") + unit.define + " " + std::to_string(unit.unit) + "\n"), std::string::npos)
+        << unit.define;
+  EXPECT_NE(prelude.find("#define CERTIFICATE_VERDICT_MASK " + std::to_string(PixelCertificates::kVerdictMask) + "u\n"),
+            std::string::npos);
+  // A ListedPixel is the list's uvec2: two words, index first.
+  static_assert(sizeof(PixelCertificates::ListedPixel) == 8 && offsetof(PixelCertificates::ListedPixel, unlit) == 4);
   // The owner of a model's triangle alone, as the CPU's maps name it.
   EXPECT_NE(prelude.find("#define CERTIFICATE_TRIANGLE_OWNER " + std::to_string(kModelTriangleOwner) + "u\n"),
             std::string::npos);

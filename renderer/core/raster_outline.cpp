@@ -73,7 +73,8 @@ int silhouette_ring(const RenderRequest& request) {
   return 1 + int(std::ceil(std::min(most, 1e6)));
 }
 
-void mark_misplaced_objects(const RenderRequest& request, int width, int height, std::vector<std::uint8_t>& marks) {
+std::vector<PixelRect> misplaced_rectangles(const RenderRequest& request, int width, int height) {
+  std::vector<PixelRect> rectangles;
   const Camera& camera = request.camera;
   const glm::dvec3 origin = scene_origin(request.scene);
   const double pixel = pixel_per_distance(camera, height);
@@ -106,9 +107,15 @@ void mark_misplaced_objects(const RenderRequest& request, int width, int height,
     const int i1 = behind ? width : int(std::clamp(std::ceil(x1 + grow), 0.0, double(width)));
     const int j0 = behind ? 0 : int(std::clamp(std::floor(y0 - grow), 0.0, double(height)));
     const int j1 = behind ? height : int(std::clamp(std::ceil(y1 + grow), 0.0, double(height)));
+    rectangles.push_back({i0, j0, i1, j1});
+  }
+  return rectangles;
+}
+
+void mark_misplaced_objects(const RenderRequest& request, int width, int height, std::vector<std::uint8_t>& marks) {
+  for (const auto [i0, j0, i1, j1] : misplaced_rectangles(request, width, height))
     for (int j = j0; j < j1; ++j)
       std::fill_n(marks.begin() + std::ptrdiff_t(std::size_t(j) * std::size_t(width) + std::size_t(i0)), i1 - i0, 1);
-  }
 }
 
 }  // namespace umbra

@@ -39,4 +39,12 @@ int silhouette_ring(const RenderRequest& request);
 /// it reaches behind the camera).
 void mark_misplaced_objects(const RenderRequest& request, int width, int height, std::vector<std::uint8_t>& marks);
 
+/// Pixels [x0, x1) x [y0, y1), row 0 at the top.
+struct PixelRect {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+/// The rectangles mark_misplaced_objects marks, one per such object (none
+/// in most frames).
+std::vector<PixelRect> misplaced_rectangles(const RenderRequest& request, int width, int height);
+
 }  // namespace umbra

@@ -66,8 +66,20 @@ struct PixelCertificates {
   /// there passes within a fraction of a pixel of its centre, in front of
   /// what was drawn (the sliver pass): the reference may see that object.
   std::vector<std::uint8_t> slivers;
+  /// Where the GPU listed the pixels to ray cast itself (ShadowRenderer, on
+  /// a GPU): exactly pixels_to_ray_cast's pixels (reference/
+  /// certified_frame.hpp) for silhouette_ring's ring, in no order, each
+  /// with its unlit colour for the colour output. `codes`, `slivers` and
+  /// `unlit` are then empty: they were not read back.
+  struct ListedPixel {
+    std::uint32_t index;  ///< row * width + column, row 0 at the top
+    std::uint32_t unlit;  ///< the colour output: R | G << 8 | B << 16; else 0
+  };
+  std::optional<std::vector<ListedPixel>> listed;
   static constexpr std::uint32_t kCertainlyLit = 0, kCertainlyDark = 1, kUncertain = 2;
-  static constexpr unsigned kObjectShift = 3;  ///< codes[i] >> kObjectShift: object + 1
+  static constexpr std::uint32_t kVerdictMask = 3;  ///< codes[i] & kVerdictMask: the verdict
+  static constexpr unsigned kSurfaceShift = 2;      ///< codes[i] >> kSurfaceShift: object and facing
+  static constexpr unsigned kObjectShift = 3;       ///< codes[i] >> kObjectShift: object + 1
 };
 
 /// How filter "exact" settled a frame's pixels.

@@ -81,6 +81,21 @@ Program build_program(std::string_view vertex_file, std::string_view geometry_fi
   return program;
 }
 
+Program build_compute_program(std::string_view compute_file, const std::string& prelude) {
+  const Shader compute = compile(GL_COMPUTE_SHADER, compute_file, prelude + with_includes(compute_file));
+  Program program(glCreateProgram());
+  glAttachShader(program.id(), compute.id());
+  glLinkProgram(program.id());
+  GLint ok = GL_FALSE;
+  glGetProgramiv(program.id(), GL_LINK_STATUS, &ok);
+  if (ok != GL_TRUE)
+    throw std::runtime_error("GLSL link error in " + std::string(compute_file) + ":\n" +
+                             info_log(program.id(), glGetProgramiv, glGetProgramInfoLog));
+  check_block_layout(program);
+  check_bindings(program);
+  return program;
+}
+
 const Program& ProgramVariants::get(const std::string& defines) {
   for (auto it = kept_.begin(); it != kept_.end(); ++it) {
     if (it->first != defines) continue;
@@ -169,6 +184,20 @@ void check_bindings(const Program& program) {
     GLint unit = -1;
     glGetUniformiv(id, sampler, &unit);
     if (unit != texture.unit) refuse(std::string(texture.glsl_name) + "'s texture unit", unit, texture.unit);
+  }
+  for (const TextureUnit& image : kImageUnits) {
+    const GLint uniform = glGetUniformLocation(id, image.glsl_name);
+    if (uniform < 0) continue;
+    GLint unit = -1;
+    glGetUniformiv(id, uniform, &unit);
+    if (unit != image.unit) refuse(std::string(image.glsl_name) + "'s image unit", unit, image.unit);
+  }
+  const GLuint list = glGetProgramResourceIndex(id, GL_SHADER_STORAGE_BLOCK, "CastList");
+  if (list != GL_INVALID_INDEX) {
+    const GLenum property = GL_BUFFER_BINDING;
+    GLint binding = -1;
+    glGetProgramResourceiv(id, GL_SHADER_STORAGE_BLOCK, list, 1, &property, 1, nullptr, &binding);
+    if (binding != kStorageBufferCastList) refuse("CastList's buffer binding", binding, kStorageBufferCastList);
   }
   const GLuint block = glGetUniformBlockIndex(id, "FrameBlock");
   if (block != GL_INVALID_INDEX) {

@@ -22,6 +22,10 @@ Program build_program(std::string_view vertex_file, std::string_view fragment_fi
 Program build_program(std::string_view vertex_file, std::string_view geometry_file, std::string_view fragment_file,
                       const std::string& prelude);
 
+/// A compute program from `compute_file`, preceded by `prelude`; checked
+/// as build_program's are.
+Program build_compute_program(std::string_view compute_file, const std::string& prelude);
+
 /// The same from sources in memory; the names only label error messages.
 Program build_program_from_sources(std::string_view vertex_name, std::string_view vertex_source,
                                    std::string_view fragment_name, std::string_view fragment_source,

@@ -183,6 +183,8 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define CERTIFICATE_DARK " << PixelCertificates::kCertainlyDark << "u\n"
     << "#define CERTIFICATE_UNCERTAIN " << PixelCertificates::kUncertain << "u\n"
     << "#define CERTIFICATE_OBJECT_SHIFT " << PixelCertificates::kObjectShift << "\n"
+    << "#define CERTIFICATE_SURFACE_SHIFT " << PixelCertificates::kSurfaceShift << "\n"
+    << "#define CERTIFICATE_VERDICT_MASK " << PixelCertificates::kVerdictMask << "u\n"
     << "#define CERTIFICATE_TRIANGLE_OWNER " << kModelTriangleOwner << "u\n"
     << "#define OBJECT_FLAG_MODEL " << kObjectFlagModel << "\n"
     << "#define OBJECT_FLAG_CLOSED " << kObjectFlagClosed << "\n"
@@ -190,6 +192,12 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define CERTIFY_NEAREST " << int(CertifyPass::Nearest) << "\n"
     << "#define CERTIFY_OTHERS " << int(CertifyPass::Others) << "\n";
   for (const TextureUnit& unit : kTextureUnits) s << "#define " << unit.define << " " << unit.unit << "\n";
+  for (const TextureUnit& unit : kImageUnits) s << "#define " << unit.define << " " << unit.unit << "\n";
+  s << "#define STORAGE_BUFFER_CAST_LIST " << kStorageBufferCastList << "\n"
+    << "#define CAST_LIST_HEADER_WORDS " << kCastListHeaderBytes / 4 << "\n"
+    << "#define CAST_EDGES " << int(CastPass::Edges) << "\n"
+    << "#define CAST_ROWS " << int(CastPass::Rows) << "\n"
+    << "#define CAST_LIST " << int(CastPass::List) << "\n";
   s
     << "#define UNIFORM_LOCATION_LAYER " << kUniformLocationLayer << "\n"
     << "#define UNIFORM_BUFFER_FRAME_BLOCK " << kUniformBufferFrameBlock << "\n"

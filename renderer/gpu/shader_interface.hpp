@@ -94,6 +94,8 @@ inline constexpr int kTextureUnitTriangleObjects = 5;
 inline constexpr int kTextureUnitObjectFacts = 6;
 inline constexpr int kTextureUnitCertificates = 7;
 inline constexpr int kTextureUnitCertifyCover = 8;
+inline constexpr int kTextureUnitSlivers = 9;
+inline constexpr int kTextureUnitUnlit = 10;
 /// Every texture unit a shader binds, with its sampler's GLSL name and
 /// the #define that carries it.
 struct TextureUnit {
@@ -116,7 +118,31 @@ inline constexpr TextureUnit kTextureUnits[] = {
     {"u_object_facts", "TEXTURE_UNIT_OBJECT_FACTS", kTextureUnitObjectFacts},
     // The main pass's certificates, read by the sliver pass (sliver.frag).
     {"u_certificates", "TEXTURE_UNIT_CERTIFICATES", kTextureUnitCertificates},
+    // The sliver pass's marks and the unlit colours, read where the GPU
+    // lists the pixels to ray cast (cast_list.comp).
+    {"u_slivers", "TEXTURE_UNIT_SLIVERS", kTextureUnitSlivers},
+    {"u_unlit", "TEXTURE_UNIT_UNLIT", kTextureUnitUnlit},
 };
+/// cast_list.comp's images (R8UI, the display's size): each pass reads the
+/// last one's marks from u_cast_in (IMAGE_UNIT_CAST_IN) and writes its own
+/// to u_cast_out (IMAGE_UNIT_CAST_OUT).
+inline constexpr TextureUnit kImageUnits[] = {
+    {"u_cast_in", "IMAGE_UNIT_CAST_IN", 0},
+    {"u_cast_out", "IMAGE_UNIT_CAST_OUT", 1},
+};
+/// cast_list.comp's output, the shader storage block CastList
+/// (STORAGE_BUFFER_CAST_LIST): a count, three words of padding, then per
+/// pixel listed a ListedPixel (core/render_result.hpp: uvec2 index, unlit).
+inline constexpr int kStorageBufferCastList = 0;
+inline constexpr std::size_t kCastListHeaderBytes = 16;
+/// cast_list.comp's passes (CAST_PASS): the pixels beside a change of
+/// surface, those within the ring along rows, and the list (columns, the
+/// uncertain and the marked pixels).
+enum class CastPass { Edges = 0, Rows = 1, List = 2 };
+/// The widest dilation the GPU lists (pixels_to_ray_cast's ring - 1): a
+/// loop of 2r + 1 reads a pixel per pass. Wider rings (a curved shape seen
+/// from very close) are found on the CPU from the read-back certificates.
+inline constexpr int kMostListedRing = 32;
 /// certificate.glsl's object facts: flags in z (OBJECT_FLAG_MODEL, OBJECT_FLAG_CLOSED).
 inline constexpr int kObjectFlagModel = 1;
 inline constexpr int kObjectFlagClosed = 2;

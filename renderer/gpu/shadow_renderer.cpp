@@ -8,6 +8,7 @@
 
 #include "gpu/program.hpp"
 #include "core/mesh_instance.hpp"
+#include "core/raster_outline.hpp"
 #include "plan/frame_plan.hpp"
 #include "gpu/shader_interface.hpp"
 
@@ -152,6 +153,7 @@ ShadowRenderer::ShadowRenderer(std::uint64_t scene_cache_bytes) : scene_cache_by
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   certified_passes_on_cpu_ = gl_renderer().find("llvmpipe") != std::string::npos;
+  pixels_listed_on_gpu_ = !certified_passes_on_cpu_;
 }
 
 std::string ShadowRenderer::gl_renderer() const {
@@ -212,7 +214,10 @@ std::uint64_t ShadowRenderer::display_bytes() const {
   // RGBA8, and 32F depth with an 8-bit stencil (llvmpipe stores the pair in
   // 8 bytes); a certified frame's R32UI and RGBA8 beside them.
   const std::uint64_t certified = display_.certificate ? 4 + 4 + 1 : 0;
-  return std::uint64_t(display_.width) * std::uint64_t(display_.height) * (4 + 8 + certified);
+  // Where the GPU lists the pixels to ray cast: two bytes of marks and a
+  // ListedPixel per pixel.
+  const std::uint64_t listed = display_.cast_list ? 2 + sizeof(PixelCertificates::ListedPixel) : 0;
+  return std::uint64_t(display_.width) * std::uint64_t(display_.height) * (4 + 8 + certified + listed);
 }
 
 std::uint64_t ShadowRenderer::depth_preview_bytes() const {
@@ -367,6 +372,8 @@ void ShadowRenderer::resize_certify_maps(int size, int layers) {
 void ShadowRenderer::drop_certificate_targets() {
   display_.certificate.reset();
   display_.unlit.reset();
+  for (gl::Texture& marks : display_.cast_marks) marks.reset();
+  display_.cast_list.reset();
   display_.slivers.reset();
   display_.sliver_framebuffer.reset();
 }
@@ -379,16 +386,23 @@ void ShadowRenderer::add_certificate_targets() {
   // the sliver pass's texelFetch of it would read 0 (no object) everywhere.
   glTextureParameteri(display_.certificate.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
   glTextureParameteri(display_.certificate.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-  display_.unlit = gl::create_renderbuffer();
-  glNamedRenderbufferStorage(display_.unlit.id(), GL_RGBA8, display_.width, display_.height);
+  // A texture, which cast_list.comp reads where the GPU lists the pixels.
+  display_.unlit = gl::create_texture(GL_TEXTURE_2D);
+  glTextureStorage2D(display_.unlit.id(), 1, GL_RGBA8, display_.width, display_.height);
+  // One level, read by texelFetch: with a mipmapped filter the texture
+  // would be incomplete, and read as 0 (so would an integer texture with a
+  // linear one).
+  glTextureParameteri(display_.unlit.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTextureParameteri(display_.unlit.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   glNamedFramebufferTexture(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputCertificate,
                             display_.certificate.id(), 0);
-  glNamedFramebufferRenderbuffer(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputUnlit, GL_RENDERBUFFER,
-                                 display_.unlit.id());
+  glNamedFramebufferTexture(display_.framebuffer.id(), GL_COLOR_ATTACHMENT0 + kFragOutputUnlit, display_.unlit.id(), 0);
   if (glCheckNamedFramebufferStatus(display_.framebuffer.id(), GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw std::runtime_error("display framebuffer with certificates incomplete");
   display_.slivers = gl::create_texture(GL_TEXTURE_2D);
   glTextureStorage2D(display_.slivers.id(), 1, GL_R8UI, display_.width, display_.height);
+  glTextureParameteri(display_.slivers.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTextureParameteri(display_.slivers.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   display_.sliver_framebuffer = gl::create_framebuffer();
   glNamedFramebufferTexture(display_.sliver_framebuffer.id(), GL_COLOR_ATTACHMENT0, display_.slivers.id(), 0);
   glNamedFramebufferRenderbuffer(display_.sliver_framebuffer.id(), GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER,
@@ -909,9 +923,72 @@ Image ShadowRenderer::read_pixels(const ReadBack& read_back) {
   return image;
 }
 
-PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back) {
+std::vector<PixelCertificates::ListedPixel> ShadowRenderer::list_pixels_to_ray_cast(int ring, bool unlit) {
+  using ListedPixel = PixelCertificates::ListedPixel;
+  const int w = display_.width, h = display_.height;
+  const std::size_t pixels = std::size_t(w) * std::size_t(h);
+  if (!display_.cast_list) {
+    for (gl::Texture& marks : display_.cast_marks) {
+      marks = gl::create_texture(GL_TEXTURE_2D);
+      glTextureStorage2D(marks.id(), 1, GL_R8UI, w, h);
+    }
+    display_.cast_list = gl::create_buffer();
+    glNamedBufferStorage(display_.cast_list.id(), GLsizeiptr(kCastListHeaderBytes + pixels * sizeof(ListedPixel)),
+                         nullptr, GL_DYNAMIC_STORAGE_BIT);
+  }
+  const auto program = [&](CastPass pass, bool with_unlit) -> GLuint {
+    std::optional<gl::Program>& p = display_.cast_programs[int(pass) + (with_unlit ? 1 : 0)];
+    if (!p)
+      p = gl::build_compute_program("cast_list.comp", glsl_prelude("#define CAST_PASS " + std::to_string(int(pass)) +
+                                                                  "\n#define CAST_UNLIT " + (with_unlit ? "1" : "0") +
+                                                                  "\n"));
+    return p->id();
+  };
+  const GLuint zero = 0;
+  glClearNamedBufferSubData(display_.cast_list.id(), GL_R32UI, 0, sizeof zero, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+  glBindTextureUnit(kTextureUnitCertificates, display_.certificate.id());
+  glBindTextureUnit(kTextureUnitSlivers, display_.slivers.id());
+  glBindTextureUnit(kTextureUnitUnlit, display_.unlit.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kStorageBufferCastList, display_.cast_list.id());
+  const GLuint groups_x = GLuint((w + 15) / 16), groups_y = GLuint((h + 15) / 16);
+  const int r = ring - 1;
+  const auto dispatch = [&](GLuint id, int in, int out) {
+    glUseProgram(id);
+    glProgramUniform1i(id, glGetUniformLocation(id, "u_ring"), r);
+    if (in >= 0) glBindImageTexture(kImageUnits[0].unit, display_.cast_marks[in].id(), 0, GL_FALSE, 0, GL_READ_ONLY, GL_R8UI);
+    if (out >= 0)
+      glBindImageTexture(kImageUnits[1].unit, display_.cast_marks[out].id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
+    glDispatchCompute(groups_x, groups_y, 1);
+    glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+  };
+  dispatch(program(CastPass::Edges, false), -1, 0);
+  // With no ring to grow, the edges go to the list as they are.
+  int marks = 0;
+  if (r > 0) {
+    dispatch(program(CastPass::Rows, false), 0, 1);
+    marks = 1;
+  }
+  dispatch(program(CastPass::List, unlit), marks, -1);
+  GLuint count = 0;
+  glGetNamedBufferSubData(display_.cast_list.id(), 0, sizeof count, &count);
+  if (count > pixels) throw std::runtime_error("cast_list.comp listed " + std::to_string(count) + " pixels of " + std::to_string(pixels));
+  std::vector<ListedPixel> listed(count);
+  if (count > 0)
+    glGetNamedBufferSubData(display_.cast_list.id(), GLintptr(kCastListHeaderBytes), GLsizeiptr(count * sizeof(ListedPixel)),
+                            listed.data());
+  for (const int unit : {kTextureUnitCertificates, kTextureUnitSlivers, kTextureUnitUnlit}) glBindTextureUnit(GLuint(unit), 0);
+  for (const TextureUnit& image : kImageUnits) glBindImageTexture(GLuint(image.unit), 0, 0, GL_FALSE, 0, GL_READ_ONLY, GL_R8UI);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kStorageBufferCastList, 0);
+  return listed;
+}
+
+PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back, int list_ring) {
   PixelCertificates c;
   const int w = read_back.width, h = read_back.height;
+  if (list_ring >= 1) {
+    c.listed = list_pixels_to_ray_cast(list_ring, read_back.unlit);
+    return c;
+  }
   const GLuint framebuffer = display_.framebuffer.id();
   glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
@@ -939,6 +1016,15 @@ PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back) {
     c.unlit.flip_rows();
   }
   return c;
+}
+
+int ShadowRenderer::list_ring(const RenderRequest& request, const FramePlan& plan) const {
+  // Every pixel is cast on the ray cast path: the list would be the image.
+  if (!pixels_listed_on_gpu_ || slivers_on_cpu_ || plan.certified_path == CertifiedPath::RayCast) return 0;
+  const int ring = silhouette_ring(request);
+  if (ring - 1 > kMostListedRing) return 0;
+  if (!misplaced_rectangles(request, plan.read_back.width, plan.read_back.height).empty()) return 0;
+  return ring;
 }
 
 RenderResult ShadowRenderer::render(const RenderRequest& request, const FrameWatch& watch, CertifiedPath path) {
@@ -988,7 +1074,7 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
   const auto readback_start = Clock::now();
   result.image = read_pixels(plan.read_back);
   if (plan.read_back.certificates) {
-    result.certificates = read_certificates(plan.read_back);
+    result.certificates = read_certificates(plan.read_back, list_ring(request, plan));
     if (slivers_on_cpu_) {
       // With the camera's matrix and near plane as the main pass had them.
       PixelCertificates& c = *result.certificates;

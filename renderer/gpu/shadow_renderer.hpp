@@ -92,8 +92,18 @@ class ShadowRenderer {
   /// next certified frame draws its maps the way asked.
   void set_certified_passes_on_cpu(bool on_cpu) {
     certified_passes_on_cpu_ = on_cpu;
+    pixels_listed_on_gpu_ = !on_cpu;
     certify_.kept.holds_plan = false;
   }
+  /// Filter "exact"'s pixels to ray cast listed by the GPU (cast_list.comp:
+  /// only the list is read back, PixelCertificates::listed; the default on
+  /// a GPU, and with set_certified_passes_on_cpu(false)) or found on the
+  /// CPU from every pixel's certificate read back (the default on
+  /// llvmpipe, whose shaders run on the same cores as the CPU's loops).
+  /// The GPU lists only where the sliver marks are the shaders' and the
+  /// ring is at most kMostListedRing, and no object may be misplaced
+  /// (misplaced_rectangles: cast whole, found on the CPU).
+  void set_pixels_listed_on_gpu(bool on_gpu) { pixels_listed_on_gpu_ = on_gpu; }
   std::string gl_version() const;
 
  private:
@@ -164,8 +174,15 @@ class ShadowRenderer {
     // once a certified frame asks; the sliver pass's marks (R8UI) in a
     // framebuffer of their own, with the main pass's depth.
     gl::Texture certificate;
-    gl::Renderbuffer unlit;
+    gl::Texture unlit;
     gl::Texture slivers;
+    // Where the GPU lists the pixels to ray cast (cast_list.comp): two R8UI
+    // images of marks and the list (kCastListHeaderBytes, then a
+    // ListedPixel per pixel at most), made when first asked for; its
+    // programs per CastPass, the list's with and without the unlit colour.
+    gl::Texture cast_marks[2];
+    gl::Buffer cast_list;
+    std::optional<gl::Program> cast_programs[4];
     gl::Framebuffer sliver_framebuffer;
     std::optional<gl::Program> sliver_program;
     gl::Framebuffer framebuffer;
@@ -216,7 +233,14 @@ class ShadowRenderer {
   // certified programs name triangles by it).
   bool set_triangle_base_ = false;
   void draw_indices(std::size_t first, std::size_t count);
-  PixelCertificates read_certificates(const ReadBack& read_back);
+  /// Every pixel's certificate (and the unlit colours, and the shaders'
+  /// sliver marks) read back; or, with a `list_ring` of 1 or more, only the
+  /// pixels pixels_to_ray_cast would find for that ring, listed by the GPU.
+  PixelCertificates read_certificates(const ReadBack& read_back, int list_ring);
+  std::vector<PixelCertificates::ListedPixel> list_pixels_to_ray_cast(int ring, bool unlit);
+  /// The ring the GPU lists a certified frame's pixels for, or 0 where the
+  /// CPU finds them (set_pixels_listed_on_gpu).
+  int list_ring(const RenderRequest& request, const FramePlan& plan) const;
   void resize_shadow_map(int size, int layers);
   void resize_display(int width, int height);
   void resize_depth_preview(int size, int bits);
@@ -292,6 +316,7 @@ class ShadowRenderer {
   // conservative maps are drawn by plan/conservative_maps.cpp, ten times
   // faster there than through its geometry shader.
   bool certified_passes_on_cpu_ = false;
+  bool pixels_listed_on_gpu_ = true;
   // This frame's sliver marks are found on the CPU (render_frame), not by
   // the sliver pass.
   bool slivers_on_cpu_ = false;

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <functional>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -20,8 +21,8 @@ namespace umbra {
 namespace {
 
 // The object and the side of the light its surface turns to.
-std::uint32_t surface_code(std::uint32_t code) { return code >> 2; }
-std::uint32_t verdict(std::uint32_t code) { return code & 3u; }
+std::uint32_t surface_code(std::uint32_t code) { return code >> PixelCertificates::kSurfaceShift; }
+std::uint32_t verdict(std::uint32_t code) { return code & PixelCertificates::kVerdictMask; }
 
 }  // namespace
 
@@ -192,23 +193,38 @@ void settle_certified_frame(RenderResult& result, const RenderRequest& request,
   const auto start = std::chrono::steady_clock::now();
   const PixelCertificates& c = *result.certificates;
   const int w = request.width, h = request.height;
-  std::vector<std::uint8_t> cast = pixels_to_ray_cast(c, w, h, silhouette_ring(request));
-  mark_misplaced_objects(request, w, h, cast);
+  const std::size_t pixels = std::size_t(w) * std::size_t(h);
   std::vector<std::size_t> indices;
-  // Most pixels are not cast: skip eight at a time.
-  indices.reserve(cast.size() / 16);
-  std::size_t i = 0;
-  for (; i + 8 <= cast.size(); i += 8) {
-    std::uint64_t eight;
-    std::memcpy(&eight, cast.data() + i, 8);
-    if (eight == 0) continue;
-    for (std::size_t k = i; k < i + 8; ++k)
-      if (cast[k]) indices.push_back(k);
+  if (c.listed) {
+    // The GPU listed them (for silhouette_ring's ring; it lists nothing
+    // where an object may be misplaced).
+    if (!misplaced_rectangles(request, w, h).empty())
+      throw std::logic_error("settle_certified_frame: a listed frame with misplaced objects");
+    indices.reserve(c.listed->size());
+    for (const PixelCertificates::ListedPixel& p : *c.listed) {
+      if (p.index >= pixels)
+        throw std::logic_error("settle_certified_frame: listed pixel " + std::to_string(p.index) + " of " +
+                               std::to_string(pixels));
+      indices.push_back(p.index);
+    }
+  } else {
+    std::vector<std::uint8_t> cast = pixels_to_ray_cast(c, w, h, silhouette_ring(request));
+    mark_misplaced_objects(request, w, h, cast);
+    // Most pixels are not cast: skip eight at a time.
+    indices.reserve(cast.size() / 16);
+    std::size_t i = 0;
+    for (; i + 8 <= cast.size(); i += 8) {
+      std::uint64_t eight;
+      std::memcpy(&eight, cast.data() + i, 8);
+      if (eight == 0) continue;
+      for (std::size_t k = i; k < i + 8; ++k)
+        if (cast[k]) indices.push_back(k);
+    }
+    for (; i < cast.size(); ++i)
+      if (cast[i]) indices.push_back(i);
   }
-  for (; i < cast.size(); ++i)
-    if (cast[i]) indices.push_back(i);
   CertifiedShare share;
-  share.pixels = cast.size();
+  share.pixels = pixels;
   share.ray_cast = indices.size();
   if (!indices.empty()) {
     const ExactView view(request, stop_requested);
@@ -222,7 +238,12 @@ void settle_certified_frame(RenderResult& result, const RenderRequest& request,
         image.pixels[i] = std::uint8_t(std::lround(255.0 * v));
       } else if (v < 0.5) {
         // A light of no size: v is 0 or 1, and the main pass drew 1.
-        for (int c3 = 0; c3 < 3; ++c3) image.pixels[3 * i + c3] = c.unlit.pixels[3 * i + c3];
+        if (c.listed) {
+          const std::uint32_t unlit = (*c.listed)[k].unlit;
+          for (int c3 = 0; c3 < 3; ++c3) image.pixels[3 * i + c3] = std::uint8_t(unlit >> (8 * c3));
+        } else {
+          for (int c3 = 0; c3 < 3; ++c3) image.pixels[3 * i + c3] = c.unlit.pixels[3 * i + c3];
+        }
       }
     }
   }

@@ -23,7 +23,9 @@ namespace umbra {
 /// surfaces turned to different sides of the light.
 std::vector<std::uint8_t> pixels_to_ray_cast(const PixelCertificates& certificates, int width, int height, int ring);
 
-/// Settles a certified frame of `request`: ray casts pixels_to_ray_cast,
+/// Settles a certified frame of `request`: ray casts pixels_to_ray_cast
+/// (and mark_misplaced_objects; or the pixels the GPU listed,
+/// PixelCertificates::listed),
 /// writes the reference's value into `result.image` there (the shadow
 /// output: round(255 v), as the "exact" output; the colour output: the lit
 /// or the unlit colour), drops `result.certificates`, and sets
