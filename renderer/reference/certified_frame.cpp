@@ -228,24 +228,27 @@ void settle_certified_frame(RenderResult& result, const RenderRequest& request,
   share.ray_cast = indices.size();
   if (!indices.empty()) {
     const ExactView view(request, stop_requested);
-    const std::vector<ExactPixel> exact = view.pixels_at(indices, stop_requested);
     Image& image = result.image;
-    for (std::size_t k = 0; k < indices.size(); ++k) {
-      const std::size_t i = indices[k];
-      // The "exact" output's value (exact_image): no geometry is lit.
-      const double v = exact[k].geometry ? exact[k].visibility : 1.0;
-      if (image.channels == 1) {
-        image.pixels[i] = std::uint8_t(std::lround(255.0 * v));
-      } else if (v < 0.5) {
-        // A light of no size: v is 0 or 1, and the main pass drew 1.
-        if (c.listed) {
-          const std::uint32_t unlit = (*c.listed)[k].unlit;
-          for (int c3 = 0; c3 < 3; ++c3) image.pixels[3 * i + c3] = std::uint8_t(unlit >> (8 * c3));
-        } else {
-          for (int c3 = 0; c3 < 3; ++c3) image.pixels[3 * i + c3] = c.unlit.pixels[3 * i + c3];
-        }
-      }
-    }
+    // Each pixel written by the thread that cast it.
+    view.each_pixel_at(
+        indices,
+        [&](std::size_t k, const ExactPixel& exact) {
+          const std::size_t i = indices[k];
+          // The "exact" output's value (exact_image): no geometry is lit.
+          const double v = exact.geometry ? exact.visibility : 1.0;
+          if (image.channels == 1) {
+            image.pixels[i] = std::uint8_t(std::lround(255.0 * v));
+          } else if (v < 0.5) {
+            // A light of no size: v is 0 or 1, and the main pass drew 1.
+            if (c.listed) {
+              const std::uint32_t unlit = (*c.listed)[k].unlit;
+              for (int c3 = 0; c3 < 3; ++c3) image.pixels[3 * i + c3] = std::uint8_t(unlit >> (8 * c3));
+            } else {
+              for (int c3 = 0; c3 < 3; ++c3) image.pixels[3 * i + c3] = c.unlit.pixels[3 * i + c3];
+            }
+          }
+        },
+        stop_requested);
   }
   result.certified = share;
   result.certificates.reset();

@@ -383,11 +383,18 @@ std::vector<ExactPixel> ExactView::pixels(const std::function<bool()>& stop_requ
 
 std::vector<ExactPixel> ExactView::pixels_at(const std::vector<std::size_t>& indices,
                                              const std::function<bool()>& stop_requested) const {
+  std::vector<ExactPixel> pixels(indices.size());
+  each_pixel_at(indices, [&](std::size_t k, const ExactPixel& pixel) { pixels[k] = pixel; }, stop_requested);
+  return pixels;
+}
+
+void ExactView::each_pixel_at(const std::vector<std::size_t>& indices,
+                              const std::function<void(std::size_t, const ExactPixel&)>& use,
+                              const std::function<bool()>& stop_requested) const {
   const std::size_t width = std::size_t(request_.width), size = width * std::size_t(request_.height);
   for (const std::size_t i : indices)
     if (i >= size)
       throw std::invalid_argument("ExactView::pixels_at: pixel " + std::to_string(i) + " of " + std::to_string(size));
-  std::vector<ExactPixel> pixels(indices.size());
   // Chunks of consecutive indices, so that threads share no cache line
   // (64 pixels: 2.5 KB) and the stop is asked about often; small, because
   // a certified frame's few thousand uncertain pixels are spread over all
@@ -397,9 +404,8 @@ std::vector<ExactPixel> ExactView::pixels_at(const std::vector<std::size_t>& ind
   for_each_row(chunks, stop_requested, [&](int chunk) {
     const std::size_t end = std::min(indices.size(), std::size_t(chunk + 1) * kChunk);
     for (std::size_t k = std::size_t(chunk) * kChunk; k < end; ++k)
-      pixels[k] = at(double(indices[k] % width) + 0.5, double(indices[k] / width) + 0.5);
+      use(k, at(double(indices[k] % width) + 0.5, double(indices[k] / width) + 0.5));
   });
-  return pixels;
 }
 
 std::vector<PixelCoverage> ExactView::coverage(const std::vector<std::uint8_t>& which,

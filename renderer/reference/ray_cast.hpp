@@ -174,6 +174,12 @@ class ExactView {
   /// std::invalid_argument for an index outside the image.
   std::vector<ExactPixel> pixels_at(const std::vector<std::size_t>& indices,
                                     const std::function<bool()>& stop_requested = nullptr) const;
+  /// pixels_at without the vector: use(k, pixel) for each indices[k], from
+  /// the threads that cast them (several at once, each k once), so that
+  /// what is made of a pixel is made there too.
+  void each_pixel_at(const std::vector<std::size_t>& indices,
+                     const std::function<void(std::size_t, const ExactPixel&)>& use,
+                     const std::function<bool()>& stop_requested = nullptr) const;
 
   /// The PixelCoverage of each pixel marked non-zero in `which` (width x
   /// height): kCoverageSamples^2 points (x + (i + 0.5) / k, y + (j + 0.5) /
