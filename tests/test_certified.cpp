@@ -481,6 +481,18 @@ TEST(CertifiedFrame, TheLightViewsRoundingOfFarOccludersIsTakenIn) {
   EXPECT_EQ(sun.differing, 0u);
   const RenderRequest point = request(R"({"width": 640, "height": 360, "scene": {"objects": [{"type": "box", "center": [0, 0, 0], "size": [0.02, 0.002, 0.02]}, {"type": "box", "center": [4767.312946227961, 1430.1948838683884, 476.7324946227961], "size": [0.0025, 0.0025, 0.0025]}, {"type": "box", "center": [-4767.312946227961, -1430.1948838683884, -476.7324946227961], "size": [0.005, 0.005, 0.005]}]}, "light": {"projection": "perspective", "position": [9534.625892455922, 2860.388767736777, 953.4625892455922], "target": [0, 0, 0]}, "camera": {"position": [0.0, 0.017, 0.012], "target": [0, 0.001, 0], "near": 0.0001, "far": 0.1}, "shadow": {"map_size": 2048}})");
   EXPECT_EQ(compare_with_reference(point).differing, 0u);
+  // The same far boxes out of the layers' views (a light over the small
+  // box): the layers, which do not draw them, prove what they can
+  // (FramePlan.ACertifiedLayerWhose...), and no pixel differs.
+  const Comparison aside = compare_with_reference(request(R"({"width": 320, "height": 180, "scene": {"objects": [
+        {"type": "box", "center": [0, 0, 0], "size": [0.02, 0.002, 0.02]},
+        {"type": "box", "center": [9534.6, 2860.3, 953.4], "size": [0.005, 0.005, 0.005]},
+        {"type": "box", "center": [-9534.6, -2860.3, -953.4], "size": [0.005, 0.005, 0.005]}]},
+      "light": {"position": [0.01, 0.03, 0.02], "target": [0, 0, 0]},
+      "camera": {"position": [0.0, 0.017, 0.012], "target": [0, 0.001, 0], "near": 0.0001, "far": 0.1},
+      "shadow": {"map_size": 2048}})"));
+  EXPECT_EQ(aside.differing, 0u);
+  EXPECT_LT(aside.share.ray_cast, aside.share.pixels / 2);
 }
 
 // A flat-shaded model's edges are creases: N.L jumps across them. Where a

@@ -579,6 +579,28 @@ TEST(FramePlan, ACertifiedLayerWhoseObjectsTheLightViewMovesByTexelsProvesNothin
     const FramePlan plan = plan_frame(r, mesh, name, KeptShadowMap{}, CertifiedPath::Maps);
     for (const ShadowLayerDraw& layer : plan.shadow.layers) EXPECT_FALSE(layer.proves_nothing) << name << " " << layer.layer;
   }
+  // Only the objects a layer draws count: the same far boxes, with the
+  // light's view near the scene's centre (a sun over the small box) and
+  // out of the camera's cascades, leave them alone.
+  const ParsedRequest aside = parse_render_request(R"({"width": 640, "height": 360, "scene": {"objects": [
+        {"type": "box", "center": [0, 0, 0], "size": [0.02, 0.002, 0.02]},
+        {"type": "box", "center": [9534.6, 2860.3, 953.4], "size": [0.005, 0.005, 0.005]},
+        {"type": "box", "center": [-9534.6, -2860.3, -953.4], "size": [0.005, 0.005, 0.005]}]},
+      "light": {"position": [0.01, 0.03, 0.02], "target": [0, 0, 0]},
+      "camera": {"position": [0.0, 0.017, 0.012], "target": [0, 0.001, 0], "near": 0.0001, "far": 0.1},
+      "shadow": {"filter": "exact", "map_size": 2048}})",
+                                                 Route::Render, {});
+  ASSERT_TRUE(aside.ok()) << aside.error.message;
+  const Mesh aside_mesh = tessellate(aside.request->scene);
+  const FramePlan aside_plan = plan_frame(*aside.request, aside_mesh, "aside", KeptShadowMap{}, CertifiedPath::Maps);
+  ASSERT_FALSE(aside_plan.shadow.layers.empty());
+  for (const ShadowLayerDraw& layer : aside_plan.shadow.layers) {
+    bool draws_far = false;
+    for (const DrawRange& d : layer.draws)
+      for (const ObjectRange& r : aside_mesh.object_ranges)
+        if (r.object != 0 && r.first_index < d.first + d.count && d.first < r.first_index + r.index_count) draws_far = true;
+    EXPECT_EQ(layer.proves_nothing, draws_far) << layer.layer;
+  }
 }
 
 // The two paths without maps (CertifiedPath): proofs keep the floor's

@@ -438,9 +438,11 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     ShadowLayerDraw draw;
     draw.layer = int(layer);
+    std::vector<bool> layer_objects;  // the objects the layer draws
     if (fixed) {
       draw.clear_whole = true;
       draw.draws = scene_draw_ranges(mesh, closed_cull, drawn);
+      layer_objects = drawn;
     } else {
       const TexelRect& c = casters.by_view[layer];
       if (light.views[layer].empty || c.empty()) continue;
@@ -452,6 +454,7 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
       std::vector<bool> in_view;
       for (const TexelRect& object : casters.by_object[layer]) in_view.push_back(!object.empty());
       draw.draws = scene_draw_ranges(mesh, closed_cull, in_view);
+      layer_objects = std::move(in_view);
     }
     // The GL's view of this layer, relative to the mesh origin (FrameBlock),
     // and the size of the conservative maps' texels (a point light's where
@@ -462,8 +465,9 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
     const double texel = light.perspective ? v.texel_size.x * v.near_plane * coarse / (1.0 + 2.0 * v.tan_half)
                                            : std::min(v.texel_size.x, v.texel_size.y) * coarse;
     for (const ObjectRange& r : mesh.object_ranges)
-      if (light_view_rounding(largest_coordinate(mesh.bounds.at(r.object), mesh.origin), translation) >
-          kMostRoundingTexels * texel)
+      if (r.object < layer_objects.size() && layer_objects[r.object] &&
+          light_view_rounding(largest_coordinate(mesh.bounds.at(r.object), mesh.origin), translation) >
+              kMostRoundingTexels * texel)
         draw.proves_nothing = true;
     pass.layers.push_back(std::move(draw));
   }
