@@ -14,7 +14,7 @@
 layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(binding = TEXTURE_UNIT_CERTIFICATES) uniform usampler2D u_certificates;
-uniform int u_ring;  // the dilation: pixels_to_ray_cast's ring - 1
+layout(location = UNIFORM_LOCATION_CAST_RING) uniform int u_ring;  // the dilation: pixels_to_ray_cast's ring - 1
 
 uint surface(ivec2 p) { return texelFetch(u_certificates, p, 0).r >> CERTIFICATE_SURFACE_SHIFT; }
 

@@ -178,6 +178,7 @@ TEST(FramePrelude, DefinesEachSharedFactAsTheCxxConstant) {
       {"UNIFORM_LOCATION_PROOF_MARGIN", kUniformLocationProofMargin},
       {"UNIFORM_LOCATION_PROOF_ROUNDING", kUniformLocationProofRounding},
       {"UNIFORM_LOCATION_CULL_BACK", kUniformLocationCullBack},
+      {"UNIFORM_LOCATION_CAST_RING", kUniformLocationCastRing},
       {"UNIFORM_BUFFER_FRAME_BLOCK", kUniformBufferFrameBlock},
       {"CERTIFICATE_OBJECT_SHIFT", int(PixelCertificates::kObjectShift)},
       {"CERTIFICATE_SURFACE_SHIFT", int(PixelCertificates::kSurfaceShift)},
@@ -285,8 +286,9 @@ TEST(ShaderFiles, NameNoNumberOfTheirOwnForALocationOrBinding) {
   // certificate.glsl's two buffer textures, certify.geom's u_layer and u_triangle_base, certify.frag's
   // u_triangle_base, o_triangle, u_layer, o_owner and u_nearest_owner, scene.frag's o_certificate,
   // o_unlit, u_triangle_base, u_proof_object, u_proof_margin, u_proof_rounding and five maps; the sliver
-  // pass's a_position, a_normal, u_triangle_base, u_cull_back, u_certificates and o_sliver.
-  EXPECT_EQ(declarations, 35);
+  // pass's a_position, a_normal, u_triangle_base, u_cull_back, u_certificates and o_sliver; the
+  // cast list's u_certificates, u_ring, u_slivers and u_unlit (its images name two words before theirs).
+  EXPECT_EQ(declarations, 39);
 }
 
 }  // namespace

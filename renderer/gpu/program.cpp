@@ -175,6 +175,8 @@ void check_bindings(const Program& program) {
     const GLint at = glGetFragDataLocation(id, name);
     if (at >= 0 && at != cxx) refuse(std::string("output ") + name, at, cxx);
   }
+  const GLint ring = glGetUniformLocation(id, "u_ring");
+  if (ring >= 0 && ring != kUniformLocationCastRing) refuse("uniform u_ring's location", ring, kUniformLocationCastRing);
   const GLint base = glGetUniformLocation(id, "u_triangle_base");
   if (base >= 0 && base != kUniformLocationTriangleBase)
     refuse("uniform u_triangle_base's location", base, kUniformLocationTriangleBase);

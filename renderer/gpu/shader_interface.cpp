@@ -179,6 +179,7 @@ std::string glsl_prelude(const std::string& extra_defines) {
     << "#define UNIFORM_LOCATION_PROOF_MARGIN " << kUniformLocationProofMargin << "\n"
     << "#define UNIFORM_LOCATION_PROOF_ROUNDING " << kUniformLocationProofRounding << "\n"
     << "#define UNIFORM_LOCATION_CULL_BACK " << kUniformLocationCullBack << "\n"
+    << "#define UNIFORM_LOCATION_CAST_RING " << kUniformLocationCastRing << "\n"
     << "#define CERTIFICATE_LIT " << PixelCertificates::kCertainlyLit << "u\n"
     << "#define CERTIFICATE_DARK " << PixelCertificates::kCertainlyDark << "u\n"
     << "#define CERTIFICATE_UNCERTAIN " << PixelCertificates::kUncertain << "u\n"

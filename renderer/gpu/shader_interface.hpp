@@ -86,6 +86,9 @@ inline constexpr int kUniformLocationProofRounding = 4;
 /// main pass culled closed meshes' back faces (DisplayPassPlan::
 /// sliver_skips_closed_back): their edges are drawn by the front faces.
 inline constexpr int kUniformLocationCullBack = 5;
+/// cast_list.comp's u_ring (UNIFORM_LOCATION_CAST_RING): how far its rows
+/// and columns passes reach, pixels_to_ray_cast's ring - 1.
+inline constexpr int kUniformLocationCastRing = 6;
 inline constexpr int kTextureUnitCertifyNearest = 1;
 inline constexpr int kTextureUnitCertifyNearestOwner = 2;
 inline constexpr int kTextureUnitCertifyOthers = 3;

@@ -954,7 +954,8 @@ std::vector<PixelCertificates::ListedPixel> ShadowRenderer::list_pixels_to_ray_c
   const int r = ring - 1;
   const auto dispatch = [&](GLuint id, int in, int out) {
     glUseProgram(id);
-    glProgramUniform1i(id, glGetUniformLocation(id, "u_ring"), r);
+    // The edges pass reads no ring.
+    if (in >= 0) glProgramUniform1i(id, kUniformLocationCastRing, r);
     if (in >= 0) glBindImageTexture(kImageUnits[0].unit, display_.cast_marks[in].id(), 0, GL_FALSE, 0, GL_READ_ONLY, GL_R8UI);
     if (out >= 0)
       glBindImageTexture(kImageUnits[1].unit, display_.cast_marks[out].id(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R8UI);
