@@ -63,22 +63,26 @@ CameraMatrices camera_matrices(const Camera& camera, int width, int height) {
   return m;
 }
 
-double screen_pixels_of(const Aabb& box, const Camera& camera, int width, int height) {
-  const double whole = double(width) * double(height);
-  if (box.empty()) return 0.0;
-  const CameraMatrices m = camera_matrices(camera, width, height);
-  const glm::dmat4 view_projection = m.projection * m.view;
-  glm::dvec2 low(1e300), high(-1e300);
+std::optional<ScreenBounds> screen_bounds_of(const Aabb& box, const glm::dmat4& view_projection, double nearest_w) {
+  ScreenBounds b{glm::dvec2(1e300), glm::dvec2(-1e300)};
   for (int k = 0; k < 8; ++k) {
     const glm::dvec3 corner{k & 1 ? box.max.x : box.min.x, k & 2 ? box.max.y : box.min.y,
                             k & 4 ? box.max.z : box.min.z};
     const glm::dvec4 clip = view_projection * glm::dvec4(corner, 1.0);
-    if (clip.w <= 0.0) return whole;
-    low = glm::min(low, glm::dvec2(clip) / clip.w);
-    high = glm::max(high, glm::dvec2(clip) / clip.w);
+    if (!(clip.w > nearest_w)) return std::nullopt;
+    b.low = glm::min(b.low, glm::dvec2(clip) / clip.w);
+    b.high = glm::max(b.high, glm::dvec2(clip) / clip.w);
   }
-  low = glm::clamp(low, -1.0, 1.0);
-  high = glm::clamp(high, -1.0, 1.0);
+  return b;
+}
+
+double screen_pixels_of(const Aabb& box, const Camera& camera, int width, int height) {
+  const double whole = double(width) * double(height);
+  if (box.empty()) return 0.0;
+  const CameraMatrices m = camera_matrices(camera, width, height);
+  const std::optional<ScreenBounds> b = screen_bounds_of(box, m.projection * m.view, 0.0);
+  if (!b) return whole;
+  const glm::dvec2 low = glm::clamp(b->low, -1.0, 1.0), high = glm::clamp(b->high, -1.0, 1.0);
   return (high.x - low.x) * 0.5 * width * (high.y - low.y) * 0.5 * height;
 }
 

@@ -87,6 +87,15 @@ struct CameraMatrices {
 };
 CameraMatrices camera_matrices(const Camera& camera, int width, int height);
 
+/// The rectangle, in normalised device x and y (-1..1 across the image),
+/// that holds the box's 8 corners projected by `view_projection`, not
+/// clipped to the image; nullopt where a corner lies at or behind clip w =
+/// `nearest_w` (its projection is unbounded there).
+struct ScreenBounds {
+  glm::dvec2 low, high;
+};
+std::optional<ScreenBounds> screen_bounds_of(const Aabb& box, const glm::dmat4& view_projection, double nearest_w);
+
 /// The pixels of a width x height image that the box's projection by the
 /// camera can cover: the area of its bounding rectangle, clipped to the
 /// image; the whole image if the box reaches behind the camera's eye.

@@ -89,24 +89,20 @@ std::vector<PixelRect> misplaced_rectangles(const RenderRequest& request, int wi
     // outline to the rounding (vanish, or a part of it): the ring widened
     // by silhouette_ring finds the rest.
     if (pixels <= kMisplacedPixels || glm::length(b.max - b.min) > kMisplacedSizes * rounding) continue;
-    // The bounds' rectangle on screen, grown by the rounding and 2 pixels.
-    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-    bool behind = false;
-    for (int k = 0; k < 8; ++k) {
-      const glm::dvec3 corner((k & 1) ? b.max.x : b.min.x, (k & 2) ? b.max.y : b.min.y, (k & 4) ? b.max.z : b.min.z);
-      const glm::dvec4 c = to_clip * glm::dvec4(corner, 1.0);
-      if (!(c.w > 0.5 * camera.near_plane)) {
-        behind = true;
-        break;
-      }
-      const double x = (c.x / c.w * 0.5 + 0.5) * width, y = (0.5 - c.y / c.w * 0.5) * height;  // row 0 at the top
-      x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
-    }
+    // The bounds' rectangle on screen, grown by the rounding and 2 pixels
+    // (row 0 at the top); the whole image if the bounds reach behind half
+    // the near plane.
+    const std::optional<ScreenBounds> on_screen = screen_bounds_of(b, to_clip, 0.5 * camera.near_plane);
     const double grow = pixels + 2.0;
-    const int i0 = behind ? 0 : int(std::clamp(std::floor(x0 - grow), 0.0, double(width)));
-    const int i1 = behind ? width : int(std::clamp(std::ceil(x1 + grow), 0.0, double(width)));
-    const int j0 = behind ? 0 : int(std::clamp(std::floor(y0 - grow), 0.0, double(height)));
-    const int j1 = behind ? height : int(std::clamp(std::ceil(y1 + grow), 0.0, double(height)));
+    int i0 = 0, i1 = width, j0 = 0, j1 = height;
+    if (on_screen) {
+      const double x0 = (on_screen->low.x * 0.5 + 0.5) * width, x1 = (on_screen->high.x * 0.5 + 0.5) * width;
+      const double y0 = (0.5 - on_screen->high.y * 0.5) * height, y1 = (0.5 - on_screen->low.y * 0.5) * height;
+      i0 = int(std::clamp(std::floor(x0 - grow), 0.0, double(width)));
+      i1 = int(std::clamp(std::ceil(x1 + grow), 0.0, double(width)));
+      j0 = int(std::clamp(std::floor(y0 - grow), 0.0, double(height)));
+      j1 = int(std::clamp(std::ceil(y1 + grow), 0.0, double(height)));
+    }
     rectangles.push_back({i0, j0, i1, j1});
   }
   return rectangles;
