@@ -138,6 +138,7 @@ inline constexpr TextureUnit kImageUnits[] = {
 /// pixel listed a ListedPixel (core/render_result.hpp: uvec2 index, unlit).
 inline constexpr int kStorageBufferCastList = 0;
 inline constexpr std::size_t kCastListHeaderBytes = 16;
+static_assert(kCastListHeaderBytes % 8 == 0, "the list's entries (8 bytes) are read with its header");
 /// cast_list.comp's passes (CAST_PASS): the pixels beside a change of
 /// surface, those within the ring along rows, and the list (columns, the
 /// uncertain and the marked pixels).

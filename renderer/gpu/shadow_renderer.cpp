@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 #include <stdexcept>
 
 #include "gpu/program.hpp"
@@ -970,13 +971,23 @@ std::vector<PixelCertificates::ListedPixel> ShadowRenderer::list_pixels_to_ray_c
     marks = 1;
   }
   dispatch(program(CastPass::List, unlit), marks, -1);
+  // The count and as many entries as the last frame listed and a quarter
+  // more in one read (each read waits for the GPU), the rest if it listed
+  // more.
+  const std::size_t guess = std::min(pixels, display_.cast_list_guess + display_.cast_list_guess / 4 + 1024);
+  std::vector<ListedPixel> listed(guess + kCastListHeaderBytes / sizeof(ListedPixel));
+  glGetNamedBufferSubData(display_.cast_list.id(), 0, GLsizeiptr(listed.size() * sizeof(ListedPixel)), listed.data());
   GLuint count = 0;
-  glGetNamedBufferSubData(display_.cast_list.id(), 0, sizeof count, &count);
+  std::memcpy(&count, listed.data(), sizeof count);
   if (count > pixels) throw std::runtime_error("cast_list.comp listed " + std::to_string(count) + " pixels of " + std::to_string(pixels));
-  std::vector<ListedPixel> listed(count);
-  if (count > 0)
-    glGetNamedBufferSubData(display_.cast_list.id(), GLintptr(kCastListHeaderBytes), GLsizeiptr(count * sizeof(ListedPixel)),
-                            listed.data());
+  listed.erase(listed.begin(), listed.begin() + kCastListHeaderBytes / sizeof(ListedPixel));
+  if (count > guess) {
+    listed.resize(count);
+    glGetNamedBufferSubData(display_.cast_list.id(), GLintptr(kCastListHeaderBytes + guess * sizeof(ListedPixel)),
+                            GLsizeiptr((count - guess) * sizeof(ListedPixel)), listed.data() + guess);
+  }
+  listed.resize(count);
+  display_.cast_list_guess = count;
   for (const int unit : {kTextureUnitCertificates, kTextureUnitSlivers, kTextureUnitUnlit}) glBindTextureUnit(GLuint(unit), 0);
   for (const TextureUnit& image : kImageUnits) glBindImageTexture(GLuint(image.unit), 0, 0, GL_FALSE, 0, GL_READ_ONLY, GL_R8UI);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kStorageBufferCastList, 0);

@@ -182,6 +182,7 @@ class ShadowRenderer {
     // programs per CastPass, the list's with and without the unlit colour.
     gl::Texture cast_marks[2];
     gl::Buffer cast_list;
+    std::size_t cast_list_guess = 0;  // how many the last frame listed
     std::optional<gl::Program> cast_programs[4];
     gl::Framebuffer sliver_framebuffer;
     std::optional<gl::Program> sliver_program;
