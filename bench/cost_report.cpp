@@ -2,7 +2,7 @@
 // makes of request bodies, one JSON line per file: the factors, each part's
 // milliseconds, the total and the peak bytes, and for filter "exact" the
 // three paths' prices (exact_filter_paths) and the one the service takes on
-// llvmpipe. Used to calibrate the constants in request_cost.cpp against
+// llvmpipe, and the same on a GPU (exact_filter_paths_on_gpu). Used to calibrate the constants in request_cost.cpp against
 // Server-Timing of the same bodies (and Umbra-Certified's path).
 //
 //   umbra-cost-report body.json...
@@ -53,12 +53,15 @@ int main(int argc, char** argv) {
                            {"peak_bytes", cost.peak_bytes}};
     for (const auto& part : cost.parts) line["ms"][part.name] = part.ms;
     if (parsed.request->shadow.filter == umbra::ShadowFilter::Exact) {
-      // What the service weighs for filter "exact" on llvmpipe.
-      const umbra::ExactFilterPaths paths = umbra::exact_filter_paths(*parsed.request);
-      line["exact_filter_paths"] = {{"maps_ms", paths.maps_ms},
-                                    {"proofs_ms", paths.proofs_ms},
-                                    {"ray_cast_ms", paths.ray_cast_ms},
-                                    {"best", umbra::to_string(paths.best())}};
+      // What the service weighs for filter "exact" on llvmpipe, and on a GPU.
+      for (const auto& [key, gl] : {std::pair{"exact_filter_paths", umbra::CertifyingGl::Llvmpipe},
+                                    std::pair{"exact_filter_paths_on_gpu", umbra::CertifyingGl::Gpu}}) {
+        const umbra::ExactFilterPaths paths = umbra::exact_filter_paths(*parsed.request, gl);
+        line[key] = {{"maps_ms", paths.maps_ms},
+                     {"proofs_ms", paths.proofs_ms},
+                     {"ray_cast_ms", paths.ray_cast_ms},
+                     {"best", umbra::to_string(paths.best())}};
+      }
     }
     std::printf("%s\n", line.dump().c_str());
   }

@@ -57,15 +57,17 @@ struct RenderService::Impl {
     // The estimate's dominant part: what a frame cut short at max_run_time
     // tells its client to lower.
     CostPart dominant;
-    // Filter "exact": the path the estimate priced (RequestCost::
-    // exact_filter_path), taken on llvmpipe.
+    // Filter "exact": the paths the estimate priced lowest on llvmpipe and
+    // on a GPU (RequestCost::exact_filter_path, exact_filter_path_on_gpu).
     CertifiedPath certified_path = CertifiedPath::Maps;
+    CertifiedPath certified_path_on_gpu = CertifiedPath::Maps;
   };
 
   std::future<RenderResult> enqueue(RenderRequest request, bool holds_place, ClientGoneCheck client_gone,
-                                    std::uint64_t peak_bytes, CostPart dominant, CertifiedPath certified_path) {
+                                    std::uint64_t peak_bytes, CostPart dominant, CertifiedPath certified_path,
+                                    CertifiedPath certified_path_on_gpu) {
     Job job{std::move(request), {},        std::chrono::steady_clock::now(), holds_place, std::move(client_gone),
-            peak_bytes,         std::move(dominant), certified_path};
+            peak_bytes,         std::move(dominant), certified_path, certified_path_on_gpu};
     std::future<RenderResult> result = job.promise.get_future();
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -423,10 +425,10 @@ struct RenderService::Impl {
         // The watchdog: the estimate admitted the frame, but one it
         // misjudged, or a busy machine, must not hold the GL thread (and
         // every request queued behind it, and a drain) without bound.
-        // Filter "exact" on llvmpipe takes the path its estimate priced
-        // lowest (request_cost.hpp); elsewhere the maps.
+        // Filter "exact" takes the path its estimate priced lowest for
+        // this GL (request_cost.hpp).
         result = renderer->render(job.request, FrameWatch{started + limits.max_run_time},
-                                  llvmpipe ? job.certified_path : CertifiedPath::Maps);
+                                  llvmpipe ? job.certified_path : job.certified_path_on_gpu);
         if (result->certificates) settle(*result, job, started);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);
@@ -488,7 +490,7 @@ std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGon
   if (ray_cast) return submit_reference(std::move(request), std::move(client_gone), cost);
   impl_->reserve();
   return impl_->enqueue(std::move(request), true, std::move(client_gone), cost.peak_bytes, cost.dominant(),
-                        cost.exact_filter_path);
+                        cost.exact_filter_path, cost.exact_filter_path_on_gpu);
 }
 
 // The exact reference needs no GL: it is ray cast on its own thread so the GL
@@ -506,7 +508,8 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
   if (request.output == Output::Error) {
     RenderRequest shadow = request;
     shadow.output = Output::Shadow;
-    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0, dominant, cost.exact_filter_path);
+    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0, dominant, cost.exact_filter_path,
+                              cost.exact_filter_path_on_gpu);
   }
   std::string dominant_field = dominant.field;
   Impl* impl = impl_.get();

@@ -89,6 +89,21 @@ constexpr double kMsPerCertificateTriangle = 4.0e-4;
 // bench (bench/results/certified.md, 960x540, 2 cores): 0.29..0.76 over 16
 // scenes, median 0.4.
 constexpr double kRayCastShare = 0.4;
+// On a GPU the shaders draw the maps and the sliver marks, whatever the
+// scene's size. Measured on an NVIDIA H100 machine (16 hardware threads,
+// 2026-11-28, 960x540, timers around each pass added for the purpose): the
+// conservative passes 28-55 ns a triangle and pass (the teapots, the torus
+// knot), the sliver pass 8 ns a triangle, a layer's clears and centre map
+// and the rest about 0.6 ms (hovering-plate's 3 layers 1.7-1.9 ms, 6 cube
+// faces 11 ms); its CPU's full ray cast 0.21-0.54 times ray_cast_ms x
+// kRayCastShare over the bench scenes, median 0.45. One machine's numbers:
+// another GPU's or CPU's differ, but not the order of the paths for the
+// scenes measured (the teapot's maps took 58 ms there, its whole ray cast
+// 26).
+constexpr double kGpuMsPerConservativeTriangle = 4.0e-5;
+constexpr double kGpuMsPerSliverTriangle = 1.0e-5;
+constexpr double kGpuMsPerCertifiedLayer = 0.6;
+constexpr double kGpuRayCastScale = 0.45;
 
 // Mesh sizes, as tessellate() builds them: each shape's row says (test_shapes
 // checks it against its tessellation).
@@ -336,8 +351,10 @@ namespace {
 
 // exact_filter_paths from the request's factors and those of its exact
 // output (`as_exact`), which estimate_cost has already counted.
-ExactFilterPaths exact_filter_paths(const RenderRequest& request, const CostFactors& f, const CostFactors& as_exact) {
-  const double ray_cast = ray_cast_ms(as_exact) * kRayCastShare;
+ExactFilterPaths exact_filter_paths(const RenderRequest& request, const CostFactors& f, const CostFactors& as_exact,
+                                    CertifyingGl gl) {
+  const bool gpu = gl == CertifyingGl::Gpu;
+  const double ray_cast = ray_cast_ms(as_exact) * kRayCastShare * (gpu ? kGpuRayCastScale : 1.0);
   const int views = std::max(0, f.draws - 1);  // the camera's draw aside
   const double quads = double(f.triangles) * kMsPerConservativeTriangle;
   const bool on_cpu = f.triangles <= kMostConservativeTriangles;
@@ -348,10 +365,14 @@ ExactFilterPaths exact_filter_paths(const RenderRequest& request, const CostFact
   const double cover = depth_complexity(objects, camera.projection * camera.view);
   ExactFilterPaths paths;
   const double triangles = double(f.triangles);
-  const double maps = on_cpu ? f.shadow_texels / 4.0 * kMsPerCertifiedMapTexel +
-                                   triangles * (double(views) * kMsPerCertifiedViewTriangle + kMsPerCertificateTriangle)
-                             : 2.0 * double(views) * quads;
-  const double slivers = on_cpu ? 0.0 : quads;
+  double maps = on_cpu ? f.shadow_texels / 4.0 * kMsPerCertifiedMapTexel +
+                             triangles * (double(views) * kMsPerCertifiedViewTriangle + kMsPerCertificateTriangle)
+                       : 2.0 * double(views) * quads;
+  double slivers = on_cpu ? 0.0 : quads;
+  if (gpu) {
+    maps = double(views) * (kGpuMsPerCertifiedLayer + 2.0 * triangles * kGpuMsPerConservativeTriangle);
+    slivers = triangles * kGpuMsPerSliverTriangle;
+  }
   paths.maps_ms = maps + slivers + ray_cast / 20.0;
   paths.proofs_ms = slivers + ray_cast * std::min(1.0, 3.0 * cover);
   paths.ray_cast_ms = ray_cast;
@@ -366,8 +387,8 @@ RenderRequest as_exact_output(const RenderRequest& request) {
 
 }  // namespace
 
-ExactFilterPaths exact_filter_paths(const RenderRequest& request) {
-  return exact_filter_paths(request, cost_factors(request), cost_factors(as_exact_output(request)));
+ExactFilterPaths exact_filter_paths(const RenderRequest& request, CertifyingGl gl) {
+  return exact_filter_paths(request, cost_factors(request), cost_factors(as_exact_output(request)), gl);
 }
 
 const CostPart& RequestCost::dominant() const {
@@ -423,7 +444,8 @@ RequestCost estimate_cost(const RenderRequest& request) {
                          request.output != Output::Depth && request.output != Output::Exact;
   if (certified) {
     const CostFactors e = cost_factors(as_exact_output(request));
-    cost.exact_filter_path = exact_filter_paths(request, f, e).best();
+    cost.exact_filter_path = exact_filter_paths(request, f, e, CertifyingGl::Llvmpipe).best();
+    cost.exact_filter_path_on_gpu = exact_filter_paths(request, f, e, CertifyingGl::Gpu).best();
     // Without maps (where they would cost more), every pixel but the
     // proved plane parts' may be ray cast.
     const double settle = cost.exact_filter_path == CertifiedPath::Maps

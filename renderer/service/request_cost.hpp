@@ -94,6 +94,9 @@ struct RequestCost {
   /// cheapest on the reference machine (exact_filter_paths(...).best()),
   /// which the service takes on llvmpipe. Maps otherwise.
   CertifiedPath exact_filter_path = CertifiedPath::Maps;
+  /// The same priced for a GPU (exact_filter_paths(..., CertifyingGl::Gpu)),
+  /// which the service takes there.
+  CertifiedPath exact_filter_path_on_gpu = CertifiedPath::Maps;
   /// Every part, in a fixed order; parts that do not apply are 0 ms.
   std::vector<CostPart> parts;
   /// Sum of the parts: the GL thread's and the ray cast's time together
@@ -148,7 +151,14 @@ struct ExactFilterPaths {
   /// The cheapest; Maps on a tie.
   CertifiedPath best() const;
 };
-ExactFilterPaths exact_filter_paths(const RenderRequest& request);
+/// Where the GL certifying the frame runs: on llvmpipe, whose maps and
+/// sliver marks the CPU draws (the prices above), or a GPU, whose shaders
+/// draw them: a quad per triangle and pass there costs about 1/25 of
+/// llvmpipe's, a layer about 0.6 ms, and the machine's CPU casts its rays
+/// in about 0.45 of the time priced (one H100 machine's measurements,
+/// request_cost.cpp).
+enum class CertifyingGl { Llvmpipe, Gpu };
+ExactFilterPaths exact_filter_paths(const RenderRequest& request, CertifyingGl gl = CertifyingGl::Llvmpipe);
 
 /// A sun-hours analysis (POST /api/sun-hours), by the faster of its two
 /// paths: the pure ray cast (one shadow ray per point and sample with the
