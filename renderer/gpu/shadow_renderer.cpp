@@ -924,7 +924,7 @@ Image ShadowRenderer::read_pixels(const ReadBack& read_back) {
   return image;
 }
 
-std::vector<PixelCertificates::ListedPixel> ShadowRenderer::list_pixels_to_ray_cast(int ring, bool unlit) {
+void ShadowRenderer::dispatch_cast_list(int ring, bool unlit) {
   using ListedPixel = PixelCertificates::ListedPixel;
   const int w = display_.width, h = display_.height;
   const std::size_t pixels = std::size_t(w) * std::size_t(h);
@@ -971,6 +971,14 @@ std::vector<PixelCertificates::ListedPixel> ShadowRenderer::list_pixels_to_ray_c
     marks = 1;
   }
   dispatch(program(CastPass::List, unlit), marks, -1);
+  for (const int unit : {kTextureUnitCertificates, kTextureUnitSlivers, kTextureUnitUnlit}) glBindTextureUnit(GLuint(unit), 0);
+  for (const TextureUnit& image : kImageUnits) glBindImageTexture(GLuint(image.unit), 0, 0, GL_FALSE, 0, GL_READ_ONLY, GL_R8UI);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kStorageBufferCastList, 0);
+}
+
+std::vector<PixelCertificates::ListedPixel> ShadowRenderer::read_cast_list() {
+  using ListedPixel = PixelCertificates::ListedPixel;
+  const std::size_t pixels = std::size_t(display_.width) * std::size_t(display_.height);
   // The count and as many entries as the last frame listed and a quarter
   // more in one read (each read waits for the GPU), the rest if it listed
   // more.
@@ -988,9 +996,6 @@ std::vector<PixelCertificates::ListedPixel> ShadowRenderer::list_pixels_to_ray_c
   }
   listed.resize(count);
   display_.cast_list_guess = count;
-  for (const int unit : {kTextureUnitCertificates, kTextureUnitSlivers, kTextureUnitUnlit}) glBindTextureUnit(GLuint(unit), 0);
-  for (const TextureUnit& image : kImageUnits) glBindImageTexture(GLuint(image.unit), 0, 0, GL_FALSE, 0, GL_READ_ONLY, GL_R8UI);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kStorageBufferCastList, 0);
   return listed;
 }
 
@@ -998,7 +1003,7 @@ PixelCertificates ShadowRenderer::read_certificates(const ReadBack& read_back, i
   PixelCertificates c;
   const int w = read_back.width, h = read_back.height;
   if (list_ring >= 1) {
-    c.listed = list_pixels_to_ray_cast(list_ring, read_back.unlit);
+    c.listed = read_cast_list();
     return c;
   }
   const GLuint framebuffer = display_.framebuffer.id();
@@ -1084,9 +1089,13 @@ RenderResult ShadowRenderer::render_frame(const RenderRequest& request, Certifie
   result.timings.main_ms = elapsed_ms(main_start);
 
   const auto readback_start = Clock::now();
+  // Listed first: the image's read then waits for the list too, and the
+  // list's read finds the GPU done.
+  const int ring = plan.read_back.certificates ? list_ring(request, plan) : 0;
+  if (ring >= 1) dispatch_cast_list(ring, plan.read_back.unlit);
   result.image = read_pixels(plan.read_back);
   if (plan.read_back.certificates) {
-    result.certificates = read_certificates(plan.read_back, list_ring(request, plan));
+    result.certificates = read_certificates(plan.read_back, ring);
     if (slivers_on_cpu_) {
       // With the camera's matrix and near plane as the main pass had them.
       PixelCertificates& c = *result.certificates;

@@ -236,9 +236,13 @@ class ShadowRenderer {
   void draw_indices(std::size_t first, std::size_t count);
   /// Every pixel's certificate (and the unlit colours, and the shaders'
   /// sliver marks) read back; or, with a `list_ring` of 1 or more, only the
-  /// pixels pixels_to_ray_cast would find for that ring, listed by the GPU.
+  /// pixels pixels_to_ray_cast would find for that ring, as
+  /// dispatch_cast_list(list_ring, ...) listed them.
   PixelCertificates read_certificates(const ReadBack& read_back, int list_ring);
-  std::vector<PixelCertificates::ListedPixel> list_pixels_to_ray_cast(int ring, bool unlit);
+  /// cast_list.comp's passes over the display's certificates, queued; and
+  /// the list they made, read back.
+  void dispatch_cast_list(int ring, bool unlit);
+  std::vector<PixelCertificates::ListedPixel> read_cast_list();
   /// The ring the GPU lists a certified frame's pixels for, or 0 where the
   /// CPU finds them (set_pixels_listed_on_gpu).
   int list_ring(const RenderRequest& request, const FramePlan& plan) const;
