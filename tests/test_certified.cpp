@@ -13,6 +13,7 @@
 #include <iterator>
 #include <random>
 #include <string>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -385,6 +386,22 @@ TEST(CertifiedFrame, TheGpuListsExactlyThePixelsTheCpuFinds) {
     requests.push_back(load_scene_request(UMBRA_SCENES_DIR, name, {{"width", 320}, {"height", 180}}));
   std::mt19937 random(20261128);
   for (int i = 0; i < 6; ++i) requests.push_back(request(random_scene(random).dump()));
+  // Sizes that are no multiple of the 16 x 16 groups, and a ring of about
+  // the image's size (a sphere filling a 17-pixel-high view).
+  for (const auto& [name, width, height] : {std::tuple{"mesh-torus-knot", 97, 61}, std::tuple{"columns", 33, 17}}) {
+    requests.push_back(load_scene_request(UMBRA_SCENES_DIR, name, {{"width", width}, {"height", height}}));
+  }
+  RenderRequest wide_ring = test::builtin_request("cube-on-plane");
+  wide_ring.width = 31;
+  wide_ring.height = 17;
+  SceneObject ball;
+  ball.type = SceneObject::Type::Sphere;
+  ball.radius = 50.0;
+  ball.center = wide_ring.camera.position + glm::dvec3(0.0, 0.0, -50.12);
+  wide_ring.scene.objects.push_back(ball);
+  EXPECT_GT(silhouette_ring(wide_ring) - 1, wide_ring.height);
+  EXPECT_LE(silhouette_ring(wide_ring) - 1, kMostListedRing);
+  requests.push_back(wide_ring);
   ShadowRenderer& renderer = own_renderer();
   renderer.set_certified_passes_on_cpu(false);
   int rings_above_one = 0;
