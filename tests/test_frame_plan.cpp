@@ -559,17 +559,23 @@ TEST(FramePlan, ACertifiedFrameProvesTheFloorLitOrDarkAwayFromTheShadowsOfBounds
 // conservative maps: they would prove nothing at a swollen box's cost per
 // triangle. Built-in scenes' layers all draw theirs.
 TEST(FramePlan, ACertifiedLayerWhoseObjectsTheLightViewMovesByTexelsProvesNothing) {
-  const ParsedRequest far = parse_render_request(R"({"width": 640, "height": 360, "scene": {"objects": [
+  // A 2 cm box at the centre, 5 mm boxes 10^4 away on both sides, seen
+  // from 2 cm, under a light at `light`.
+  const auto far_boxes = [](const std::string& light) {
+    const ParsedRequest parsed = parse_render_request(R"({"width": 640, "height": 360, "scene": {"objects": [
         {"type": "box", "center": [0, 0, 0], "size": [0.02, 0.002, 0.02]},
         {"type": "box", "center": [9534.6, 2860.3, 953.4], "size": [0.005, 0.005, 0.005]},
         {"type": "box", "center": [-9534.6, -2860.3, -953.4], "size": [0.005, 0.005, 0.005]}]},
-      "light": {"position": [19069.2, 5720.7, 1906.9], "target": [0, 0, 0]},
+      "light": {"position": [)" + light + R"(], "target": [0, 0, 0]},
       "camera": {"position": [0.0, 0.017, 0.012], "target": [0, 0.001, 0], "near": 0.0001, "far": 0.1},
       "shadow": {"filter": "exact", "map_size": 2048}})",
-                                                 Route::Render, {});
-  ASSERT_TRUE(far.ok()) << far.error.message;
-  const Mesh far_mesh = tessellate(far.request->scene);
-  const FramePlan far_plan = plan_frame(*far.request, far_mesh, "far", KeptShadowMap{}, CertifiedPath::Maps);
+                                                       Route::Render, {});
+    EXPECT_TRUE(parsed.ok()) << parsed.error.message;
+    return parsed.ok() ? *parsed.request : RenderRequest{};
+  };
+  const RenderRequest far = far_boxes("19069.2, 5720.7, 1906.9");
+  const Mesh far_mesh = tessellate(far.scene);
+  const FramePlan far_plan = plan_frame(far, far_mesh, "far", KeptShadowMap{}, CertifiedPath::Maps);
   ASSERT_FALSE(far_plan.shadow.layers.empty());
   for (const ShadowLayerDraw& layer : far_plan.shadow.layers) EXPECT_TRUE(layer.proves_nothing) << layer.layer;
   for (const char* name : {"three-cubes", "torus-knot", "cube-on-plane"}) {
@@ -582,17 +588,9 @@ TEST(FramePlan, ACertifiedLayerWhoseObjectsTheLightViewMovesByTexelsProvesNothin
   // Only the objects a layer draws count: the same far boxes, with the
   // light's view near the scene's centre (a sun over the small box) and
   // out of the camera's cascades, leave them alone.
-  const ParsedRequest aside = parse_render_request(R"({"width": 640, "height": 360, "scene": {"objects": [
-        {"type": "box", "center": [0, 0, 0], "size": [0.02, 0.002, 0.02]},
-        {"type": "box", "center": [9534.6, 2860.3, 953.4], "size": [0.005, 0.005, 0.005]},
-        {"type": "box", "center": [-9534.6, -2860.3, -953.4], "size": [0.005, 0.005, 0.005]}]},
-      "light": {"position": [0.01, 0.03, 0.02], "target": [0, 0, 0]},
-      "camera": {"position": [0.0, 0.017, 0.012], "target": [0, 0.001, 0], "near": 0.0001, "far": 0.1},
-      "shadow": {"filter": "exact", "map_size": 2048}})",
-                                                 Route::Render, {});
-  ASSERT_TRUE(aside.ok()) << aside.error.message;
-  const Mesh aside_mesh = tessellate(aside.request->scene);
-  const FramePlan aside_plan = plan_frame(*aside.request, aside_mesh, "aside", KeptShadowMap{}, CertifiedPath::Maps);
+  const RenderRequest aside = far_boxes("0.01, 0.03, 0.02");
+  const Mesh aside_mesh = tessellate(aside.scene);
+  const FramePlan aside_plan = plan_frame(aside, aside_mesh, "aside", KeptShadowMap{}, CertifiedPath::Maps);
   ASSERT_FALSE(aside_plan.shadow.layers.empty());
   for (const ShadowLayerDraw& layer : aside_plan.shadow.layers) {
     bool draws_far = false;

@@ -21,6 +21,16 @@ std::string info_log(GLuint object, GetIv get_iv, GetLog get_log) {
   return log;
 }
 
+// Links `program` (its shaders attached); throws with GL's log, naming `files`.
+void link(const Program& program, const std::string& files) {
+  glLinkProgram(program.id());
+  GLint ok = GL_FALSE;
+  glGetProgramiv(program.id(), GL_LINK_STATUS, &ok);
+  if (ok != GL_TRUE)
+    throw std::runtime_error("GLSL link error in " + files + ":\n" +
+                             info_log(program.id(), glGetProgramiv, glGetProgramInfoLog));
+}
+
 Shader compile(GLenum stage, std::string_view file, std::string_view source) {
   Shader shader(glCreateShader(stage));
   const GLchar* text = source.data();
@@ -85,12 +95,7 @@ Program build_compute_program(std::string_view compute_file, const std::string& 
   const Shader compute = compile(GL_COMPUTE_SHADER, compute_file, prelude + with_includes(compute_file));
   Program program(glCreateProgram());
   glAttachShader(program.id(), compute.id());
-  glLinkProgram(program.id());
-  GLint ok = GL_FALSE;
-  glGetProgramiv(program.id(), GL_LINK_STATUS, &ok);
-  if (ok != GL_TRUE)
-    throw std::runtime_error("GLSL link error in " + std::string(compute_file) + ":\n" +
-                             info_log(program.id(), glGetProgramiv, glGetProgramInfoLog));
+  link(program, std::string(compute_file));
   check_block_layout(program);
   check_bindings(program);
   return program;
@@ -148,12 +153,7 @@ Program build_program_from_sources(std::string_view vertex_file, std::string_vie
     geometry.emplace(compile(GL_GEOMETRY_SHADER, geometry_file, geometry_source));
     glAttachShader(program.id(), geometry->id());
   }
-  glLinkProgram(program.id());
-  GLint ok = GL_FALSE;
-  glGetProgramiv(program.id(), GL_LINK_STATUS, &ok);
-  if (ok != GL_TRUE)
-    throw std::runtime_error("GLSL link error in " + std::string(vertex_file) + " + " + std::string(fragment_file) +
-                             ":\n" + info_log(program.id(), glGetProgramiv, glGetProgramInfoLog));
+  link(program, std::string(vertex_file) + " + " + std::string(fragment_file));
   return program;
 }
 
@@ -180,20 +180,18 @@ void check_bindings(const Program& program) {
   const GLint base = glGetUniformLocation(id, "u_triangle_base");
   if (base >= 0 && base != kUniformLocationTriangleBase)
     refuse("uniform u_triangle_base's location", base, kUniformLocationTriangleBase);
-  for (const TextureUnit& texture : kTextureUnits) {
-    const GLint sampler = glGetUniformLocation(id, texture.glsl_name);
-    if (sampler < 0) continue;
-    GLint unit = -1;
-    glGetUniformiv(id, sampler, &unit);
-    if (unit != texture.unit) refuse(std::string(texture.glsl_name) + "'s texture unit", unit, texture.unit);
-  }
-  for (const TextureUnit& image : kImageUnits) {
-    const GLint uniform = glGetUniformLocation(id, image.glsl_name);
-    if (uniform < 0) continue;
-    GLint unit = -1;
-    glGetUniformiv(id, uniform, &unit);
-    if (unit != image.unit) refuse(std::string(image.glsl_name) + "'s image unit", unit, image.unit);
-  }
+  // A sampler's or an image's uniform holds its unit.
+  const auto check_units = [&](const auto& units, const char* what) {
+    for (const TextureUnit& u : units) {
+      const GLint uniform = glGetUniformLocation(id, u.glsl_name);
+      if (uniform < 0) continue;
+      GLint unit = -1;
+      glGetUniformiv(id, uniform, &unit);
+      if (unit != u.unit) refuse(std::string(u.glsl_name) + "'s " + what, unit, u.unit);
+    }
+  };
+  check_units(kTextureUnits, "texture unit");
+  check_units(kImageUnits, "image unit");
   const GLuint list = glGetProgramResourceIndex(id, GL_SHADER_STORAGE_BLOCK, "CastList");
   if (list != GL_INVALID_INDEX) {
     const GLenum property = GL_BUFFER_BINDING;
