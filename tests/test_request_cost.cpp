@@ -366,6 +366,21 @@ TEST(RequestCost, TheExactFilterTakesTheCheapestPath) {
     return -1.0;
   };
   EXPECT_GE(part(estimate_cost(teapot), "certified maps and uncertain pixels"), part(estimate_cost(as_exact), "ray cast"));
+  // Where llvmpipe takes the maps and a GPU would not (a small frame of a
+  // box on a floor: the ray cast is cheaper there than a GPU layer's fixed
+  // cost), the estimate prices the path of the GL asked about: on a GPU,
+  // the ray cast of every pixel.
+  const RenderRequest small = load_scene_request(
+      UMBRA_SCENES_DIR, "contact-line",
+      {{"width", 160}, {"height", 90}, {"shadow", {{"filter", "exact"}, {"map_size", 256}}}});
+  const RequestCost small_cost = estimate_cost(small);
+  ASSERT_EQ(small_cost.exact_filter_path, CertifiedPath::Maps);
+  ASSERT_NE(small_cost.exact_filter_path_on_gpu, CertifiedPath::Maps);
+  RenderRequest small_exact = small;
+  small_exact.output = Output::Exact;
+  const double ray_cast = part(estimate_cost(small_exact), "ray cast");
+  EXPECT_DOUBLE_EQ(part(estimate_cost(small, CertifyingGl::Gpu), "certified maps and uncertain pixels"), ray_cast);
+  EXPECT_NE(part(small_cost, "certified maps and uncertain pixels"), ray_cast);
 }
 
 // The built-in models and the bench's mesh scenes: a few layers deep at

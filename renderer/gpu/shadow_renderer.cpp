@@ -932,6 +932,9 @@ void ShadowRenderer::dispatch_cast_list(int ring, bool unlit) {
     for (gl::Texture& marks : display_.cast_marks) {
       marks = gl::create_texture(GL_TEXTURE_2D);
       glTextureStorage2D(marks.id(), 1, GL_R8UI, w, h);
+      // Read as images only, but complete as a texture all the same.
+      glTextureParameteri(marks.id(), GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTextureParameteri(marks.id(), GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     }
     display_.cast_list = gl::create_buffer();
     glNamedBufferStorage(display_.cast_list.id(), GLsizeiptr(kCastListHeaderBytes + pixels * sizeof(ListedPixel)),

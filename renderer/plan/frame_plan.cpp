@@ -438,7 +438,11 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
   for (std::size_t layer = 0; layer < light.views.size(); ++layer) {
     ShadowLayerDraw draw;
     draw.layer = int(layer);
-    std::vector<bool> layer_objects;  // the objects the layer draws
+    // The objects the layer draws (or fewer: past kMaxRuns scene_draw_ranges
+    // draws some more in one range; their triangles are swollen by their own
+    // rounding in the maps all the same, and a far object cannot reach a
+    // view its rounding is not even a texel of).
+    std::vector<bool> layer_objects;
     if (fixed) {
       draw.clear_whole = true;
       draw.draws = scene_draw_ranges(mesh, closed_cull, drawn);

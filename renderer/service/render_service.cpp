@@ -208,6 +208,9 @@ struct RenderService::Impl {
   // The GL is llvmpipe, which request_cost's estimates are calibrated on
   // (set with info, before any job runs).
   bool llvmpipe = false;
+  // Filter "exact"'s estimate prices the path this GL takes (set before
+  // the service takes its first request: see run's `ready`).
+  CertifyingGl certifying_gl() const { return llvmpipe ? CertifyingGl::Llvmpipe : CertifyingGl::Gpu; }
   std::thread thread;
   std::thread reaper;
 
@@ -478,14 +481,16 @@ RenderService::~RenderService() {
   while (impl_->in_flight.load() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
-void RenderService::check_cost(const RenderRequest& request) { impl_->check_budget(estimate_cost(request)); }
+void RenderService::check_cost(const RenderRequest& request) {
+  impl_->check_budget(estimate_cost(request, impl_->certifying_gl()));
+}
 
 std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGoneCheck client_gone) {
   // Before anything is queued: a GL frame cannot be stopped once it is
   // drawing, so refusing what would take too long is what bounds the time
   // one request holds the GL thread.
   const bool ray_cast = request.output == Output::Exact || request.output == Output::Error;
-  const RequestCost cost = estimate_cost(request);
+  const RequestCost cost = estimate_cost(request, impl_->certifying_gl());
   impl_->check_budget(cost);
   if (ray_cast) return submit_reference(std::move(request), std::move(client_gone), cost);
   impl_->reserve();

@@ -92,7 +92,7 @@ struct RequestCost {
   CostFactors factors;
   /// Filter "exact" (not the exact or depth output): the path priced, the
   /// cheapest on the reference machine (exact_filter_paths(...).best()),
-  /// which the service takes on llvmpipe. Maps otherwise.
+  /// which the service takes on llvmpipe.
   CertifiedPath exact_filter_path = CertifiedPath::Maps;
   /// The same priced for a GPU (exact_filter_paths(..., CertifyingGl::Gpu)),
   /// which the service takes there.
@@ -119,8 +119,16 @@ struct RequestCost {
 /// parser guarantees). Plans the light's views as the renderer will.
 CostFactors cost_factors(const RenderRequest& request);
 
-/// The estimate: cost_factors priced by the calibration in request_cost.cpp.
-RequestCost estimate_cost(const RenderRequest& request);
+/// Where the GL certifying filter "exact"'s frames runs: on llvmpipe, whose
+/// maps and sliver marks the CPU draws, or a GPU, whose shaders draw them:
+/// a quad per triangle and pass there costs about 1/25 of llvmpipe's, a
+/// layer about 0.6 ms, and the machine's CPU casts its rays in about 0.45
+/// of the time priced (one H100 machine's measurements, request_cost.cpp).
+enum class CertifyingGl { Llvmpipe, Gpu };
+
+/// The estimate: cost_factors priced by the calibration in request_cost.cpp;
+/// filter "exact"'s part on the path `gl` takes.
+RequestCost estimate_cost(const RenderRequest& request, CertifyingGl gl = CertifyingGl::Llvmpipe);
 
 /// Filter "exact" on the reference machine (llvmpipe): what each way of
 /// certifying a frame (CertifiedPath, plan/frame_plan.hpp) costs beyond
@@ -151,13 +159,6 @@ struct ExactFilterPaths {
   /// The cheapest; Maps on a tie.
   CertifiedPath best() const;
 };
-/// Where the GL certifying the frame runs: on llvmpipe, whose maps and
-/// sliver marks the CPU draws (the prices above), or a GPU, whose shaders
-/// draw them: a quad per triangle and pass there costs about 1/25 of
-/// llvmpipe's, a layer about 0.6 ms, and the machine's CPU casts its rays
-/// in about 0.45 of the time priced (one H100 machine's measurements,
-/// request_cost.cpp).
-enum class CertifyingGl { Llvmpipe, Gpu };
 ExactFilterPaths exact_filter_paths(const RenderRequest& request, CertifyingGl gl = CertifyingGl::Llvmpipe);
 
 /// A sun-hours analysis (POST /api/sun-hours), by the faster of its two
