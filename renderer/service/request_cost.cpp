@@ -485,8 +485,12 @@ RequestCost estimate_cost(const RenderRequest& request, CertifyingGl gl) {
     // unlit colours read back, the reference's records of the cast pixels.
     bytes += std::uint64_t(f.shadow_texels) * 4 * sizeof(float) + pixels * (8 + 4 + 3);
     bytes += pixels * sizeof(ExactPixel) + f.bvh_triangles * kBvhBytesPerTriangle;
-    // On llvmpipe, the passes drawn on the CPU.
-    if (f.triangles <= kMostConservativeTriangles) bytes += f.triangles * kCertifiedCpuBytesPerTriangle;
+    // On llvmpipe, the passes drawn on the CPU; on a GPU, the list of the
+    // pixels to ray cast (ShadowRenderer::dispatch_cast_list: two R8UI
+    // images and up to 8 bytes a pixel).
+    if (gl == CertifyingGl::Llvmpipe && f.triangles <= kMostConservativeTriangles)
+      bytes += f.triangles * kCertifiedCpuBytesPerTriangle;
+    if (gl == CertifyingGl::Gpu) bytes += pixels * (2 + 8);
   }
   cost.peak_bytes = bytes;
   return cost;
