@@ -4,6 +4,7 @@
 // Everything here is unit tested without a GPU (tests/test_light_math.cpp).
 #pragma once
 
+#include <algorithm>
 #include <optional>
 #include <vector>
 
@@ -61,6 +62,18 @@ double sun_disc_tan_radius(const Light& light);
 /// maps and certificate take it in (docs/certified-shadows.md).
 inline double light_view_rounding(double extent, double translation) {
   return 1e-6 * (1.7320508075688772 * extent + translation);
+}
+
+/// The world size of one texel of filter "exact"'s conservative maps, each
+/// `coarse_texels` texels of a layer whose texels are `texel_size` (a point
+/// light's per unit of distance): a directional light's smaller side; a
+/// point light's at clip w `nearest_w`, off its axis where it is smallest
+/// (over 1 + 2 tan_half). The plan, the maps and their folds measure
+/// swell and rounding in it.
+inline double certified_texel_world(bool perspective, const glm::dvec2& texel_size, double tan_half,
+                                    double coarse_texels, double nearest_w) {
+  return perspective ? texel_size.x * nearest_w * coarse_texels / (1.0 + 2.0 * tan_half)
+                     : std::min(texel_size.x, texel_size.y) * coarse_texels;
 }
 
 /// glm::lookAt, except that when `up` is (nearly) parallel to the view

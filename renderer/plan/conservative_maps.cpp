@@ -146,16 +146,13 @@ bool set_up(const glm::dvec4 in_clip[3], const ConservativeView& view, const Con
   s.max_depth = max_depth;
   s.owner = turns_to_light ? facing_owner : owner;
   const double coarse_texels = double(view.layer_size) / size;
-  double texel_world = 0.0, window_per_world = 0.0;
-  if (view.perspective) {
-    double nearest_w = 1e300;
-    for (int i = 0; i < n; ++i) nearest_w = std::min(nearest_w, poly[i].w);
-    texel_world = view.texel_size.x * nearest_w * coarse_texels / (1.0 + 2.0 * view.tan_half);
-    window_per_world = view.near_plane * view.far_plane / ((view.far_plane - view.near_plane) * nearest_w * nearest_w);
-  } else {
-    texel_world = std::min(view.texel_size.x, view.texel_size.y) * coarse_texels;
-    window_per_world = 1.0 / (view.far_plane - view.near_plane);
-  }
+  double nearest_w = 1e300;
+  for (int i = 0; i < n; ++i) nearest_w = std::min(nearest_w, poly[i].w);
+  const double texel_world =
+      certified_texel_world(view.perspective, view.texel_size, view.tan_half, coarse_texels, nearest_w);
+  const double window_per_world =
+      view.perspective ? view.near_plane * view.far_plane / ((view.far_plane - view.near_plane) * nearest_w * nearest_w)
+                       : 1.0 / (view.far_plane - view.near_plane);
   // The true surface reaches past the drawn triangle by the shape's
   // tessellation distance and the light view's rounding of its corners.
   const double rounding = light_view_rounding(object, view.view);
@@ -297,9 +294,8 @@ void ConservativeMaps::find_folds(ClipCorners& clip_of, const SliverEdges& edges
     // fold is nearest the light (set_up's texel size).
     const double extent = std::max({size, std::abs(f.a.x), std::abs(f.a.y), std::abs(f.b.x), std::abs(f.b.y)});
     const double coarse_texels = double(view.layer_size) / size;
-    const double texel_world =
-        view.perspective ? view.texel_size.x * std::max(std::min(a.w, b.w), w_min) * coarse_texels / (1.0 + 2.0 * view.tan_half)
-                         : std::min(view.texel_size.x, view.texel_size.y) * coarse_texels;
+    const double texel_world = certified_texel_world(view.perspective, view.texel_size, view.tan_half, coarse_texels,
+                                                     std::max(std::min(a.w, b.w), w_min));
     const double rounding = e.object < objects.size() ? light_view_rounding(objects[e.object], view.view) : 0.0;
     f.reach = 0.5 * std::sqrt(2.0) + 1.0 / 32.0 + 1e-3 + 1e-6 * extent + rounding / texel_world;
     folds_.push_back(f);

@@ -466,8 +466,7 @@ ShadowPassPlan plan_certified_shadow_pass(const RenderRequest& request, const Sh
     const ShadowView& v = light.views[layer];
     const double translation = glm::length(glm::dvec3((v.view * glm::translate(glm::dmat4(1.0), mesh.origin))[3]));
     const double coarse = double(light.layer_size) / double(certified_map_size(light.layer_size));
-    const double texel = light.perspective ? v.texel_size.x * v.near_plane * coarse / (1.0 + 2.0 * v.tan_half)
-                                           : std::min(v.texel_size.x, v.texel_size.y) * coarse;
+    const double texel = certified_texel_world(light.perspective, v.texel_size, v.tan_half, coarse, v.near_plane);
     for (const ObjectRange& r : mesh.object_ranges)
       if (r.object < layer_objects.size() && layer_objects[r.object] &&
           light_view_rounding(largest_coordinate(mesh.bounds.at(r.object), mesh.origin), translation) >
