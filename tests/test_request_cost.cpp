@@ -375,7 +375,7 @@ TEST(RequestCost, TheExactFilterTakesTheCheapestPath) {
       {{"width", 160}, {"height", 90}, {"shadow", {{"filter", "exact"}, {"map_size", 256}}}});
   const RequestCost small_cost = estimate_cost(small);
   ASSERT_EQ(small_cost.exact_filter_path, CertifiedPath::Maps);
-  ASSERT_NE(small_cost.exact_filter_path_on_gpu, CertifiedPath::Maps);
+  ASSERT_NE(estimate_cost(small, CertifyingGl::Gpu).exact_filter_path, CertifiedPath::Maps);
   RenderRequest small_exact = small;
   small_exact.output = Output::Exact;
   const double ray_cast = part(estimate_cost(small_exact), "ray cast");

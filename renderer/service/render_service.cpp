@@ -57,17 +57,15 @@ struct RenderService::Impl {
     // The estimate's dominant part: what a frame cut short at max_run_time
     // tells its client to lower.
     CostPart dominant;
-    // Filter "exact": the paths the estimate priced lowest on llvmpipe and
-    // on a GPU (RequestCost::exact_filter_path, exact_filter_path_on_gpu).
+    // Filter "exact": the path the estimate priced lowest for this GL
+    // (RequestCost::exact_filter_path).
     CertifiedPath certified_path = CertifiedPath::Maps;
-    CertifiedPath certified_path_on_gpu = CertifiedPath::Maps;
   };
 
   std::future<RenderResult> enqueue(RenderRequest request, bool holds_place, ClientGoneCheck client_gone,
-                                    std::uint64_t peak_bytes, CostPart dominant, CertifiedPath certified_path,
-                                    CertifiedPath certified_path_on_gpu) {
+                                    std::uint64_t peak_bytes, CostPart dominant, CertifiedPath certified_path) {
     Job job{std::move(request), {},        std::chrono::steady_clock::now(), holds_place, std::move(client_gone),
-            peak_bytes,         std::move(dominant), certified_path, certified_path_on_gpu};
+            peak_bytes,         std::move(dominant), certified_path};
     std::future<RenderResult> result = job.promise.get_future();
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -205,12 +203,10 @@ struct RenderService::Impl {
   std::atomic<std::uint64_t> cached{0};  // ShadowRenderer::cached_bytes after the last job or release
   bool idle_release_due = false;  // guarded by mutex: work was done since the last idle release
   RendererInfo info;
-  // The GL is llvmpipe, which request_cost's estimates are calibrated on
-  // (set with info, before any job runs).
-  bool llvmpipe = false;
-  // Filter "exact"'s estimate prices the path this GL takes (set before
-  // the service takes its first request: see run's `ready`).
-  CertifyingGl certifying_gl() const { return llvmpipe ? CertifyingGl::Llvmpipe : CertifyingGl::Gpu; }
+  // llvmpipe (which request_cost's estimates are calibrated on) or a GPU:
+  // filter "exact"'s estimate prices the path this GL takes. Set with
+  // info, before the service takes its first request (run's `ready`).
+  CertifyingGl certifying_gl = CertifyingGl::Llvmpipe;
   std::thread thread;
   std::thread reaper;
 
@@ -383,7 +379,8 @@ struct RenderService::Impl {
       // Read by other threads without a lock, so set once: a fresh context
       // is chosen by the same rules (EglContext) and is on the same driver.
       info = {renderer->gl_renderer(), renderer->gl_version(), context->source()};
-      llvmpipe = info.gl_renderer.find("llvmpipe") != std::string::npos;
+      const bool llvmpipe = info.gl_renderer.find("llvmpipe") != std::string::npos;
+      certifying_gl = llvmpipe ? CertifyingGl::Llvmpipe : CertifyingGl::Gpu;
     } catch (...) {
       ready.set_exception(std::current_exception());
       return;
@@ -430,8 +427,7 @@ struct RenderService::Impl {
         // every request queued behind it, and a drain) without bound.
         // Filter "exact" takes the path its estimate priced lowest for
         // this GL (request_cost.hpp).
-        result = renderer->render(job.request, FrameWatch{started + limits.max_run_time},
-                                  llvmpipe ? job.certified_path : job.certified_path_on_gpu);
+        result = renderer->render(job.request, FrameWatch{started + limits.max_run_time}, job.certified_path);
         if (result->certificates) settle(*result, job, started);
         if (result->shadow_reused) shadow_reuses.fetch_add(1);
         if (result->scene_uploaded) scene_uploads.fetch_add(1);
@@ -482,7 +478,7 @@ RenderService::~RenderService() {
 }
 
 void RenderService::check_cost(const RenderRequest& request) {
-  impl_->check_budget(estimate_cost(request, impl_->certifying_gl()));
+  impl_->check_budget(estimate_cost(request, impl_->certifying_gl));
 }
 
 std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGoneCheck client_gone) {
@@ -490,12 +486,12 @@ std::future<RenderResult> RenderService::submit(RenderRequest request, ClientGon
   // drawing, so refusing what would take too long is what bounds the time
   // one request holds the GL thread.
   const bool ray_cast = request.output == Output::Exact || request.output == Output::Error;
-  const RequestCost cost = estimate_cost(request, impl_->certifying_gl());
+  const RequestCost cost = estimate_cost(request, impl_->certifying_gl);
   impl_->check_budget(cost);
   if (ray_cast) return submit_reference(std::move(request), std::move(client_gone), cost);
   impl_->reserve();
   return impl_->enqueue(std::move(request), true, std::move(client_gone), cost.peak_bytes, cost.dominant(),
-                        cost.exact_filter_path, cost.exact_filter_path_on_gpu);
+                        cost.exact_filter_path);
 }
 
 // The exact reference needs no GL: it is ray cast on its own thread so the GL
@@ -513,8 +509,7 @@ std::future<RenderResult> RenderService::submit_reference(RenderRequest request,
   if (request.output == Output::Error) {
     RenderRequest shadow = request;
     shadow.output = Output::Shadow;
-    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0, dominant, cost.exact_filter_path,
-                              cost.exact_filter_path_on_gpu);
+    rendered = impl_->enqueue(std::move(shadow), false, client_gone, 0, dominant, cost.exact_filter_path);
   }
   std::string dominant_field = dominant.field;
   Impl* impl = impl_.get();

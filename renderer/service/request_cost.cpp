@@ -444,13 +444,10 @@ RequestCost estimate_cost(const RenderRequest& request, CertifyingGl gl) {
                          request.output != Output::Depth && request.output != Output::Exact;
   if (certified) {
     const CostFactors e = cost_factors(as_exact_output(request));
-    cost.exact_filter_path = exact_filter_paths(request, f, e, CertifyingGl::Llvmpipe).best();
-    cost.exact_filter_path_on_gpu = exact_filter_paths(request, f, e, CertifyingGl::Gpu).best();
-    // The maps and the pixels they leave, on the path this GL takes;
-    // without maps (where they would cost more), every pixel but the proved
-    // plane parts' may be ray cast.
-    const CertifiedPath path = gl == CertifyingGl::Gpu ? cost.exact_filter_path_on_gpu : cost.exact_filter_path;
-    const double settle = path == CertifiedPath::Maps
+    cost.exact_filter_path = exact_filter_paths(request, f, e, gl).best();
+    // The maps and the pixels they leave; without maps (where they would
+    // cost more), every pixel but the proved plane parts' may be ray cast.
+    const double settle = cost.exact_filter_path == CertifiedPath::Maps
                               ? 8.0 * (f.shadow_texel_layers * kMsPerShadowTexelLayer + f.shadow_texels * kMsPerShadowTexel) +
                                     ray_cast_ms(e) / 3.0
                               : ray_cast_ms(e);

@@ -91,12 +91,9 @@ struct CostPart {
 struct RequestCost {
   CostFactors factors;
   /// Filter "exact" (not the exact or depth output): the path priced, the
-  /// cheapest on the reference machine (exact_filter_paths(...).best()),
-  /// which the service takes on llvmpipe.
+  /// cheapest for the GL estimate_cost was asked about
+  /// (exact_filter_paths(..., gl).best()), which the service takes.
   CertifiedPath exact_filter_path = CertifiedPath::Maps;
-  /// The same priced for a GPU (exact_filter_paths(..., CertifyingGl::Gpu)),
-  /// which the service takes there.
-  CertifiedPath exact_filter_path_on_gpu = CertifiedPath::Maps;
   /// Every part, in a fixed order; parts that do not apply are 0 ms.
   std::vector<CostPart> parts;
   /// Sum of the parts: the GL thread's and the ray cast's time together
