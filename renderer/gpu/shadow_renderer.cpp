@@ -940,8 +940,9 @@ void ShadowRenderer::dispatch_cast_list(int ring, bool unlit) {
     glNamedBufferStorage(display_.cast_list.id(), GLsizeiptr(kCastListHeaderBytes + pixels * sizeof(ListedPixel)),
                          nullptr, GL_DYNAMIC_STORAGE_BIT);
   }
+  // A program per pass, and the list's with the unlit colour in the last slot.
   const auto program = [&](CastPass pass, bool with_unlit) -> GLuint {
-    std::optional<gl::Program>& p = display_.cast_programs[int(pass) + (with_unlit ? 1 : 0)];
+    std::optional<gl::Program>& p = display_.cast_programs[with_unlit ? 3 : int(pass)];
     if (!p)
       p = gl::build_compute_program("cast_list.comp", glsl_prelude("#define CAST_PASS " + std::to_string(int(pass)) +
                                                                   "\n#define CAST_UNLIT " + (with_unlit ? "1" : "0") +

@@ -179,7 +179,7 @@ class ShadowRenderer {
     // Where the GPU lists the pixels to ray cast (cast_list.comp): two R8UI
     // images of marks and the list (kCastListHeaderBytes, then a
     // ListedPixel per pixel at most), made when first asked for; its
-    // programs per CastPass, the list's with and without the unlit colour.
+    // programs per CastPass, then the list's with the unlit colour.
     gl::Texture cast_marks[2];
     gl::Buffer cast_list;
     std::size_t cast_list_guess = 0;  // how many the last frame listed
