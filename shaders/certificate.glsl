@@ -34,3 +34,9 @@ bool has_flag(vec4 facts, int flag) { return (int(facts.z) & flag) != 0; }
 uint owner_of(int triangle, uvec2 ids, vec4 facts, bool by_patch) {
   return has_flag(facts, OBJECT_FLAG_MODEL) && !by_patch ? (uint(triangle) | CERTIFICATE_TRIANGLE_OWNER) : ids.y;
 }
+
+// How far (world units) a float view matrix relative to the mesh origin may
+// move a point whose coordinates there reach `extent`: about 1e-6 of the
+// coordinates involved, the view's `translation` among them
+// (light_view_rounding in core/light_math.hpp).
+float light_view_rounding(float extent, float translation) { return 1e-6 * (extent + translation); }

@@ -166,8 +166,8 @@ void main() {
   // most: a texel of this map at the polygon's nearest depth, window depth
   // where it changes fastest, and a point light's off-axis projection.
   // And the light view's rounding of its corners (about 1e-6 of the
-  // coordinates involved: light_view_rounding in plan/conservative_maps.hpp).
-  float swell_world = facts.x + 1e-6 * (sqrt(3.0) * facts.w + length(u.light_view[u_layer][3].xyz));
+  // coordinates involved: light_view_rounding).
+  float swell_world = facts.x + light_view_rounding(sqrt(3.0) * facts.w, length(u.light_view[u_layer][3].xyz));
   vec4 view = u.view_depth_texel[u_layer];
   float coarse_texels = u.map_size / u.certified_map_size;
 #if LIGHT_PERSPECTIVE

@@ -509,15 +509,15 @@ layout(binding = TEXTURE_UNIT_CERTIFY_COVER) uniform sampler2DArray u_cover;
 // How far (world units) the light's float view matrix may move a point
 // whose coordinates (relative to the mesh origin) reach `extent`: about
 // 1e-6 of the coordinates involved, the view's translation among them
-// (seen_here's rounding term, for the light; light_view_rounding in
-// plan/conservative_maps.hpp for the maps' corners).
+// (seen_here's rounding term, for the light; light_view_rounding,
+// certificate.glsl, as the maps take it for their corners).
 float light_rounding(float extent) {
 #if LIGHT_CUBE
   float translation = length(u.light_position.xyz);
 #else
   float translation = length(u.light_view[0][3].xyz);
 #endif
-  return 1e-6 * (extent + translation);
+  return light_view_rounding(extent, translation);
 }
 
 // The verdict on a point that faces the light with margin: the maps'
